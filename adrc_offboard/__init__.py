@@ -1,0 +1,1 @@
+"""adrc_offboard package."""
