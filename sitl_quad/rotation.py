@@ -1,0 +1,125 @@
+"""Quaternion and Euler helpers, and the thrust-vector -> attitude map shared by every position loop.
+
+Quaternions are (w, x, y, z), body FRD -> world NED. Euler angles are ZYX: yaw psi about down, pitch theta,
+roll phi. Scalar maths on floats: these run in 250 Hz and 50 Hz loops where numpy's per-call cost dominates.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sitl_quad.state import AttitudeTarget
+
+
+def quat_from_euler(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    return np.array([
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    ])
+
+
+def euler_from_quat(q) -> tuple[float, float, float]:
+    """(roll, pitch, yaw) in radians; pitch clamped at +-90 deg where the ZYX form is singular."""
+    w, x, y, z = (float(c) for c in q)
+    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
+    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return roll, pitch, yaw
+
+
+def quat_multiply(a, b) -> np.ndarray:
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return np.array([
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ])
+
+
+def quat_conjugate(q) -> np.ndarray:
+    return np.array([q[0], -q[1], -q[2], -q[3]])
+
+
+def rotate(q, v) -> np.ndarray:
+    """Rotate the body vector v into the world frame by q."""
+    w, x, y, z = q
+    vx, vy, vz = v
+    # v' = v + 2w (r x v) + 2 r x (r x v), r = (x, y, z)
+    cx, cy, cz = y * vz - z * vy, z * vx - x * vz, x * vy - y * vx
+    return np.array([
+        vx + 2 * (w * cx + y * cz - z * cy),
+        vy + 2 * (w * cy + z * cx - x * cz),
+        vz + 2 * (w * cz + x * cy - y * cx),
+    ])
+
+
+def wrap_pi(angle: float) -> float:
+    """Wrap an angle to [-pi, pi)."""
+    return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
+def acceleration_to_attitude(
+    acceleration_ned,
+    yaw: float,
+    mass: float,
+    g: float,
+    max_thrust_n: float,
+    max_tilt_rad: float = math.radians(35.0),
+) -> AttitudeTarget:
+    """Desired world acceleration + yaw -> attitude quaternion and normalised thrust (PX4's thrust vector).
+
+    The rotors can only push along body -z, so the wanted specific force f = a - g (NED, g = +z) fixes the
+    body z axis; yaw fixes the rest. The tilt is limited to max_tilt_rad keeping the vertical component,
+    because altitude matters more than horizontal speed near the water.
+    """
+    ax, ay, az = (float(c) for c in acceleration_ned)
+    fx, fy, fz = ax, ay, az - g  # specific force wanted, NED (fz < 0 when pushing up)
+    fz = min(fz, -0.1 * g)  # never ask to push down: rotors cannot
+    horizontal = math.hypot(fx, fy)
+    max_horizontal = -fz * math.tan(max_tilt_rad)
+    if horizontal > max_horizontal:
+        scale = max_horizontal / horizontal
+        fx, fy = fx * scale, fy * scale
+    norm = math.sqrt(fx * fx + fy * fy + fz * fz)
+    # body z axis (down) points against the specific force
+    zbx, zby, zbz = -fx / norm, -fy / norm, -fz / norm
+    # body x axis: heading direction projected into the plane normal to zb
+    cx, cy = math.cos(yaw), math.sin(yaw)
+    # yb = zb x x_c, with x_c = (cos yaw, sin yaw, 0)
+    ybx, yby, ybz = zby * 0.0 - zbz * cy, zbz * cx - zbx * 0.0, zbx * cy - zby * cx
+    yn = math.sqrt(ybx * ybx + yby * yby + ybz * ybz)
+    ybx, yby, ybz = ybx / yn, yby / yn, ybz / yn
+    xbx, xby, xbz = yby * zbz - ybz * zby, ybz * zbx - ybx * zbz, ybx * zby - yby * zbx
+    quaternion = _quat_from_matrix(xbx, ybx, zbx, xby, yby, zby, xbz, ybz, zbz)
+    thrust = min(1.0, max(0.0, mass * norm / max_thrust_n))
+    return AttitudeTarget(quaternion=quaternion, thrust=thrust)
+
+
+def _quat_from_matrix(m00, m01, m02, m10, m11, m12, m20, m21, m22) -> np.ndarray:
+    """Rotation matrix (columns = body axes in world) -> unit quaternion, Shepperd's method."""
+    trace = m00 + m11 + m22
+    if trace > 0:
+        s = 2.0 * math.sqrt(trace + 1.0)
+        q = (0.25 * s, (m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s)
+    elif m00 > m11 and m00 > m22:
+        s = 2.0 * math.sqrt(1.0 + m00 - m11 - m22)
+        q = ((m21 - m12) / s, 0.25 * s, (m01 + m10) / s, (m02 + m20) / s)
+    elif m11 > m22:
+        s = 2.0 * math.sqrt(1.0 + m11 - m00 - m22)
+        q = ((m02 - m20) / s, (m01 + m10) / s, 0.25 * s, (m12 + m21) / s)
+    else:
+        s = 2.0 * math.sqrt(1.0 + m22 - m00 - m11)
+        q = ((m10 - m01) / s, (m02 + m20) / s, (m12 + m21) / s, 0.25 * s)
+    q = np.array(q)
+    if q[0] < 0:
+        q = -q
+    return q / np.linalg.norm(q)
