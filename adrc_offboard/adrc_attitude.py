@@ -1,0 +1,120 @@
+"""The inner loop with ADRC: roll, pitch and yaw channels turning an attitude target into body torques.
+
+Implements `sitl_quad.attitude_control.AttitudeController`. Each body axis is a second-order channel
+  theta_i'' = f_i + b0_i tau_i,   b0_i = 1 / I_i
+(the paper's eq. 1 and 4 with the gyroscopic coupling and wind moments lumped into f_i). The control here is
+the torque tau_i in N m, so b0 = 1/I; the paper's U2..U4 are rotor forces with tau = L U, which would make
+b0 = L/I: same loop, different units. A spec's optional "b0_scale" multiplies b0 (the paper's Remark 3:
+a smaller b0 gives a faster, more aggressive response).
+
+Attitude error comes from quaternions, not Euler angles: q_err = conj(q) * q_target is the rotation from
+the current body to the target body, in body axes, taken the short way round, so a yaw target of +179 deg
+seen from -179 deg is a 2 deg turn. Its rotation vector e (axis times angle) is the per-axis error. Each
+channel's "measured output" is the body-axis angle theta_i integrated from the gyro rate, and its reference
+is theta_i + e_i: the ESO then sees only the vehicle's motion, and a jump in the target (the outer loop
+updates at 50 Hz) goes through the TD, not into the disturbance estimate. theta_i is only a bookkeeping
+coordinate (its drift cancels in theta_i + e_i - theta_i).
+
+AttitudeTarget.body_rates (feed-forward) is ignored; the thrust field is the mixer's business.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from adrc_offboard.adrc import AdrcParameterError
+from adrc_offboard.gains import Channel, channel_parameters, load_gains, make_channel
+from sitl_quad.state import AttitudeTarget, VehicleState
+
+AXES = ("roll", "pitch", "yaw")
+
+
+@dataclass(frozen=True)
+class AdrcAttitudeGains:
+    """Channel specs (see `adrc_offboard.gains`) per axis, without b0, which the inertias give."""
+
+    roll: dict[str, Any]
+    pitch: dict[str, Any]
+    yaw: dict[str, Any]
+    use_measured_rate: bool = True  # the gyro rate is fresher than the ESO's z2
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> AdrcAttitudeGains:
+        unknown = set(data) - {"roll", "pitch", "yaw", "use_measured_rate", "comment"}
+        if unknown:
+            raise AdrcParameterError(f"unknown keys {sorted(unknown)} in attitude gains")
+        try:
+            return cls(roll=dict(data["roll"]), pitch=dict(data["pitch"]), yaw=dict(data["yaw"]),
+                       use_measured_rate=bool(data.get("use_measured_rate", True)))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise AdrcParameterError(f"attitude gains need roll, pitch and yaw channel specs: {exc}") from exc
+
+    @classmethod
+    def load(cls, source: str | Path = "attitude_adrc") -> AdrcAttitudeGains:
+        return cls.from_dict(load_gains(source))
+
+
+class AdrcAttitudeController:
+    """Three ADRC channels at the attitude-loop rate; torques in N m [roll, pitch, yaw]."""
+
+    def __init__(self, Ix: float, Iy: float, Iz: float, gains: AdrcAttitudeGains | None = None,
+                 rate_hz: float = 250.0) -> None:
+        gains = gains if gains is not None else AdrcAttitudeGains.load()
+        if not (math.isfinite(rate_hz) and rate_hz > 0):
+            raise AdrcParameterError(f"rate_hz must be positive, got {rate_hz}")
+        self.gains, self.h = gains, 1.0 / rate_hz
+        self.channels: list[Channel] = []
+        for inertia, spec in zip((Ix, Iy, Iz), (gains.roll, gains.pitch, gains.yaw), strict=True):
+            if not (math.isfinite(inertia) and inertia > 0):
+                raise AdrcParameterError(f"inertias must be positive, got {(Ix, Iy, Iz)}")
+            spec = dict(spec)
+            b0 = spec.pop("b0_scale", 1.0) / inertia
+            self.channels.append(make_channel(channel_parameters(spec, b0), self.h))
+        self._use_rate = gains.use_measured_rate
+        self._theta = [0.0, 0.0, 0.0]
+
+    @classmethod
+    def for_airframe(cls, airframe: Any, gains: AdrcAttitudeGains | None = None,
+                     rate_hz: float = 250.0) -> AdrcAttitudeController:
+        """From any object with .Ix, .Iy, .Iz (kg m^2)."""
+        return cls(float(airframe.Ix), float(airframe.Iy), float(airframe.Iz), gains, rate_hz)
+
+    def reset(self) -> None:
+        for channel in self.channels:
+            channel.reset()
+        self._theta = [0.0, 0.0, 0.0]
+
+    def update(self, target: AttitudeTarget, state: VehicleState, dt: float) -> np.ndarray:
+        """Torque for this step. The channels are fixed-step at 1/rate_hz (the paper's discrete
+        equations); dt only advances the gyro-integrated bookkeeping angles."""
+        w, x, y, z = state.quaternion.tolist()
+        tw, tx, ty, tz = target.quaternion.tolist()
+        # q_err = conj(q) * q_target (rotation current body -> target body, body axes)
+        ew = w * tw + x * tx + y * ty + z * tz
+        ex = w * tx - x * tw - y * tz + z * ty
+        ey = w * ty + x * tz - y * tw - z * tx
+        ez = w * tz - x * ty + y * tx - z * tw
+        if ew < 0.0:  # q and -q are the same rotation; take the short way
+            ew, ex, ey, ez = -ew, -ex, -ey, -ez
+        vector_norm = math.sqrt(ex * ex + ey * ey + ez * ez)
+        # rotation vector = axis * angle, angle = 2 atan2(|v|, w); -> 2 v for small angles
+        scale = 2.0 * math.atan2(vector_norm, ew) / vector_norm if vector_norm > 1e-12 else 2.0
+        errors = (ex * scale, ey * scale, ez * scale)
+        rates = state.angular_velocity.tolist()
+        theta = self._theta
+        torques = [0.0, 0.0, 0.0]
+        for i, channel in enumerate(self.channels):
+            angle = theta[i]
+            rate = rates[i]
+            torques[i] = channel.update(angle + errors[i], angle, 0.0, 0.0, rate if self._use_rate else None)
+            theta[i] = angle + rate * dt
+        return np.array(torques)
+
+    def disturbance_estimates(self) -> dict[str, float]:
+        """Each axis's ESO z3: total angular-acceleration disturbance in rad/s^2."""
+        return {axis: channel.disturbance for axis, channel in zip(AXES, self.channels, strict=True)}
