@@ -101,8 +101,17 @@ class ExtendedStateObserver:
 
     __slots__ = ("alpha1", "alpha2", "b0", "beta1", "beta2", "beta3", "delta", "h", "z1", "z2", "z3")
 
-    def __init__(self, beta1: float, beta2: float, beta3: float, b0: float, delta: float, h: float,
-                 alpha1: float = 0.5, alpha2: float = 0.25) -> None:
+    def __init__(
+        self,
+        beta1: float,
+        beta2: float,
+        beta3: float,
+        b0: float,
+        delta: float,
+        h: float,
+        alpha1: float = 0.5,
+        alpha2: float = 0.25,
+    ) -> None:
         self.beta1, self.beta2, self.beta3 = beta1, beta2, beta3
         self.b0, self.delta, self.h = b0, delta, h
         self.alpha1, self.alpha2 = alpha1, alpha2
@@ -121,8 +130,11 @@ class ExtendedStateObserver:
 
     def linear_zone_gains(self) -> tuple[float, float, float]:
         """(beta1, beta2, beta3) as the observer applies them to small errors (|eps1| <= delta)."""
-        return (self.beta1, self.beta2 * self.delta ** (self.alpha1 - 1.0),
-                self.beta3 * self.delta ** (self.alpha2 - 1.0))
+        return (
+            self.beta1,
+            self.beta2 * self.delta ** (self.alpha1 - 1.0),
+            self.beta3 * self.delta ** (self.alpha2 - 1.0),
+        )
 
     def error_transition_matrix(self) -> np.ndarray:
         """Linearised discrete error dynamics e(k+1) = Phi e(k), e = z - (y, y', f); fal -> linear zone."""
@@ -172,8 +184,16 @@ class AdrcChannelParameters:
 
     def validate(self, h: float) -> None:
         """Raise AdrcParameterError unless the set is usable at sampling step h (seconds)."""
-        _require_finite_positive(h=h, beta1=self.beta1, beta2=self.beta2, beta3=self.beta3,
-                                 delta=self.delta, r1=self.r1, h1=self.h1, c=self.c)
+        _require_finite_positive(
+            h=h,
+            beta1=self.beta1,
+            beta2=self.beta2,
+            beta3=self.beta3,
+            delta=self.delta,
+            r1=self.r1,
+            h1=self.h1,
+            c=self.c,
+        )
         if not math.isfinite(self.b0) or self.b0 == 0.0:
             raise AdrcParameterError(f"b0 must be finite and non-zero, got {self.b0}")
         for name, alpha in (("alpha1", self.alpha1), ("alpha2", self.alpha2)):
@@ -182,10 +202,14 @@ class AdrcChannelParameters:
         if self.r0 is not None:
             _require_finite_positive(r0=self.r0)
             if self.h0 is not None and not self.h0 >= h:
-                raise AdrcParameterError(f"TD filter factor h0 = {self.h0} is below the step h = {h}: "
-                                         "the discrete TD then overshoots and chatters; use h0 >= h")
+                raise AdrcParameterError(
+                    f"TD filter factor h0 = {self.h0} is below the step h = {h}: "
+                    "the discrete TD then overshoots and chatters; use h0 >= h"
+                )
         if not self.u_min < self.u_max:
-            raise AdrcParameterError(f"output limits must satisfy u_min < u_max, got {self.u_min}, {self.u_max}")
+            raise AdrcParameterError(
+                f"output limits must satisfy u_min < u_max, got {self.u_min}, {self.u_max}"
+            )
         observer = self.make_observer(h)
         rho = spectral_radius(observer.error_transition_matrix())
         if rho >= 1.0:
@@ -193,15 +217,19 @@ class AdrcChannelParameters:
             raise AdrcParameterError(
                 f"ESO unstable at step h = {h} s: spectral radius {rho:.3f} >= 1 for linear-zone gains "
                 f"({l1:.4g}, {l2:.4g}, {l3:.4g}) (fal's linear zone multiplies beta2, beta3 by "
-                f"delta^(alpha-1) with delta = {self.delta}); lower the observer bandwidth or raise the rate")
+                f"delta^(alpha-1) with delta = {self.delta}); lower the observer bandwidth or raise the rate"
+            )
         rho = spectral_radius(self.closed_loop_transition_matrix(h))
         if rho >= 1.0:
-            raise AdrcParameterError(f"linearised closed loop unstable at step h = {h} s (spectral radius "
-                                     f"{rho:.3f}): lower the bandwidth 1/h1 or raise the rate")
+            raise AdrcParameterError(
+                f"linearised closed loop unstable at step h = {h} s (spectral radius "
+                f"{rho:.3f}): lower the bandwidth 1/h1 or raise the rate"
+            )
 
     def make_observer(self, h: float) -> ExtendedStateObserver:
-        return ExtendedStateObserver(self.beta1, self.beta2, self.beta3, self.b0, self.delta, h,
-                                     self.alpha1, self.alpha2)
+        return ExtendedStateObserver(
+            self.beta1, self.beta2, self.beta3, self.b0, self.delta, h, self.alpha1, self.alpha2
+        )
 
     def closed_loop_transition_matrix(self, h: float) -> np.ndarray:
         """Linearised loop on the nominal plant y'' = b0 u (zero-order hold), reference 0, in the order
@@ -212,11 +240,13 @@ class AdrcChannelParameters:
         # U = (-kp z1 - kd z2 - z3) / b0, so b0 U = k . state with k:
         k = np.array([0.0, 0.0, -kp, -kd, -1.0])
         plant = np.array([[1.0, h, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0, 0.0]]) + np.outer([h * h / 2, h], k)
-        observer = np.array([
-            [h * l1, 0.0, 1.0 - h * l1, h, 0.0],
-            [h * l2, 0.0, -h * l2, 1.0, h],
-            [h * l3, 0.0, -h * l3, 0.0, 1.0],
-        ]) + np.outer([0.0, h, 0.0], k)
+        observer = np.array(
+            [
+                [h * l1, 0.0, 1.0 - h * l1, h, 0.0],
+                [h * l2, 0.0, -h * l2, 1.0, h],
+                [h * l3, 0.0, -h * l3, 0.0, 1.0],
+            ]
+        ) + np.outer([0.0, h, 0.0], k)
         return np.vstack([plant, observer])
 
 
@@ -233,17 +263,31 @@ class AdrcChannel:
     reference and its acceleration fhan(v1 - v, v2, r0, h0) is fed forward.
     """
 
-    __slots__ = ("_b0", "_feedback", "_started", "_u_max", "_u_min", "_y", "h", "observer", "parameters",
-                 "tracking_differentiator")
+    __slots__ = (
+        "_b0",
+        "_feedback",
+        "_started",
+        "_u_max",
+        "_u_min",
+        "_y",
+        "h",
+        "observer",
+        "parameters",
+        "tracking_differentiator",
+    )
 
     def __init__(self, parameters: AdrcChannelParameters, h: float) -> None:
         parameters.validate(h)
         self.parameters, self.h = parameters, h
         self.observer = parameters.make_observer(h)
-        self._feedback = NonlinearStateErrorFeedback(parameters.r1, parameters.h1, parameters.c, parameters.b0)
+        self._feedback = NonlinearStateErrorFeedback(
+            parameters.r1, parameters.h1, parameters.c, parameters.b0
+        )
         self.tracking_differentiator = (
-            None if parameters.r0 is None
-            else TrackingDifferentiator(parameters.r0, parameters.h0 if parameters.h0 is not None else h, h))
+            None
+            if parameters.r0 is None
+            else TrackingDifferentiator(parameters.r0, parameters.h0 if parameters.h0 is not None else h, h)
+        )
         self._u_min, self._u_max, self._b0 = parameters.u_min, parameters.u_max, parameters.b0
         self._started = False
         self._y = 0.0
@@ -257,8 +301,14 @@ class AdrcChannel:
         """The ESO's z3: total disturbance f in y'' = f + b0 u."""
         return self.observer.z3
 
-    def control(self, reference: float, measurement: float, reference_rate: float = 0.0,
-                reference_acceleration: float = 0.0, measured_rate: float | None = None) -> float:
+    def control(
+        self,
+        reference: float,
+        measurement: float,
+        reference_rate: float = 0.0,
+        reference_acceleration: float = 0.0,
+        measured_rate: float | None = None,
+    ) -> float:
         """U(k), clipped to the channel's limits. measured_rate, when given, replaces the ESO's z2 in the
         rate error (a measured velocity or gyro rate is fresher than the estimate)."""
         observer, td = self.observer, self.tracking_differentiator
@@ -281,8 +331,14 @@ class AdrcChannel:
         """Step the ESO with this step's measurement and the control the plant really received."""
         self.observer.update(self._y, applied_control)
 
-    def update(self, reference: float, measurement: float, reference_rate: float = 0.0,
-               reference_acceleration: float = 0.0, measured_rate: float | None = None) -> float:
+    def update(
+        self,
+        reference: float,
+        measurement: float,
+        reference_rate: float = 0.0,
+        reference_acceleration: float = 0.0,
+        measured_rate: float | None = None,
+    ) -> float:
         u = self.control(reference, measurement, reference_rate, reference_acceleration, measured_rate)
         self.observer.update(measurement, u)
         return u
@@ -292,10 +348,20 @@ class AdrcChannel:
         return {"z1": o.z1, "z2": o.z2, "z3": o.z3}
 
 
-def bandwidth_parameters(omega_c: float, omega_o: float, b0: float, delta: float, r1: float,
-                         alpha1: float = 0.5, alpha2: float = 0.25, damping: float = 1.0,
-                         r0: float | None = None, h0: float | None = None,
-                         u_min: float = -math.inf, u_max: float = math.inf) -> AdrcChannelParameters:
+def bandwidth_parameters(
+    omega_c: float,
+    omega_o: float,
+    b0: float,
+    delta: float,
+    r1: float,
+    alpha1: float = 0.5,
+    alpha2: float = 0.25,
+    damping: float = 1.0,
+    r0: float | None = None,
+    h0: float | None = None,
+    u_min: float = -math.inf,
+    u_max: float = math.inf,
+) -> AdrcChannelParameters:
     """Gao's bandwidth parameterisation carried over to the nonlinear channel.
 
     The ESO's linear-zone gains are placed at a triple pole -omega_o (beta = 3 wo, 3 wo^2, wo^3 after fal's
@@ -304,9 +370,21 @@ def bandwidth_parameters(omega_c: float, omega_o: float, b0: float, delta: float
     """
     _require_finite_positive(omega_c=omega_c, omega_o=omega_o, delta=delta)
     return AdrcChannelParameters(
-        b0=b0, beta1=3.0 * omega_o, beta2=3.0 * omega_o**2 * delta ** (1.0 - alpha1),
-        beta3=omega_o**3 * delta ** (1.0 - alpha2), delta=delta, r1=r1, h1=1.0 / omega_c, c=damping,
-        alpha1=alpha1, alpha2=alpha2, r0=r0, h0=h0, u_min=u_min, u_max=u_max)
+        b0=b0,
+        beta1=3.0 * omega_o,
+        beta2=3.0 * omega_o**2 * delta ** (1.0 - alpha1),
+        beta3=omega_o**3 * delta ** (1.0 - alpha2),
+        delta=delta,
+        r1=r1,
+        h1=1.0 / omega_c,
+        c=damping,
+        alpha1=alpha1,
+        alpha2=alpha2,
+        r0=r0,
+        h0=h0,
+        u_min=u_min,
+        u_max=u_max,
+    )
 
 
 def spectral_radius(matrix: np.ndarray) -> float:

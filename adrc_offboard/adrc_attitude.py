@@ -49,8 +49,12 @@ class AdrcAttitudeGains:
         if unknown:
             raise AdrcParameterError(f"unknown keys {sorted(unknown)} in attitude gains")
         try:
-            return cls(roll=dict(data["roll"]), pitch=dict(data["pitch"]), yaw=dict(data["yaw"]),
-                       use_measured_rate=bool(data.get("use_measured_rate", True)))
+            return cls(
+                roll=dict(data["roll"]),
+                pitch=dict(data["pitch"]),
+                yaw=dict(data["yaw"]),
+                use_measured_rate=bool(data.get("use_measured_rate", True)),
+            )
         except (KeyError, TypeError, ValueError) as exc:
             raise AdrcParameterError(f"attitude gains need roll, pitch and yaw channel specs: {exc}") from exc
 
@@ -62,8 +66,9 @@ class AdrcAttitudeGains:
 class AdrcAttitudeController:
     """Three ADRC channels at the attitude-loop rate; torques in N m [roll, pitch, yaw]."""
 
-    def __init__(self, Ix: float, Iy: float, Iz: float, gains: AdrcAttitudeGains | None = None,
-                 rate_hz: float = 250.0) -> None:
+    def __init__(
+        self, Ix: float, Iy: float, Iz: float, gains: AdrcAttitudeGains | None = None, rate_hz: float = 250.0
+    ) -> None:
         gains = gains if gains is not None else AdrcAttitudeGains.load()
         if not (math.isfinite(rate_hz) and rate_hz > 0):
             raise AdrcParameterError(f"rate_hz must be positive, got {rate_hz}")
@@ -79,8 +84,9 @@ class AdrcAttitudeController:
         self._theta = [0.0, 0.0, 0.0]
 
     @classmethod
-    def for_airframe(cls, airframe: Any, gains: AdrcAttitudeGains | None = None,
-                     rate_hz: float = 250.0) -> AdrcAttitudeController:
+    def for_airframe(
+        cls, airframe: Any, gains: AdrcAttitudeGains | None = None, rate_hz: float = 250.0
+    ) -> AdrcAttitudeController:
         """From any object with .Ix, .Iy, .Iz (kg m^2)."""
         return cls(float(airframe.Ix), float(airframe.Iy), float(airframe.Iz), gains, rate_hz)
 

@@ -77,22 +77,47 @@ class LinearAdrcParameters:
         if self.r0 is not None and not (math.isfinite(self.r0) and self.r0 > 0.0):
             raise AdrcParameterError(f"r0 must be a finite positive number, got {self.r0!r}")
         if self.r0 is not None and self.h0 is not None and not self.h0 >= h:
-            raise AdrcParameterError(f"TD filter factor h0 = {self.h0} is below the step h = {h}; use h0 >= h")
+            raise AdrcParameterError(
+                f"TD filter factor h0 = {self.h0} is below the step h = {h}; use h0 >= h"
+            )
         if not self.u_min < self.u_max:
-            raise AdrcParameterError(f"output limits must satisfy u_min < u_max, got {self.u_min}, {self.u_max}")
-        for what, matrix in (("observer", self.error_transition_matrix(h)),
-                             ("closed loop", self.closed_loop_transition_matrix(h))):
+            raise AdrcParameterError(
+                f"output limits must satisfy u_min < u_max, got {self.u_min}, {self.u_max}"
+            )
+        for what, matrix in (
+            ("observer", self.error_transition_matrix(h)),
+            ("closed loop", self.closed_loop_transition_matrix(h)),
+        ):
             rho = spectral_radius(matrix)
             if rho >= 1.0:
-                raise AdrcParameterError(f"linear ADRC {what} unstable at step h = {h} s (spectral radius "
-                                         f"{rho:.3f}) with omega_o = {self.omega_o}, omega_c = {self.omega_c}")
+                raise AdrcParameterError(
+                    f"linear ADRC {what} unstable at step h = {h} s (spectral radius "
+                    f"{rho:.3f}) with omega_o = {self.omega_o}, omega_c = {self.omega_c}"
+                )
 
 
 class LinearAdrcChannel:
     """Linear ADRC for one second-order channel: optional TD, current discrete ESO, PD + cancellation."""
 
-    __slots__ = ("_b0", "_g1", "_g2", "_h", "_kd", "_kp", "_l1", "_l2", "_l3", "_started", "_u_max",
-                 "_u_min", "parameters", "tracking_differentiator", "z1", "z2", "z3")
+    __slots__ = (
+        "_b0",
+        "_g1",
+        "_g2",
+        "_h",
+        "_kd",
+        "_kp",
+        "_l1",
+        "_l2",
+        "_l3",
+        "_started",
+        "_u_max",
+        "_u_min",
+        "parameters",
+        "tracking_differentiator",
+        "z1",
+        "z2",
+        "z3",
+    )
 
     def __init__(self, parameters: LinearAdrcParameters, h: float) -> None:
         parameters.validate(h)
@@ -102,8 +127,10 @@ class LinearAdrcChannel:
         self._g1, self._g2 = parameters.b0 * h * h / 2.0, parameters.b0 * h
         self._u_min, self._u_max = parameters.u_min, parameters.u_max
         self.tracking_differentiator = (
-            None if parameters.r0 is None
-            else TrackingDifferentiator(parameters.r0, parameters.h0 if parameters.h0 is not None else h, h))
+            None
+            if parameters.r0 is None
+            else TrackingDifferentiator(parameters.r0, parameters.h0 if parameters.h0 is not None else h, h)
+        )
         self.z1 = self.z2 = self.z3 = 0.0  # after control(): z(k|k); after observe_applied(): z(k+1|k)
         self._started = False
 
@@ -118,12 +145,22 @@ class LinearAdrcChannel:
     def disturbance(self) -> float:
         return self.z3
 
-    def control(self, reference: float, measurement: float, reference_rate: float = 0.0,
-                reference_acceleration: float = 0.0, measured_rate: float | None = None) -> float:
-        """Correct the estimate with y(k), then U(k) clipped to the limits (see `adrc.AdrcChannel.control`)."""
+    def control(
+        self,
+        reference: float,
+        measurement: float,
+        reference_rate: float = 0.0,
+        reference_acceleration: float = 0.0,
+        measured_rate: float | None = None,
+    ) -> float:
+        """Correct the estimate with y(k), then U(k), clipped (see `adrc.AdrcChannel.control`)."""
         td = self.tracking_differentiator
         if not self._started:
-            self.z1, self.z2, self.z3 = measurement, (measured_rate if measured_rate is not None else 0.0), 0.0
+            self.z1, self.z2, self.z3 = (
+                measurement,
+                (measured_rate if measured_rate is not None else 0.0),
+                0.0,
+            )
             if td is not None:
                 td.reset(reference, reference_rate)
             self._started = True
@@ -146,8 +183,14 @@ class LinearAdrcChannel:
         self.z1 += h * z2 + 0.5 * h * h * z3 + self._g1 * applied_control
         self.z2 = z2 + h * z3 + self._g2 * applied_control
 
-    def update(self, reference: float, measurement: float, reference_rate: float = 0.0,
-               reference_acceleration: float = 0.0, measured_rate: float | None = None) -> float:
+    def update(
+        self,
+        reference: float,
+        measurement: float,
+        reference_rate: float = 0.0,
+        reference_acceleration: float = 0.0,
+        measured_rate: float | None = None,
+    ) -> float:
         u = self.control(reference, measurement, reference_rate, reference_acceleration, measured_rate)
         self.observe_applied(u)
         return u

@@ -68,7 +68,9 @@ class AccelerationLimits:
         for name in ("max_horizontal", "max_up", "max_down"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise AdrcParameterError(f"acceleration limit {name} must be finite and positive, got {value!r}")
+                raise AdrcParameterError(
+                    f"acceleration limit {name} must be finite and positive, got {value!r}"
+                )
 
     @classmethod
     def load(cls, source: str | Path = "outer_limits") -> AccelerationLimits:
@@ -87,16 +89,19 @@ class AccelerationLimits:
         return ax, ay, min(self.max_down, max(-self.max_up, az))
 
 
-def applied_acceleration(target: AttitudeTarget, mass: float, g: float,
-                         max_thrust_n: float) -> tuple[float, float, float]:
+def applied_acceleration(
+    target: AttitudeTarget, mass: float, g: float, max_thrust_n: float
+) -> tuple[float, float, float]:
     """The NED acceleration an attitude target really asks for (after the tilt and thrust limits):
     thrust along body -z rotated into the world, plus gravity."""
     w, x, y, z = target.quaternion.tolist()
     specific = target.thrust * max_thrust_n / mass
     # body z axis in the world frame: third column of R(q)
-    return (-specific * 2.0 * (x * z + w * y),
-            -specific * 2.0 * (y * z - w * x),
-            -specific * (1.0 - 2.0 * (x * x + y * y)) + g)
+    return (
+        -specific * 2.0 * (x * z + w * y),
+        -specific * 2.0 * (y * z - w * x),
+        -specific * (1.0 - 2.0 * (x * x + y * y)) + g,
+    )
 
 
 @dataclass(frozen=True)
@@ -111,9 +116,14 @@ class AdrcOuterGains:
     def from_dict(cls, data: dict[str, Any]) -> AdrcOuterGains:
         unknown = set(data) - {"horizontal", "vertical", "use_measured_velocity", "comment"}
         if unknown or "horizontal" not in data or "vertical" not in data:
-            raise AdrcParameterError(f"ADRC outer gains need 'horizontal' and 'vertical' specs; got {sorted(data)}")
-        return cls(channel_parameters(data["horizontal"], 1.0), channel_parameters(data["vertical"], 1.0),
-                   bool(data.get("use_measured_velocity", False)))
+            raise AdrcParameterError(
+                f"ADRC outer gains need 'horizontal' and 'vertical' specs; got {sorted(data)}"
+            )
+        return cls(
+            channel_parameters(data["horizontal"], 1.0),
+            channel_parameters(data["vertical"], 1.0),
+            bool(data.get("use_measured_velocity", False)),
+        )
 
     @classmethod
     def load(cls, source: str | Path = "outer_adrc") -> AdrcOuterGains:
@@ -144,8 +154,9 @@ class PidOuterGains:
         try:
             return cls(PidAxisGains(**data["horizontal"]), PidAxisGains(**data["vertical"]))
         except (KeyError, TypeError) as exc:
-            raise AdrcParameterError(f"PID outer gains need horizontal and vertical kp, ki, kd, i_max: {exc}") \
-                from exc
+            raise AdrcParameterError(
+                f"PID outer gains need horizontal and vertical kp, ki, kd, i_max: {exc}"
+            ) from exc
 
     @classmethod
     def load(cls, source: str | Path = "outer_pid") -> PidOuterGains:
@@ -155,8 +166,15 @@ class PidOuterGains:
 class _ThrustVectorOutput:
     """What both controllers share: airframe figures, limits, and acceleration -> attitude target."""
 
-    def __init__(self, mass: float, g: float, max_thrust_n: float, max_tilt_rad: float,
-                 limits: AccelerationLimits | None, rate_hz: float) -> None:
+    def __init__(
+        self,
+        mass: float,
+        g: float,
+        max_thrust_n: float,
+        max_tilt_rad: float,
+        limits: AccelerationLimits | None,
+        rate_hz: float,
+    ) -> None:
         for name, value in (("mass", mass), ("g", g), ("max_thrust_n", max_thrust_n), ("rate_hz", rate_hz)):
             if not (math.isfinite(value) and value > 0):
                 raise AdrcParameterError(f"{name} must be finite and positive, got {value!r}")
@@ -173,7 +191,9 @@ class _ThrustVectorOutput:
     def output(self, demanded: tuple[float, float, float], yaw: float) -> AttitudeTarget:
         self.demanded = demanded
         limited = self.limits.apply(*demanded)
-        target = acceleration_to_attitude(limited, yaw, self.mass, self.g, self.max_thrust_n, self.max_tilt_rad)
+        target = acceleration_to_attitude(
+            limited, yaw, self.mass, self.g, self.max_thrust_n, self.max_tilt_rad
+        )
         self.applied = applied_acceleration(target, self.mass, self.g, self.max_thrust_n)
         return target
 
@@ -186,14 +206,24 @@ class _ThrustVectorOutput:
 class AdrcOuterLoop:
     """ADRC position loop (x, y, z channels; yaw passed through). See the module docstring."""
 
-    def __init__(self, mass: float, g: float, max_thrust_n: float, max_tilt_rad: float = math.radians(35.0),
-                 gains: AdrcOuterGains | None = None, limits: AccelerationLimits | None = None,
-                 rate_hz: float = 50.0) -> None:
+    def __init__(
+        self,
+        mass: float,
+        g: float,
+        max_thrust_n: float,
+        max_tilt_rad: float = math.radians(35.0),
+        gains: AdrcOuterGains | None = None,
+        limits: AccelerationLimits | None = None,
+        rate_hz: float = 50.0,
+    ) -> None:
         self._out = _ThrustVectorOutput(mass, g, max_thrust_n, max_tilt_rad, limits, rate_hz)
         self.gains = gains if gains is not None else AdrcOuterGains.load()
         h = self._out.h
-        self.channels: list[Channel] = [make_channel(self.gains.horizontal, h), make_channel(self.gains.horizontal, h),
-                                        make_channel(self.gains.vertical, h)]
+        self.channels: list[Channel] = [
+            make_channel(self.gains.horizontal, h),
+            make_channel(self.gains.horizontal, h),
+            make_channel(self.gains.vertical, h),
+        ]
 
     def reset(self) -> None:
         for channel in self.channels:
@@ -206,9 +236,15 @@ class AdrcOuterLoop:
         reference_rate, reference_acc = setpoint.velocity.tolist(), setpoint.acceleration.tolist()
         use_velocity = self.gains.use_measured_velocity
         demanded = tuple(
-            channel.control(reference[i], position[i], reference_rate[i], reference_acc[i],
-                            velocity[i] if use_velocity else None)
-            for i, channel in enumerate(self.channels))
+            channel.control(
+                reference[i],
+                position[i],
+                reference_rate[i],
+                reference_acc[i],
+                velocity[i] if use_velocity else None,
+            )
+            for i, channel in enumerate(self.channels)
+        )
         target = self._out.output(demanded, setpoint.yaw)
         for channel, applied in zip(self.channels, self._out.applied, strict=True):
             channel.observe_applied(applied)
@@ -227,9 +263,16 @@ class AdrcOuterLoop:
 class PidOuterLoop:
     """PID position loop with the same structure, limits, rate and measurements as `AdrcOuterLoop`."""
 
-    def __init__(self, mass: float, g: float, max_thrust_n: float, max_tilt_rad: float = math.radians(35.0),
-                 gains: PidOuterGains | None = None, limits: AccelerationLimits | None = None,
-                 rate_hz: float = 50.0) -> None:
+    def __init__(
+        self,
+        mass: float,
+        g: float,
+        max_thrust_n: float,
+        max_tilt_rad: float = math.radians(35.0),
+        gains: PidOuterGains | None = None,
+        limits: AccelerationLimits | None = None,
+        rate_hz: float = 50.0,
+    ) -> None:
         self._out = _ThrustVectorOutput(mass, g, max_thrust_n, max_tilt_rad, limits, rate_hz)
         self.gains = gains if gains is not None else PidOuterGains.load()
         self._axis_gains = (self.gains.horizontal, self.gains.horizontal, self.gains.vertical)
@@ -245,7 +288,8 @@ class PidOuterLoop:
         errors = [reference[i] - position[i] for i in range(3)]
         demanded = tuple(
             reference_acc[i] + k.kp * errors[i] + k.kd * (reference_rate[i] - velocity[i]) + self.integrals[i]
-            for i, k in enumerate(self._axis_gains))
+            for i, k in enumerate(self._axis_gains)
+        )
         target = self._out.output(demanded, setpoint.yaw)
         step = dt if dt > 0 else self._out.h
         for i, k in enumerate(self._axis_gains):
@@ -273,9 +317,14 @@ def pid_gains_for_bandwidth(omega_c: float, integral_ratio: float = 0.25, i_max:
     return PidAxisGains(kp=w * w + 2 * w * wi, ki=w * w * wi, kd=2 * w + wi, i_max=i_max)
 
 
-def matched_gains(omega_c_horizontal: float, omega_c_vertical: float, observer_ratio: float = 4.0,
-                  integral_ratio: float = 0.25, delta: float = 0.02,
-                  r1: tuple[float, float] = (5.0, 4.0)) -> tuple[AdrcOuterGains, PidOuterGains]:
+def matched_gains(
+    omega_c_horizontal: float,
+    omega_c_vertical: float,
+    observer_ratio: float = 4.0,
+    integral_ratio: float = 0.25,
+    delta: float = 0.02,
+    r1: tuple[float, float] = (5.0, 4.0),
+) -> tuple[AdrcOuterGains, PidOuterGains]:
     """ADRC and PID outer-loop gains with the same closed-loop bandwidth per axis.
 
     ADRC: the NLSEF's linear zone is the PD kp = wc^2, kd = 2 wc, and the ESO's linearisation sits at
@@ -284,8 +333,13 @@ def matched_gains(omega_c_horizontal: float, omega_c_vertical: float, observer_r
     bounds the NLSEF's acceleration for large errors.
     """
     adrc = AdrcOuterGains(
-        horizontal=bandwidth_parameters(omega_c_horizontal, observer_ratio * omega_c_horizontal, 1.0, delta, r1[0]),
-        vertical=bandwidth_parameters(omega_c_vertical, observer_ratio * omega_c_vertical, 1.0, delta, r1[1]))
-    pid = PidOuterGains(pid_gains_for_bandwidth(omega_c_horizontal, integral_ratio),
-                        pid_gains_for_bandwidth(omega_c_vertical, integral_ratio))
+        horizontal=bandwidth_parameters(
+            omega_c_horizontal, observer_ratio * omega_c_horizontal, 1.0, delta, r1[0]
+        ),
+        vertical=bandwidth_parameters(omega_c_vertical, observer_ratio * omega_c_vertical, 1.0, delta, r1[1]),
+    )
+    pid = PidOuterGains(
+        pid_gains_for_bandwidth(omega_c_horizontal, integral_ratio),
+        pid_gains_for_bandwidth(omega_c_vertical, integral_ratio),
+    )
     return adrc, pid
