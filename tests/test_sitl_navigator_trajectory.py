@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
@@ -24,7 +25,7 @@ def assert_within_limits(profile: Profile1D, max_speed: float, acceleration: flo
     assert min(v for _, v, _ in samples) >= -1e-9, "the profile never moves backwards"
     assert max(abs(a) for _, _, a in samples) <= acceleration * (1 + 1e-9)
     if math.isfinite(jerk):
-        jerks = [abs(b[2] - a[2]) / DT for a, b in zip(samples, samples[1:], strict=False)]
+        jerks = [abs(b[2] - a[2]) / DT for a, b in itertools.pairwise(samples)]
         assert max(jerks) <= jerk * (1 + 1e-6)
 
 
@@ -84,7 +85,7 @@ def test_rest_to_rest_property(distance: float, speed: float, acceleration: floa
     samples = [profile.sample(profile.duration * k / 400) for k in range(401)]
     assert max(v for _, v, _ in samples) <= speed * (1 + 1e-9)
     assert max(abs(a) for _, _, a in samples) <= acceleration * (1 + 1e-9)
-    assert all(b[0] >= a[0] - 1e-9 for a, b in zip(samples, samples[1:], strict=False))
+    assert all(b[0] >= a[0] - 1e-9 for a, b in itertools.pairwise(samples))
     assert samples[-2][0] <= distance + 1e-9
 
 
@@ -108,7 +109,9 @@ def test_low_descent_runs_at_land_speed_throughout() -> None:
 
 
 def test_limits_along_a_direction_respect_each_axis() -> None:
-    limits = MotionLimits(horizontal_speed=10.0, climb_speed=2.5, descent_speed=1.5, acceleration=3.0, jerk=4.0)
+    limits = MotionLimits(
+        horizontal_speed=10.0, climb_speed=2.5, descent_speed=1.5, acceleration=3.0, jerk=4.0
+    )
     assert limits.speed_along((1.0, 0.0, 0.0)) == pytest.approx(10.0)
     assert limits.speed_along((0.0, 0.0, -1.0)) == pytest.approx(2.5)
     assert limits.speed_along((0.0, 0.0, 1.0)) == pytest.approx(1.5)
@@ -119,20 +122,23 @@ def test_limits_along_a_direction_respect_each_axis() -> None:
 
 @pytest.mark.parametrize(
     ("yaw_from", "yaw_to", "turn"),
-    [(math.radians(170), math.radians(-170), math.radians(20)),
-     (math.radians(-170), math.radians(170), math.radians(-20)),
-     (0.0, math.radians(90), math.radians(90)),
-     (math.radians(10), math.radians(-100), math.radians(-110))],
+    [
+        (math.radians(170), math.radians(-170), math.radians(20)),
+        (math.radians(-170), math.radians(170), math.radians(-20)),
+        (0.0, math.radians(90), math.radians(90)),
+        (math.radians(10), math.radians(-100), math.radians(-110)),
+    ],
 )
 def test_yaw_turn_goes_the_short_way_and_wraps(yaw_from: float, yaw_to: float, turn: float) -> None:
     rate, acceleration = math.radians(60), math.radians(90)
     segment = YawTurn((1.0, 2.0, -5.0), yaw_from, yaw_to, rate, acceleration)
-    assert segment.duration == pytest.approx(Profile1D.rest_to_rest(abs(turn), rate, acceleration,
-                                                                     math.inf).duration)
+    assert segment.duration == pytest.approx(
+        Profile1D.rest_to_rest(abs(turn), rate, acceleration, math.inf).duration
+    )
     steps = int(segment.duration / 0.01) + 2
     yaws = [segment.sample(k * 0.01).yaw for k in range(steps)]
     assert all(-math.pi <= y < math.pi for y in yaws)
-    swept = sum(math.remainder(b - a, math.tau) for a, b in zip(yaws, yaws[1:], strict=False))
+    swept = sum(math.remainder(b - a, math.tau) for a, b in itertools.pairwise(yaws))
     assert swept == pytest.approx(turn, abs=1e-9)
     assert max(abs(segment.sample(k * 0.01).yaw_rate) for k in range(steps)) <= rate * (1 + 1e-9)
     assert all(segment.sample(k * 0.01).position == (1.0, 2.0, -5.0) for k in range(steps))
@@ -145,8 +151,10 @@ def test_trajectory_chains_segments_continuously_and_holds_at_the_end() -> None:
     trajectory.turn_to(math.radians(90), math.radians(60), math.radians(90))
     trajectory.line_to((0.0, 50.0, -5.0), limits)
     trajectory.brake((0.0, 0.0, 0.0), 3.0)  # at rest: nothing to add
-    samples = [trajectory.sample(5.0 + k * 0.01) for k in range(int((trajectory.end_time - 5.0) / 0.01) + 200)]
-    for a, b in zip(samples, samples[1:], strict=False):
+    samples = [
+        trajectory.sample(5.0 + k * 0.01) for k in range(int((trajectory.end_time - 5.0) / 0.01) + 200)
+    ]
+    for a, b in itertools.pairwise(samples):
         step = math.dist(a.position, b.position)
         assert step <= 10.0 * 0.01 + 1e-9
     assert samples[-1].position == (0.0, 50.0, -5.0)
