@@ -1,0 +1,161 @@
+"""`python -m sitl_quad` / `sitl-quad`: the simulated vehicle as a MAVLink UDP endpoint."""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import logging
+import math
+import signal
+import sys
+from pathlib import Path
+
+from planner.scenario import DEFAULT_HOME
+
+EPILOG = """\
+examples:
+  sitl-quad                                   # PX4-like vehicle on udp 127.0.0.1:14540, real time
+  sitl-quad --lockstep --seed 3               # deterministic, as fast as the offboard controller answers
+  sitl-quad --speed 10 --out 127.0.0.1:14550  # 10x real time, also pushing to a listening QGroundControl
+  mavproxy.py --master=udpout:127.0.0.1:14540 # connect a ground station to it
+"""
+
+
+def parse_host_port(text: str) -> tuple[str, int]:
+    host, _, port = text.rpartition(":")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise argparse.ArgumentTypeError(f"expected HOST:PORT, got {text!r}")
+    return host, int(port)
+
+
+def parse_home(text: str) -> tuple[float, float, float]:
+    parts = text.split(",")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected LAT,LON[,ALT] in degrees and metres, got {text!r}")
+    lat, lon = values[0], values[1]
+    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+        raise argparse.ArgumentTypeError(f"home {lat},{lon} is outside lat [-90, 90] / lon [-180, 180]")
+    return lat, lon, values[2] if len(values) == 3 else 0.0
+
+
+def parse_param(text: str) -> tuple[str, float]:
+    name, _, value = text.partition("=")
+    try:
+        return name.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}") from None
+
+
+def signing_key(text: str) -> bytes:
+    """A 64-hex-digit key as is; anything else is a passphrase hashed with SHA-256, as MAVProxy does."""
+    try:
+        key = bytes.fromhex(text)
+        if len(key) == 32:
+            return key
+    except ValueError:
+        pass
+    return hashlib.sha256(text.encode()).digest()
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="sitl-quad", description="Software-in-the-loop quadrotor (paper eq. 1-3, Table 2) that speaks "
+        "MAVLink 2 over UDP like a PX4 autopilot.", epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
+    p.add_argument("--port", type=int, default=14540, help="UDP port to listen on (default 14540)")
+    p.add_argument("--out", type=parse_host_port, action="append", default=[], metavar="HOST:PORT",
+                   help="also push telemetry to this address, e.g. a listening QGroundControl (repeatable)")
+    pacing = p.add_mutually_exclusive_group()
+    pacing.add_argument("--speed", type=float, default=1.0, metavar="N",
+                        help="run simulated time N times faster than the wall clock (default 1)")
+    pacing.add_argument("--lockstep", action="store_true",
+                        help="wait at each outer-loop tick for the offboard controller's answer; "
+                        "run freely while none streams")
+    p.add_argument("--seed", type=int, default=0, help="seed of wind, turbulence, disturbance and noise")
+    p.add_argument("--home", type=parse_home, default=DEFAULT_HOME, metavar="LAT,LON[,ALT]",
+                   help=f"home (the depot) in degrees and metres AMSL (default {DEFAULT_HOME})")
+    p.add_argument("--params", type=Path, metavar="FILE",
+                   help="parameter file (QGC format) loaded at start and saved after every PARAM_SET")
+    p.add_argument("--param", type=parse_param, action="append", default=[], metavar="NAME=VALUE",
+                   help="set one parameter at start, after --params (repeatable)")
+    p.add_argument("--outer-rate", type=float, default=50.0, metavar="HZ",
+                   help="outer-loop (and lockstep tick) rate in Hz (default 50, PX4's position loop)")
+    p.add_argument("--log", type=Path, metavar="FILE",
+                   help="write a CSV flight log: true state, estimate, reference and commands per tick")
+    p.add_argument("--signing-key", type=signing_key, metavar="KEY",
+                   help="MAVLink 2 signing key (64 hex digits, or a passphrase): unsigned messages are refused")
+    p.add_argument("--duration", type=float, metavar="SECONDS",
+                   help="exit after this much simulated time (default: run until interrupted)")
+    p.add_argument("--list-params", action="store_true", help="print every parameter with its value and exit")
+    p.add_argument("-v", "--verbose", action="store_true", help="log every peer and protocol event")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
+                        format="sitl-quad %(levelname)s %(name)s: %(message)s")
+    if not (math.isfinite(args.speed) and 0 < args.speed <= 1000):
+        return _fail("--speed must be in (0, 1000]")
+    rate = args.outer_rate
+    if not (math.isfinite(rate) and 10 <= rate <= 250 and abs(1000 / rate - round(1000 / rate)) < 1e-9):
+        return _fail("--outer-rate must divide the 1 kHz physics into whole steps, between 10 and 250 Hz")
+    if not 0 <= args.port < 65536:
+        return _fail(f"--port {args.port} is not a UDP port")
+    # Imports after argument checks so that --help is instant.
+    from sitl_quad.config import VehicleConfig
+    from sitl_quad.mavlink.link import UdpLink
+    from sitl_quad.params import ParameterError, ParameterTable
+    from sitl_quad.server import VehicleServer
+    from sitl_quad.vehicle import Vehicle
+    from sitl_quad.vehicle_params import VEHICLE_PARAMETERS
+
+    config = VehicleConfig()
+    table = ParameterTable(VEHICLE_PARAMETERS, config)
+    try:
+        if args.params is not None and args.params.exists():
+            table.load(args.params)
+        for name, value in args.param:
+            table.set(name, value)
+    except ParameterError as exc:
+        return _fail(str(exc))
+    if args.list_params:
+        for spec in table.specs:
+            print(f"{spec.name:16} {table.get(spec.name):<14.6g} {spec.description}")
+        return 0
+    vehicle = Vehicle(config, home=args.home, seed=args.seed, outer_rate_hz=args.outer_rate)
+    try:
+        link = UdpLink(args.host, args.port, args.out, signing_key=args.signing_key)
+    except OSError as exc:
+        return _fail(f"cannot listen on udp {args.host}:{args.port}: {exc.strerror}")
+
+    def save_params() -> None:
+        if args.params is not None:
+            tmp = args.params.with_suffix(args.params.suffix + ".tmp")
+            table.save(tmp)
+            tmp.replace(args.params)  # atomic: a crash never leaves half a parameter file
+
+    server = VehicleServer(vehicle, table, link, speed=args.speed, lockstep=args.lockstep,
+                           flight_log=args.log, on_params_changed=save_params)
+    signal.signal(signal.SIGTERM, lambda *_: server.stop())
+    signal.signal(signal.SIGINT, lambda *_: server.stop())
+    host, port = link.address
+    pacing = "lockstep" if args.lockstep else f"speed {args.speed:g}x"
+    print(f"sitl-quad: listening on udp {host}:{port} ({pacing}, seed {args.seed}, home {args.home})",
+          flush=True)
+    server.run(args.duration)
+    return 0
+
+
+def _fail(message: str) -> int:
+    print(f"sitl-quad: error: {message}", file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

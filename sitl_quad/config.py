@@ -1,0 +1,57 @@
+"""Everything configurable about the vehicle, as one tree of dataclasses (parameters are data, not code).
+
+Each section is an immutable dataclass; the parameter table (sitl_quad.vehicle_params) replaces a section
+when a PARAM_SET arrives and the vehicle rebuilds what depends on it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+from sitl_quad.airframe import Airframe
+from sitl_quad.attitude_pid import PidAttitudeGains
+from sitl_quad.disturbances import DisturbanceConfig
+from sitl_quad.navigator import NavigatorConfig
+from sitl_quad.position_control import PidPositionGains
+from sitl_quad.sensors import SensorNoise
+from sitl_quad.wind import WindConfig
+
+
+class FailsafeAction(IntEnum):
+    """What the vehicle does when the offboard stream is lost (OFFB_LOSS_ACT)."""
+
+    HOLD = 0
+    LAND = 1
+    RETURN = 2
+
+
+class AttitudeControllerKind(IntEnum):
+    """Which inner loop flies the attitude (MC_ATT_CTRL)."""
+
+    PID = 0
+    ADRC = 1
+
+
+@dataclass(frozen=True)
+class FailsafeConfig:
+    offboard_loss_timeout_s: float = 0.5  # OFFB_LOSS_T, simulated seconds
+    offboard_loss_action: int = FailsafeAction.HOLD  # OFFB_LOSS_ACT
+
+
+@dataclass(frozen=True)
+class ControlConfig:
+    attitude_controller: int = AttitudeControllerKind.PID  # MC_ATT_CTRL
+
+
+@dataclass
+class VehicleConfig:
+    airframe: Airframe = field(default_factory=Airframe.table2)
+    wind: WindConfig = field(default_factory=WindConfig)
+    disturbance: DisturbanceConfig = field(default_factory=DisturbanceConfig)
+    sensor_noise: SensorNoise = field(default_factory=SensorNoise)
+    navigator: NavigatorConfig = field(default_factory=NavigatorConfig)
+    attitude_pid: PidAttitudeGains = field(default_factory=PidAttitudeGains)
+    position_pid: PidPositionGains = field(default_factory=PidPositionGains)
+    failsafe: FailsafeConfig = field(default_factory=FailsafeConfig)
+    control: ControlConfig = field(default_factory=ControlConfig)

@@ -1,0 +1,111 @@
+"""COMMAND_LONG / COMMAND_INT and the SET_MODE message: every command gets a COMMAND_ACK.
+
+Handlers are registered per MAV_CMD by the capability that owns them (telemetry registers
+REQUEST_MESSAGE, the vehicle's actions register arming and modes); anything else is UNSUPPORTED.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+
+from sitl_quad.mavlink import mavlink
+from sitl_quad.modes import FlightMode
+from sitl_quad.vehicle import FORCE_DISARM_MAGIC, CommandResult, Vehicle
+
+log = logging.getLogger(__name__)
+
+# handler(params: tuple of 7 floats) -> CommandResult
+CommandHandler = Callable[[tuple], CommandResult]
+
+
+class Commands:
+    def __init__(self, vehicle: Vehicle, send) -> None:
+        self.vehicle = vehicle
+        self.send = send  # callable(msg, peer=None)
+        self.table: dict[int, CommandHandler] = {
+            mavlink.MAV_CMD_COMPONENT_ARM_DISARM: self.arm_disarm,
+            mavlink.MAV_CMD_DO_SET_MODE: self.do_set_mode,
+            mavlink.MAV_CMD_MISSION_START: self.mission_start,
+            mavlink.MAV_CMD_NAV_TAKEOFF: self.takeoff,
+            mavlink.MAV_CMD_NAV_LAND: lambda p: self.vehicle.set_mode(FlightMode.AUTO_LAND),
+            mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH: lambda p: self.vehicle.set_mode(FlightMode.AUTO_RTL),
+            mavlink.MAV_CMD_DO_SET_MISSION_CURRENT: self.set_mission_current,
+            mavlink.MAV_CMD_NAV_LOITER_UNLIM: lambda p: self.vehicle.set_mode(FlightMode.AUTO_LOITER),
+        }
+
+    def register(self, command: int, handler: CommandHandler) -> None:
+        self.table[command] = handler
+
+    def handlers(self) -> dict:
+        return {"COMMAND_LONG": self.command_long, "COMMAND_INT": self.command_int, "SET_MODE": self.set_mode_msg}
+
+    def command_long(self, peer, msg) -> None:
+        params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
+        self._run(peer, msg, params)
+
+    def command_int(self, peer, msg) -> None:
+        # x, y are degE7 in a COMMAND_INT; handlers here take them as plain numbers
+        params = (msg.param1, msg.param2, msg.param3, msg.param4, float(msg.x), float(msg.y), msg.z)
+        self._run(peer, msg, params)
+
+    def _run(self, peer, msg, params: tuple) -> None:
+        handler = self.table.get(msg.command)
+        if handler is None:
+            result = CommandResult.UNSUPPORTED
+        else:
+            try:
+                result = handler(params)
+            except (ValueError, OverflowError) as exc:  # a NaN or absurd number where one was required
+                log.info("command %d refused: %s", msg.command, exc)
+                result = CommandResult.DENIED
+        ack = mavlink.MAVLink_command_ack_message(
+            msg.command, int(result), 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
+        self.send(ack, peer)
+
+    # ----- handlers
+    def arm_disarm(self, p: tuple) -> CommandResult:
+        if p[0] == 1:
+            return self.vehicle.arm()
+        if p[0] == 0:
+            return self.vehicle.disarm(force=p[1] == FORCE_DISARM_MAGIC)
+        return CommandResult.DENIED
+
+    def do_set_mode(self, p: tuple) -> CommandResult:
+        base_mode, main, sub = p[0], p[1], p[2]
+        if not (math.isfinite(base_mode) and int(base_mode) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED):
+            return CommandResult.DENIED  # only PX4 custom modes are meaningful here
+        if not math.isfinite(main):
+            return CommandResult.DENIED
+        mode = FlightMode.from_main_sub(int(main), int(sub) if math.isfinite(sub) else 0)
+        if mode is None:
+            return CommandResult.UNSUPPORTED
+        return self.vehicle.set_mode(mode)
+
+    def set_mode_msg(self, peer, msg) -> None:
+        """SET_MODE (#11), QGroundControl's way for PX4: no acknowledgement exists for it."""
+        if msg.target_system != self.vehicle_sysid:
+            return
+        mode = FlightMode.from_custom_mode(msg.custom_mode)
+        if mode is not None:
+            self.vehicle.set_mode(mode)
+
+    vehicle_sysid = 1
+
+    def mission_start(self, p: tuple) -> CommandResult:
+        first = int(p[0]) if math.isfinite(p[0]) and p[0] > 0 else None
+        return self.vehicle.start_mission(first)
+
+    def takeoff(self, p: tuple) -> CommandResult:
+        altitude = p[6] if math.isfinite(p[6]) and p[6] > 0 else None
+        if altitude is not None:
+            altitude -= self.vehicle.home[2]  # param7 is AMSL; the navigator wants height above home
+            if altitude <= 0:
+                altitude = None
+        return self.vehicle.takeoff(altitude)
+
+    def set_mission_current(self, p: tuple) -> CommandResult:
+        if not math.isfinite(p[0]):
+            return CommandResult.DENIED
+        return CommandResult.ACCEPTED if self.vehicle.set_current_item(int(p[0])) else CommandResult.DENIED

@@ -1,0 +1,217 @@
+"""UDP transport: live peers, per-peer parsing, routing between peers, drop counters.
+
+Every address that sends the vehicle a datagram becomes a live peer and receives the telemetry, like PX4's
+UDP "remote" behaviour; `--out` targets are peers from the start. Messages from one peer that are not
+addressed to this vehicle alone are forwarded to the other peers, the way an autopilot's MAVLink router
+lets the GCS see what the onboard computer publishes.
+"""
+
+from __future__ import annotations
+
+import logging
+import select
+import socket
+import time
+from dataclasses import dataclass, field
+
+from sitl_quad.mavlink import mavlink
+
+log = logging.getLogger(__name__)
+
+PEER_TIMEOUT_S = 10.0  # a peer silent this long (wall clock) stops receiving telemetry
+MAX_DATAGRAM = 65535
+
+
+@dataclass
+class Peer:
+    address: tuple[str, int]
+    parser: mavlink.MAVLink
+    last_seen: float = 0.0
+    sysid: int | None = None
+    compid: int | None = None
+    permanent: bool = False  # an --out target: never expires
+
+
+@dataclass
+class LinkStats:
+    datagrams: int = 0
+    messages: int = 0
+    malformed: int = 0  # bad CRC, bad prefix, truncated, unparsable
+    unsigned_rejected: int = 0
+    wrong_target: int = 0  # addressed to another system and nowhere to route it
+    unknown: int = 0  # valid frame, message id outside the dialect
+    forwarded: int = 0
+    sent: int = 0
+    send_errors: int = 0
+    by_type: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def dropped(self) -> int:
+        return self.malformed + self.unsigned_rejected + self.unknown
+
+
+def _target_of(msg) -> tuple[int, int] | None:
+    """(target_system, target_component) of a message, or None for a broadcast-type message."""
+    target_system = getattr(msg, "target_system", None)
+    if target_system is None:
+        return None
+    return target_system, getattr(msg, "target_component", 0)
+
+
+class UdpLink:
+    """One UDP socket bound to host:port, talking MAVLink 2 to any number of peers."""
+
+    def __init__(
+        self,
+        host: str = "127.0.0.1",
+        port: int = 14540,
+        out_targets: list[tuple[str, int]] | None = None,
+        sysid: int = 1,
+        compid: int = 1,
+        signing_key: bytes | None = None,
+    ) -> None:
+        self.sysid, self.compid = sysid, compid
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+        self.sock.bind((host, port))
+        self.sock.setblocking(False)
+        self.address = self.sock.getsockname()
+        self.signing_key = signing_key
+        self.encoder = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+        if signing_key is not None:
+            self.encoder.signing.secret_key = signing_key
+            self.encoder.signing.sign_outgoing = True
+            self.encoder.signing.timestamp = _signing_timestamp()
+        self.peers: dict[tuple[str, int], Peer] = {}
+        for target in out_targets or []:
+            peer = self._new_peer(target)
+            peer.permanent = True
+        self.stats = LinkStats()
+
+    def close(self) -> None:
+        self.sock.close()
+
+    # ----- sending
+    def pack(self, msg) -> bytes:
+        if self.signing_key is not None:
+            self.encoder.signing.timestamp = max(self.encoder.signing.timestamp + 1, _signing_timestamp())
+        buf = msg.pack(self.encoder)
+        self.encoder.seq = (self.encoder.seq + 1) % 256
+        return buf
+
+    def send(self, msg, peer: Peer | None = None) -> None:
+        """Send to one peer, or to every live peer."""
+        buf = self.pack(msg)
+        for p in [peer] if peer is not None else self.live_peers():
+            self._sendto(buf, p.address)
+
+    def _sendto(self, buf: bytes, address: tuple[str, int]) -> None:
+        try:
+            self.sock.sendto(buf, address)
+            self.stats.sent += 1
+        except OSError as exc:  # a vanished peer or a full buffer must not stop the vehicle
+            self.stats.send_errors += 1
+            log.debug("send to %s failed: %s", address, exc)
+
+    def live_peers(self) -> list[Peer]:
+        now = time.monotonic()
+        expired = [a for a, p in self.peers.items() if not p.permanent and now - p.last_seen > PEER_TIMEOUT_S]
+        for address in expired:
+            log.info("peer %s silent for %.0f s: dropped", address, PEER_TIMEOUT_S)
+            del self.peers[address]
+        return list(self.peers.values())
+
+    # ----- receiving
+    def wait(self, timeout: float) -> bool:
+        """Block up to timeout seconds for a datagram; True if one is ready."""
+        ready, _, _ = select.select([self.sock], [], [], max(0.0, timeout))
+        return bool(ready)
+
+    def receive(self) -> list[tuple[Peer, object]]:
+        """Drain the socket: parsed messages addressed to (or broadcast for) this vehicle, with their peer."""
+        out: list[tuple[Peer, object]] = []
+        while True:
+            try:
+                data, address = self.sock.recvfrom(MAX_DATAGRAM)
+            except (BlockingIOError, InterruptedError):
+                return out
+            except OSError as exc:  # e.g. ICMP port unreachable reported on the socket
+                log.debug("recvfrom: %s", exc)
+                continue
+            self.stats.datagrams += 1
+            peer = self.peers.get(address) or self._new_peer(address)
+            peer.last_seen = time.monotonic()
+            for msg in self._parse(peer, data):
+                if self._accept(peer, msg):
+                    out.append((peer, msg))
+
+    def _new_peer(self, address: tuple[str, int]) -> Peer:
+        parser = mavlink.MAVLink(None, srcSystem=self.sysid, srcComponent=self.compid)
+        parser.robust_parsing = True
+        if self.signing_key is not None:
+            parser.signing.secret_key = self.signing_key
+            parser.signing.allow_unsigned_callback = _allow_unsigned
+        peer = Peer(address=address, parser=parser, last_seen=time.monotonic())
+        self.peers[address] = peer
+        log.info("new peer %s:%d", *address)
+        return peer
+
+    def _parse(self, peer: Peer, data: bytes) -> list:
+        parser = peer.parser
+        # A datagram carries whole frames: never let a truncated tail leak into the next datagram.
+        parser.buf, parser.buf_index = bytearray(), 0
+        parser.expected_length = mavlink.HEADER_LEN_V1 + 2
+        try:
+            messages = parser.parse_buffer(data) or []
+        except Exception as exc:  # pymavlink raises a zoo of errors on hostile input; none may escape
+            self.stats.malformed += 1
+            log.debug("unparsable datagram from %s: %s", peer.address, exc)
+            return []
+        good = []
+        for msg in messages:
+            if isinstance(msg, mavlink.MAVLink_bad_data):
+                if "signature" in str(getattr(msg, "reason", "")).lower():
+                    self.stats.unsigned_rejected += 1
+                else:
+                    self.stats.malformed += 1
+            elif isinstance(msg, mavlink.MAVLink_unknown):
+                self.stats.unknown += 1
+            else:
+                good.append(msg)
+        return good
+
+    def _accept(self, peer: Peer, msg) -> bool:
+        """Route the message onwards and say whether this vehicle should handle it."""
+        self.stats.messages += 1
+        kind = msg.get_type()
+        self.stats.by_type[kind] = self.stats.by_type.get(kind, 0) + 1
+        if kind == "HEARTBEAT" or peer.sysid is None:
+            peer.sysid, peer.compid = msg.get_srcSystem(), msg.get_srcComponent()
+        target = _target_of(msg)
+        for_us = target is None or (target[0] in (0, self.sysid) and target[1] in (0, self.compid))
+        for_others = target is None or target[0] != self.sysid or target[1] not in (0, self.compid)
+        if for_others:
+            self._forward(peer, msg)
+        if not for_us:
+            self.stats.wrong_target += 1
+        return for_us
+
+    def _forward(self, source: Peer, msg) -> None:
+        buf = bytes(msg.get_msgbuf())
+        for p in self.live_peers():
+            if p is not source:
+                self._sendto(buf, p.address)
+                self.stats.forwarded += 1
+
+
+# Messages a keyed vehicle still accepts unsigned: radio status only, as PX4 does.
+_UNSIGNED_ALLOWED = {mavlink.MAVLINK_MSG_ID_RADIO_STATUS}
+
+
+def _allow_unsigned(_mav, msg_id: int) -> bool:
+    return msg_id in _UNSIGNED_ALLOWED
+
+
+def _signing_timestamp() -> int:
+    """MAVLink signing time: 10 us units since 2015-01-01."""
+    return int((time.time() - 1420070400) * 100_000)

@@ -1,0 +1,254 @@
+"""Telemetry streams: what MAVSDK, QGroundControl and the offboard controller read.
+
+Streams are scheduled on simulated time (so a lockstep flight's telemetry is the same at any speed) with
+PX4-like default rates that SET_MESSAGE_INTERVAL can change; REQUEST_MESSAGE answers a single message.
+State messages report the vehicle's *estimate* (what a real autopilot knows), never the physics' truth.
+"""
+
+from __future__ import annotations
+
+import math
+
+from sitl_quad.mavlink import mavlink
+from sitl_quad.modes import FlightMode
+from sitl_quad.rotation import euler_from_quat
+from sitl_quad.vehicle import CommandResult, Vehicle
+
+# MAV_PROTOCOL_CAPABILITY bits MAVSDK and QGC look for (mavlink-conformance.md)
+CAPABILITIES = (
+    mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+    | mavlink.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+)
+FLIGHT_SW_VERSION = (1 << 24) | (15 << 16) | (0 << 8) | 255  # reads as PX4 v1.15.0 release
+
+# SYS_STATUS sensor bits: present, enabled and healthy (MAVSDK's is_armable reads PREARM_CHECK)
+SENSORS = (
+    mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO
+    | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+    | mavlink.MAV_SYS_STATUS_SENSOR_3D_MAG
+    | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+    | mavlink.MAV_SYS_STATUS_SENSOR_GPS
+    | mavlink.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION
+    | mavlink.MAV_SYS_STATUS_SENSOR_YAW_POSITION
+    | mavlink.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
+    | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+    | mavlink.MAV_SYS_STATUS_PREARM_CHECK
+)
+
+# Default stream rates in Hz of simulated time. The three state messages run at the outer-loop rate:
+# they are what the offboard controller closes its loop on.
+DEFAULT_RATES_HZ = {
+    "LOCAL_POSITION_NED": None,  # None: every outer tick
+    "ATTITUDE_QUATERNION": None,
+    "POSITION_TARGET_LOCAL_NED": None,
+    "GLOBAL_POSITION_INT": 10.0,
+    "ATTITUDE": 10.0,
+    "VFR_HUD": 4.0,
+    "EXTENDED_SYS_STATE": 2.0,
+    "SYS_STATUS": 2.0,
+    "GPS_RAW_INT": 2.0,
+    "BATTERY_STATUS": 1.0,
+    "MISSION_CURRENT": 1.0,
+    "HOME_POSITION": 0.5,
+}
+
+BATTERY_ENDURANCE_S = 25 * 60  # hover endurance used for the simple battery model
+CELL_FULL_V, CELL_EMPTY_V, CELLS = 4.2, 3.5, 4
+
+
+class Telemetry:
+    """Builds and schedules the vehicle's outgoing state messages."""
+
+    def __init__(self, vehicle: Vehicle, send) -> None:
+        self.vehicle = vehicle
+        self.send = send  # callable(msg), to every live peer
+        self.intervals: dict[str, float | None] = dict(DEFAULT_RATES_HZ)
+        self.intervals = {name: (None if hz is None else 1.0 / hz) for name, hz in DEFAULT_RATES_HZ.items()}
+        self.next_due: dict[str, float] = dict.fromkeys(self.intervals, 0.0)
+        self.builders = {
+            "LOCAL_POSITION_NED": self.local_position_ned,
+            "ATTITUDE_QUATERNION": self.attitude_quaternion,
+            "POSITION_TARGET_LOCAL_NED": self.position_target_local_ned,
+            "GLOBAL_POSITION_INT": self.global_position_int,
+            "ATTITUDE": self.attitude,
+            "VFR_HUD": self.vfr_hud,
+            "EXTENDED_SYS_STATE": self.extended_sys_state,
+            "SYS_STATUS": self.sys_status,
+            "GPS_RAW_INT": self.gps_raw_int,
+            "BATTERY_STATUS": self.battery_status,
+            "MISSION_CURRENT": self.mission_current,
+            "HOME_POSITION": self.home_position,
+            "AUTOPILOT_VERSION": self.autopilot_version,
+        }
+        self.link_stats = None  # set by the server: drop counters go into SYS_STATUS
+
+    # ----- scheduling
+    def publish_due(self) -> None:
+        """Send every stream whose interval has elapsed in simulated time (called after each tick)."""
+        t = self.vehicle.t
+        for name, interval in self.intervals.items():
+            if interval is None:
+                self.send(self.builders[name]())
+            elif interval > 0 and t >= self.next_due[name]:
+                self.next_due[name] = max(self.next_due[name] + interval, t)
+                self.send(self.builders[name]())
+
+    def set_interval(self, msg_id: int, interval_us: float) -> CommandResult:
+        """MAV_CMD_SET_MESSAGE_INTERVAL: -1 disables, 0 restores the default, >0 microseconds."""
+        name = _name_of(msg_id)
+        if name not in self.builders or name == "AUTOPILOT_VERSION":
+            return CommandResult.UNSUPPORTED
+        if not math.isfinite(interval_us):
+            return CommandResult.DENIED
+        if interval_us == 0:
+            hz = DEFAULT_RATES_HZ.get(name)
+            self.intervals[name] = None if hz is None else 1.0 / hz
+        elif interval_us < 0:
+            self.intervals[name] = 0.0  # disabled
+        else:
+            self.intervals[name] = max(interval_us * 1e-6, self.vehicle.outer_dt)
+        self.next_due.setdefault(name, 0.0)
+        return CommandResult.ACCEPTED
+
+    def request_message(self, msg_id: int) -> CommandResult:
+        """MAV_CMD_REQUEST_MESSAGE / GET_HOME_POSITION: send one now."""
+        name = _name_of(msg_id)
+        if name not in self.builders:
+            return CommandResult.UNSUPPORTED
+        self.send(self.builders[name]())
+        return CommandResult.ACCEPTED
+
+    # ----- message builders
+    def local_position_ned(self):
+        est = self.vehicle.estimate
+        return mavlink.MAVLink_local_position_ned_message(
+            self.vehicle.time_boot_ms, *map(float, est.position), *map(float, est.velocity))
+
+    def attitude_quaternion(self):
+        est = self.vehicle.estimate
+        w, x, y, z = map(float, est.quaternion)
+        p, q, r = map(float, est.angular_velocity)
+        return mavlink.MAVLink_attitude_quaternion_message(
+            self.vehicle.time_boot_ms, w, x, y, z, p, q, r, [0.0, 0.0, 0.0, 0.0])
+
+    def position_target_local_ned(self):
+        sp = self.vehicle.setpoint
+        return mavlink.MAVLink_position_target_local_ned_message(
+            self.vehicle.time_boot_ms, mavlink.MAV_FRAME_LOCAL_NED, 0,
+            *map(float, sp.position), *map(float, sp.velocity), *map(float, sp.acceleration),
+            float(sp.yaw), float(sp.yaw_rate))
+
+    def attitude(self):
+        est = self.vehicle.estimate
+        roll, pitch, yaw = euler_from_quat(est.quaternion)
+        p, q, r = map(float, est.angular_velocity)
+        return mavlink.MAVLink_attitude_message(self.vehicle.time_boot_ms, roll, pitch, yaw, p, q, r)
+
+    def _geodetic(self):
+        v = self.vehicle
+        n, e, d = map(float, v.estimate.position)
+        lat, lon, alt = v.frame.from_ned(n, e, d)
+        return float(lat), float(lon), float(alt)
+
+    def global_position_int(self):
+        v = self.vehicle
+        lat, lon, alt = self._geodetic()
+        vn, ve, vd = map(float, v.estimate.velocity)
+        _, _, yaw = euler_from_quat(v.estimate.quaternion)
+        heading_cdeg = round(math.degrees(yaw) % 360 * 100) % 36000
+        return mavlink.MAVLink_global_position_int_message(
+            v.time_boot_ms, round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
+            round(-v.estimate.position[2] * 1000),
+            _cm(vn), _cm(ve), _cm(vd), heading_cdeg)
+
+    def gps_raw_int(self):
+        v = self.vehicle
+        lat, lon, alt = self._geodetic()
+        vn, ve, _ = map(float, v.estimate.velocity)
+        speed = math.hypot(vn, ve)
+        cog = round(math.degrees(math.atan2(ve, vn)) % 360 * 100) % 36000 if speed > 0.2 else 65535
+        return mavlink.MAVLink_gps_raw_int_message(
+            int(v.t * 1e6), 3, round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
+            80, 120, round(speed * 100), cog, 14)
+
+    def vfr_hud(self):
+        v = self.vehicle
+        vn, ve, vd = map(float, v.estimate.velocity)
+        _, _, yaw = euler_from_quat(v.estimate.quaternion)
+        ground_speed = math.hypot(vn, ve)
+        return mavlink.MAVLink_vfr_hud_message(
+            ground_speed, ground_speed, round(math.degrees(yaw) % 360) % 360,
+            round(100 * v.target.thrust), float(-v.estimate.position[2] + v.home[2]), -vd)
+
+    def extended_sys_state(self):
+        return mavlink.MAVLink_extended_sys_state_message(
+            mavlink.MAV_VTOL_STATE_UNDEFINED, int(self.vehicle.landed_state))
+
+    def battery_fraction(self) -> float:
+        v = self.vehicle
+        return max(0.0, 1.0 - v.flight_time_s / BATTERY_ENDURANCE_S)
+
+    def sys_status(self):
+        fraction = self.battery_fraction()
+        voltage_mv = int(CELLS * (CELL_EMPTY_V + (CELL_FULL_V - CELL_EMPTY_V) * fraction) * 1000)
+        stats = self.link_stats
+        dropped = stats.dropped if stats else 0
+        received = max(1, stats.messages + dropped) if stats else 1
+        drop_rate = min(10000, int(10000 * dropped / received))  # centi-percent
+        return mavlink.MAVLink_sys_status_message(
+            SENSORS, SENSORS, SENSORS, 250, voltage_mv, 800 if self.vehicle.armed else 50,
+            round(fraction * 100), drop_rate, min(65535, dropped),
+            min(65535, stats.malformed if stats else 0), min(65535, stats.unknown if stats else 0),
+            min(65535, stats.wrong_target if stats else 0), min(65535, stats.unsigned_rejected if stats else 0))
+
+    def battery_status(self):
+        fraction = self.battery_fraction()
+        cell_mv = int((CELL_EMPTY_V + (CELL_FULL_V - CELL_EMPTY_V) * fraction) * 1000)
+        voltages = [cell_mv] * CELLS + [65535] * (10 - CELLS)
+        return mavlink.MAVLink_battery_status_message(
+            0, mavlink.MAV_BATTERY_FUNCTION_ALL, mavlink.MAV_BATTERY_TYPE_LIPO, 32767, voltages,
+            800 if self.vehicle.armed else 50, int(5000 * (1 - fraction)), -1, round(fraction * 100))
+
+    def mission_current(self):
+        v = self.vehicle
+        nav = v.navigator
+        state = {
+            "no_mission": mavlink.MISSION_STATE_NO_MISSION,
+            "not_started": mavlink.MISSION_STATE_NOT_STARTED,
+            "active": mavlink.MISSION_STATE_ACTIVE,
+            "paused": mavlink.MISSION_STATE_PAUSED,
+            "complete": mavlink.MISSION_STATE_COMPLETE,
+        }.get(nav.mission_state, mavlink.MISSION_STATE_UNKNOWN)
+        seq = nav.current_seq if v.mission else 0
+        mission_mode = 1 if v.mode == FlightMode.AUTO_MISSION else 0
+        return mavlink.MAVLink_mission_current_message(seq, len(v.mission), state, mission_mode)
+
+    def home_position(self):
+        lat, lon, alt = self.vehicle.home
+        return mavlink.MAVLink_home_position_message(
+            round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
+            0.0, 0.0, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, int(self.vehicle.t * 1e6))
+
+    def autopilot_version(self):
+        return mavlink.MAVLink_autopilot_version_message(
+            CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0x26AC, 0x0011,
+            0x4255_4F59_5349_544C)  # uid: "BUOYSITL"
+
+
+def _cm(metres_per_second: float) -> int:
+    return max(-32768, min(32767, round(metres_per_second * 100)))
+
+
+def _name_of(msg_id: float) -> str | None:
+    try:
+        cls = mavlink.mavlink_map.get(int(msg_id))
+    except (ValueError, OverflowError):
+        return None
+    return cls.msgname if cls is not None else None

@@ -1,0 +1,189 @@
+"""The vehicle process's main loop: pace simulated time, tick the vehicle, talk MAVLink.
+
+Simulated time advances in outer-loop ticks. `--speed N` paces ticks to N times the wall clock;
+`--lockstep` waits after each tick until the offboard controller's SET_ATTITUDE_TARGET answers the state
+just sent (its time_boot_ms), and runs freely while no offboard controller streams. Heartbeats, command
+acknowledgements and mission-transfer timers run on the wall clock whatever the pacing.
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import time
+from pathlib import Path
+
+from sitl_quad.mavlink import mavlink
+from sitl_quad.mavlink.commands import Commands
+from sitl_quad.mavlink.heartbeat import Heartbeat, heartbeat_message
+from sitl_quad.mavlink.link import UdpLink
+from sitl_quad.mavlink.mission import MissionProtocol
+from sitl_quad.mavlink.offboard import Offboard
+from sitl_quad.mavlink.parameters import Parameters
+from sitl_quad.mavlink.telemetry import Telemetry
+from sitl_quad.params import ParameterTable
+from sitl_quad.rotation import euler_from_quat
+from sitl_quad.vehicle import CommandResult, TickRecord, Vehicle, VehicleEvent
+
+log = logging.getLogger(__name__)
+
+MAX_WAIT_SLICE_S = 0.005  # never sleep longer than this without looking at the socket and wall timers
+RESYNC_BEHIND_S = 0.5  # paced mode fell this far behind the wall clock: re-anchor instead of racing
+
+
+class VehicleServer:
+    def __init__(self, vehicle: Vehicle, params: ParameterTable, link: UdpLink, speed: float = 1.0,
+                 lockstep: bool = False, flight_log: Path | None = None, on_params_changed=None) -> None:
+        self.vehicle = vehicle
+        self.params = params
+        self.link = link
+        self.speed = speed
+        self.lockstep = lockstep
+        self.running = True
+        self.handler_errors = 0
+        self.tick_wall_times: list[float] = []  # kept only when record_ticks is set (benchmarks)
+        self.record_ticks = False
+        self.telemetry = Telemetry(vehicle, self.send)
+        self.telemetry.link_stats = link.stats
+        self.heartbeat = Heartbeat(vehicle, self.send)
+        self.parameters = Parameters(params, self.send, self._param_changed)
+        self.on_params_changed = on_params_changed
+        self.commands = Commands(vehicle, self.send)
+        self.commands.vehicle_sysid = link.sysid
+        self.mission = MissionProtocol(vehicle, self.send, link.sysid, link.compid)
+        self.offboard = Offboard(vehicle)
+        home_id = mavlink.MAVLINK_MSG_ID_HOME_POSITION
+        version_id = mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION
+        self.commands.register(mavlink.MAV_CMD_REQUEST_MESSAGE, lambda p: self.telemetry.request_message(p[0]))
+        self.commands.register(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                               lambda p: self.telemetry.set_interval(p[0], p[1]))
+        self.commands.register(mavlink.MAV_CMD_GET_HOME_POSITION, lambda p: self.telemetry.request_message(home_id))
+        self.commands.register(mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
+                               lambda p: self.telemetry.request_message(version_id))
+        self.commands.register(mavlink.MAV_CMD_REQUEST_PROTOCOL_VERSION, lambda p: CommandResult.UNSUPPORTED)
+        self.dispatch: dict = {}
+        for capability in (self.parameters, self.commands, self.mission, self.offboard):
+            self.dispatch.update(capability.handlers())
+        self._log_file = None
+        self._log_writer = None
+        if flight_log is not None:
+            self._open_log(flight_log)
+        self._last_mission_seq = -1
+
+    # ----- sending and receiving
+    def send(self, msg, peer=None) -> None:
+        self.link.send(msg, peer)
+
+    def handle_incoming(self) -> None:
+        for peer, msg in self.link.receive():
+            handler = self.dispatch.get(msg.get_type())
+            if handler is None:
+                continue
+            try:
+                handler(peer, msg)
+            except Exception:  # a bug in one handler must not take the vehicle down mid-flight
+                self.handler_errors += 1
+                log.exception("handler for %s failed", msg.get_type())
+
+    def poll_wall_timers(self) -> None:
+        now = time.monotonic()
+        self.heartbeat.poll(now)
+        self.mission.poll(now)
+        self.parameters.poll()
+
+    def _param_changed(self, section: str) -> None:
+        self.vehicle.apply_config(section)
+        if self.on_params_changed is not None:
+            self.on_params_changed()
+
+    # ----- the loop
+    def run(self, duration_s: float | None = None) -> None:
+        """Run until stop() or until `duration_s` of simulated time has passed."""
+        wall_anchor, sim_anchor = time.monotonic(), self.vehicle.t
+        end = None if duration_s is None else self.vehicle.t + duration_s
+        while self.running and (end is None or self.vehicle.t < end - 1e-9):
+            wall_anchor, sim_anchor = self._wait_for_next_tick(wall_anchor, sim_anchor)
+            if not self.running:
+                break
+            if self.record_ticks:
+                self.tick_wall_times.append(time.monotonic())
+            record = self.vehicle.tick()
+            self._publish_events()
+            self.telemetry.publish_due()
+            if self._log_writer is not None:
+                self._write_log(record)
+        self.close()
+
+    def stop(self) -> None:
+        self.running = False
+
+    def _wait_for_next_tick(self, wall_anchor: float, sim_anchor: float) -> tuple[float, float]:
+        while self.running:
+            self.handle_incoming()
+            self.poll_wall_timers()
+            now = time.monotonic()
+            if self.lockstep:
+                if not self.offboard.streaming(now) or self.offboard.answered(self.vehicle.time_boot_ms):
+                    return wall_anchor, sim_anchor
+                self.link.wait(MAX_WAIT_SLICE_S)
+                continue
+            due = wall_anchor + (self.vehicle.t - sim_anchor) / self.speed
+            if now >= due:
+                if now - due > RESYNC_BEHIND_S:  # e.g. the process was suspended: don't sprint to catch up
+                    return now, self.vehicle.t
+                return wall_anchor, sim_anchor
+            self.link.wait(min(due - now, MAX_WAIT_SLICE_S))
+        return wall_anchor, sim_anchor
+
+    def _publish_events(self) -> None:
+        vehicle = self.vehicle
+        events, vehicle.events = vehicle.events, []
+        for event in events:
+            self._publish_event(event)
+
+    def _publish_event(self, event: VehicleEvent) -> None:
+        if event.kind == "text" or (event.kind in ("armed", "mission_complete") and event.text):
+            self.send(mavlink.MAVLink_statustext_message(event.severity, event.text.encode()[:50]))
+        if event.kind in ("mode", "armed"):
+            self.send(heartbeat_message(self.vehicle))  # tools learn mode and arming changes at once
+        if event.kind == "mode":
+            self.send(mavlink.MAVLink_statustext_message(6, f"Mode: {event.text}".encode()[:50]))
+        if event.kind in ("mission_current", "mission_complete", "item_reached"):
+            self.send(self.telemetry.mission_current())
+        if event.kind == "item_reached":
+            self.send(mavlink.MAVLink_mission_item_reached_message(event.seq))
+
+    # ----- flight log (CSV: one row per outer tick)
+    LOG_COLUMNS = (
+        "t", "mode", "armed", "source",
+        "x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw",
+        "x_est", "y_est", "z_est", "vx_est", "vy_est", "vz_est", "roll_est", "pitch_est", "yaw_est",
+        "x_ref", "y_ref", "z_ref", "vx_ref", "vy_ref", "vz_ref", "ax_ref", "ay_ref", "az_ref", "yaw_ref",
+        "qw_cmd", "qx_cmd", "qy_cmd", "qz_cmd", "thrust_cmd",
+        "wind_n", "wind_e", "wind_d", "ext_acc_n", "ext_acc_e", "ext_acc_d",
+        "mission_seq",
+    )
+
+    def _open_log(self, path: Path) -> None:
+        self._log_file = open(path, "w", newline="")  # noqa: SIM115 (closed in close())
+        self._log_writer = csv.writer(self._log_file)
+        self._log_writer.writerow(self.LOG_COLUMNS)
+
+    def _write_log(self, r: TickRecord) -> None:
+        v = self.vehicle
+        truth, est, sp, target = r.truth, r.estimate, r.setpoint, r.target
+        dist = r.disturbance
+        row = [round(r.t, 4), v.mode.label, int(v.armed), r.source]
+        row += [*truth.position, *truth.velocity, *euler_from_quat(truth.quaternion)]
+        row += [*est.position, *est.velocity, *euler_from_quat(est.quaternion)]
+        row += [*sp.position, *sp.velocity, *sp.acceleration, sp.yaw]
+        row += [*target.quaternion, target.thrust]
+        row += [*dist.get("wind_ned", (0, 0, 0)), *dist.get("external_accel_ned", (0, 0, 0))]
+        row += [v.navigator.current_seq]
+        self._log_writer.writerow([f"{x:.5g}" if isinstance(x, float) else x for x in row])
+
+    def close(self) -> None:
+        if self._log_file is not None:
+            self._log_file.close()
+            self._log_file = self._log_writer = None
+        self.link.close()

@@ -1,0 +1,380 @@
+"""The autopilot without its radio: modes, arming, failsafes and the loop that ties physics to control.
+
+`Vehicle.tick()` advances one outer-loop period (50 Hz by default): the navigator's reference, the outer
+loop's attitude target (built-in PID cascade, or the offboard controller's SET_ATTITUDE_TARGET while in
+OFFBOARD and fresh), then the attitude loop at 250 Hz, each attitude step driving 1 kHz RK4 physics steps.
+Nothing here knows MAVLink: commands return a `CommandResult` whose numbers equal MAV_RESULT's, and what
+the outside world should hear about is queued as `VehicleEvent`s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+import numpy as np
+
+from planner.geodesy import LocalFrame
+from sitl_quad.config import AttitudeControllerKind, FailsafeAction, VehicleConfig
+from sitl_quad.mission_items import MissionItem
+from sitl_quad.modes import FlightMode
+from sitl_quad.navigator import Navigator
+from sitl_quad.rotation import euler_from_quat
+from sitl_quad.rotors import Mixer
+from sitl_quad.simulator import Simulator
+from sitl_quad.state import AttitudeTarget, TrajectorySetpoint, VehicleState
+
+ATTITUDE_RATE_HZ = 250
+PHYSICS_RATE_HZ = 1000
+IDLE_THROTTLE = 0.05  # armed on the ground: rotors spin at idle, as PX4 does
+TOUCHDOWN_CONFIRM_S = 1.0  # on the ground this long while landing -> landed, disarm
+PREFLIGHT_DISARM_S = 10.0  # armed on the ground without taking off this long -> disarm (COM_DISARM_PRFLT)
+FORCE_DISARM_MAGIC = 21196  # COMPONENT_ARM_DISARM param2 that disarms even in the air
+
+
+class CommandResult(IntEnum):
+    """Same numbers as MAV_RESULT."""
+
+    ACCEPTED = 0
+    TEMPORARILY_REJECTED = 1
+    DENIED = 2
+    UNSUPPORTED = 3
+    FAILED = 4
+
+
+class LandedState(IntEnum):
+    """Same numbers as MAV_LANDED_STATE."""
+
+    UNDEFINED = 0
+    ON_GROUND = 1
+    IN_AIR = 2
+    TAKEOFF = 3
+    LANDING = 4
+
+
+@dataclass
+class VehicleEvent:
+    kind: str  # "text" | "mission_current" | "item_reached" | "mission_complete" | "mode" | "armed"
+    text: str = ""
+    severity: int = 6  # MAV_SEVERITY for "text": 6 info, 4 warning, 3 error
+    seq: int = -1
+
+
+@dataclass
+class OffboardStream:
+    """The latest SET_ATTITUDE_TARGET from the offboard controller."""
+
+    target: AttitudeTarget | None = None
+    received_t: float = -math.inf  # simulated time it arrived
+    answered_ms: int = -1  # the state time_boot_ms it answers (lockstep)
+    count: int = 0
+
+
+@dataclass
+class TickRecord:
+    """What one outer tick did, for logs and benchmarks."""
+
+    t: float
+    truth: VehicleState
+    estimate: VehicleState
+    setpoint: TrajectorySetpoint
+    target: AttitudeTarget
+    source: str  # "offboard" | "builtin" | "idle" | "off"
+    disturbance: dict = field(default_factory=dict)
+
+
+class Vehicle:
+    """One simulated quadrotor with its onboard autopilot functions."""
+
+    def __init__(self, config: VehicleConfig, home: tuple[float, float, float], seed: int = 0,
+                 outer_rate_hz: float = 50.0) -> None:
+        self.config = config
+        self.home = home
+        self.frame = LocalFrame(*home)
+        self.seed = seed
+        self.outer_dt = 1.0 / outer_rate_hz
+        self.attitude_steps = max(1, round(ATTITUDE_RATE_HZ / outer_rate_hz))
+        self.attitude_dt = self.outer_dt / self.attitude_steps
+        self.physics_steps = max(1, round(self.attitude_dt * PHYSICS_RATE_HZ))
+        self.sim = self._make_simulator()
+        self.mixer = Mixer(config.airframe)
+        self.attitude = self._make_attitude_controller()
+        self.position = self._make_position_controller()
+        self.navigator = Navigator(self.frame, config.navigator)
+        self.mission: list[MissionItem] = []
+        self.armed = False
+        self.mode = FlightMode.AUTO_LOITER
+        self.landed_state = LandedState.ON_GROUND
+        self.offboard = OffboardStream()
+        self.events: list[VehicleEvent] = []
+        self.estimate = self.sim.measure()
+        self.setpoint = self._hold_here()
+        self.target = AttitudeTarget(quaternion=np.array([1.0, 0, 0, 0]), thrust=0.0)
+        self.source = "off"
+        self.saturated_ticks = 0
+        self._ground_since: float | None = None
+        self._armed_at = 0.0
+        self._was_airborne = False
+
+    # ----- construction from config (also after parameter changes)
+    def _make_simulator(self) -> Simulator:
+        c = self.config
+        return Simulator(airframe=c.airframe, wind=c.wind, disturbance=c.disturbance,
+                         sensor_noise=c.sensor_noise, seed=self.seed, dt=1.0 / PHYSICS_RATE_HZ)
+
+    def _make_attitude_controller(self):
+        c = self.config
+        if c.control.attitude_controller == AttitudeControllerKind.ADRC:
+            from adrc_offboard.adrc_attitude import AdrcAttitudeController
+
+            return AdrcAttitudeController.for_airframe(c.airframe)
+        from sitl_quad.attitude_pid import PidAttitudeController
+
+        return PidAttitudeController(c.attitude_pid)
+
+    def _make_position_controller(self):
+        from sitl_quad.position_control import PidPositionController
+
+        return PidPositionController(self.config.position_pid, self.config.airframe)
+
+    def apply_config(self, changed: str) -> None:
+        """Rebuild what depends on a config section after a parameter change."""
+        if changed in ("wind", "disturbance", "sensor_noise", "airframe"):
+            self.sim.reconfigure(airframe=self.config.airframe, wind=self.config.wind,
+                                 disturbance=self.config.disturbance, sensor_noise=self.config.sensor_noise)
+        if changed == "airframe":
+            self.mixer = Mixer(self.config.airframe)
+        if changed in ("airframe", "attitude_pid", "control"):
+            self.attitude = self._make_attitude_controller()
+        if changed in ("airframe", "position_pid"):
+            self.position = self._make_position_controller()
+        if changed == "navigator":
+            self.navigator.config = self.config.navigator
+
+    # ----- state readers
+    @property
+    def t(self) -> float:
+        return self.sim.t
+
+    @property
+    def time_boot_ms(self) -> int:
+        return round(self.sim.t * 1000)
+
+    @property
+    def truth(self) -> VehicleState:
+        return self.sim.state
+
+    @property
+    def in_air(self) -> bool:
+        return self.landed_state in (LandedState.IN_AIR, LandedState.TAKEOFF, LandedState.LANDING)
+
+    def offboard_fresh(self) -> bool:
+        return self.t - self.offboard.received_t <= self.config.failsafe.offboard_loss_timeout_s
+
+    def _emit(self, kind: str, text: str = "", severity: int = 6, seq: int = -1) -> None:
+        self.events.append(VehicleEvent(kind=kind, text=text, severity=severity, seq=seq))
+
+    def _hold_here(self) -> TrajectorySetpoint:
+        _, _, yaw = euler_from_quat(self.estimate.quaternion)
+        return TrajectorySetpoint(position=self.estimate.position.copy(), yaw=yaw)
+
+    # ----- commands (each returns a CommandResult)
+    def arm(self) -> CommandResult:
+        if self.armed:
+            self._emit("text", "Arming denied: already armed", 4)
+            return CommandResult.TEMPORARILY_REJECTED
+        if not self.sim.on_ground:
+            self._emit("text", "Arming denied: not on the ground", 4)
+            return CommandResult.DENIED
+        self.armed = True
+        self._armed_at = self.t
+        self._was_airborne = False
+        self.attitude.reset()
+        self.position.reset()
+        self.landed_state = LandedState.ON_GROUND
+        self._emit("armed", "Armed")
+        self._enter(self.mode)
+        return CommandResult.ACCEPTED
+
+    def disarm(self, force: bool = False) -> CommandResult:
+        if not self.armed:
+            return CommandResult.ACCEPTED
+        if self.in_air and not self.sim.on_ground and not force:
+            self._emit("text", "Disarming denied: in the air", 4)
+            return CommandResult.DENIED
+        self._disarm("Disarmed")
+        return CommandResult.ACCEPTED
+
+    def _disarm(self, reason: str) -> None:
+        self.armed = False
+        self.landed_state = LandedState.ON_GROUND
+        self.sim.set_rotor_commands(np.zeros(4))
+        self._emit("armed", reason)
+
+    def set_mode(self, mode: FlightMode) -> CommandResult:
+        if mode == FlightMode.OFFBOARD and not self.offboard_fresh():
+            self._emit("text", "Offboard denied: no attitude setpoint stream", 4)
+            return CommandResult.TEMPORARILY_REJECTED
+        if mode == FlightMode.AUTO_MISSION and not self.mission:
+            self._emit("text", "Mission denied: no mission", 4)
+            return CommandResult.DENIED
+        self._enter(mode)
+        return CommandResult.ACCEPTED
+
+    def takeoff(self, altitude: float | None = None) -> CommandResult:
+        if not self.armed:
+            self._emit("text", "Takeoff denied: disarmed", 4)
+            return CommandResult.DENIED
+        self._enter(FlightMode.AUTO_TAKEOFF, altitude=altitude)
+        return CommandResult.ACCEPTED
+
+    def start_mission(self, first_seq: int | None = None) -> CommandResult:
+        if not self.mission:
+            self._emit("text", "Mission start denied: no mission", 4)
+            return CommandResult.DENIED
+        if first_seq is not None and not 0 <= first_seq < len(self.mission):
+            return CommandResult.DENIED
+        self._enter(FlightMode.AUTO_MISSION, first_seq=first_seq)
+        return CommandResult.ACCEPTED
+
+    def set_mission(self, items: list[MissionItem]) -> None:
+        self.mission = list(items)
+        self.navigator.set_mission(self.mission)
+        if self.armed and self.mode == FlightMode.AUTO_MISSION:
+            self.navigator.start_mission(self.t, self.estimate, 0)
+        self._emit("mission_current", seq=self.navigator.current_seq)
+
+    def set_current_item(self, seq: int) -> bool:
+        if not 0 <= seq < len(self.mission):
+            return False
+        if self.armed and self.mode == FlightMode.AUTO_MISSION:
+            self.navigator.start_mission(self.t, self.estimate, seq)
+        else:
+            self.navigator.set_current(self.t, self.estimate, seq)
+        self._emit("mission_current", seq=seq)
+        return True
+
+    def set_offboard_target(self, target: AttitudeTarget, answered_ms: int) -> None:
+        self.offboard.target = target
+        self.offboard.received_t = self.t
+        self.offboard.answered_ms = answered_ms
+        self.offboard.count += 1
+
+    def _enter(self, mode: FlightMode, first_seq: int | None = None, altitude: float | None = None) -> None:
+        """Switch mode and tell the navigator what to fly (only when armed; a disarmed mode waits)."""
+        changed = mode != self.mode
+        self.mode = mode
+        if changed:
+            self._emit("mode", mode.label)
+        if not self.armed:
+            return
+        t, est = self.t, self.estimate
+        if mode == FlightMode.AUTO_MISSION:
+            if self.navigator.mission_state == "complete" and first_seq is None:
+                first_seq = 0  # re-arming after a finished mission flies it again, from the start
+            self.navigator.start_mission(t, est, first_seq)
+        elif mode == FlightMode.AUTO_TAKEOFF:
+            self.navigator.start_takeoff(t, est, altitude or self.config.navigator.takeoff_altitude)
+        elif mode == FlightMode.AUTO_RTL:
+            self.navigator.start_rtl(t, est)
+        elif mode == FlightMode.AUTO_LAND:
+            self.navigator.start_land(t, est)
+        elif mode in (FlightMode.AUTO_LOITER, FlightMode.POSCTL, FlightMode.AUTO_READY):
+            self.navigator.hold(t, est)
+        # OFFBOARD: the navigator keeps flying whatever it was flying; only the outer loop changes hands.
+
+    # ----- the loop
+    def tick(self) -> TickRecord:
+        """Advance one outer-loop period of simulated time."""
+        self.estimate = est = self.sim.measure()
+        if self.armed:
+            self.setpoint = self.navigator.update(self.t, est)
+            self._drain_navigator()
+        else:
+            self.setpoint = self._hold_here()
+        self._check_offboard_loss()
+        target, source = self._outer_loop(est)
+        self.target, self.source = target, source
+        saturated = False
+        for _ in range(self.attitude_steps):
+            if source == "off":
+                self.sim.set_rotor_commands(np.zeros(4))
+            else:
+                measured = self.sim.measure()
+                torque = self.attitude.update(target, measured, self.attitude_dt)
+                if source == "idle":
+                    torque = np.zeros(3)
+                thrust_n = target.thrust * self.config.airframe.max_thrust_n
+                self.sim.set_rotor_commands(self.mixer.rotor_commands(thrust_n, torque))
+                saturated = saturated or self.mixer.saturated
+            self.sim.step(self.physics_steps)
+        self.saturated_ticks += int(saturated)
+        self._update_landed_state()
+        return TickRecord(t=self.t, truth=self.sim.state, estimate=est, setpoint=self.setpoint,
+                          target=target, source=source, disturbance=dict(self.sim.last_disturbance))
+
+    def _outer_loop(self, est: VehicleState) -> tuple[AttitudeTarget, str]:
+        if not self.armed:
+            return AttitudeTarget(quaternion=np.array([1.0, 0, 0, 0]), thrust=0.0), "off"
+        climbing = self.navigator.activity in ("takeoff", "mission", "rtl") and not self.navigator.is_landing
+        if self.sim.on_ground and not self._was_airborne and not climbing and self.mode != FlightMode.OFFBOARD:
+            level = AttitudeTarget(quaternion=self._level_quaternion(est), thrust=IDLE_THROTTLE)
+            return level, "idle"
+        if self.mode == FlightMode.OFFBOARD and self.offboard.target is not None:
+            return self.offboard.target, "offboard"
+        return self.position.update(self.setpoint, est, self.outer_dt), "builtin"
+
+    @staticmethod
+    def _level_quaternion(est: VehicleState) -> np.ndarray:
+        _, _, yaw = euler_from_quat(est.quaternion)
+        return np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
+
+    def _check_offboard_loss(self) -> None:
+        if self.mode != FlightMode.OFFBOARD or self.offboard_fresh():
+            return
+        action = self.config.failsafe.offboard_loss_action
+        next_mode = {
+            FailsafeAction.HOLD: FlightMode.AUTO_LOITER,
+            FailsafeAction.LAND: FlightMode.AUTO_LAND,
+            FailsafeAction.RETURN: FlightMode.AUTO_RTL,
+        }[FailsafeAction(action)]
+        self._emit("text", f"Failsafe: offboard setpoints lost, {next_mode.label}", 3)
+        self._enter(next_mode)
+
+    def _drain_navigator(self) -> None:
+        for event in self.navigator.pop_events():
+            if event.kind == "current":
+                self._emit("mission_current", seq=event.seq)
+            elif event.kind == "reached":
+                self._emit("item_reached", seq=event.seq)
+            elif event.kind == "complete":
+                self._emit("mission_complete", "Mission finished", seq=event.seq)
+
+    def _update_landed_state(self) -> None:
+        if not self.armed:
+            self.landed_state = LandedState.ON_GROUND
+            return
+        on_ground = self.sim.on_ground
+        if not on_ground:
+            altitude = -self.sim.state.position[2]
+            self._was_airborne = self._was_airborne or altitude > 0.5
+        if self.navigator.is_landing or (self._was_airborne and on_ground):
+            self.landed_state = LandedState.LANDING
+            if on_ground:
+                self._ground_since = self.t if self._ground_since is None else self._ground_since
+                if self.t - self._ground_since >= TOUCHDOWN_CONFIRM_S:
+                    self._ground_since = None
+                    self._emit("text", "Landing detected", 6)
+                    self._disarm("Disarmed after landing")
+            else:
+                self._ground_since = None
+        elif on_ground and not self._was_airborne:
+            climbing = self.navigator.activity in ("takeoff", "mission", "rtl")
+            self.landed_state = LandedState.TAKEOFF if climbing else LandedState.ON_GROUND
+            if not climbing and self.t - self._armed_at > PREFLIGHT_DISARM_S:
+                self._disarm("Disarmed: no takeoff")
+        elif self.navigator.activity == "takeoff":
+            self.landed_state = LandedState.TAKEOFF
+        else:
+            self.landed_state = LandedState.IN_AIR

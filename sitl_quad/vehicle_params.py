@@ -1,0 +1,70 @@
+"""The vehicle's parameter table: PX4-style names bound to VehicleConfig fields, with limits.
+
+Names follow PX4 where PX4 has the parameter (MPC_XY_CRUISE, NAV_ACC_RAD, ...); the simulation's own
+settings are SIM_*. Only OFFB_LOSS_T is fixed by the contract.
+"""
+
+from __future__ import annotations
+
+import math
+
+from sitl_quad.params import INT32, REAL32, ParamSpec
+
+DEG = math.pi / 180.0
+
+VEHICLE_PARAMETERS: list[ParamSpec] = [
+    # airframe (paper Table 2 by default)
+    ParamSpec("SIM_MASS", "airframe.mass", REAL32, 0.1, 50.0, "vehicle mass, kg"),
+    ParamSpec("SIM_IXX", "airframe.ixx", REAL32, 1e-4, 10.0, "roll inertia Ix, kg m^2"),
+    ParamSpec("SIM_IYY", "airframe.iyy", REAL32, 1e-4, 10.0, "pitch inertia Iy, kg m^2"),
+    ParamSpec("SIM_IZZ", "airframe.izz", REAL32, 1e-4, 10.0, "yaw inertia Iz, kg m^2"),
+    ParamSpec("SIM_ARM_L", "airframe.arm_length", REAL32, 0.05, 5.0, "rotor arm L, m"),
+    ParamSpec("SIM_KL", "airframe.kl", REAL32, 1e-7, 1e-2, "lift coefficient kl, N s^2"),
+    ParamSpec("SIM_KF", "airframe.kf", REAL32, 1e-9, 1e-3, "rotor drag coefficient kf, N s^2"),
+    ParamSpec("SIM_MOT_TAU", "airframe.motor_time_constant", REAL32, 0.001, 0.5, "motor lag, s"),
+    ParamSpec("SIM_MOT_MAX", "airframe.rotor_speed_max", REAL32, 10.0, 5000.0, "max rotor speed, rad/s"),
+    ParamSpec("SIM_DRAG_XY", "airframe.drag_linear_xy", REAL32, 0.0, 10.0, "linear drag xy, N/(m/s)"),
+    ParamSpec("SIM_DRAG_XY2", "airframe.drag_quadratic_xy", REAL32, 0.0, 10.0, "quadratic drag xy"),
+    ParamSpec("SIM_DRAG_Z", "airframe.drag_linear_z", REAL32, 0.0, 10.0, "linear drag z, N/(m/s)"),
+    ParamSpec("SIM_DRAG_Z2", "airframe.drag_quadratic_z", REAL32, 0.0, 10.0, "quadratic drag z"),
+    # wind
+    ParamSpec("SIM_WIND_SPD", "wind.speed_m_s", REAL32, 0.0, 40.0, "mean wind speed, m/s"),
+    ParamSpec("SIM_WIND_DIR", "wind.direction_from_deg", REAL32, -360.0, 360.0, "wind from, deg"),
+    ParamSpec("SIM_GUST_AMP", "wind.gust_amplitude_m_s", REAL32, -40.0, 40.0, "1-cosine gust, m/s"),
+    ParamSpec("SIM_GUST_RISE", "wind.gust_rise_time_s", REAL32, 0.01, 60.0, "gust rise time, s"),
+    ParamSpec("SIM_GUST_T0", "wind.gust_start_s", REAL32, 0.0, 1e6, "gust start, simulated s"),
+    ParamSpec("SIM_GUST_HOLD", "wind.gust_hold_s", REAL32, 0.0, 1e9, "gust hold before it falls, s"),
+    ParamSpec("SIM_GUST_DIR", "wind.gust_direction_from_deg", REAL32, -360.0, 360.0, "gust from, deg"),
+    ParamSpec("SIM_TURB_W20", "wind.turbulence_w20_m_s", REAL32, 0.0, 40.0, "Dryden W20 intensity, m/s"),
+    # the paper's Gaussian disturbance terms D_x..D_psi
+    ParamSpec("SIM_DIST_VX", "disturbance.variance_x", REAL32, 0.0, 100.0, "D_x variance, (m/s^2)^2"),
+    ParamSpec("SIM_DIST_VY", "disturbance.variance_y", REAL32, 0.0, 100.0, "D_y variance, (m/s^2)^2"),
+    ParamSpec("SIM_DIST_VZ", "disturbance.variance_z", REAL32, 0.0, 100.0, "D_z variance, (m/s^2)^2"),
+    ParamSpec("SIM_DIST_VR", "disturbance.variance_roll", REAL32, 0.0, 100.0, "D_phi variance"),
+    ParamSpec("SIM_DIST_VP", "disturbance.variance_pitch", REAL32, 0.0, 100.0, "D_theta variance"),
+    ParamSpec("SIM_DIST_VYAW", "disturbance.variance_yaw", REAL32, 0.0, 100.0, "D_psi variance"),
+    ParamSpec("SIM_DIST_T", "disturbance.sample_time_s", REAL32, 0.001, 60.0, "D sample time, s"),
+    # sensor noise
+    ParamSpec("SIM_NOISE_POS", "sensor_noise.position_std_m", REAL32, 0.0, 10.0, "position noise std, m"),
+    ParamSpec("SIM_NOISE_VEL", "sensor_noise.velocity_std_m_s", REAL32, 0.0, 10.0, "velocity noise std"),
+    ParamSpec("SIM_NOISE_ATT", "sensor_noise.attitude_std_rad", REAL32, 0.0, 1.0, "attitude noise std, rad"),
+    ParamSpec("SIM_NOISE_GYR", "sensor_noise.gyro_std_rad_s", REAL32, 0.0, 10.0, "gyro noise std, rad/s"),
+    # navigator
+    ParamSpec("MPC_XY_CRUISE", "navigator.cruise_speed", REAL32, 0.5, 30.0, "mission cruise speed, m/s"),
+    ParamSpec("MPC_ACC_HOR", "navigator.max_acceleration", REAL32, 0.2, 15.0, "leg acceleration, m/s^2"),
+    ParamSpec("MPC_JERK_AUTO", "navigator.max_jerk", REAL32, 0.5, 100.0, "leg jerk, m/s^3"),
+    ParamSpec("MPC_Z_VEL_MAX_UP", "navigator.climb_speed", REAL32, 0.2, 10.0, "climb speed, m/s"),
+    ParamSpec("MPC_Z_VEL_MAX_DN", "navigator.descent_speed", REAL32, 0.2, 10.0, "descent speed, m/s"),
+    ParamSpec("MPC_LAND_SPEED", "navigator.land_speed", REAL32, 0.1, 5.0, "final landing speed, m/s"),
+    ParamSpec("MPC_YAWRAUTO_MAX", "navigator.yaw_rate", REAL32, 5 * DEG, 6.0, "auto yaw rate, rad/s"),
+    ParamSpec("NAV_ACC_RAD", "navigator.acceptance_radius", REAL32, 0.05, 200.0, "acceptance radius, m"),
+    ParamSpec("NAV_MC_ALT_RAD", "navigator.altitude_acceptance", REAL32, 0.05, 50.0, "altitude accept., m"),
+    ParamSpec("RTL_RETURN_ALT", "navigator.rtl_altitude", REAL32, 1.0, 500.0, "return altitude, m"),
+    ParamSpec("MIS_TAKEOFF_ALT", "navigator.takeoff_altitude", REAL32, 0.5, 500.0, "takeoff altitude, m"),
+    # failsafe and control
+    ParamSpec("OFFB_LOSS_T", "failsafe.offboard_loss_timeout_s", REAL32, 0.05, 60.0,
+              "offboard setpoints older than this (simulated s) trigger the failsafe"),
+    ParamSpec("OFFB_LOSS_ACT", "failsafe.offboard_loss_action", INT32, 0, 2,
+              "offboard loss action: 0 hold, 1 land, 2 return"),
+    ParamSpec("MC_ATT_CTRL", "control.attitude_controller", INT32, 0, 1, "attitude loop: 0 PID, 1 ADRC"),
+]
