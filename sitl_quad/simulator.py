@@ -1,0 +1,149 @@
+"""The simulated quadrotor: rigid body + rotors + wind + disturbances + sensor noise, stepped at fixed dt.
+
+Pure computation, no I/O. One seed fixes everything random: it is split into independent streams for the
+wind, the disturbance terms and the sensors, so e.g. changing the sensor noise does not change the wind.
+Results do not depend on how the steps are batched (step(4) twice equals step(1) eight times).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sitl_quad.airframe import Airframe, ModelParameterError
+from sitl_quad.disturbances import DisturbanceConfig, GaussianDisturbance
+from sitl_quad.rigid_body import INFO_SIZE, STATE_SIZE, advance
+from sitl_quad.rotation import euler_from_quat, quat_from_euler
+from sitl_quad.sensors import SensorNoise, Sensors
+from sitl_quad.state import VehicleState
+from sitl_quad.wind import WindConfig, WindModel
+
+
+class Simulator:
+    """Fixed-step (RK4, default 1 kHz) simulation of one quadrotor.
+
+    ``state`` returns a fresh VehicleState (copies; changing it does not change the simulation).
+    ``last_disturbance`` reports what acted on the body during the last step (the truth an observer should
+    estimate): ``wind_ned`` (m/s), ``d_accel_ned`` (D_x, D_y, D_z, m/s^2), ``d_angular`` (D_phi, D_theta,
+    D_psi, rad/s^2) and ``external_accel_ned``: drag + D terms, i.e. the acceleration not explained by rotor
+    thrust and gravity (ground reaction excluded), evaluated at the end of the last step.
+    """
+
+    def __init__(
+        self,
+        airframe: Airframe | None = None,
+        wind: WindConfig | None = None,
+        disturbance: DisturbanceConfig | None = None,
+        sensor_noise: SensorNoise | None = None,
+        seed: int = 0,
+        dt: float = 0.001,
+        position=(0.0, 0.0, 0.0),
+        yaw: float = 0.0,
+        rotor_speed: float = 0.0,
+    ) -> None:
+        if not (isinstance(dt, int | float) and math.isfinite(dt) and 0 < dt <= 0.1):
+            raise ModelParameterError(f"dt must be in (0, 0.1] s, got {dt!r}")
+        self.airframe = airframe or Airframe.table2()
+        self.wind_config = wind or WindConfig()
+        self.disturbance_config = disturbance or DisturbanceConfig.none()
+        self.sensor_noise = sensor_noise or SensorNoise.none()
+        self.dt = float(dt)
+        self.seed = seed
+        self._params = self.airframe.as_array()
+        self._state = np.zeros(STATE_SIZE)
+        self._omega_cmd = np.zeros(4)
+        self._info = np.zeros(INFO_SIZE)
+        self.reset(position=position, yaw=yaw, rotor_speed=rotor_speed)
+
+    def reset(self, position=(0.0, 0.0, 0.0), yaw: float = 0.0, rotor_speed: float = 0.0,
+              seed: int | None = None) -> None:
+        """Back to time 0 at rest at position (NED) with the given yaw and rotor speeds (also commanded).
+
+        The random streams restart from the seed (the constructor's unless given), so a reset simulator
+        repeats its first run.
+        """
+        position = np.asarray(position, dtype=float)
+        if position.shape != (3,) or not np.all(np.isfinite(position)) or not math.isfinite(yaw):
+            raise ModelParameterError(f"reset needs a finite NED position of 3 numbers and a yaw, got {position}")
+        if seed is not None:
+            self.seed = seed
+        wind_rng, disturbance_rng, sensor_rng = (
+            np.random.default_rng(s) for s in np.random.SeedSequence(self.seed).spawn(3)
+        )
+        self.wind = WindModel(self.wind_config, wind_rng)
+        self.disturbance = GaussianDisturbance(self.disturbance_config, disturbance_rng)
+        self.sensors = Sensors(self.sensor_noise, sensor_rng)
+        self._steps_per_sample = max(1, round(self.disturbance_config.sample_time_s / self.dt))
+        self._disturbance_now = np.zeros(6)
+        self._step_index = 0
+        self._state[:] = 0.0
+        self._state[0:3] = position
+        self._state[6:10] = quat_from_euler(0.0, 0.0, yaw)
+        self.set_rotor_commands(np.full(4, float(rotor_speed)))
+        self._state[13:17] = self._omega_cmd
+        self._info[:] = 0.0
+        self._on_ground = bool(self._state[2] >= 0.0)
+        if self._on_ground:
+            self._state[2] = 0.0
+
+    def set_rotor_commands(self, omega_cmd) -> None:
+        """Four rotor-speed commands (rad/s), clipped to the airframe's limits, held until changed."""
+        omega = np.asarray(omega_cmd, dtype=float)
+        if omega.shape != (4,) or not np.all(np.isfinite(omega)):
+            raise ModelParameterError(f"rotor commands must be 4 finite numbers, got {omega_cmd!r}")
+        np.clip(omega, self.airframe.rotor_speed_min, self.airframe.rotor_speed_max, out=self._omega_cmd)
+
+    def step(self, n: int = 1) -> None:
+        """Advance n steps of dt."""
+        if not isinstance(n, int | np.integer) or n < 0:
+            raise ModelParameterError(f"step count must be a non-negative integer, got {n!r}")
+        if n == 0:
+            return
+        first = self._step_index
+        period = self._steps_per_sample
+        samples = (first + n - 1) // period - (first - 1) // period  # multiples of period in [first, first+n)
+        self._on_ground = bool(advance(
+            self._state, self._omega_cmd, self._params, self.wind.params, self.wind.turbulence,
+            self.wind.noise(n), self._disturbance_now, self.disturbance.draw(samples), period, first,
+            self.dt, n, self._info,
+        ))
+        self._step_index += n
+
+    @property
+    def t(self) -> float:
+        """Simulated time, s (an exact multiple of dt)."""
+        return self._step_index * self.dt
+
+    @property
+    def on_ground(self) -> bool:
+        return self._on_ground
+
+    @property
+    def rotor_commands(self) -> np.ndarray:
+        return self._omega_cmd.copy()
+
+    @property
+    def state(self) -> VehicleState:
+        s = self._state
+        return VehicleState(t=self.t, position=s[0:3].copy(), velocity=s[3:6].copy(), quaternion=s[6:10].copy(),
+                            angular_velocity=s[10:13].copy(), rotor_speeds=s[13:17].copy())
+
+    @property
+    def euler(self) -> tuple[float, float, float]:
+        """True (roll, pitch, yaw), rad, for reports."""
+        return euler_from_quat(self._state[6:10])
+
+    def measure(self) -> VehicleState:
+        """The state as the sensors see it (SensorNoise added; the truth when there is none)."""
+        return self.sensors.measure(self.state)
+
+    @property
+    def last_disturbance(self) -> dict[str, np.ndarray]:
+        info = self._info
+        return {
+            "wind_ned": info[0:3].copy(),
+            "d_accel_ned": info[3:6].copy(),
+            "d_angular": info[6:9].copy(),
+            "external_accel_ned": info[9:12].copy(),
+        }
