@@ -70,7 +70,8 @@ def _pure_chnn(dist: np.ndarray, seed: int, time_limit_s: float, batch: int = 8,
         history.append({"generation": len(history), "best_length": float(best_length), "chnn_children": batch,
                         "chnn_valid": valid, "energy": run.energy[:, 0].tolist()})
     if best is None:
-        raise NoValidTourError(f"the CHNN found no valid tour in {time_limit_s} s ({batch * len(history)} runs)")
+        runs = batch * len(history)
+        raise NoValidTourError(f"the CHNN found no valid tour in {time_limit_s} s ({runs} runs)")
     return best, history
 
 

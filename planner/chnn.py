@@ -87,7 +87,7 @@ class CHNNRun:
 
 
 def _neighbour_field(v: np.ndarray, d: np.ndarray, d_start: np.ndarray, d_end: np.ndarray) -> np.ndarray:
-    """h_xi = sum_y d_xy (v_y,i+1 + v_y,i-1), with the clamped start/end nodes beyond the first/last column."""
+    """h_xi = sum_y d_xy (v_y,i+1 + v_y,i-1); the clamped start/end sit beyond the first/last column."""
     adjacent = np.zeros_like(v)
     adjacent[..., :, :-1] += v[..., :, 1:]
     adjacent[..., :, 1:] += v[..., :, :-1]
@@ -141,7 +141,8 @@ def initial_state(batch: int, m: int, params: CHNNParameters, rng: np.random.Gen
                   parents: np.ndarray | None = None, parent_bias: float = 0.0) -> np.ndarray:
     """Eq. (16): u = 1/2 u0 ln(m - 1) + δ. With ``parents`` ((K, m) buoy order per network) the neurons of
     each parent's tour get +parent_bias and the others -parent_bias: the GA's "input of the next CHNN"."""
-    u = 0.5 * params.u0 * np.log(max(m - 1, 1)) + rng.uniform(-1.0, 1.0, size=(batch, m, m)) * params.init_noise
+    delta = rng.uniform(-1.0, 1.0, size=(batch, m, m)) * params.init_noise
+    u = 0.5 * params.u0 * np.log(max(m - 1, 1)) + delta
     if parents is not None:
         on = np.zeros((batch, m, m), dtype=bool)
         on[np.arange(batch)[:, None], parents, np.arange(m)[None, :]] = True

@@ -11,7 +11,8 @@ alone is a weak optimiser: order crossover (OX) with another member, and an iter
 memetic repair is where most of the quality comes from (bench/planner.py measures the CHNN's share).
 
 Seeded and reproducible for a given seed and generation count; anytime: it stops at the time limit or after
-``stall_generations`` generations without a shorter tour, and returns the best found so far.
+a number of generations without a shorter tour (``stall_generations``, more for more nodes), and returns the
+best tour found so far.
 """
 
 from __future__ import annotations
@@ -39,7 +40,8 @@ class GAParameters:
     ils_kicks: int = 0  # kicks per ILS child; 0 = one per node (at least 30)
     ils_segment: int = 50  # longest stretch moved by a double-bridge kick
     neighbours: int = 10  # candidate list length for 2-opt / Or-opt
-    stall_generations: int = 5  # stop after this many generations without a shorter tour
+    stall_generations: int = 5  # stop after max(this, stall_per_node x n) generations without a shorter tour
+    stall_per_node: float = 0.3
     use_chnn: bool = True  # False = the same memetic GA with random tours and no CHNN (ablation)
 
 
@@ -151,7 +153,8 @@ def chnn_ga(dist: np.ndarray, seed: int = 0, time_limit_s: float = 2.0, ga: GAPa
                 "elapsed_s": time.perf_counter() - started, **info}]
     stall = 0
     generation = 0
-    while stall < ga.stall_generations and time.perf_counter() - started < time_limit_s:
+    stall_limit = max(ga.stall_generations, int(ga.stall_per_node * n))
+    while stall < stall_limit and time.perf_counter() - started < time_limit_s:
         generation += 1
         operator = rng.random(size)
         use_chnn = ga.use_chnn & (operator < ga.p_chnn)

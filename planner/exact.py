@@ -15,7 +15,7 @@ EXACT_MAX_NODES = 16  # 2^15 x 15 states; one more node doubles time and memory
 
 
 def held_karp(dist: np.ndarray) -> tuple[list[int], float]:
-    """Optimal closed tour from node 0: (order starting with 0, length). Raises TooLargeError past 16 nodes."""
+    """Optimal closed tour from node 0: (order starting with 0, length). TooLargeError past 16 nodes."""
     n = len(dist)
     if n > EXACT_MAX_NODES:
         raise TooLargeError(

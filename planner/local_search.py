@@ -241,7 +241,8 @@ def iterated_local_search(tour, dist, neighbours, n_kicks, max_segment, seed):
         c_last = tour[(start + len_c - 1) % n]
         delta = (dist[before, tour[start]] + dist[c_last, b_first]
                  + dist[tour[(start + len_b + len_c - 1) % n], after])
-        delta -= (dist[before, saved[start]] + dist[saved[(start + len_b - 1) % n], saved[(start + len_b) % n]]
+        b_last, c_first = saved[(start + len_b - 1) % n], saved[(start + len_b) % n]
+        delta -= (dist[before, saved[start]] + dist[b_last, c_first]
                   + dist[saved[(start + len_b + len_c - 1) % n], after])
         for q in (-1, 0, len_c - 1, len_c, len_b + len_c - 1, len_b + len_c):
             _push(queue, queued, head_tail, tour[(start + q) % n])
