@@ -1,0 +1,7 @@
+"""`python -m gcs`."""
+
+import sys
+
+from gcs.cli import main
+
+sys.exit(main())

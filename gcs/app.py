@@ -1,0 +1,86 @@
+"""The FastAPI application factory: wires settings, storage, link manager and mission service to the routes."""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+import xstatic.pkg.leaflet as leaflet
+from fastapi import FastAPI, Request
+from fastapi.responses import FileResponse, JSONResponse
+from fastapi.staticfiles import StaticFiles
+
+from gcs.imports import BuoyFileError
+from gcs.link import LinkManager
+from gcs.missions import MissionConflictError, MissionNotFoundError, MissionService
+from gcs.routes import imports, live, missions, plans, vehicle
+from gcs.settings import Settings
+from gcs.storage import Storage
+from gcs.validation import RequestInvalidError
+from planner.errors import PlannerError
+
+
+def _unprocessable(errors: list[tuple[tuple, str]]) -> JSONResponse:
+    # the same shape FastAPI gives its own validation errors
+    detail = [{"type": "value_error", "loc": list(loc), "msg": msg} for loc, msg in errors]
+    return JSONResponse({"detail": detail}, status_code=422)
+
+
+def _install_error_handlers(app: FastAPI) -> None:
+    @app.exception_handler(RequestInvalidError)
+    async def request_invalid(_: Request, error: RequestInvalidError) -> JSONResponse:
+        return _unprocessable(error.errors)
+
+    @app.exception_handler(PlannerError)
+    async def planner_error(_: Request, error: PlannerError) -> JSONResponse:
+        return _unprocessable([(("body", "buoys"), str(error))])
+
+    @app.exception_handler(BuoyFileError)
+    async def buoy_file_error(_: Request, error: BuoyFileError) -> JSONResponse:
+        return _unprocessable([(("body",), str(error))])
+
+    @app.exception_handler(MissionNotFoundError)
+    async def not_found(_: Request, error: MissionNotFoundError) -> JSONResponse:
+        return JSONResponse({"detail": f"no mission {error.args[0]}"}, status_code=404)
+
+    @app.exception_handler(MissionConflictError)
+    async def conflict(_: Request, error: MissionConflictError) -> JSONResponse:
+        return JSONResponse({"detail": str(error)}, status_code=409)
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """The service. Storage opens and the link starts with the app's lifespan, and close with it."""
+    settings = settings or Settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        storage = Storage(settings.db_path)
+        service = MissionService(settings, storage, LinkManager(settings.vehicle_url, settings.heartbeat_timeout_s))
+        app.state.service = service
+        await service.start()
+        try:
+            yield
+        finally:
+            await service.stop()
+            storage.close()
+
+    app = FastAPI(
+        title="buoy-gcs",
+        description="Mission service for UAV buoy inspection: plan (CHNN-GA), upload, fly, record, report.",
+        version="0.1.0",
+        lifespan=lifespan,
+    )
+    app.state.settings = settings
+    _install_error_handlers(app)
+    for module in (plans, missions, imports, vehicle, live):
+        app.include_router(module.router)
+
+    index = settings.web_dir / "index.html"
+
+    @app.get("/", include_in_schema=False)
+    def page() -> FileResponse:
+        return FileResponse(index)
+
+    app.mount("/static/leaflet", StaticFiles(directory=leaflet.BASE_DIR), name="leaflet")
+    app.mount("/web", StaticFiles(directory=settings.web_dir), name="web")
+    return app

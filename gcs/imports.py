@@ -1,0 +1,139 @@
+"""Buoys from files: GeoJSON (FeatureCollection of Points) or CSV. Pure: text in, buoys out.
+
+CSV: with a header, the columns named lat/latitude, lon/lng/longitude and optionally id/name are used, in any
+order; without a header every row is `lat,lon` (the planner CLI's format) with an optional third column id.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from planner.errors import InputError
+from planner.geodesy import check_lat_lon
+
+
+class BuoyFileError(ValueError):
+    """The file or document cannot be read as buoys; the message names the place and the reason."""
+
+
+@dataclass(frozen=True)
+class ImportedBuoy:
+    lat: float
+    lon: float
+    id: str | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"id": self.id, "lat": self.lat, "lon": self.lon}
+
+
+def _checked(lat: Any, lon: Any, ident: Any, where: str) -> ImportedBuoy:
+    if isinstance(lat, bool) or isinstance(lon, bool):
+        raise BuoyFileError(f"{where}: coordinates must be numbers")
+    try:
+        lat_f, lon_f = float(lat), float(lon)
+    except (TypeError, ValueError):
+        raise BuoyFileError(f"{where}: coordinates must be numbers, got ({lat!r}, {lon!r})") from None
+    try:
+        check_lat_lon(lat_f, lon_f, where)
+    except InputError as error:
+        raise BuoyFileError(str(error)) from None
+    return ImportedBuoy(lat_f, lon_f, None if ident in (None, "") else str(ident)[:64])
+
+
+def buoys_from_geojson(document: Any) -> list[ImportedBuoy]:
+    """A FeatureCollection of Point features (or a single Point Feature) -> buoys, ids from properties."""
+    if not isinstance(document, dict):
+        raise BuoyFileError("GeoJSON: expected an object")
+    kind = document.get("type")
+    if kind == "Feature":
+        features = [document]
+    elif kind == "FeatureCollection":
+        features = document.get("features")
+        if not isinstance(features, list):
+            raise BuoyFileError("GeoJSON: FeatureCollection.features must be a list")
+    else:
+        raise BuoyFileError(f"GeoJSON: expected a FeatureCollection of Points, got type {kind!r}")
+    buoys = []
+    for i, feature in enumerate(features):
+        where = f"features[{i}]"
+        if not isinstance(feature, dict) or feature.get("type") != "Feature":
+            raise BuoyFileError(f"{where}: not a GeoJSON Feature")
+        geometry = feature.get("geometry")
+        if not isinstance(geometry, dict) or geometry.get("type") != "Point":
+            raise BuoyFileError(f"{where}.geometry: must be a Point")
+        coords = geometry.get("coordinates")
+        if not isinstance(coords, list) or len(coords) not in (2, 3):
+            raise BuoyFileError(f"{where}.geometry.coordinates: must be [lon, lat] or [lon, lat, alt]")
+        properties = feature.get("properties") or {}
+        ident = properties.get("id", properties.get("name")) if isinstance(properties, dict) else None
+        # GeoJSON order is [lon, lat]
+        buoys.append(_checked(coords[1], coords[0], ident, f"{where}.geometry.coordinates"))
+    return buoys
+
+
+_LAT_NAMES = ("lat", "latitude")
+_LON_NAMES = ("lon", "lng", "long", "longitude")
+_ID_NAMES = ("id", "name")
+
+
+def _column(header: list[str], names: tuple[str, ...]) -> int | None:
+    for i, column in enumerate(header):
+        if column.strip().lower() in names:
+            return i
+    return None
+
+
+def _is_number(text: str) -> bool:
+    try:
+        return math.isfinite(float(text))
+    except ValueError:
+        return False
+
+
+def buoys_from_csv(text: str) -> list[ImportedBuoy]:
+    """CSV text -> buoys (see the module docstring for the accepted layouts)."""
+    rows = [row for row in csv.reader(io.StringIO(text)) if row and any(cell.strip() for cell in row)]
+    if not rows:
+        raise BuoyFileError("CSV: no rows")
+    first = rows[0]
+    has_header = not (len(first) >= 2 and _is_number(first[0]) and _is_number(first[1]))
+    if has_header:
+        lat_col, lon_col, id_col = (_column(first, n) for n in (_LAT_NAMES, _LON_NAMES, _ID_NAMES))
+        if lat_col is None or lon_col is None:
+            raise BuoyFileError("CSV: the header needs columns named lat and lon")
+        data, first_line = rows[1:], 2
+    else:
+        lat_col, lon_col, id_col = 0, 1, 2
+        data, first_line = rows, 1
+    buoys = []
+    for line, row in enumerate(data, start=first_line):
+        where = f"CSV line {line}"
+        if len(row) <= max(lat_col, lon_col):
+            raise BuoyFileError(f"{where}: expected lat and lon columns")
+        ident = row[id_col].strip() if id_col is not None and id_col < len(row) else None
+        buoys.append(_checked(row[lat_col].strip(), row[lon_col].strip(), ident, where))
+    if not buoys:
+        raise BuoyFileError("CSV: a header but no buoys")
+    return buoys
+
+
+def buoys_from_file(data: bytes, filename: str = "", content_type: str = "") -> list[ImportedBuoy]:
+    """Choose the reader from the name or content type, falling back to sniffing the first character."""
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise BuoyFileError("the file is not UTF-8 text") from None
+    name, ctype = filename.lower(), content_type.lower()
+    looks_json = text.lstrip().startswith("{")
+    if name.endswith((".geojson", ".json")) or "json" in ctype or (looks_json and not name.endswith(".csv")):
+        try:
+            document = json.loads(text)
+        except json.JSONDecodeError as error:
+            raise BuoyFileError(f"GeoJSON: not valid JSON ({error.msg} at line {error.lineno})") from None
+        return buoys_from_geojson(document)
+    return buoys_from_csv(text)

@@ -1,0 +1,206 @@
+"""From a validated request to a plan (route) and to the mission items the vehicle flies. No I/O.
+
+The depot is node 0 of the planner's instance and the origin of the local frame; buoys are projected onto the
+depot's tangent plane (planner.geodesy) so the planner works in metres.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from planner import plan_tour
+from planner.distances import closed_tour_length, euclidean_matrix
+from planner.geodesy import LocalFrame
+from sitl_quad.mission_items import (
+    DO_CHANGE_SPEED,
+    FRAME_GLOBAL_RELATIVE_ALT_INT,
+    FRAME_MISSION,
+    NAV_LAND,
+    NAV_RETURN_TO_LAUNCH,
+    NAV_TAKEOFF,
+    NAV_WAYPOINT,
+    MissionItem,
+)
+
+# Mission layout: item 0 takeoff, item 1 speed, items 2..n+1 the buoys in visiting order, then the return.
+FIRST_BUOY_SEQ = 2
+SPEED_TYPE_GROUND = 1.0  # DO_CHANGE_SPEED param1
+HOME_TOLERANCE_M = 1.0  # a depot this close to the vehicle's home returns with RTL, else waypoint + land
+
+
+@dataclass(frozen=True)
+class FlightParams:
+    altitude_m: float
+    speed_m_s: float
+    dwell_s: float
+    acceptance_radius_m: float
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A planned tour. Local coordinates are [east, north] metres from the depot."""
+
+    depot: tuple[float, float]  # lat, lon
+    buoy_ids: list[str]
+    buoys_lat_lon: list[list[float]]
+    buoys_local: list[list[float]]
+    order: list[int]  # buoy indices (0-based, input order) in visiting order
+    length_m: float
+    input_order_length_m: float
+    method: str
+    elapsed_s: float
+
+    @property
+    def improvement_pct(self) -> float:
+        """How much shorter than visiting the buoys in the order given, in percent of that order's length."""
+        if self.input_order_length_m <= 0.0:
+            return 0.0
+        return 100.0 * (self.input_order_length_m - self.length_m) / self.input_order_length_m
+
+    @property
+    def frame(self) -> LocalFrame:
+        return LocalFrame(self.depot[0], self.depot[1], 0.0)
+
+    def route_local(self) -> np.ndarray:
+        """[east, north] of the depot, the buoys in visiting order, and the depot again: (n + 2, 2)."""
+        local = np.asarray(self.buoys_local, dtype=float)
+        return np.vstack([[0.0, 0.0], local[self.order], [0.0, 0.0]])
+
+    def route_lat_lon(self) -> list[list[float]]:
+        buoys = [self.buoys_lat_lon[i] for i in self.order]
+        depot = [self.depot[0], self.depot[1]]
+        return [depot, *buoys, depot]
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @staticmethod
+    def from_dict(data: dict[str, Any]) -> Plan:
+        return Plan(**{**data, "depot": tuple(data["depot"])})
+
+
+def make_plan(
+    depot: tuple[float, float],
+    buoys: list[tuple[float, float]],
+    buoy_ids: list[str],
+    method: str = "auto",
+    seed: int = 0,
+    time_limit_s: float = 2.0,
+) -> Plan:
+    """Plan the closed tour depot -> every buoy once -> depot. Raises planner.errors.InputError/TooLargeError."""
+    frame = LocalFrame(depot[0], depot[1], 0.0)
+    lat_lon = np.asarray(buoys, dtype=float).reshape(-1, 2)
+    local = frame.project(lat_lon)
+    points = np.vstack([[0.0, 0.0], local])
+    result = plan_tour(points, method=method, seed=seed, time_limit_s=time_limit_s)
+    input_order_length = closed_tour_length(np.arange(len(points)), euclidean_matrix(points))
+    return Plan(
+        depot=(float(depot[0]), float(depot[1])),
+        buoy_ids=list(buoy_ids),
+        buoys_lat_lon=lat_lon.tolist(),
+        buoys_local=local.tolist(),
+        order=[int(node) - 1 for node in result.order[1:]],
+        length_m=float(result.length),
+        input_order_length_m=float(input_order_length),
+        method=str(result.method),
+        elapsed_s=float(result.elapsed_s),
+    )
+
+
+def _deg_e7(value: float) -> int:
+    return round(value * 1e7)
+
+
+def mission_items(plan: Plan, flight: FlightParams, home: tuple[float, float] | None = None) -> list[MissionItem]:
+    """The mission: takeoff at the depot, cruise speed, one waypoint per buoy, then home and land.
+
+    Waypoints carry param1 = dwell (hold time) and param2 = acceptance radius, as MAV_CMD_NAV_WAYPOINT defines.
+    The return is NAV_RETURN_TO_LAUNCH when the depot is the vehicle's home; otherwise a waypoint at the depot
+    and NAV_LAND there, so the vehicle comes back to the depot and not to wherever it booted.
+    """
+    depot_lat, depot_lon = plan.depot
+    alt = float(flight.altitude_m)
+    items = [
+        MissionItem(
+            seq=0,
+            frame=FRAME_GLOBAL_RELATIVE_ALT_INT,
+            command=NAV_TAKEOFF,
+            current=1,
+            x=_deg_e7(depot_lat),
+            y=_deg_e7(depot_lon),
+            z=alt,
+        ),
+        MissionItem(
+            seq=1,
+            frame=FRAME_MISSION,
+            command=DO_CHANGE_SPEED,
+            param1=SPEED_TYPE_GROUND,
+            param2=float(flight.speed_m_s),
+            param3=-1.0,
+        ),
+    ]
+    for index in plan.order:
+        lat, lon = plan.buoys_lat_lon[index]
+        items.append(
+            MissionItem(
+                seq=len(items),
+                frame=FRAME_GLOBAL_RELATIVE_ALT_INT,
+                command=NAV_WAYPOINT,
+                param1=float(flight.dwell_s),
+                param2=float(flight.acceptance_radius_m),
+                param3=0.0,
+                x=_deg_e7(lat),
+                y=_deg_e7(lon),
+                z=alt,
+            )
+        )
+    depot_is_home = home is None or _distance_m(plan.frame, home) <= HOME_TOLERANCE_M
+    if depot_is_home:
+        items.append(MissionItem(seq=len(items), frame=FRAME_GLOBAL_RELATIVE_ALT_INT, command=NAV_RETURN_TO_LAUNCH))
+    else:
+        items.append(
+            MissionItem(
+                seq=len(items),
+                frame=FRAME_GLOBAL_RELATIVE_ALT_INT,
+                command=NAV_WAYPOINT,
+                param1=0.0,
+                param2=float(flight.acceptance_radius_m),
+                param3=0.0,
+                x=_deg_e7(depot_lat),
+                y=_deg_e7(depot_lon),
+                z=alt,
+            )
+        )
+        items.append(
+            MissionItem(
+                seq=len(items),
+                frame=FRAME_GLOBAL_RELATIVE_ALT_INT,
+                command=NAV_LAND,
+                x=_deg_e7(depot_lat),
+                y=_deg_e7(depot_lon),
+                z=0.0,
+            )
+        )
+    return items
+
+
+def _distance_m(frame: LocalFrame, lat_lon: tuple[float, float]) -> float:
+    east_north = frame.project(np.array([lat_lon], dtype=float))[0]
+    return float(np.hypot(*east_north))
+
+
+def buoy_of_seq(seq: int, plan: Plan) -> int | None:
+    """The buoy index a mission item sequence number inspects, or None for the other items."""
+    position = seq - FIRST_BUOY_SEQ
+    return plan.order[position] if 0 <= position < len(plan.order) else None
+
+
+def leg_of_seq(seq: int | None, n_buoys: int) -> int | None:
+    """The planned leg flown while mission item `seq` is current: leg k ends at the k-th buoy visited, leg n
+    is the way home. None during takeoff (items before the first buoy) and when unknown."""
+    if seq is None or seq < FIRST_BUOY_SEQ:
+        return None
+    return min(seq - FIRST_BUOY_SEQ, n_buoys)

@@ -1,0 +1,1 @@
+"""HTTP and WebSocket routes: thin, each delegates to the mission service."""

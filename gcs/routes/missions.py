@@ -1,0 +1,92 @@
+"""Missions: create (plan + fly), list, read, telemetry, exports, start, abort."""
+
+from __future__ import annotations
+
+import json
+from typing import Annotated
+
+from fastapi import APIRouter, Depends, Query, Response
+
+from gcs import exports
+from gcs.missions import MissionService
+from gcs.planning import FlightParams, Plan, mission_items
+from gcs.routes.deps import get_service
+from gcs.schemas import MissionOut, MissionRequest, MissionSummary, TelemetrySample
+from gcs.security import require_token
+from gcs.views import mission_out, mission_summary
+
+router = APIRouter(tags=["missions"])
+Service = Annotated[MissionService, Depends(get_service)]
+
+
+@router.post("/missions", status_code=201, response_model=MissionOut, dependencies=[Depends(require_token)])
+async def create_mission(request: MissionRequest, service: Service) -> dict:
+    """Plan, store, and (start=true) upload, arm and fly. Answers once planned; poll the mission for progress."""
+    mission_id = await service.create(request)
+    return mission_out(service.get(mission_id))
+
+
+@router.get("/missions", response_model=list[MissionSummary])
+def list_missions(service: Service, limit: Annotated[int, Query(ge=1, le=1000)] = 100) -> list[dict]:
+    return [mission_summary(record) for record in service.storage.list_missions(limit)]
+
+
+@router.get("/missions/{mission_id}", response_model=MissionOut)
+def get_mission(mission_id: int, service: Service) -> dict:
+    return mission_out(service.get(mission_id))
+
+
+@router.post("/missions/{mission_id}/start", response_model=MissionOut, dependencies=[Depends(require_token)])
+def start_mission(mission_id: int, service: Service) -> dict:
+    """Fly a mission created with start=false."""
+    service.launch(mission_id)
+    return mission_out(service.get(mission_id))
+
+
+@router.post("/missions/{mission_id}/abort", response_model=MissionOut, dependencies=[Depends(require_token)])
+async def abort_mission(mission_id: int, service: Service) -> dict:
+    """Return to the depot (NAV_RETURN_TO_LAUNCH); a mission not yet flying simply ends."""
+    await service.abort(mission_id)
+    return mission_out(service.get(mission_id))
+
+
+@router.get("/missions/{mission_id}/telemetry", response_model=list[TelemetrySample])
+def get_telemetry(
+    mission_id: int, service: Service, limit: Annotated[int | None, Query(ge=1, le=1_000_000)] = None
+) -> list[dict]:
+    service.get(mission_id)
+    return service.storage.telemetry(mission_id, limit)
+
+
+def _download(content: str, media_type: str, filename: str) -> Response:
+    return Response(
+        content, media_type=media_type, headers={"Content-Disposition": f'attachment; filename="{filename}"'}
+    )
+
+
+@router.get("/missions/{mission_id}/track.geojson")
+def get_track(mission_id: int, service: Service) -> Response:
+    record = service.get(mission_id)
+    properties = {"mission": mission_id, "status": record.status}
+    document = exports.track_geojson(service.storage.telemetry(mission_id), properties)
+    return _download(json.dumps(document), "application/geo+json", f"mission-{mission_id}-track.geojson")
+
+
+def _items(service: MissionService, mission_id: int):
+    record = service.get(mission_id)
+    plan, flight = Plan.from_dict(record.plan), FlightParams(**record.flight)
+    home = (plan.depot[0], plan.depot[1], 0.0)
+    return mission_items(plan, flight), home, flight
+
+
+@router.get("/missions/{mission_id}/plan")
+def get_qgc_plan(mission_id: int, service: Service) -> Response:
+    items, home, flight = _items(service, mission_id)
+    document = exports.qgc_plan(items, home, cruise_speed=flight.speed_m_s, hover_speed=flight.speed_m_s)
+    return _download(json.dumps(document, indent=2), "application/json", f"mission-{mission_id}.plan")
+
+
+@router.get("/missions/{mission_id}/waypoints")
+def get_waypoints(mission_id: int, service: Service) -> Response:
+    items, home, _ = _items(service, mission_id)
+    return _download(exports.waypoints_text(items, home), "text/plain", f"mission-{mission_id}.waypoints")

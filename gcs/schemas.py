@@ -1,0 +1,184 @@
+"""The REST contract as pydantic models (field names fixed by ARCHITECTURE.md, section REST).
+
+Only structural checks live here (types, finite numbers, lat/lon ranges, 1..500 buoys); the checks that depend
+on settings (airframe limits, spacing, range) are in `gcs.validation`, which answers in the same 422 shape.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from gcs.imports import BuoyFileError, buoys_from_geojson
+
+MAX_BUOYS = 500
+MissionStatus = Literal["planned", "uploading", "uploaded", "flying", "completed", "aborted", "failed"]
+PlannerMethod = Literal["auto", "chnn-ga", "chnn", "exact"]
+
+
+class Strict(BaseModel):
+    """Base: unknown fields are errors and NaN/Infinity (which Python's JSON parser accepts) are refused."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class LatLon(Strict):
+    lat: float = Field(ge=-90.0, le=90.0, description="WGS84 latitude, degrees")
+    lon: float = Field(ge=-180.0, le=180.0, description="WGS84 longitude, degrees")
+
+
+class BuoyIn(LatLon):
+    id: str | None = Field(default=None, max_length=64, description="the buoy's name; defaults to B<index>")
+
+
+class PlannerOptions(Strict):
+    method: PlannerMethod = "auto"
+    seed: int = Field(default=0, ge=0, le=2**31 - 1)
+    time_limit_s: float = Field(default=2.0, gt=0.0, description="the planner's wall-clock budget")
+
+
+class PlanRequest(Strict):
+    depot: LatLon | None = Field(default=None, description="default: the vehicle's home")
+    buoys: list[BuoyIn] = Field(
+        min_length=1,
+        max_length=MAX_BUOYS,
+        description="a list of {id?, lat, lon} or a GeoJSON FeatureCollection of Points",
+    )
+    altitude_m: float = Field(default=5.0, description="flight altitude above home")
+    speed_m_s: float = Field(default=10.0, description="cruise speed")
+    dwell_s: float = Field(default=1.0, description="inspection time hovering at each buoy")
+    acceptance_radius_m: float = Field(default=2.0, description="how close counts as reaching a buoy")
+    planner: PlannerOptions = Field(default_factory=PlannerOptions)
+
+    @field_validator("buoys", mode="before")
+    @classmethod
+    def _accept_geojson(cls, value: Any) -> Any:
+        # A FeatureCollection becomes the same list of {id, lat, lon} a client could have sent.
+        if isinstance(value, dict):
+            try:
+                return [b.as_dict() for b in buoys_from_geojson(value)]
+            except BuoyFileError as error:
+                raise ValueError(str(error)) from None
+        return value
+
+
+class MissionRequest(PlanRequest):
+    start: bool = Field(default=True, description="upload, arm and fly now")
+
+
+class Buoy(BaseModel):
+    index: int
+    id: str
+    lat: float
+    lon: float
+    east_m: float
+    north_m: float
+
+
+class PlanOut(BaseModel):
+    order: list[int] = Field(description="the buoys' input indices in visiting order")
+    length_m: float
+    input_order_length_m: float = Field(description="the tour visiting the buoys in the order given")
+    improvement_pct: float = Field(description="how much shorter the plan is than the input order")
+    method: str
+    elapsed_s: float
+    depot: LatLon
+    buoys: list[Buoy]
+    route: list[list[float]] = Field(description="[lat, lon] from the depot through the buoys back to it")
+
+
+class BuoyResult(BaseModel):
+    index: int
+    id: str
+    closest_m: float | None
+    reached: bool
+    arrival_s: float | None = Field(description="vehicle time (time_boot_ms / 1000) when it was reached")
+
+
+class LegFigures(BaseModel):
+    leg: int
+    samples: int
+    rms_cross_track_m: float | None
+    max_cross_track_m: float | None
+
+
+class TrackingFigures(BaseModel):
+    legs: list[LegFigures]
+    rms_cross_track_m: float | None
+    max_cross_track_m: float | None
+    distance_flown_m: float
+    planned_length_m: float
+    flight_time_s: float | None
+
+
+class Progress(BaseModel):
+    current_seq: int | None = None
+    total: int | None = None
+    mission_state: int | None = None
+    reached_seqs: list[int] = []
+    visited: int = 0
+    buoys: int = 0
+
+
+class MissionOut(BaseModel):
+    id: int
+    status: MissionStatus
+    reason: str | None
+    created_at: str
+    updated_at: str
+    order: list[int]
+    length_m: float
+    input_order_length_m: float
+    improvement_pct: float
+    method: str
+    altitude_m: float
+    speed_m_s: float
+    dwell_s: float
+    acceptance_radius_m: float
+    depot: LatLon
+    buoys: list[Buoy]
+    route: list[list[float]]
+    progress: Progress
+    buoy_results: list[BuoyResult]
+    tracking: TrackingFigures | None
+    events: list[dict[str, Any]]
+
+
+class MissionSummary(BaseModel):
+    id: int
+    status: MissionStatus
+    reason: str | None
+    created_at: str
+    updated_at: str
+    buoys: int
+    length_m: float
+    tracking: TrackingFigures | None
+
+
+class TelemetrySample(BaseModel):
+    t_s: float = Field(description="vehicle time, time_boot_ms / 1000")
+    lat: float | None
+    lon: float | None
+    alt_m: float | None
+    north: float | None
+    east: float | None
+    down: float | None
+    vn: float | None
+    ve: float | None
+    vd: float | None
+    roll: float | None
+    pitch: float | None
+    yaw: float | None
+    ref_north: float | None
+    ref_east: float | None
+    ref_down: float | None
+    ref_yaw: float | None
+    mission_seq: int | None
+    landed_state: int | None
+    armed: bool
+    eso: dict[str, Any] | None
+
+
+class ImportOut(BaseModel):
+    buoys: list[BuoyIn]

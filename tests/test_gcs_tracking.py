@@ -1,0 +1,73 @@
+"""Tracking figures (gcs.tracking) on hand-built tracks whose answers are known geometrically."""
+
+import numpy as np
+import pytest
+
+from gcs import tracking
+from gcs.tracking import TrackPoint
+
+# depot -> (100, 0) -> depot: two legs along the east axis
+ROUTE = np.array([[0.0, 0.0], [100.0, 0.0], [0.0, 0.0]])
+
+
+def test_distance_to_segment_perpendicular_and_beyond_ends():
+    points = np.array([[50.0, 3.0], [-4.0, 3.0], [110.0, 0.0]])
+    d = tracking.distance_to_segment(points, ROUTE[0], ROUTE[1])
+    assert d == pytest.approx([3.0, 5.0, 10.0])
+
+
+def test_leg_rms_and_max_of_a_constant_offset_and_a_mixed_leg():
+    out = [TrackPoint(t, float(t), 2.0, True, 0) for t in range(0, 100, 10)]  # 2 m north of leg 0
+    back = [TrackPoint(100 + t, 100.0 - t, s, True, 1) for t, s in ((10, 3.0), (20, -4.0))]
+    legs = tracking.leg_figures(ROUTE, out + back)
+    assert legs[0]["samples"] == 10
+    assert legs[0]["rms_cross_track_m"] == pytest.approx(2.0)
+    assert legs[0]["max_cross_track_m"] == pytest.approx(2.0)
+    assert legs[1]["rms_cross_track_m"] == pytest.approx(np.sqrt((9 + 16) / 2))
+    assert legs[1]["max_cross_track_m"] == pytest.approx(4.0)
+
+
+def test_samples_on_the_ground_or_without_a_leg_are_not_counted():
+    track = [TrackPoint(0, 0, 50.0, False, 0), TrackPoint(1, 0, 50.0, True, None), TrackPoint(2, 10, 1.0, True, 0)]
+    legs = tracking.leg_figures(ROUTE, track)
+    assert legs[0]["samples"] == 1 and legs[0]["max_cross_track_m"] == pytest.approx(1.0)
+    assert legs[1]["samples"] == 0 and legs[1]["rms_cross_track_m"] is None
+
+
+def test_buoy_closest_approach_reached_flag_and_arrival_time():
+    buoys = np.array([[100.0, 0.0], [0.0, 500.0]])
+    track = [TrackPoint(float(t), float(x), 1.5, True, 0) for t, x in enumerate(range(90, 111, 5))]
+    result = tracking.buoy_figures(buoys, [2.0, 2.0], track, reached_at={})
+    assert result[0]["closest_m"] == pytest.approx(1.5)
+    assert result[0]["reached"] is True
+    assert result[0]["arrival_s"] == pytest.approx(2.0)  # first sample inside 2 m: x = 100 at t = 2
+    assert result[1]["reached"] is False and result[1]["arrival_s"] is None
+    assert result[1]["closest_m"] == pytest.approx(np.hypot(90.0, 500.0 - 1.5))
+
+
+def test_vehicle_reported_arrival_time_wins():
+    track = [TrackPoint(5.0, 100.0, 0.0, True, 0)]
+    result = tracking.buoy_figures(np.array([[100.0, 0.0]]), [1.0], track, reached_at={0: 4.2})
+    assert result[0]["arrival_s"] == 4.2
+
+
+def test_distance_flown_and_flight_time_use_airborne_samples_only():
+    track = [
+        TrackPoint(0.0, 0.0, 0.0, False, None),
+        TrackPoint(1.0, 0.0, 0.0, True, 0),
+        TrackPoint(2.0, 3.0, 4.0, True, 0),
+        TrackPoint(3.0, 6.0, 8.0, True, 0),
+        TrackPoint(9.0, 100.0, 100.0, False, None),
+    ]
+    assert tracking.distance_flown_m(track) == pytest.approx(10.0)
+    assert tracking.flight_time_s(track) == pytest.approx(2.0)
+    figures = tracking.tracking_figures(ROUTE, 200.0, track)
+    assert figures["planned_length_m"] == 200.0
+    assert figures["distance_flown_m"] == pytest.approx(10.0)
+    assert len(figures["legs"]) == 2
+
+
+def test_empty_track_gives_no_figures_rather_than_errors():
+    figures = tracking.tracking_figures(ROUTE, 200.0, [])
+    assert figures["rms_cross_track_m"] is None and figures["flight_time_s"] is None
+    assert tracking.buoy_figures(np.array([[1.0, 1.0]]), [1.0], [], {})[0]["closest_m"] is None
