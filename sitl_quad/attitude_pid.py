@@ -33,10 +33,10 @@ class PidAttitudeGains:
     mc_yaw_p: float = 2.0
     mc_yaw_weight: float = 0.4
     mc_rollrate_p: float = 2.0  # N m / (rad/s)
-    mc_rollrate_i: float = 1.0  # N m / rad
+    mc_rollrate_i: float = 2.5  # N m / rad
     mc_rollrate_d: float = 0.02  # N m / (rad/s^2)
     mc_pitchrate_p: float = 2.0
-    mc_pitchrate_i: float = 1.0
+    mc_pitchrate_i: float = 2.5
     mc_pitchrate_d: float = 0.02
     mc_yawrate_p: float = 1.0
     mc_yawrate_i: float = 0.3

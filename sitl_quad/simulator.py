@@ -40,7 +40,7 @@ class Simulator:
         dt: float = 0.001,
         position=(0.0, 0.0, 0.0),
         yaw: float = 0.0,
-        rotor_speed: float = 0.0,
+        rotor_speed=0.0,
     ) -> None:
         if not (isinstance(dt, int | float) and math.isfinite(dt) and 0 < dt <= 0.1):
             raise ModelParameterError(f"dt must be in (0, 0.1] s, got {dt!r}")
@@ -56,9 +56,9 @@ class Simulator:
         self._info = np.zeros(INFO_SIZE)
         self.reset(position=position, yaw=yaw, rotor_speed=rotor_speed)
 
-    def reset(self, position=(0.0, 0.0, 0.0), yaw: float = 0.0, rotor_speed: float = 0.0,
-              seed: int | None = None) -> None:
-        """Back to time 0 at rest at position (NED) with the given yaw and rotor speeds (also commanded).
+    def reset(self, position=(0.0, 0.0, 0.0), yaw: float = 0.0, rotor_speed=0.0, seed: int | None = None) -> None:
+        """Back to time 0 at rest at position (NED) with the given yaw and rotor speeds (one number or four,
+        rad/s; also the initial commands).
 
         The random streams restart from the seed (the constructor's unless given), so a reset simulator
         repeats its first run.
@@ -80,12 +80,24 @@ class Simulator:
         self._state[:] = 0.0
         self._state[0:3] = position
         self._state[6:10] = quat_from_euler(0.0, 0.0, yaw)
-        self.set_rotor_commands(np.full(4, float(rotor_speed)))
+        speeds = np.asarray(rotor_speed, dtype=float)
+        self.set_rotor_commands(np.full(4, float(speeds)) if speeds.ndim == 0 else speeds)
         self._state[13:17] = self._omega_cmd
         self._info[:] = 0.0
         self._on_ground = bool(self._state[2] >= 0.0)
         if self._on_ground:
             self._state[2] = 0.0
+
+    def set_state(self, state: VehicleState) -> None:
+        """Overwrite the body's state (not the time, the commands or the random streams); for tests and
+        scenario set-up. The quaternion is normalised."""
+        values = np.concatenate([state.position, state.velocity, state.quaternion, state.angular_velocity,
+                                 state.rotor_speeds]).astype(float)
+        if values.shape != (STATE_SIZE,) or not np.all(np.isfinite(values)) or not np.any(values[6:10]):
+            raise ModelParameterError("set_state needs finite 3-vectors, a non-zero quaternion and 4 rotor speeds")
+        values[6:10] /= np.linalg.norm(values[6:10])
+        self._state[:] = values
+        self._on_ground = bool(values[2] >= 0.0)
 
     def set_rotor_commands(self, omega_cmd) -> None:
         """Four rotor-speed commands (rad/s), clipped to the airframe's limits, held until changed."""
