@@ -207,9 +207,7 @@ class AdrcChannelParameters:
                     "the discrete TD then overshoots and chatters; use h0 >= h"
                 )
         if not self.u_min < self.u_max:
-            raise AdrcParameterError(
-                f"output limits must satisfy u_min < u_max, got {self.u_min}, {self.u_max}"
-            )
+            raise AdrcParameterError(f"output limits must satisfy u_min < u_max, got {self.u_min}, {self.u_max}")
         observer = self.make_observer(h)
         rho = spectral_radius(observer.error_transition_matrix())
         if rho >= 1.0:
@@ -260,7 +258,9 @@ class AdrcChannel:
 
     Without a TD (r0 = None) the reference is used as given, with its rate and acceleration as feed-forward
     (a navigator's smooth setpoint needs no re-differentiation). With a TD, the TD's v1, v2 are the
-    reference and its acceleration fhan(v1 - v, v2, r0, h0) is fed forward.
+    reference and, as in eq. (12), nothing is fed forward: the TD's own acceleration is bang-bang at +-r0, and
+    with a reference that steps at a lower rate (a 50 Hz target into a 250 Hz loop) feeding it forward
+    makes the output chatter between its limits.
     """
 
     __slots__ = (
@@ -280,9 +280,7 @@ class AdrcChannel:
         parameters.validate(h)
         self.parameters, self.h = parameters, h
         self.observer = parameters.make_observer(h)
-        self._feedback = NonlinearStateErrorFeedback(
-            parameters.r1, parameters.h1, parameters.c, parameters.b0
-        )
+        self._feedback = NonlinearStateErrorFeedback(parameters.r1, parameters.h1, parameters.c, parameters.b0)
         self.tracking_differentiator = (
             None
             if parameters.r0 is None
@@ -320,7 +318,7 @@ class AdrcChannel:
         self._y = measurement
         if td is not None:
             v1, v2 = td.update(reference)
-            reference_acceleration = fhan(v1 - reference, v2, td.r0, td.h0)
+            reference_acceleration = 0.0  # eq. (12) uses only e1, e2; see the class docstring
         else:
             v1, v2 = reference, reference_rate
         rate = observer.z2 if measured_rate is None else measured_rate

@@ -67,7 +67,13 @@ class AdrcAttitudeController:
     """Three ADRC channels at the attitude-loop rate; torques in N m [roll, pitch, yaw]."""
 
     def __init__(
-        self, Ix: float, Iy: float, Iz: float, gains: AdrcAttitudeGains | None = None, rate_hz: float = 250.0
+        self,
+        Ix: float,
+        Iy: float,
+        Iz: float,
+        gains: AdrcAttitudeGains | None = None,
+        rate_hz: float = 250.0,
+        actuator_time_constant: float = 0.0,
     ) -> None:
         gains = gains if gains is not None else AdrcAttitudeGains.load()
         if not (math.isfinite(rate_hz) and rate_hz > 0):
@@ -82,18 +88,30 @@ class AdrcAttitudeController:
             self.channels.append(make_channel(channel_parameters(spec, b0), self.h))
         self._use_rate = gains.use_measured_rate
         self._theta = [0.0, 0.0, 0.0]
+        if not (math.isfinite(actuator_time_constant) and actuator_time_constant >= 0):
+            raise AdrcParameterError(f"actuator_time_constant must be >= 0, got {actuator_time_constant}")
+        # fraction of the way a first-order actuator moves toward its command in one step
+        self._actuator_step = 1.0 - math.exp(-self.h / actuator_time_constant) if actuator_time_constant else 1.0
+        self._actuator = [0.0, 0.0, 0.0]
 
     @classmethod
     def for_airframe(
         cls, airframe: Any, gains: AdrcAttitudeGains | None = None, rate_hz: float = 250.0
     ) -> AdrcAttitudeController:
-        """From any object with .Ix, .Iy, .Iz (kg m^2)."""
-        return cls(float(airframe.Ix), float(airframe.Iy), float(airframe.Iz), gains, rate_hz)
+        """From any object with inertias (kg m^2) as .Ix, .Iy, .Iz or .ixx, .iyy, .izz, and optionally the
+        rotors' .motor_time_constant (s), which the observers then model."""
+        if all(hasattr(airframe, name) for name in ("Ix", "Iy", "Iz")):
+            inertias = (airframe.Ix, airframe.Iy, airframe.Iz)
+        else:
+            inertias = (airframe.ixx, airframe.iyy, airframe.izz)
+        lag = float(getattr(airframe, "motor_time_constant", 0.0))
+        return cls(*(float(i) for i in inertias), gains=gains, rate_hz=rate_hz, actuator_time_constant=lag)
 
     def reset(self) -> None:
         for channel in self.channels:
             channel.reset()
         self._theta = [0.0, 0.0, 0.0]
+        self._actuator = [0.0, 0.0, 0.0]
 
     def update(self, target: AttitudeTarget, state: VehicleState, dt: float) -> np.ndarray:
         """Torque for this step. The channels are fixed-step at 1/rate_hz (the paper's discrete
@@ -112,12 +130,16 @@ class AdrcAttitudeController:
         scale = 2.0 * math.atan2(vector_norm, ew) / vector_norm if vector_norm > 1e-12 else 2.0
         errors = (ex * scale, ey * scale, ez * scale)
         rates = state.angular_velocity.tolist()
-        theta = self._theta
+        theta, actuator, lag = self._theta, self._actuator, self._actuator_step
         torques = [0.0, 0.0, 0.0]
         for i, channel in enumerate(self.channels):
             angle = theta[i]
             rate = rates[i]
-            torques[i] = channel.update(angle + errors[i], angle, 0.0, 0.0, rate if self._use_rate else None)
+            torque = channel.control(angle + errors[i], angle, 0.0, 0.0, rate if self._use_rate else None)
+            # the ESO gets the torque the rotors deliver during this step, not the command
+            actuator[i] += (torque - actuator[i]) * lag
+            channel.observe_applied(actuator[i])
+            torques[i] = torque
             theta[i] = angle + rate * dt
         return np.array(torques)
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from adrc_offboard.adrc import AdrcParameterError, TrackingDifferentiator, fhan, spectral_radius
+from adrc_offboard.adrc import AdrcParameterError, TrackingDifferentiator, spectral_radius
 
 
 @dataclass(frozen=True)
@@ -77,13 +77,9 @@ class LinearAdrcParameters:
         if self.r0 is not None and not (math.isfinite(self.r0) and self.r0 > 0.0):
             raise AdrcParameterError(f"r0 must be a finite positive number, got {self.r0!r}")
         if self.r0 is not None and self.h0 is not None and not self.h0 >= h:
-            raise AdrcParameterError(
-                f"TD filter factor h0 = {self.h0} is below the step h = {h}; use h0 >= h"
-            )
+            raise AdrcParameterError(f"TD filter factor h0 = {self.h0} is below the step h = {h}; use h0 >= h")
         if not self.u_min < self.u_max:
-            raise AdrcParameterError(
-                f"output limits must satisfy u_min < u_max, got {self.u_min}, {self.u_max}"
-            )
+            raise AdrcParameterError(f"output limits must satisfy u_min < u_max, got {self.u_min}, {self.u_max}")
         for what, matrix in (
             ("observer", self.error_transition_matrix(h)),
             ("closed loop", self.closed_loop_transition_matrix(h)),
@@ -170,7 +166,7 @@ class LinearAdrcChannel:
         self.z3 += self._l3 * innovation
         if td is not None:
             v1, v2 = td.update(reference)
-            reference_acceleration = fhan(v1 - reference, v2, td.r0, td.h0)
+            reference_acceleration = 0.0  # eq. (12) uses only e1, e2; see the class docstring
         else:
             v1, v2 = reference, reference_rate
         rate = self.z2 if measured_rate is None else measured_rate

@@ -68,9 +68,7 @@ class AccelerationLimits:
         for name in ("max_horizontal", "max_up", "max_down"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise AdrcParameterError(
-                    f"acceleration limit {name} must be finite and positive, got {value!r}"
-                )
+                raise AdrcParameterError(f"acceleration limit {name} must be finite and positive, got {value!r}")
 
     @classmethod
     def load(cls, source: str | Path = "outer_limits") -> AccelerationLimits:
@@ -116,9 +114,7 @@ class AdrcOuterGains:
     def from_dict(cls, data: dict[str, Any]) -> AdrcOuterGains:
         unknown = set(data) - {"horizontal", "vertical", "use_measured_velocity", "comment"}
         if unknown or "horizontal" not in data or "vertical" not in data:
-            raise AdrcParameterError(
-                f"ADRC outer gains need 'horizontal' and 'vertical' specs; got {sorted(data)}"
-            )
+            raise AdrcParameterError(f"ADRC outer gains need 'horizontal' and 'vertical' specs; got {sorted(data)}")
         return cls(
             channel_parameters(data["horizontal"], 1.0),
             channel_parameters(data["vertical"], 1.0),
@@ -154,9 +150,7 @@ class PidOuterGains:
         try:
             return cls(PidAxisGains(**data["horizontal"]), PidAxisGains(**data["vertical"]))
         except (KeyError, TypeError) as exc:
-            raise AdrcParameterError(
-                f"PID outer gains need horizontal and vertical kp, ki, kd, i_max: {exc}"
-            ) from exc
+            raise AdrcParameterError(f"PID outer gains need horizontal and vertical kp, ki, kd, i_max: {exc}") from exc
 
     @classmethod
     def load(cls, source: str | Path = "outer_pid") -> PidOuterGains:
@@ -191,9 +185,7 @@ class _ThrustVectorOutput:
     def output(self, demanded: tuple[float, float, float], yaw: float) -> AttitudeTarget:
         self.demanded = demanded
         limited = self.limits.apply(*demanded)
-        target = acceleration_to_attitude(
-            limited, yaw, self.mass, self.g, self.max_thrust_n, self.max_tilt_rad
-        )
+        target = acceleration_to_attitude(limited, yaw, self.mass, self.g, self.max_thrust_n, self.max_tilt_rad)
         self.applied = applied_acceleration(target, self.mass, self.g, self.max_thrust_n)
         return target
 
@@ -333,9 +325,7 @@ def matched_gains(
     bounds the NLSEF's acceleration for large errors.
     """
     adrc = AdrcOuterGains(
-        horizontal=bandwidth_parameters(
-            omega_c_horizontal, observer_ratio * omega_c_horizontal, 1.0, delta, r1[0]
-        ),
+        horizontal=bandwidth_parameters(omega_c_horizontal, observer_ratio * omega_c_horizontal, 1.0, delta, r1[0]),
         vertical=bandwidth_parameters(omega_c_vertical, observer_ratio * omega_c_vertical, 1.0, delta, r1[1]),
     )
     pid = PidOuterGains(
