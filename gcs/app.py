@@ -7,6 +7,7 @@ from contextlib import asynccontextmanager
 
 import xstatic.pkg.leaflet as leaflet
 from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import FileResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
@@ -20,13 +21,21 @@ from gcs.validation import RequestInvalidError
 from planner.errors import PlannerError
 
 
-def _unprocessable(errors: list[tuple[tuple, str]]) -> JSONResponse:
-    # the same shape FastAPI gives its own validation errors
-    detail = [{"type": "value_error", "loc": list(loc), "msg": msg} for loc, msg in errors]
+def _unprocessable(errors: list[tuple[tuple, str]], types: list[str] | None = None) -> JSONResponse:
+    """422 in the shape FastAPI gives its own validation errors: {"detail": [{type, loc, msg}]}."""
+    types = types or ["value_error"] * len(errors)
+    detail = [{"type": kind, "loc": list(loc), "msg": msg} for (loc, msg), kind in zip(errors, types, strict=True)]
     return JSONResponse({"detail": detail}, status_code=422)
 
 
 def _install_error_handlers(app: FastAPI) -> None:
+    @app.exception_handler(RequestValidationError)
+    async def invalid_body(_: Request, error: RequestValidationError) -> JSONResponse:
+        # FastAPI's default echoes the input, which cannot be encoded when it is NaN or Infinity: a 500.
+        return _unprocessable(
+            [(tuple(e["loc"]), e["msg"]) for e in error.errors()], [e["type"] for e in error.errors()]
+        )
+
     @app.exception_handler(RequestInvalidError)
     async def request_invalid(_: Request, error: RequestInvalidError) -> JSONResponse:
         return _unprocessable(error.errors)

@@ -177,7 +177,8 @@ class TelemetrySample(BaseModel):
     mission_seq: int | None
     landed_state: int | None
     armed: bool
-    eso: dict[str, Any] | None
+    eso: dict[str, Any] | None = Field(description="the offboard controller's ESO estimates, by name")
+    cross_track_m: float | None = Field(default=None, description="distance to the leg being flown")
 
 
 class ImportOut(BaseModel):

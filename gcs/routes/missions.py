@@ -37,7 +37,7 @@ def get_mission(mission_id: int, service: Service) -> dict:
 
 
 @router.post("/missions/{mission_id}/start", response_model=MissionOut, dependencies=[Depends(require_token)])
-def start_mission(mission_id: int, service: Service) -> dict:
+async def start_mission(mission_id: int, service: Service) -> dict:
     """Fly a mission created with start=false."""
     service.launch(mission_id)
     return mission_out(service.get(mission_id))

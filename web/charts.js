@@ -1,0 +1,69 @@
+// Time-series charts (uPlot) of the live flight: cross-track error, altitude and yaw, desired vs actual.
+const MAX_POINTS = 5000;
+
+function makeChart(uPlot, element, series) {
+  const width = () => Math.max(200, element.clientWidth || element.parentElement.clientWidth - 8);
+  const opts = {
+    width: width(),
+    height: 160,
+    scales: { x: { time: false } },
+    axes: [{ label: "t (s, vehicle)" }, {}],
+    series: [{ label: "t" }, ...series],
+    legend: { live: false },
+  };
+  const data = [[], ...series.map(() => [])];
+  const plot = new uPlot(opts, data, element);
+  new ResizeObserver(() => plot.setSize({ width: width(), height: 160 })).observe(element.parentElement);
+  return { plot, data };
+}
+
+export class FlightCharts {
+  constructor(uPlot) {
+    this.charts = {
+      xte: makeChart(uPlot, document.getElementById("chart-xte"), [{ label: "cross-track", stroke: "#b23b3b" }]),
+      alt: makeChart(uPlot, document.getElementById("chart-alt"), [
+        { label: "desired", stroke: "#1f6fb2", dash: [6, 4] },
+        { label: "actual", stroke: "#2f8f4f" },
+      ]),
+      yaw: makeChart(uPlot, document.getElementById("chart-yaw"), [
+        { label: "desired", stroke: "#1f6fb2", dash: [6, 4] },
+        { label: "actual", stroke: "#2f8f4f" },
+      ]),
+    };
+    this.lastT = null;
+    this.dirty = false;
+  }
+
+  clear() {
+    for (const chart of Object.values(this.charts)) {
+      chart.data.forEach((column) => (column.length = 0));
+      chart.plot.setData(chart.data);
+    }
+    this.lastT = null;
+  }
+
+  // sample: a telemetry sample (GET /missions/{id}/telemetry or the live stream's mission.sample)
+  add(sample) {
+    if (!sample || sample.t_s == null || (this.lastT !== null && sample.t_s <= this.lastT)) return;
+    this.lastT = sample.t_s;
+    const deg = (r) => (r == null ? null : (r * 180) / Math.PI);
+    const rows = {
+      xte: [sample.cross_track_m ?? null],
+      alt: [sample.ref_down == null ? null : -sample.ref_down, sample.alt_m ?? null],
+      yaw: [deg(sample.ref_yaw), deg(sample.yaw)],
+    };
+    for (const [name, values] of Object.entries(rows)) {
+      const data = this.charts[name].data;
+      data[0].push(sample.t_s);
+      values.forEach((v, i) => data[i + 1].push(v));
+      if (data[0].length > MAX_POINTS) data.forEach((column) => column.shift());
+    }
+    this.dirty = true;
+  }
+
+  redraw() {
+    if (!this.dirty) return;
+    for (const chart of Object.values(this.charts)) chart.plot.setData(chart.data);
+    this.dirty = false;
+  }
+}
