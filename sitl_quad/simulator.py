@@ -88,6 +88,29 @@ class Simulator:
         if self._on_ground:
             self._state[2] = 0.0
 
+    def reconfigure(self, airframe: Airframe | None = None, wind: WindConfig | None = None,
+                    disturbance: DisturbanceConfig | None = None, sensor_noise: SensorNoise | None = None) -> None:
+        """Swap configuration sections mid-run (a parameter change), keeping the state, the time and the
+        random streams; a section given as None is left as it is. The turbulence state carries over, and the
+        held disturbance sample stays until the next sample time of the new configuration."""
+        if airframe is not None:
+            self.airframe = airframe
+            self._params = airframe.as_array()
+            self.set_rotor_commands(self._omega_cmd)
+        if wind is not None:
+            turbulence = self.wind.turbulence
+            self.wind_config = wind
+            self.wind = WindModel(wind, self.wind.rng)
+            if self.wind.turbulent and np.any(turbulence):
+                self.wind.turbulence[:] = turbulence
+        if disturbance is not None:
+            self.disturbance_config = disturbance
+            self.disturbance = GaussianDisturbance(disturbance, self.disturbance.rng)
+            self._steps_per_sample = max(1, round(disturbance.sample_time_s / self.dt))
+        if sensor_noise is not None:
+            self.sensor_noise = sensor_noise
+            self.sensors = Sensors(sensor_noise, self.sensors.rng)
+
     def set_state(self, state: VehicleState) -> None:
         """Overwrite the body's state (not the time, the commands or the random streams); for tests and
         scenario set-up. The quaternion is normalised."""

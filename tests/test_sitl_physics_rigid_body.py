@@ -213,3 +213,16 @@ def test_bad_simulator_inputs_raise_typed_errors():
         Simulator(dt=0.0)
     sim.set_rotor_commands([1e6, -5.0, 100.0, 100.0])
     np.testing.assert_array_equal(sim.rotor_commands, [AIRFRAME.rotor_speed_max, 0.0, 100.0, 100.0])
+
+
+def test_reconfigure_mid_flight_keeps_state_and_time():
+    sim = Simulator(AIRFRAME, position=(0.0, 0.0, -20.0), rotor_speed=AIRFRAME.hover_rotor_speed)
+    sim.step(500)
+    before = sim.state
+    sim.reconfigure(wind=WindConfig(5.0, 180.0), airframe=AIRFRAME.replace(mass=2.6))
+    assert sim.t == before.t
+    np.testing.assert_array_equal(sim.state.position, before.position)
+    sim.step(100)
+    np.testing.assert_allclose(sim.last_disturbance["wind_ned"], [5.0, 0.0, 0.0], atol=1e-12)
+    assert sim.state.velocity[2] > 0.3  # twice the mass on the same rotor speed sinks at about g / 2
+    assert sim.state.velocity[0] > 0.0  # pushed north by a wind from the south
