@@ -47,9 +47,7 @@ STALE_REFERENCE_S = 0.5
 # A reference (or vehicle) slower than this is at rest; faster, a new activity first brakes it to rest.
 AT_REST_M_S = 0.05
 
-NAV_COMMANDS = frozenset(
-    {mi.NAV_WAYPOINT, mi.NAV_LOITER_TIME, mi.NAV_TAKEOFF, mi.NAV_LAND, mi.NAV_RETURN_TO_LAUNCH}
-)
+NAV_COMMANDS = frozenset({mi.NAV_WAYPOINT, mi.NAV_LOITER_TIME, mi.NAV_TAKEOFF, mi.NAV_LAND, mi.NAV_RETURN_TO_LAUNCH})
 LANDING_COMMANDS = frozenset({mi.NAV_LAND, mi.NAV_RETURN_TO_LAUNCH})
 AMSL_FRAMES = frozenset({mi.FRAME_GLOBAL, mi.FRAME_GLOBAL_INT})
 
@@ -224,15 +222,11 @@ class Navigator:
         trajectory = self._fresh_trajectory(t, state)
         self._switch_activity("land", trajectory, self._plan_landing(trajectory, mission=False))
 
-    def hold(
-        self, t: float, state: VehicleState, position: Vector3 | None = None, yaw: float | None = None
-    ) -> None:
+    def hold(self, t: float, state: VehicleState, position: Vector3 | None = None, yaw: float | None = None) -> None:
         """Loiter: stop smoothly where the reference is, or fly to `position` (NED m); then face `yaw`."""
         trajectory = self._fresh_trajectory(t, state)
         if position is not None:
-            self._fly_to(
-                trajectory, (float(position[0]), float(position[1]), float(position[2])), None, mission=False
-            )
+            self._fly_to(trajectory, (float(position[0]), float(position[1]), float(position[2])), None, mission=False)
         if yaw is not None:
             trajectory.turn_to(yaw, self.config.yaw_rate, self.config.yaw_acceleration)
         self._switch_activity("hold", trajectory, None)
@@ -347,8 +341,6 @@ class Navigator:
         self._trajectory = trajectory
         self._goal = goal
         self._phase = "enroute" if goal is not None else "done"
-        if self._descent_start is None:
-            self.is_landing = False
 
     def _run_do_item(self, item: mi.MissionItem) -> None:
         if item.command != mi.DO_CHANGE_SPEED:
@@ -402,13 +394,9 @@ class Navigator:
     def _limits(self, mission: bool) -> MotionLimits:
         config = self.config
         return MotionLimits(
-            horizontal_speed=(
-                self._mission_speed if mission and self._mission_speed else config.cruise_speed
-            ),
+            horizontal_speed=(self._mission_speed if mission and self._mission_speed else config.cruise_speed),
             climb_speed=(self._mission_climb if mission and self._mission_climb else config.climb_speed),
-            descent_speed=(
-                self._mission_descent if mission and self._mission_descent else config.descent_speed
-            ),
+            descent_speed=(self._mission_descent if mission and self._mission_descent else config.descent_speed),
             acceleration=config.max_acceleration,
             jerk=config.max_jerk,
         )

@@ -66,9 +66,7 @@ class MotionLimits:
         return speed
 
 
-def _ramp_spans(
-    v_from: float, v_to: float, acceleration: float, jerk: float
-) -> list[tuple[float, float, float]]:
+def _ramp_spans(v_from: float, v_to: float, acceleration: float, jerk: float) -> list[tuple[float, float, float]]:
     """Constant-jerk spans (duration, start acceleration, jerk) taking the speed from v_from to v_to.
 
     Acceleration starts and ends at zero and never exceeds `acceleration`; the profile is symmetric, so the
@@ -271,9 +269,7 @@ class LineSegment:
 class YawTurn:
     """Hovering at a point while yaw turns the short way round at a limited rate and acceleration."""
 
-    def __init__(
-        self, position: Vector3, yaw_from: float, yaw_to: float, rate: float, acceleration: float
-    ) -> None:
+    def __init__(self, position: Vector3, yaw_from: float, yaw_to: float, rate: float, acceleration: float) -> None:
         delta = wrap_pi(yaw_to - yaw_from)
         self.position, self.yaw_from = position, yaw_from
         self.sign = 1.0 if delta >= 0 else -1.0
@@ -339,9 +335,7 @@ class Trajectory:
             self.end_position = target
             return
         direction = (delta[0] / length, delta[1] / length, delta[2] / length)
-        profile = Profile1D.rest_to_rest(
-            length, limits.speed_along(direction), limits.acceleration, limits.jerk
-        )
+        profile = Profile1D.rest_to_rest(length, limits.speed_along(direction), limits.acceleration, limits.jerk)
         self._append(LineSegment(start, direction, profile, self.end_yaw, end=target))
 
     def brake(self, velocity: Vector3, acceleration: float) -> None:
@@ -350,9 +344,7 @@ class Trajectory:
         if speed <= 1e-9:
             return
         direction = (velocity[0] / speed, velocity[1] / speed, velocity[2] / speed)
-        self._append(
-            LineSegment(self.end_position, direction, Profile1D.brake(speed, acceleration), self.end_yaw)
-        )
+        self._append(LineSegment(self.end_position, direction, Profile1D.brake(speed, acceleration), self.end_yaw))
 
     def descend(
         self,

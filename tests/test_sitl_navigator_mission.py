@@ -212,6 +212,8 @@ def test_reference_mission_sequences_to_complete_with_events_in_order(reference_
     assert nav.activity == "land"
     times = [t for t, _ in flight.events]
     assert times == sorted(times)
+    # DO_CHANGE_SPEED runs at once: current and reached in the same tick as the takeoff's arrival
+    assert flight.time_of("reached", 0) == flight.time_of("current", 1) == flight.time_of("reached", 1)
 
 
 def test_reference_mission_reaches_every_buoy_where_it_is(reference_flight) -> None:
@@ -700,3 +702,43 @@ def test_mission_state_and_current_item_bookkeeping() -> None:
     assert nav.current_seq == 2 and nav.pop_events() == [NavEvent("current", 2)]
     nav.set_mission([])
     assert nav.mission_state == "no_mission"
+
+
+def test_loiter_time_holds_at_its_position_for_its_time() -> None:
+    nav = navigator()
+    nav.set_mission(
+        renumber([item(0, mi.NAV_LOITER_TIME, 0.0, 30.0, param1=3.0), item(0, mi.NAV_WAYPOINT, 0.0, 60.0, param1=0.0)])
+    )
+    state = state_at((0.0, 0.0, -5.0))
+    nav.start_mission(0.0, state)
+    flight, _, _ = fly(nav, 0.0, state, 60.0, until=lambda n: n.mission_state == "complete")
+    reached, advanced = flight.time_of("reached", 0), flight.time_of("current", 1)
+    assert 3.0 - 1e-9 <= advanced - reached < 3.0 + DT + 1e-9
+    held = np.array(flight.position[flight.index_at(reached) : flight.index_at(advanced)])
+    assert np.ptp(held, axis=0).max() == 0.0
+    assert held[0] == pytest.approx([0.0, 30.0, -5.0], abs=0.02)  # degE7 quantisation
+
+
+def test_hold_at_a_given_point_and_yaw() -> None:
+    nav = navigator()
+    state = state_at((0.0, 0.0, -5.0))
+    nav.hold(0.0, state, position=(20.0, -10.0, -8.0), yaw=math.radians(-90))
+    flight, _, _ = fly(nav, 0.0, state, 30.0)
+    assert nav.activity == "hold" and flight.events == []
+    assert flight.position[-1] == pytest.approx([20.0, -10.0, -8.0])
+    assert flight.yaw[-1] == pytest.approx(math.radians(-90))
+    _, _, velocity, _ = flight.arrays()
+    assert np.linalg.norm(velocity, axis=1).max() <= math.hypot(10.0, 2.5) + 1e-9
+
+
+def test_a_completed_mission_starts_again_from_the_first_item() -> None:
+    nav = navigator()
+    nav.set_mission([item(0, mi.NAV_WAYPOINT, 10.0, 0.0, param1=0.0)])
+    state = state_at((0.0, 0.0, -5.0))
+    nav.start_mission(0.0, state)
+    _, t, state = fly(nav, 0.0, state, 30.0, until=lambda n: n.mission_state == "complete")
+    nav.hold(t, state, position=(0.0, 0.0, -5.0))
+    _, t, state = fly(nav, t, state, 20.0)
+    nav.start_mission(t, state)
+    again, _, _ = fly(nav, t, state, 30.0, until=lambda n: n.mission_state == "complete")
+    assert again.kinds() == [("current", 0), ("reached", 0), ("complete", 0)]

@@ -109,9 +109,7 @@ def test_low_descent_runs_at_land_speed_throughout() -> None:
 
 
 def test_limits_along_a_direction_respect_each_axis() -> None:
-    limits = MotionLimits(
-        horizontal_speed=10.0, climb_speed=2.5, descent_speed=1.5, acceleration=3.0, jerk=4.0
-    )
+    limits = MotionLimits(horizontal_speed=10.0, climb_speed=2.5, descent_speed=1.5, acceleration=3.0, jerk=4.0)
     assert limits.speed_along((1.0, 0.0, 0.0)) == pytest.approx(10.0)
     assert limits.speed_along((0.0, 0.0, -1.0)) == pytest.approx(2.5)
     assert limits.speed_along((0.0, 0.0, 1.0)) == pytest.approx(1.5)
@@ -132,9 +130,7 @@ def test_limits_along_a_direction_respect_each_axis() -> None:
 def test_yaw_turn_goes_the_short_way_and_wraps(yaw_from: float, yaw_to: float, turn: float) -> None:
     rate, acceleration = math.radians(60), math.radians(90)
     segment = YawTurn((1.0, 2.0, -5.0), yaw_from, yaw_to, rate, acceleration)
-    assert segment.duration == pytest.approx(
-        Profile1D.rest_to_rest(abs(turn), rate, acceleration, math.inf).duration
-    )
+    assert segment.duration == pytest.approx(Profile1D.rest_to_rest(abs(turn), rate, acceleration, math.inf).duration)
     steps = int(segment.duration / 0.01) + 2
     yaws = [segment.sample(k * 0.01).yaw for k in range(steps)]
     assert all(-math.pi <= y < math.pi for y in yaws)
@@ -151,9 +147,7 @@ def test_trajectory_chains_segments_continuously_and_holds_at_the_end() -> None:
     trajectory.turn_to(math.radians(90), math.radians(60), math.radians(90))
     trajectory.line_to((0.0, 50.0, -5.0), limits)
     trajectory.brake((0.0, 0.0, 0.0), 3.0)  # at rest: nothing to add
-    samples = [
-        trajectory.sample(5.0 + k * 0.01) for k in range(int((trajectory.end_time - 5.0) / 0.01) + 200)
-    ]
+    samples = [trajectory.sample(5.0 + k * 0.01) for k in range(int((trajectory.end_time - 5.0) / 0.01) + 200)]
     for a, b in itertools.pairwise(samples):
         step = math.dist(a.position, b.position)
         assert step <= 10.0 * 0.01 + 1e-9
