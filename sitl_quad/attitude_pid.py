@@ -88,26 +88,30 @@ class PidAttitudeController:
         self._rate_derivative = [0.0, 0.0, 0.0]
         self.rate_setpoint = np.zeros(3)
 
-    def attitude_rate_setpoint(self, target: AttitudeTarget, q: np.ndarray) -> list[float]:
-        """Body-rate setpoint (rad/s) from the attitude error, PX4's AttitudeControl::update."""
+    def attitude_rate_setpoint(self, target: AttitudeTarget, q) -> list[float]:
+        """Body-rate setpoint (rad/s) from the attitude error, PX4's AttitudeControl::update.
+
+        Quaternions travel as lists of Python floats: numpy's per-element cost would dominate at 250 Hz.
+        """
         g = self.gains
-        qd = target.quaternion
+        q = [float(c) for c in q]
+        qd = target.quaternion.tolist() if isinstance(target.quaternion, np.ndarray) else list(target.quaternion)
         # reduced attitude: only turn the thrust axis, then add a weighted share of the yaw error
         down = (0.0, 0.0, 1.0)
-        qd_red = _shortest_rotation(rotate(q, down), rotate(qd, down))
+        qd_red = _shortest_rotation(rotate(q, down).tolist(), rotate(qd, down).tolist())
         near_flip = abs(qd_red[1]) > 1 - 1e-5 or abs(qd_red[2]) > 1 - 1e-5  # thrust axis upside down: full
-        qd_red = qd if near_flip else quat_multiply(qd_red, q)
-        q_mix = quat_multiply(quat_conjugate(qd_red), qd)
+        qd_red = qd if near_flip else quat_multiply(qd_red, q).tolist()
+        q_mix = quat_multiply(quat_conjugate(qd_red).tolist(), qd).tolist()
         if q_mix[0] < 0:
-            q_mix = -q_mix
-        mix_w = min(max(float(q_mix[0]), -1.0), 1.0)
-        mix_z = min(max(float(q_mix[3]), -1.0), 1.0)
+            q_mix = [-c for c in q_mix]
+        mix_w = min(max(q_mix[0], -1.0), 1.0)
+        mix_z = min(max(q_mix[3], -1.0), 1.0)
         weight = g.mc_yaw_weight
         yaw_share = (math.cos(weight * math.acos(mix_w)), 0.0, 0.0, math.sin(weight * math.asin(mix_z)))
-        qe = quat_multiply(quat_conjugate(q), quat_multiply(qd_red, yaw_share))
+        qe = quat_multiply(quat_conjugate(q).tolist(), quat_multiply(qd_red, yaw_share).tolist()).tolist()
         sign = 2.0 if qe[0] >= 0 else -2.0
         yaw_p = g.mc_yaw_p / weight if weight > 1e-4 else g.mc_yaw_p
-        rates = [sign * float(qe[1]) * g.mc_roll_p, sign * float(qe[2]) * g.mc_pitch_p, sign * float(qe[3]) * yaw_p]
+        rates = [sign * qe[1] * g.mc_roll_p, sign * qe[2] * g.mc_pitch_p, sign * qe[3] * yaw_p]
         if target.body_rates is not None:
             rates = [r + float(f) for r, f in zip(rates, target.body_rates, strict=True)]
         limits = (g.mc_rollrate_max, g.mc_pitchrate_max, g.mc_yawrate_max)
@@ -118,9 +122,8 @@ class PidAttitudeController:
         if not dt > 0:
             raise ModelParameterError(f"attitude update needs dt > 0, got {dt}")
         g = self.gains
-        q = state.quaternion
-        rate_sp = self.attitude_rate_setpoint(target, q)
-        rates = tuple(float(c) for c in state.angular_velocity)
+        rate_sp = self.attitude_rate_setpoint(target, state.quaternion.tolist())
+        rates = tuple(state.angular_velocity.tolist())
         # D term: low-passed derivative of the measured rate
         if self._previous_rates is not None:
             alpha = dt / (dt + 1.0 / (2.0 * math.pi * g.mc_dterm_cutoff)) if g.mc_dterm_cutoff > 0 else 1.0
@@ -132,7 +135,7 @@ class PidAttitudeController:
         i_gains = (g.mc_rollrate_i, g.mc_pitchrate_i, g.mc_yawrate_i)
         d_gains = (g.mc_rollrate_d, g.mc_pitchrate_d, g.mc_yawrate_d)
         limits = (g.mc_rr_int_lim, g.mc_pr_int_lim, g.mc_yr_int_lim)
-        torque = np.empty(3)
+        torque = [0.0, 0.0, 0.0]
         for i in range(3):
             error = rate_sp[i] - rates[i]
             torque[i] = p_gains[i] * error + self._integral[i] - d_gains[i] * self._rate_derivative[i]
@@ -140,4 +143,4 @@ class PidAttitudeController:
             integral = self._integral[i] + fade * i_gains[i] * error * dt
             self._integral[i] = min(max(integral, -limits[i]), limits[i])
         self.rate_setpoint = np.array(rate_sp)
-        return torque
+        return np.array(torque)

@@ -57,12 +57,12 @@ class Sensors:
                 quaternion=state.quaternion.copy(), angular_velocity=state.angular_velocity.copy(),
                 rotor_speeds=state.rotor_speeds.copy(),
             )
-        noise = self.rng.standard_normal(12) * self._std
+        noise = (self.rng.standard_normal(12) * self._std).tolist()
         rx, ry, rz = noise[6:9]
         angle = math.sqrt(rx * rx + ry * ry + rz * rz)
         if angle > 0.0:
             s = math.sin(0.5 * angle) / angle
-            quaternion = quat_multiply(state.quaternion, (math.cos(0.5 * angle), rx * s, ry * s, rz * s))
+            quaternion = quat_multiply(state.quaternion.tolist(), (math.cos(0.5 * angle), rx * s, ry * s, rz * s))
         else:
             quaternion = state.quaternion.copy()
         return VehicleState(

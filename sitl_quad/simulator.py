@@ -125,9 +125,10 @@ class Simulator:
     def set_rotor_commands(self, omega_cmd) -> None:
         """Four rotor-speed commands (rad/s), clipped to the airframe's limits, held until changed."""
         omega = np.asarray(omega_cmd, dtype=float)
-        if omega.shape != (4,) or not np.all(np.isfinite(omega)):
+        if omega.shape != (4,) or not math.isfinite(float(omega.sum())):
             raise ModelParameterError(f"rotor commands must be 4 finite numbers, got {omega_cmd!r}")
-        np.clip(omega, self.airframe.rotor_speed_min, self.airframe.rotor_speed_max, out=self._omega_cmd)
+        lo, hi = self.airframe.rotor_speed_min, self.airframe.rotor_speed_max
+        self._omega_cmd[:] = [min(max(v, lo), hi) for v in omega.tolist()]
 
     def step(self, n: int = 1) -> None:
         """Advance n steps of dt."""

@@ -80,7 +80,6 @@ def test_takeoff_to_5_m_from_the_ground():
     assert np.abs(rows[:, 1:3]).max() < 1e-6 and not sim.on_ground
 
 
-@pytest.mark.slow
 def test_sixty_second_hover_does_not_drift():
     sim = Simulator(AIRFRAME, position=(3.0, -2.0, -ALTITUDE), yaw=0.7, rotor_speed=AIRFRAME.hover_rotor_speed)
     pilot = Pilot(sim)
