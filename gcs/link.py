@@ -19,6 +19,7 @@ import asyncio
 import contextlib
 import math
 import os
+import socket
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
@@ -29,6 +30,7 @@ from pymavlink.dialects.v20 import common as mavlink
 
 GCS_SYSID, GCS_COMPID = 255, 190
 VEHICLE_SYSID, AUTOPILOT_COMPID = 1, 1
+RECEIVE_BUFFER_BYTES = 4 << 20
 REBOOT_BACKSTEP_MS = 1000  # time_boot_ms falling by more than this means the vehicle restarted
 ON_GROUND = mavlink.MAV_LANDED_STATE_ON_GROUND
 ARMED_FLAG = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
@@ -165,6 +167,9 @@ class LinkManager:
         loop = asyncio.get_running_loop()
         self._connected_event = asyncio.Event()
         self._transport, _ = await loop.create_datagram_endpoint(lambda: _Protocol(self), remote_addr=self.address)
+        sock = self._transport.get_extra_info("socket")
+        # a vehicle in lockstep sends bursts faster than real time: a larger buffer rides out a busy loop
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
         self._tasks = [asyncio.create_task(self._heartbeat_loop(), name="gcs-heartbeat")]
 
     async def stop(self) -> None:

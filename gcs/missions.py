@@ -74,6 +74,7 @@ class Recorder:
         self.last_ms: float | None = None
         self.reached_seqs: list[int] = []
         self.reached_at: dict[int, float] = {}  # buoy index -> vehicle time
+        self.highest_seq = -1  # the vehicle moved past every item below this one
         self.latest: dict[str, Any] | None = None
         self.route = plan.route_local()
 
@@ -86,6 +87,8 @@ class Recorder:
             buoy = buoy_of_seq(message.seq, self.plan)
             if buoy is not None and status.time_boot_ms is not None:
                 self.reached_at.setdefault(buoy, status.time_boot_ms / 1000.0)
+        elif kind == "MISSION_CURRENT" and message.get_srcComponent() == 1:
+            self.highest_seq = max(self.highest_seq, message.seq)
         elif kind == "LOCAL_POSITION_NED" and message.get_srcComponent() == 1:
             now_ms = message.time_boot_ms
             if self.last_ms is None or now_ms - self.last_ms >= self.period_ms or now_ms < self.last_ms:
@@ -131,7 +134,10 @@ class Recorder:
 
     def progress(self) -> dict[str, Any]:
         s = self.link.status
-        visited = sum(1 for seq in self.reached_seqs if buoy_of_seq(seq, self.plan) is not None)
+        # a buoy counts as visited when the vehicle reported it reached or sequenced past it (a lost
+        # MISSION_ITEM_REACHED datagram must not leave a buoy unvisited)
+        done = set(self.reached_seqs) | set(range(FIRST_BUOY_SEQ, self.highest_seq))
+        visited = sum(1 for seq in done if buoy_of_seq(seq, self.plan) is not None)
         return {
             "current_seq": s.mission_seq,
             "total": s.mission_total,

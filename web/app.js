@@ -101,6 +101,8 @@ function relabelBuoys() {
     }
     const rank = (state.progress.current_seq ?? -1) - state.firstBuoySeq;
     if (rank >= 0 && rank < state.plan.order.length) current = state.plan.order[rank];
+    // the vehicle sequences past an item only after reaching it
+    state.plan.order.slice(0, Math.max(0, rank)).forEach((index) => visited.add(index));
   }
   state.buoys.forEach((buoy, index) => {
     const label = visitRank.has(index) ? visitRank.get(index) + 1 : index + 1;

@@ -1,0 +1,118 @@
+"""Loopback integration: the GCS flies the real vehicle (`python -m sitl_quad --lockstep`) over MAVLink/UDP.
+
+No fake vehicle here: the vehicle is the project's SITL process on a free port, the GCS is the real app
+(FastAPI lifespan, link manager, storage on disk) driven through its HTTP API.
+"""
+
+import socket
+import subprocess
+import sys
+import time
+
+import pytest
+from fastapi.testclient import TestClient
+
+from gcs.app import create_app
+from gcs.settings import Settings
+from planner import plan_tour
+from planner.geodesy import LocalFrame
+from planner.scenario import reference_scenario
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+SCENARIO = reference_scenario(1)
+BUOYS = [{"id": f"B{i + 1}", "lat": lat, "lon": lon} for i, (lat, lon) in enumerate(SCENARIO.buoys_lat_lon)]
+TERMINAL = {"completed", "failed", "aborted"}
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+@pytest.fixture
+def vehicle(tmp_path):
+    """The real vehicle in lockstep on a free port; yields (port, process)."""
+    port = free_udp_port()
+    log = open(tmp_path / "vehicle.log", "w")  # noqa: SIM115 - closed below
+    process = subprocess.Popen(
+        [sys.executable, "-m", "sitl_quad", "--port", str(port), "--lockstep", "--seed", "1"],
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
+    yield port, process
+    if process.poll() is None:
+        process.terminate()
+        try:
+            process.wait(10)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+    log.close()
+
+
+def settings_for(tmp_path, port: int) -> Settings:
+    return Settings(db_path=tmp_path / "gcs.sqlite", vehicle_url=f"udpout:127.0.0.1:{port}", vehicle_wait_s=30.0)
+
+
+def wait_for(client, mission_id, done, timeout_s):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        mission = client.get(f"/missions/{mission_id}").json()
+        if done(mission):
+            return mission
+        time.sleep(0.25)
+    raise AssertionError(f"mission {mission_id} still {mission['status']} after {timeout_s} s: {mission['progress']}")
+
+
+def test_reference_mission_flies_to_completion_and_survives_a_restart(tmp_path, vehicle):
+    port, _ = vehicle
+    with TestClient(create_app(settings_for(tmp_path, port))) as client:
+        created = client.post("/missions", json={"buoys": BUOYS, "acceptance_radius_m": 2.0})
+        assert created.status_code == 201
+        mission_id = created.json()["id"]
+        mission = wait_for(client, mission_id, lambda m: m["status"] in TERMINAL, timeout_s=400)
+        assert (mission["status"], mission["reason"]) == ("completed", None)
+        assert [e["status"] for e in mission["events"]] == ["planned", "uploading", "uploaded", "flying", "completed"]
+        # the plan is the exact optimum of the reference instance
+        local = LocalFrame(*SCENARIO.home).project(SCENARIO.buoys_lat_lon)  # the GCS plans from lat/lon
+        optimum = plan_tour([[0.0, 0.0], *local.tolist()], method="exact").length
+        assert mission["length_m"] == pytest.approx(optimum, rel=1e-9)
+        # every buoy reached within its acceptance radius, by the recorded track
+        assert len(mission["buoy_results"]) == 13
+        for result in mission["buoy_results"]:
+            assert result["reached"] and result["closest_m"] <= 2.0, result
+            assert result["arrival_s"] is not None
+        assert mission["progress"]["visited"] == 13
+        tracking = mission["tracking"]
+        assert tracking["flight_time_s"] > 0
+        assert tracking["distance_flown_m"] == pytest.approx(tracking["planned_length_m"], rel=0.1)
+        assert len(tracking["legs"]) == 14 and all(leg["samples"] > 0 for leg in tracking["legs"])
+        # the vehicle is back on the ground and disarmed
+        vehicle_state = client.get("/vehicle").json()
+        assert vehicle_state["connected"] and not vehicle_state["armed"]
+        samples = client.get(f"/missions/{mission_id}/telemetry").json()
+        times = [s["t_s"] for s in samples]
+        assert times == sorted(times) and len(samples) > 10 * tracking["flight_time_s"] * 0.9  # ~10 Hz
+        track = client.get(f"/missions/{mission_id}/track.geojson").json()
+        assert len(track["geometry"]["coordinates"]) == len(samples)
+
+    # a new service on the same database still has the mission, its figures and its telemetry
+    with TestClient(create_app(settings_for(tmp_path, port))) as client:
+        again = client.get(f"/missions/{mission_id}").json()
+        assert again["status"] == "completed" and again["tracking"] == tracking
+        assert len(client.get(f"/missions/{mission_id}/telemetry").json()) == len(samples)
+        assert [m["id"] for m in client.get("/missions").json()] == [mission_id]
+
+
+def test_vehicle_lost_mid_flight_ends_failed_not_hanging(tmp_path, vehicle):
+    port, process = vehicle
+    with TestClient(create_app(settings_for(tmp_path, port))) as client:
+        mission_id = client.post("/missions", json={"buoys": BUOYS[:3]}).json()["id"]
+        wait_for(client, mission_id, lambda m: m["status"] == "flying", timeout_s=60)
+        process.kill()
+        process.wait()
+        mission = wait_for(client, mission_id, lambda m: m["status"] in TERMINAL, timeout_s=15)
+        assert mission["status"] == "failed" and "link lost" in mission["reason"]
+        assert client.get("/vehicle").json()["connected"] is False
