@@ -86,50 +86,67 @@ class CHNNRun:
     energy: np.ndarray  # (steps + 1, K) energy E of eq. (15) at every step
 
 
-def _neighbour_field(v: np.ndarray, d: np.ndarray, d_start: np.ndarray, d_end: np.ndarray) -> np.ndarray:
-    """h_xi = sum_y d_xy (v_y,i+1 + v_y,i-1); the clamped start/end sit beyond the first/last column."""
-    adjacent = np.zeros_like(v)
-    adjacent[..., :, :-1] += v[..., :, 1:]
-    adjacent[..., :, 1:] += v[..., :, :-1]
-    field = d @ adjacent
-    field[..., :, 0] += d_start
-    field[..., :, -1] += d_end
-    return field
+def _shift_matrix(m: int) -> np.ndarray:
+    """S with (v S)_xi = v_x,i+1 + v_x,i-1 (zero beyond the first and last position)."""
+    return np.eye(m, k=1) + np.eye(m, k=-1)
 
 
-def _energy_and_gradient(v, d, d_start, d_end, params: CHNNParameters):
-    """E of eq. (15) per network of a (K, m, m) batch and dE/dv, sharing the O(m^3) neighbour field.
+def _boundary(d_start: np.ndarray, d_end: np.ndarray, m: int) -> np.ndarray:
+    """The clamped ends' share of the neighbour field: d_x,start in the first column, d_x,end in the last."""
+    bound = np.zeros((*np.shape(d_start)[:-1], m, m))
+    bound[..., :, 0] += d_start
+    bound[..., :, -1] += d_end
+    return bound
 
-    dE/dv = -(sum_yj w_xi,yj v_yj + C n_bar) with the weights w of eq. (14)."""
+
+def _energy_and_gradient(v, d, shift, boundary, params: CHNNParameters):
+    """E of eq. (15) per network of a (K, m, m) batch and dE/dv = -(sum_yj w_xi,yj v_yj + bias) with the
+    weights w of eq. (14). E is quadratic, E = 1/2 v.(H v) + b.v + C n_bar^2 / 2 with dE/dv = H v + b, so
+    E = 1/2 v.(dE/dv + b) + C n_bar^2 / 2 costs one more product instead of re-evaluating E1..E4."""
     m = v.shape[-1]
+    n_bar = params.n_bar(m)
     rows = v.sum(axis=-1, keepdims=True)
     cols = v.sum(axis=-2, keepdims=True)
     total = rows.sum(axis=-2, keepdims=True)
-    field = _neighbour_field(v, d, d_start, d_end)
-    gradient = (params.A * (rows - v) + params.B * (cols - v) + params.C * (total - params.n_bar(m))
+    # neighbour field h_xi = sum_y d_xy (v_y,i+1 + v_y,i-1), the clamped ends included
+    field = d @ v @ shift + boundary
+    gradient = (params.A * rows + params.B * cols + params.C * (total - n_bar) - (params.A + params.B) * v
                 + params.D * field)
-    squares = (v * v).sum(axis=(-1, -2))
-    e1 = params.A / 2 * ((rows * rows).sum(axis=(-1, -2)) - squares)
-    e2 = params.B / 2 * ((cols * cols).sum(axis=(-1, -2)) - squares)
-    e3 = params.C / 2 * (total[..., 0, 0] - params.n_bar(m)) ** 2
-    # D/2 sum_i v_i (v_i+1 + v_i-1) counts each interior leg twice; the clamped depot legs appear once in
-    # the field, so they get their missing half here.
-    e4 = params.D / 2 * (
-        (v * field).sum(axis=(-1, -2)) + (v[..., :, 0] * d_start).sum(-1) + (v[..., :, -1] * d_end).sum(-1)
-    )
-    return e1 + e2 + e3 + e4, gradient
+    linear = params.D * (v * boundary).sum(axis=(-1, -2)) - params.C * n_bar * total[..., 0, 0]
+    e = 0.5 * ((v * gradient).sum(axis=(-1, -2)) + linear) + 0.5 * params.C * n_bar**2
+    return e, gradient
+
+
+def energy_terms(v: np.ndarray, d: np.ndarray, d_start: np.ndarray, d_end: np.ndarray,
+                 params: CHNNParameters) -> dict[str, np.ndarray]:
+    """E1..E4 of eq. (15) evaluated term by term (for tests and plots; the dynamics uses the fast form)."""
+    m = v.shape[-1]
+    rows = v.sum(axis=-1)
+    cols = v.sum(axis=-2)
+    squares = (v**2).sum(axis=(-1, -2))
+    adjacent = v @ _shift_matrix(m)
+    interior = (v * (d @ adjacent)).sum(axis=(-1, -2))  # counts each leg between buoys twice
+    depot_legs = (v[..., :, 0] * d_start).sum(-1) + (v[..., :, -1] * d_end).sum(-1)
+    return {
+        "E1": params.A / 2 * ((rows**2).sum(axis=-1) - squares),
+        "E2": params.B / 2 * ((cols**2).sum(axis=-1) - squares),
+        "E3": params.C / 2 * (v.sum(axis=(-1, -2)) - params.n_bar(m)) ** 2,
+        "E4": params.D / 2 * interior + params.D * depot_legs,
+    }
 
 
 def energy(v: np.ndarray, d: np.ndarray, d_start: np.ndarray, d_end: np.ndarray,
            params: CHNNParameters) -> np.ndarray:
     """E = E1 + E2 + E3 + E4 of eq. (15) for each network of a (K, m, m) batch (distances normalised)."""
-    return _energy_and_gradient(v, d, d_start, d_end, params)[0]
+    m = v.shape[-1]
+    return _energy_and_gradient(v, d, _shift_matrix(m), _boundary(d_start, d_end, m), params)[0]
 
 
 def energy_gradient(v: np.ndarray, d: np.ndarray, d_start: np.ndarray, d_end: np.ndarray,
                     params: CHNNParameters) -> np.ndarray:
     """dE/dv for each network of a (K, m, m) batch."""
-    return _energy_and_gradient(v, d, d_start, d_end, params)[1]
+    m = v.shape[-1]
+    return _energy_and_gradient(v, d, _shift_matrix(m), _boundary(d_start, d_end, m), params)[1]
 
 
 def activation(u: np.ndarray, u0: float) -> np.ndarray:
@@ -157,10 +174,12 @@ def run_chnn(d: np.ndarray, d_start: np.ndarray, d_end: np.ndarray, params: CHNN
     d: (m, m) distances between the free nodes, d_start / d_end: (m,) distances to the clamped ends, all
     already normalised (see ``normalised``)."""
     u = np.array(u_init, dtype=float)
+    m = u.shape[-1]
+    shift, boundary = _shift_matrix(m), _boundary(d_start, d_end, m)
     v = activation(u, params.u0)
     trace = np.empty((params.steps + 1, len(u)))
     for step in range(params.steps + 1):
-        trace[step], gradient = _energy_and_gradient(v, d, d_start, d_end, params)
+        trace[step], gradient = _energy_and_gradient(v, d, shift, boundary, params)
         if step == params.steps:
             break
         du = -gradient

@@ -14,7 +14,9 @@ def check_points(points) -> np.ndarray:
         pts = np.asarray(points, dtype=float)
     except (TypeError, ValueError) as exc:
         raise InputError(f"points must be numbers: {exc}") from None
-    if pts.ndim != 2 or (pts.size and pts.shape[1] != 2):
+    if pts.size == 0:
+        raise InputError("need a depot and at least one buoy (2 points); got none")
+    if pts.ndim != 2 or pts.shape[1] != 2:
         raise InputError(f"points must be an (n, 2) array of x, y; got shape {pts.shape}")
     if len(pts) < 2:
         raise InputError(f"need a depot and at least one buoy (2 points); got {len(pts)}")

@@ -134,10 +134,10 @@ def _improve_city(a, tour, position, dist, neighbours, queue, queued, head_tail)
             continue
         for end_pick in range(2):
             anchor = a if end_pick == 0 else end_city
+            # no early exit on the neighbour's distance here: unlike 2-opt, an improving Or-opt move
+            # need not start with a new edge shorter than the removal gain at this anchor
             for t in range(k):
                 c = neighbours[anchor, t]
-                if dist[anchor, c] >= removal_gain:
-                    break
                 pc = position[c]
                 if (pc - start) % n < seg_len:
                     continue  # c lies inside the segment
@@ -188,9 +188,13 @@ def local_search(tour, dist, neighbours):
     queue = np.empty(n, dtype=np.int64)
     queued = np.zeros(n, dtype=np.bool_)
     head_tail = np.zeros(2, dtype=np.int64)
-    for i in range(n):
-        _push(queue, queued, head_tail, tour[i])
-    _local_search_queue(tour, position, dist, neighbours, queue, queued, head_tail)
+    # Don't-look bits only wake the cities next to a change; a final sweep over every city confirms (or
+    # continues from) the local optimum, so none of the moves tried is left improving.
+    while True:
+        for i in range(n):
+            _push(queue, queued, head_tail, tour[i])
+        if _local_search_queue(tour, position, dist, neighbours, queue, queued, head_tail) <= 0.0:
+            break
     return tour_length(tour, dist)
 
 
