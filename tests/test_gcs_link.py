@@ -1,0 +1,267 @@
+"""Link manager, mission protocol and lifecycle failure paths against a tiny scripted in-test vehicle.
+
+This vehicle only scripts the MAVLink exchanges a test needs (refusals, silences, lost requests, a reboot);
+the real vehicle is flown in test_gcs_integration.py.
+"""
+
+import asyncio
+import math
+import os
+import socket
+import threading
+import time
+
+import pytest
+from fastapi.testclient import TestClient
+
+os.environ["MAVLINK20"] = "1"
+from pymavlink.dialects.v20 import common as mavlink
+
+from gcs.app import create_app
+from gcs.link import CommandTimeoutError, LinkManager
+from gcs.mission_protocol import MissionRejectedError, MissionTimeoutError, download_mission, upload_mission
+from gcs.settings import Settings
+from sitl_quad.mission_items import NAV_WAYPOINT, MissionItem
+
+ITEMS = [
+    MissionItem(seq=i, frame=6, command=NAV_WAYPOINT, param1=1.0, x=389210000 + i, y=1216630000, z=5.0)
+    for i in range(4)
+]
+
+
+class ScriptedVehicle(threading.Thread):
+    """sysid 1 / compid 1 on a UDP port: heartbeats, ATTITUDE with time_boot_ms, commands, mission transfer."""
+
+    def __init__(self) -> None:
+        super().__init__(daemon=True)
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(0.05)
+        self.port = self.sock.getsockname()[1]
+        self.mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+        self.parser = mavlink.MAVLink(None)
+        self.peer = None
+        self.running = True
+        self.silent = False  # no heartbeats, no answers
+        self.command_results: dict[int, int | None] = {}  # None: never acknowledge
+        self.commands_seen: list[int] = []
+        self.mission_result = mavlink.MAV_MISSION_ACCEPTED
+        self.drop_first_request_of: set[int] = set()
+        self.ignore_mission = False
+        self.stored: list = []
+        self.expected = 0
+        self.gcs_heartbeats: list = []
+        self.boot_start = time.monotonic()
+        self.last_periodic = 0.0
+
+    def boot_ms(self) -> int:
+        return int((time.monotonic() - self.boot_start) * 1000) + 60_000
+
+    def send(self, message) -> None:
+        if self.peer is not None and not self.silent:
+            self.sock.sendto(message.pack(self.mav), self.peer)
+
+    def run(self) -> None:
+        while self.running:
+            now = time.monotonic()
+            if now - self.last_periodic > 0.1:
+                self.last_periodic = now
+                self.send(self.mav.heartbeat_encode(2, 12, 1, 0, mavlink.MAV_STATE_STANDBY))
+                self.send(self.mav.attitude_encode(self.boot_ms(), 0.0, 0.0, 0.5, 0.0, 0.0, 0.0))
+            try:
+                data, self.peer = self.sock.recvfrom(65535)
+            except TimeoutError:
+                continue
+            for message in self.parser.parse_buffer(data) or []:
+                self.handle(message)
+
+    def request(self, seq: int) -> None:
+        if seq in self.drop_first_request_of:
+            self.drop_first_request_of.discard(seq)
+            return
+        self.send(self.mav.mission_request_int_encode(255, 190, seq, 0))
+
+    def handle(self, m) -> None:
+        kind = m.get_type()
+        if kind == "HEARTBEAT":
+            self.gcs_heartbeats.append((m.get_srcSystem(), m.get_srcComponent(), m.type))
+        elif kind == "COMMAND_LONG":
+            self.commands_seen.append(m.command)
+            result = self.command_results.get(m.command, mavlink.MAV_RESULT_ACCEPTED)
+            if result is not None:
+                self.send(self.mav.command_ack_encode(m.command, result))
+        elif kind == "MISSION_COUNT" and not self.ignore_mission:
+            if self.mission_result != mavlink.MAV_MISSION_ACCEPTED:
+                self.send(self.mav.mission_ack_encode(255, 190, self.mission_result, 0))
+                return
+            self.expected, self.stored = m.count, []
+            self.request(0)
+        elif kind == "MISSION_ITEM_INT" and m.seq == len(self.stored):
+            self.stored.append(m)
+            if len(self.stored) < self.expected:
+                self.request(len(self.stored))
+            else:
+                self.send(self.mav.mission_ack_encode(255, 190, mavlink.MAV_MISSION_ACCEPTED, 0))
+        elif kind == "MISSION_ITEM_INT" and m.seq < len(self.stored) < self.expected:
+            self.request(len(self.stored))  # a repeated item: the GCS missed our request, ask again
+        elif kind == "MISSION_REQUEST_LIST":
+            self.send(self.mav.mission_count_encode(255, 190, len(self.stored), 0))
+        elif kind == "MISSION_REQUEST_INT" and m.seq < len(self.stored):
+            item = self.stored[m.seq]
+            self.send(
+                self.mav.mission_item_int_encode(
+                    255,
+                    190,
+                    item.seq,
+                    item.frame,
+                    item.command,
+                    item.current,
+                    item.autocontinue,
+                    item.param1,
+                    item.param2,
+                    item.param3,
+                    item.param4,
+                    item.x,
+                    item.y,
+                    item.z,
+                    0,
+                )
+            )
+
+    def stop(self) -> None:
+        self.running = False
+        self.join(2)
+        self.sock.close()
+
+
+@pytest.fixture
+def vehicle():
+    v = ScriptedVehicle()
+    v.start()
+    yield v
+    v.stop()
+
+
+async def connected_link(vehicle, timeout_s: float = 1.0) -> LinkManager:
+    link = LinkManager(f"udpout:127.0.0.1:{vehicle.port}", heartbeat_timeout_s=timeout_s)
+    await link.start()
+    assert await link.wait_connected(3.0)
+    return link
+
+
+def test_link_connects_identifies_as_gcs_and_tracks_state(vehicle):
+    async def scenario():
+        link = await connected_link(vehicle)
+        await asyncio.sleep(0.3)
+        await link.stop()
+        return link
+
+    link = asyncio.run(scenario())
+    assert (255, 190, mavlink.MAV_TYPE_GCS) in vehicle.gcs_heartbeats
+    assert link.status.yaw == pytest.approx(0.5) and link.status.time_boot_ms >= 60_000
+    assert mavlink.MAV_CMD_REQUEST_MESSAGE in vehicle.commands_seen  # asked for HOME_POSITION
+
+
+def test_command_ack_and_three_tries_without_one(vehicle):
+    vehicle.command_results[mavlink.MAV_CMD_COMPONENT_ARM_DISARM] = mavlink.MAV_RESULT_DENIED
+    vehicle.command_results[mavlink.MAV_CMD_NAV_LAND] = None
+
+    async def scenario():
+        link = await connected_link(vehicle)
+        try:
+            denied = await link.command_long(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, [1])
+            with pytest.raises(CommandTimeoutError):
+                await link.command_long(mavlink.MAV_CMD_NAV_LAND, [], tries=3, timeout_s=0.2)
+        finally:
+            await link.stop()
+        return denied
+
+    assert asyncio.run(scenario()) == mavlink.MAV_RESULT_DENIED
+    assert vehicle.commands_seen.count(mavlink.MAV_CMD_NAV_LAND) == 3
+
+
+def test_upload_retries_a_lost_request_and_download_round_trips(vehicle):
+    vehicle.drop_first_request_of = {2}
+
+    async def scenario():
+        link = await connected_link(vehicle)
+        try:
+            await upload_mission(link, ITEMS, step_timeout_s=0.2)
+            return await download_mission(link, step_timeout_s=0.2)
+        finally:
+            await link.stop()
+
+    back = asyncio.run(scenario())
+    assert [(i.seq, i.x, i.param1, i.z) for i in back] == [(i.seq, i.x, i.param1, i.z) for i in ITEMS]
+    assert math.isnan(back[0].param2)
+
+
+def test_upload_refused_and_upload_unanswered(vehicle):
+    async def scenario():
+        link = await connected_link(vehicle)
+        try:
+            vehicle.mission_result = mavlink.MAV_MISSION_NO_SPACE
+            with pytest.raises(MissionRejectedError, match="MAV_MISSION_NO_SPACE"):
+                await upload_mission(link, ITEMS, step_timeout_s=0.2)
+            vehicle.mission_result = mavlink.MAV_MISSION_ACCEPTED
+            vehicle.ignore_mission = True
+            with pytest.raises(MissionTimeoutError, match="after MISSION_COUNT"):
+                await upload_mission(link, ITEMS, step_timeout_s=0.1, retries=2)
+        finally:
+            await link.stop()
+
+    asyncio.run(scenario())
+
+
+def test_reboot_and_heartbeat_loss_are_detected(vehicle):
+    async def scenario():
+        link = await connected_link(vehicle, timeout_s=0.5)
+        try:
+            vehicle.boot_start = time.monotonic() + 60.0  # time_boot_ms jumps back by a minute
+            await asyncio.sleep(0.4)
+            reboots = link.status.reboots
+            vehicle.silent = True
+            await asyncio.sleep(2.0)  # > timeout plus one 1 Hz check
+            return reboots, link.status.connected
+        finally:
+            await link.stop()
+
+    assert asyncio.run(scenario()) == (1, False)
+
+
+# ----- lifecycle failure paths through the API
+def fly(tmp_path, vehicle, timeout_s=15.0) -> dict:
+    settings = Settings(
+        db_path=tmp_path / "gcs.sqlite", vehicle_url=f"udpout:127.0.0.1:{vehicle.port}", vehicle_wait_s=3.0
+    )
+    with TestClient(create_app(settings)) as client:
+        mission_id = client.post("/missions", json={"buoys": [{"lat": 38.9215, "lon": 121.6635}]}).json()["id"]
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            mission = client.get(f"/missions/{mission_id}").json()
+            if mission["status"] in ("completed", "failed", "aborted"):
+                return mission
+            time.sleep(0.05)
+    raise AssertionError(f"mission still {mission['status']}")
+
+
+def test_mission_refused_by_the_vehicle_fails_with_its_reason(tmp_path, vehicle):
+    vehicle.mission_result = mavlink.MAV_MISSION_INVALID_PARAM1
+    mission = fly(tmp_path, vehicle)
+    assert mission["status"] == "failed" and "MAV_MISSION_INVALID_PARAM1" in mission["reason"]
+    assert [e["status"] for e in mission["events"]] == ["planned", "uploading", "failed"]
+
+
+def test_arm_refused_fails_with_its_reason(tmp_path, vehicle):
+    vehicle.command_results[mavlink.MAV_CMD_COMPONENT_ARM_DISARM] = mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+    mission = fly(tmp_path, vehicle)
+    assert mission["status"] == "failed"
+    assert mission["reason"] == "the vehicle refused to arm (MAV_RESULT_TEMPORARILY_REJECTED)"
+    assert len(vehicle.stored) == 4  # takeoff, speed, one buoy, return
+
+
+def test_vehicle_that_never_arms_ends_failed_not_flying_forever(tmp_path, vehicle):
+    # it acknowledges arm and start but its heartbeat never shows armed: the disarm grace ends the mission
+    mission = fly(tmp_path, vehicle)
+    assert mission["status"] == "failed" and "disarmed before completing" in mission["reason"]
+    assert mavlink.MAV_CMD_DO_SET_MODE in vehicle.commands_seen
