@@ -8,8 +8,12 @@ b0 = L/I: same loop, different units. A spec's optional "b0_scale" multiplies b0
 a smaller b0 gives a faster, more aggressive response).
 
 Attitude error comes from quaternions, not Euler angles: q_err = conj(q) * q_target is the rotation from
-the current body to the target body, in body axes, taken the short way round, so a yaw target of +179 deg
-seen from -179 deg is a 2 deg turn. Its rotation vector e (axis times angle) is the per-axis error. Each
+the current body to the target body, in body axes. As in PX4's attitude controller the thrust direction
+comes first: the roll and pitch errors are the rotation vector of the shortest tilt that takes the body z
+axis onto the target's, whatever the heading; the yaw error is the rotation about z that remains, taken
+the short way round, so a yaw target of +179 deg seen from -179 deg is a 2 deg turn. (A plain rotation
+vector of q_err would mix a large heading error into roll and pitch and tilt the thrust the wrong way
+while the weak yaw axis catches up.) Each
 channel's "measured output" is the body-axis angle theta_i integrated from the gyro rate, and its reference
 is theta_i + e_i: the ESO then sees only the vehicle's motion, and a jump in the target (the outer loop
 updates at 50 Hz) goes through the TD, not into the disturbance estimate. theta_i is only a bookkeeping
@@ -123,12 +127,28 @@ class AdrcAttitudeController:
         ex = w * tx - x * tw - y * tz + z * ty
         ey = w * ty + x * tz - y * tw - z * tx
         ez = w * tz - x * ty + y * tx - z * tw
-        if ew < 0.0:  # q and -q are the same rotation; take the short way
-            ew, ex, ey, ez = -ew, -ex, -ey, -ez
-        vector_norm = math.sqrt(ex * ex + ey * ey + ez * ez)
-        # rotation vector = axis * angle, angle = 2 atan2(|v|, w); -> 2 v for small angles
-        scale = 2.0 * math.atan2(vector_norm, ew) / vector_norm if vector_norm > 1e-12 else 2.0
-        errors = (ex * scale, ey * scale, ez * scale)
+        # Tilt first (PX4's reduced attitude): the target's thrust axis seen from the current body,
+        # z_t = R(q_err) e3, and the shortest rotation taking the body z axis onto it.
+        zx = 2.0 * (ex * ez + ew * ey)
+        zy = 2.0 * (ey * ez - ew * ex)
+        zz = 1.0 - 2.0 * (ex * ex + ey * ey)
+        sin_tilt = math.sqrt(zx * zx + zy * zy)
+        if sin_tilt > 1e-9:
+            scale = math.atan2(sin_tilt, zz) / sin_tilt
+            roll_error, pitch_error = -zy * scale, zx * scale
+        else:  # aligned, or exactly upside down (then roll over)
+            roll_error, pitch_error = (0.0, 0.0) if zz > 0.0 else (math.pi, 0.0)
+        # Yaw: what is left of q_err after the tilt, q_rem = conj(q_tilt) * q_err, a rotation about z;
+        # q_tilt = normalise(1 + zz, -zy, zx, 0) (the half-way quaternion from e3 to z_t).
+        cw, cx, cy = 1.0 + zz, -zy, zx
+        rem_w = cw * ew + cx * ex + cy * ey
+        rem_z = cw * ez - cx * ey + cy * ex
+        yaw_error = 2.0 * math.atan2(rem_z, rem_w)
+        if yaw_error > math.pi:  # the short way round
+            yaw_error -= 2.0 * math.pi
+        elif yaw_error <= -math.pi:
+            yaw_error += 2.0 * math.pi
+        errors = (roll_error, pitch_error, yaw_error)
         rates = state.angular_velocity.tolist()
         theta, actuator, lag = self._theta, self._actuator, self._actuator_step
         torques = [0.0, 0.0, 0.0]

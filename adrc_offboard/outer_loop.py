@@ -9,10 +9,12 @@ normalised thrust. Both run at the same rate and see the same measurements (posi
 - `AdrcOuterLoop`: one ADRC channel per axis with b0 = 1 (the control is acceleration). The navigator's
   setpoint is already smooth, so by default there is no TD: its velocity and acceleration are the channel's
   v2 and feed-forward (re-differentiating a smooth setpoint would only add lag); a spec with "r0" turns the
-  paper's TD on instead. The ESO works on the measured position; with `use_measured_velocity` the measured
-  velocity replaces z2 in the rate error. Each ESO is fed the acceleration actually commanded after every
-  limit, recovered from the attitude target, so saturation never winds it up. z3 is the total disturbance
-  acceleration in NED, m/s^2: a wind pushing north at 1.5 m/s^2 gives z3_x ~ +1.5.
+  paper's TD on instead. The ESO works on the measured position; with `use_measured_velocity` (the
+  default) the measured velocity replaces z2 in the rate error, as the PID uses it: under the simulator's
+  sensor noise the z2 of a 50 Hz position-only ESO is noisier than the measured velocity. Each ESO is fed
+  the acceleration actually commanded after every limit, recovered from the attitude target, so saturation
+  never winds it up. z3 is the total disturbance acceleration in NED, m/s^2: a wind pushing north at
+  1.5 m/s^2 gives z3_x ~ +1.5.
 - `PidOuterLoop`: a = a_ref + kp e + kd (v_ref - v) + i, i = integral of ki e with conditional integration
   (frozen while the axis is saturated in the direction the error pushes) and a clamp.
 
@@ -108,7 +110,7 @@ class AdrcOuterGains:
 
     horizontal: ChannelParameters
     vertical: ChannelParameters
-    use_measured_velocity: bool = False
+    use_measured_velocity: bool = True
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> AdrcOuterGains:
@@ -118,7 +120,7 @@ class AdrcOuterGains:
         return cls(
             channel_parameters(data["horizontal"], 1.0),
             channel_parameters(data["vertical"], 1.0),
-            bool(data.get("use_measured_velocity", False)),
+            bool(data.get("use_measured_velocity", True)),
         )
 
     @classmethod
@@ -316,17 +318,19 @@ def matched_gains(
     integral_ratio: float = 0.25,
     delta: float = 0.02,
     r1: tuple[float, float] = (5.0, 4.0),
+    use_measured_velocity: bool = True,
 ) -> tuple[AdrcOuterGains, PidOuterGains]:
     """ADRC and PID outer-loop gains with the same closed-loop bandwidth per axis.
 
     ADRC: the NLSEF's linear zone is the PD kp = wc^2, kd = 2 wc, and the ESO's linearisation sits at
     omega_o = observer_ratio * wc (3-5 is the usual range). PID: the same critically damped pair at wc plus
     an integrator pole at integral_ratio * wc (`pid_gains_for_bandwidth`). r1 = (horizontal, vertical)
-    bounds the NLSEF's acceleration for large errors.
+    bounds the NLSEF's acceleration for large errors; use_measured_velocity as in `AdrcOuterGains`.
     """
     adrc = AdrcOuterGains(
         horizontal=bandwidth_parameters(omega_c_horizontal, observer_ratio * omega_c_horizontal, 1.0, delta, r1[0]),
         vertical=bandwidth_parameters(omega_c_vertical, observer_ratio * omega_c_vertical, 1.0, delta, r1[1]),
+        use_measured_velocity=use_measured_velocity,
     )
     pid = PidOuterGains(
         pid_gains_for_bandwidth(omega_c_horizontal, integral_ratio),

@@ -164,7 +164,7 @@ def test_matched_gains_place_the_same_poles() -> None:
     l1, l2, l3 = observer.linear_zone_gains()
     assert np.allclose(np.roots([1.0, l1, l2, l3]).real, -4.0 * omega_c, rtol=1e-3)
     # and the shipped defaults are exactly this pair
-    assert AdrcOuterGains.load().horizontal == h
+    assert AdrcOuterGains.load() == adrc
     shipped = PidOuterLoop(MASS, G, MAX_THRUST).gains
     assert shipped == pid
 
