@@ -21,8 +21,8 @@ from planner.chnn_ga import GAParameters, chnn_ga
 from planner.distances import check_distance_matrix, check_points, closed_tour_length, euclidean_matrix
 from planner.errors import InputError, PlannerError, TooLargeError
 from planner.exact import EXACT_MAX_NODES, held_karp
+from planner.methods import METHODS
 
-METHODS = ("chnn-ga", "chnn", "exact", "auto")
 AUTO_EXACT_MAX_NODES = EXACT_MAX_NODES
 CHNN_MAX_NODES = 60
 

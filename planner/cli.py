@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.api import METHODS, plan_tour
 from planner.errors import InputError, PlannerError
 from planner.formats import parse_csv, parse_depot_option, parse_geojson
 from planner.geodesy import LocalFrame
+from planner.methods import METHODS
 from planner.tsplib import parse_tsp
 
 EXIT_INPUT = 2
@@ -68,6 +68,8 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
         points, distance, unit = load_mission(Path(args.file), args.depot)
+        from planner.api import plan_tour  # the solvers (and numba) load only once the input is good
+
         if distance is not None:
             result = plan_tour(None, method=args.method, seed=args.seed, time_limit_s=args.time_limit,
                                distance=distance)

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from planner import chnn
-from planner.chnn_ga import _chnn_children, GAParameters
-from planner.distances import closed_tour_length, euclidean_matrix, is_valid_tour
+from planner.chnn_ga import GAParameters, _chnn_children
+from planner.distances import closed_tour_length, euclidean_matrix
 
 
 def small_network(m: int, seed: int):

@@ -67,7 +67,7 @@ def test_iterated_local_search_never_gets_worse_and_stays_a_tour():
 
 
 def test_iterated_local_search_is_reproducible_with_a_seed():
-    dist, neighbours = instance(60, 12)
+    dist, _ = instance(60, 12)
     tours = []
     for _ in range(2):
         tour = np.arange(60, dtype=np.int64)

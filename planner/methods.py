@@ -1,0 +1,3 @@
+"""The planning methods' names (a light module: the CLI validates options without loading the solvers)."""
+
+METHODS = ("chnn-ga", "chnn", "exact", "auto")
