@@ -17,7 +17,8 @@ renormalised after each step.
 
 Ground: z >= 0 is ground. After a step that ends at or below it the body is put on the ground: z = 0,
 velocity and body rates zero, roll and pitch levelled, yaw kept. The vehicle thus rests while thrust is
-below its weight and lifts off as soon as a step ends above the ground.
+below its weight and lifts off as soon as a step ends above the ground. The D terms do not act on a body
+that starts a step on the ground (the ground holds it).
 """
 
 from __future__ import annotations
@@ -154,11 +155,14 @@ def advance(state: np.ndarray, omega_cmd: np.ndarray, params: np.ndarray, wind_p
     """Run `steps` RK4 steps from step number step_index; returns whether the body ends on the ground.
 
     Per step: a new disturbance sample is taken from disturbance_samples whenever the step number is a
-    multiple of steps_per_sample (zero-order hold); the wind (mean + gust + turbulence advanced by one step)
-    is evaluated at the step's start with the airspeed relative to the mean wind and gust.
+    multiple of steps_per_sample (zero-order hold) and acts unless the body starts the step on the ground
+    (the paper's D terms are in-flight disturbances; lift-off is thrust against weight); the wind (mean +
+    gust + turbulence advanced by one step) is evaluated at the step's start with the airspeed relative to
+    the mean wind and gust.
     """
     wind = np.zeros(3)
     steady = np.zeros(3)
+    applied = np.zeros(6)  # the D terms that act: none while the ground holds the body
     on_ground = state[2] >= 0.0
     next_sample = 0
     for k in range(steps):
@@ -170,12 +174,14 @@ def advance(state: np.ndarray, omega_cmd: np.ndarray, params: np.ndarray, wind_p
         mean_and_gust(wind_params, t, steady)
         airspeed = math.sqrt((state[3] - steady[0]) ** 2 + (state[4] - steady[1]) ** 2 + state[5] ** 2)
         wind_velocity(wind_params, turbulence, turbulence_noise[k], t, dt, -state[2], airspeed, wind)
-        rk4_step(state, omega_cmd, params, wind, disturbance[0:3], disturbance[3:6], dt)
+        for i in range(6):
+            applied[i] = 0.0 if on_ground else disturbance[i]
+        rk4_step(state, omega_cmd, params, wind, applied[0:3], applied[3:6], dt)
         on_ground = ground_contact(state)
     dx, dy, dz = drag_acceleration(state, params, wind)
     info[0:3] = wind
-    info[3:9] = disturbance
-    info[9] = dx + disturbance[0]
-    info[10] = dy + disturbance[1]
-    info[11] = dz + disturbance[2]
+    info[3:9] = applied
+    info[9] = dx + applied[0]
+    info[10] = dy + applied[1]
+    info[11] = dz + applied[2]
     return on_ground

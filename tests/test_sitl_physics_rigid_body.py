@@ -226,3 +226,16 @@ def test_reconfigure_mid_flight_keeps_state_and_time():
     np.testing.assert_allclose(sim.last_disturbance["wind_ned"], [5.0, 0.0, 0.0], atol=1e-12)
     assert sim.state.velocity[2] > 0.3  # twice the mass on the same rotor speed sinks at about g / 2
     assert sim.state.velocity[0] > 0.0  # pushed north by a wind from the south
+
+
+def test_disturbance_terms_do_not_lift_a_grounded_body():
+    """The paper's variance-15 disturbances would push a resting vehicle around; the ground holds it."""
+    sim = Simulator(AIRFRAME, disturbance=DisturbanceConfig.paper(), seed=3,
+                    rotor_speed=0.9 * AIRFRAME.hover_rotor_speed)
+    for _ in range(200):
+        sim.step(50)
+        assert sim.on_ground and sim.state.position[2] == 0.0
+        np.testing.assert_array_equal(sim.last_disturbance["d_accel_ned"], 0.0)
+    sim.set_rotor_commands(np.full(4, 1.2 * AIRFRAME.hover_rotor_speed))
+    sim.step(500)
+    assert not sim.on_ground and np.any(sim.last_disturbance["d_accel_ned"] != 0.0)
