@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query, Response
+from fastapi import APIRouter, Depends, Path, Query, Response
 
 from gcs import exports
 from gcs.missions import MissionService
@@ -17,6 +17,7 @@ from gcs.views import mission_out, mission_summary
 
 router = APIRouter(tags=["missions"])
 Service = Annotated[MissionService, Depends(get_service)]
+MissionId = Annotated[int, Path(ge=1, le=2**63 - 1, description="the mission's id (SQLite integer)")]
 
 
 @router.post("/missions", status_code=201, response_model=MissionOut, dependencies=[Depends(require_token)])
@@ -32,19 +33,19 @@ def list_missions(service: Service, limit: Annotated[int, Query(ge=1, le=1000)] 
 
 
 @router.get("/missions/{mission_id}", response_model=MissionOut)
-def get_mission(mission_id: int, service: Service) -> dict:
+def get_mission(mission_id: MissionId, service: Service) -> dict:
     return mission_out(service.get(mission_id))
 
 
 @router.post("/missions/{mission_id}/start", response_model=MissionOut, dependencies=[Depends(require_token)])
-async def start_mission(mission_id: int, service: Service) -> dict:
+async def start_mission(mission_id: MissionId, service: Service) -> dict:
     """Fly a mission created with start=false."""
     service.launch(mission_id)
     return mission_out(service.get(mission_id))
 
 
 @router.post("/missions/{mission_id}/abort", response_model=MissionOut, dependencies=[Depends(require_token)])
-async def abort_mission(mission_id: int, service: Service) -> dict:
+async def abort_mission(mission_id: MissionId, service: Service) -> dict:
     """Return to the depot (NAV_RETURN_TO_LAUNCH); a mission not yet flying simply ends."""
     await service.abort(mission_id)
     return mission_out(service.get(mission_id))
@@ -52,7 +53,7 @@ async def abort_mission(mission_id: int, service: Service) -> dict:
 
 @router.get("/missions/{mission_id}/telemetry", response_model=list[TelemetrySample])
 def get_telemetry(
-    mission_id: int, service: Service, limit: Annotated[int | None, Query(ge=1, le=1_000_000)] = None
+    mission_id: MissionId, service: Service, limit: Annotated[int | None, Query(ge=1, le=1_000_000)] = None
 ) -> list[dict]:
     service.get(mission_id)
     return service.storage.telemetry(mission_id, limit)
@@ -65,7 +66,7 @@ def _download(content: str, media_type: str, filename: str) -> Response:
 
 
 @router.get("/missions/{mission_id}/track.geojson")
-def get_track(mission_id: int, service: Service) -> Response:
+def get_track(mission_id: MissionId, service: Service) -> Response:
     record = service.get(mission_id)
     properties = {"mission": mission_id, "status": record.status}
     document = exports.track_geojson(service.storage.telemetry(mission_id), properties)
@@ -80,13 +81,13 @@ def _items(service: MissionService, mission_id: int):
 
 
 @router.get("/missions/{mission_id}/plan")
-def get_qgc_plan(mission_id: int, service: Service) -> Response:
+def get_qgc_plan(mission_id: MissionId, service: Service) -> Response:
     items, home, flight = _items(service, mission_id)
     document = exports.qgc_plan(items, home, cruise_speed=flight.speed_m_s, hover_speed=flight.speed_m_s)
     return _download(json.dumps(document, indent=2), "application/json", f"mission-{mission_id}.plan")
 
 
 @router.get("/missions/{mission_id}/waypoints")
-def get_waypoints(mission_id: int, service: Service) -> Response:
+def get_waypoints(mission_id: MissionId, service: Service) -> Response:
     items, home, _ = _items(service, mission_id)
     return _download(exports.waypoints_text(items, home), "text/plain", f"mission-{mission_id}.waypoints")
