@@ -47,8 +47,10 @@ def sign(x: float) -> float:
 
 
 def fsg(x: float, d: float) -> float:
-    """fsg(x, d) = (sign(x + d) - sign(x - d)) / 2, eq. (10): 1 inside |x| < d, 0 outside."""
-    return 0.5 * (sign(x + d) - sign(x - d))
+    """fsg(x, d) = (sign(x + d) - sign(x - d)) / 2, eq. (10), for d > 0: 1 inside |x| < d, 0 outside,
+    1/2 on the edge. Written with comparisons: it sits on the 250 Hz path."""
+    magnitude = abs(x)
+    return 1.0 if magnitude < d else (0.0 if magnitude > d else 0.5)
 
 
 def fhan(x1: float, x2: float, r: float, h: float) -> float:
@@ -71,8 +73,12 @@ def fhan(x1: float, x2: float, r: float, h: float) -> float:
 def fal(e: float, alpha: float, delta: float) -> float:
     """Han's power function with a linear zone, eq. (13): e / delta^(1-alpha) inside |e| <= delta,
     |e|^alpha sign(e) outside; continuous at |e| = delta. Its linear-zone slope is delta^(alpha-1)."""
-    s = fsg(e, delta)  # 1/2 exactly at |e| = delta, where both branches equal delta^alpha
-    return e * s / delta ** (1.0 - alpha) + abs(e) ** alpha * sign(e) * (1.0 - s)
+    magnitude = abs(e)
+    if magnitude < delta:  # s = 1
+        return e / delta ** (1.0 - alpha)
+    if magnitude > delta:  # s = 0
+        return math.copysign(magnitude**alpha, e)
+    return e * 0.5 / delta ** (1.0 - alpha) + 0.5 * math.copysign(magnitude**alpha, e)  # s = 1/2: = e^alpha
 
 
 class TrackingDifferentiator:

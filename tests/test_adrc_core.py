@@ -16,6 +16,7 @@ from adrc_offboard.adrc import (
     bandwidth_parameters,
     fal,
     fhan,
+    fsg,
 )
 from adrc_offboard.adrc_attitude import AdrcAttitudeGains
 from adrc_offboard.gains import channel_parameters, make_channel
@@ -64,6 +65,23 @@ def test_fal_is_continuous_at_delta_and_odd(alpha: float, delta: float) -> None:
     assert fal(0.3 * delta, alpha, delta) == pytest.approx(0.3 * delta * delta ** (alpha - 1))  # linear zone
     assert fal(5 * delta, alpha, delta) == pytest.approx((5 * delta) ** alpha)
     assert fal(-2 * delta, alpha, delta) == -fal(2 * delta, alpha, delta)
+
+
+def test_fal_and_fsg_equal_the_printed_formulas() -> None:
+    # eq. (13) and fsg of eq. (10) literally, with sign(0) = 0; the module computes them with comparisons
+    def sgn(x: float) -> float:
+        return (x > 0) - (x < 0)
+
+    def fal_printed(e: float, alpha: float, delta: float) -> float:
+        s = 0.5 * (sgn(e + delta) - sgn(e - delta))
+        return e * s / delta ** (1 - alpha) + abs(e) ** alpha * sgn(e) * (1 - s)
+
+    rng = np.random.default_rng(3)
+    for _ in range(2000):
+        delta, alpha = rng.uniform(1e-4, 1.0), rng.uniform(0.05, 1.0)
+        for e in (rng.uniform(-3 * delta, 3 * delta), delta, -delta, 0.0):
+            assert fal(e, alpha, delta) == pytest.approx(fal_printed(e, alpha, delta), rel=1e-12, abs=1e-15)
+            assert fsg(e, delta) == 0.5 * (sgn(e + delta) - sgn(e - delta))
 
 
 def run_observer(observer: ExtendedStateObserver, disturbance, h: float, seconds: float, excitation=None):
