@@ -2,11 +2,12 @@
 
 As PX4's PositionControl (mc_pos_control): velocity setpoint = feed-forward + P * position error, limited
 (horizontal norm, climb, descent); acceleration = feed-forward + P * velocity error + integral - D * measured
-acceleration; then sitl_quad.rotation.acceleration_to_attitude turns it into an AttitudeTarget (tilt limit,
-thrust normalised to the airframe's maximum). A NaN position component means "no position control on that
-axis" (velocity control, e.g. a constant-rate descent); NaN velocity or acceleration feed-forward counts as 0.
-The velocity integrator is clamped and frozen on the vertical axis while thrust is saturated in the
-direction it would push (anti-windup). Gains use PX4's names and defaults (MPC_*), which are in SI units.
+acceleration, limited (horizontal norm, up, down); then sitl_quad.rotation.acceleration_to_attitude turns it
+into an AttitudeTarget (tilt limit, thrust normalised to the airframe's maximum). A NaN position component
+means "no position control on that axis" (velocity control, e.g. a constant-rate descent); NaN velocity or
+acceleration feed-forward counts as 0. The velocity integrator is clamped, frozen horizontally while the
+horizontal acceleration is limited and vertically while thrust is saturated in the direction it would push
+(anti-windup). Gains use PX4's names and defaults (MPC_*), which are in SI units.
 """
 
 from __future__ import annotations
@@ -37,6 +38,9 @@ class PidPositionGains:
     mpc_xy_vel_max: float = 12.0  # m/s
     mpc_z_vel_max_up: float = 3.0
     mpc_z_vel_max_dn: float = 1.5
+    mpc_acc_hor_max: float = 6.0  # m/s^2, horizontal acceleration setpoint (feed-forward + feedback)
+    mpc_acc_up_max: float = 8.0  # m/s^2
+    mpc_acc_down_max: float = 5.0  # m/s^2
     mpc_tiltmax_air: float = 35.0  # deg
     integrator_limit_xy: float = 4.0  # m/s^2
     integrator_limit_z: float = 4.0
@@ -103,6 +107,12 @@ class PidPositionController:
             - vel_d[i] * self._acceleration[i]
             for i in range(3)
         ]
+        horizontal = math.hypot(acc_sp[0], acc_sp[1])
+        horizontal_limited = horizontal > g.mpc_acc_hor_max
+        if horizontal_limited:
+            acc_sp[0] *= g.mpc_acc_hor_max / horizontal
+            acc_sp[1] *= g.mpc_acc_hor_max / horizontal
+        acc_sp[2] = min(max(acc_sp[2], -g.mpc_acc_up_max), g.mpc_acc_down_max)
         af = self.airframe
         target = acceleration_to_attitude(acc_sp, float(setpoint.yaw), af.mass, af.g, af.max_thrust_n,
                                           math.radians(g.mpc_tiltmax_air))
@@ -110,10 +120,12 @@ class PidPositionController:
         if yaw_rate != 0.0:
             target.body_rates = np.array([0.0, 0.0, yaw_rate])
 
-        # integrate, except vertically while thrust is saturated the way the error pushes (NED: up is -z)
+        # integrate, except horizontally while the acceleration is limited and vertically while thrust is
+        # saturated the way the error pushes (NED: up is -z)
         vel_i = (g.mpc_xy_vel_i_acc, g.mpc_xy_vel_i_acc, g.mpc_z_vel_i_acc)
+        thrust_stuck = (target.thrust >= 1.0 and errors[2] < 0) or (target.thrust <= 0.0 and errors[2] > 0)
         for i in range(3):
-            if i == 2 and ((target.thrust >= 1.0 and errors[2] < 0) or (target.thrust <= 0.0 and errors[2] > 0)):
+            if (i < 2 and horizontal_limited) or (i == 2 and thrust_stuck):
                 continue
             self.integral[i] += vel_i[i] * errors[i] * dt
         horizontal = math.hypot(self.integral[0], self.integral[1])

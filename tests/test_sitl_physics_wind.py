@@ -24,10 +24,12 @@ def low_altitude_intensities(w20: float, altitude_m: float) -> tuple[float, floa
 
 @pytest.mark.parametrize("dt", [0.001, 0.02])
 def test_dryden_standard_deviation_matches_intensity_at_any_step(dt):
-    w20, altitude, airspeed = 10.0, 20.0, 15.0
+    # 10 ft and 30 m/s: the w filter's time constant L_w / V is 0.1 s, so a 20 ms step is a fifth of it
+    # (a naive Euler discretisation would be visibly off there)
+    w20, altitude, airspeed = 10.0, 10 * FEET, 30.0
     model = WindModel(WindConfig(turbulence_w20_m_s=w20), seed=11)
-    # 4000 s: longer than 1000 correlation times of the slowest (u, v) components
-    series = model.series(round(4000.0 / dt), dt, altitude, airspeed)
+    # 2000 s: over 2500 correlation times of the slowest (u, v) components
+    series = model.series(round(2000.0 / dt), dt, altitude, airspeed)
     sigma_uv, sigma_w = low_altitude_intensities(w20, altitude)
     std = series.std(axis=0)
     assert std[0] == pytest.approx(sigma_uv, rel=0.05)  # u along north without mean wind
