@@ -1,4 +1,5 @@
-// Time-series charts (uPlot) of the live flight: cross-track error, altitude and yaw, desired vs actual.
+// Time-series charts (uPlot) of the live flight: cross-track error, altitude and yaw, actual vs desired
+// (the desired, dashed, is drawn last so it stays visible where the vehicle tracks it closely).
 const MAX_POINTS = 5000;
 
 function makeChart(uPlot, element, series) {
@@ -22,12 +23,12 @@ export class FlightCharts {
     this.charts = {
       xte: makeChart(uPlot, document.getElementById("chart-xte"), [{ label: "cross-track", stroke: "#b23b3b" }]),
       alt: makeChart(uPlot, document.getElementById("chart-alt"), [
-        { label: "desired", stroke: "#1f6fb2", dash: [6, 4] },
-        { label: "actual", stroke: "#2f8f4f" },
+        { label: "actual", stroke: "#2f8f4f", width: 2 },
+        { label: "desired", stroke: "#1f6fb2", dash: [5, 4], width: 1.5 },
       ]),
       yaw: makeChart(uPlot, document.getElementById("chart-yaw"), [
-        { label: "desired", stroke: "#1f6fb2", dash: [6, 4] },
-        { label: "actual", stroke: "#2f8f4f" },
+        { label: "actual", stroke: "#2f8f4f", width: 2 },
+        { label: "desired", stroke: "#1f6fb2", dash: [5, 4], width: 1.5 },
       ]),
     };
     this.lastT = null;
@@ -49,8 +50,8 @@ export class FlightCharts {
     const deg = (r) => (r == null ? null : (r * 180) / Math.PI);
     const rows = {
       xte: [sample.cross_track_m ?? null],
-      alt: [sample.ref_down == null ? null : -sample.ref_down, sample.alt_m ?? null],
-      yaw: [deg(sample.ref_yaw), deg(sample.yaw)],
+      alt: [sample.alt_m ?? null, sample.ref_down == null ? null : -sample.ref_down],
+      yaw: [deg(sample.yaw), deg(sample.ref_yaw)],
     };
     for (const [name, values] of Object.entries(rows)) {
       const data = this.charts[name].data;

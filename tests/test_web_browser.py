@@ -1,0 +1,114 @@
+"""The map page in a real browser (headless Chromium via Playwright) against the real service and vehicle.
+
+Place four buoys by clicking the map, plan (the route and its length appear), fly against the SITL vehicle
+(`python -m sitl_quad --lockstep`) until the mission completes, and check the live track and the history.
+Screenshots go to test-artifacts/.
+"""
+
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+from playwright.sync_api import expect, sync_playwright
+
+pytestmark = [pytest.mark.browser, pytest.mark.integration, pytest.mark.slow]
+
+CHROMIUM = "/usr/bin/chromium"
+ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+        "--disable-component-update", "--disable-sync", "--no-first-run"]
+ARTIFACTS = Path(__file__).resolve().parent.parent / "test-artifacts"
+
+
+def free_port(kind: int) -> int:
+    with socket.socket(socket.AF_INET, kind) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def stop(process: subprocess.Popen) -> None:
+    if process.poll() is None:
+        process.terminate()
+        try:
+            process.wait(10)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
+
+@pytest.fixture
+def stack(tmp_path):
+    """The vehicle (lockstep) and `python -m gcs serve` on free ports; yields the page's URL."""
+    udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
+    logs = open(tmp_path / "stack.log", "w")  # noqa: SIM115 - closed below
+    vehicle = subprocess.Popen([sys.executable, "-m", "sitl_quad", "--port", str(udp), "--lockstep"],
+                               stdout=logs, stderr=subprocess.STDOUT)
+    gcs = subprocess.Popen(
+        [sys.executable, "-m", "gcs", "serve", "--vehicle", f"udpout:127.0.0.1:{udp}", "--port", str(http),
+         "--db", str(tmp_path / "gcs.sqlite")],
+        stdout=logs, stderr=subprocess.STDOUT,
+    )
+    url = f"http://127.0.0.1:{http}"
+    deadline = time.monotonic() + 30
+    while True:
+        try:
+            with urllib.request.urlopen(f"{url}/vehicle", timeout=1) as answer:
+                if b'"connected":true' in answer.read():
+                    break
+        except OSError:
+            pass
+        if time.monotonic() > deadline:
+            raise AssertionError("the service or the vehicle did not come up: " + (tmp_path / "stack.log").read_text())
+        time.sleep(0.2)
+    yield url
+    stop(gcs)
+    stop(vehicle)
+    logs.close()
+
+
+def test_place_plan_and_fly_in_the_browser(stack):
+    ARTIFACTS.mkdir(exist_ok=True)
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        page = browser.new_page(viewport={"width": 1280, "height": 800})
+        errors: list[str] = []
+        page.on("pageerror", lambda error: errors.append(str(error)))
+        page.goto(stack)
+        expect(page.get_by_test_id("link-status")).to_contain_text("disarmed", timeout=10_000)
+
+        box = page.locator("#map").bounding_box()
+        centre_x, centre_y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+        for dx, dy in ((-120, -60), (90, -90), (140, 60), (-60, 100)):
+            page.mouse.click(centre_x + dx, centre_y + dy)
+        expect(page.locator("#buoy-count")).to_have_text("4 buoys")
+        expect(page.locator(".buoy-icon")).to_have_count(4)
+
+        page.get_by_role("button", name="Plan").click()
+        summary = page.get_by_test_id("plan-summary")
+        expect(summary).to_contain_text("km", timeout=10_000)
+        expect(summary).to_contain_text("% shorter")
+        # the planned route is drawn: a dashed polyline in Leaflet's overlay pane
+        expect(page.locator(".leaflet-overlay-pane path[stroke-dasharray]")).to_have_count(1)
+        page.screenshot(path=str(ARTIFACTS / "web_planned.png"))
+
+        page.get_by_role("button", name="Fly").click()
+        status = page.get_by_test_id("mission-status")
+        expect(status).to_contain_text("flying", timeout=30_000)
+        expect(page.locator(".vehicle-icon")).to_have_count(1)
+        expect(status).to_contain_text("completed", timeout=180_000)
+        # the flown track (solid polyline) lies over the route, the history lists the mission with its files
+        assert page.locator(".leaflet-overlay-pane path:not([stroke-dasharray])").count() >= 1
+        expect(page.locator(".buoy-icon.visited")).to_have_count(4)
+        expect(page.locator("#history-rows tr")).to_have_count(1, timeout=5_000)
+        expect(page.locator("#history-rows")).to_contain_text("completed")
+        expect(page.locator("#history-rows a", has_text=".waypoints")).to_have_count(1)
+        page.screenshot(path=str(ARTIFACTS / "web_flown.png"), full_page=True)
+
+        page.set_viewport_size({"width": 390, "height": 844})  # a phone: the panel stacks over the map
+        page.screenshot(path=str(ARTIFACTS / "web_narrow.png"), full_page=True)
+        assert page.locator("#map").bounding_box()["width"] <= 390
+        browser.close()
+    assert errors == []
