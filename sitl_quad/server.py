@@ -43,8 +43,7 @@ class VehicleServer:
         self.handler_errors = 0
         self.tick_wall_times: list[float] = []  # kept only when record_ticks is set (benchmarks)
         self.record_ticks = False
-        self.telemetry = Telemetry(vehicle, self.send)
-        self.telemetry.link_stats = link.stats
+        self.telemetry = Telemetry(vehicle, link)
         self.heartbeat = Heartbeat(vehicle, self.send)
         self.parameters = Parameters(params, self.send, self._param_changed)
         self.on_params_changed = on_params_changed

@@ -113,6 +113,7 @@ class Vehicle:
         self.target = AttitudeTarget(quaternion=np.array([1.0, 0, 0, 0]), thrust=0.0)
         self.source = "off"
         self.saturated_ticks = 0
+        self.flight_time_s = 0.0  # armed time, drains the battery model
         self._ground_since: float | None = None
         self._armed_at = 0.0
         self._was_airborne = False
@@ -128,7 +129,8 @@ class Vehicle:
         if c.control.attitude_controller == AttitudeControllerKind.ADRC:
             from adrc_offboard.adrc_attitude import AdrcAttitudeController
 
-            return AdrcAttitudeController.for_airframe(c.airframe)
+            af = c.airframe
+            return AdrcAttitudeController(af.ixx, af.iyy, af.izz, rate_hz=1.0 / self.attitude_dt)
         from sitl_quad.attitude_pid import PidAttitudeController
 
         return PidAttitudeController(c.attitude_pid)
@@ -136,7 +138,7 @@ class Vehicle:
     def _make_position_controller(self):
         from sitl_quad.position_control import PidPositionController
 
-        return PidPositionController(self.config.position_pid, self.config.airframe)
+        return PidPositionController(self.config.airframe, self.config.position_pid)
 
     def apply_config(self, changed: str) -> None:
         """Rebuild what depends on a config section after a parameter change."""
@@ -310,6 +312,8 @@ class Vehicle:
                 saturated = saturated or self.mixer.saturated
             self.sim.step(self.physics_steps)
         self.saturated_ticks += int(saturated)
+        if self.armed:
+            self.flight_time_s += self.outer_dt
         self._update_landed_state()
         return TickRecord(t=self.t, truth=self.sim.state, estimate=est, setpoint=self.setpoint,
                           target=target, source=source, disturbance=dict(self.sim.last_disturbance))
@@ -351,11 +355,20 @@ class Vehicle:
             elif event.kind == "complete":
                 self._emit("mission_complete", "Mission finished", seq=event.seq)
 
+    def _touching_ground(self) -> bool:
+        """Land detector: in contact, or hovering within a few cm of the ground without vertical motion.
+
+        Contact alone flickers when a controller presses with about the vehicle's weight (as an ESO that
+        learned the ground reaction does), so a near-ground, near-still state also counts.
+        """
+        truth = self.sim.state
+        return self.sim.on_ground or (-truth.position[2] < 0.05 and abs(truth.velocity[2]) < 0.3)
+
     def _update_landed_state(self) -> None:
         if not self.armed:
             self.landed_state = LandedState.ON_GROUND
             return
-        on_ground = self.sim.on_ground
+        on_ground = self._touching_ground()
         if not on_ground:
             altitude = -self.sim.state.position[2]
             self._was_airborne = self._was_airborne or altitude > 0.5

@@ -30,6 +30,7 @@ class Peer:
     sysid: int | None = None
     compid: int | None = None
     permanent: bool = False  # an --out target: never expires
+    onboard: bool = False  # an onboard controller: gets the state messages at the outer-loop rate
 
 
 @dataclass
@@ -101,8 +102,13 @@ class UdpLink:
 
     def send(self, msg, peer: Peer | None = None) -> None:
         """Send to one peer, or to every live peer."""
+        self.send_to(msg, [peer] if peer is not None else self.live_peers())
+
+    def send_to(self, msg, peers: list[Peer]) -> None:
+        if not peers:
+            return
         buf = self.pack(msg)
-        for p in [peer] if peer is not None else self.live_peers():
+        for p in peers:
             self._sendto(buf, p.address)
 
     def _sendto(self, buf: bytes, address: tuple[str, int]) -> None:
@@ -187,6 +193,8 @@ class UdpLink:
         self.stats.by_type[kind] = self.stats.by_type.get(kind, 0) + 1
         if kind == "HEARTBEAT" or peer.sysid is None:
             peer.sysid, peer.compid = msg.get_srcSystem(), msg.get_srcComponent()
+        if kind == "SET_ATTITUDE_TARGET" or peer.compid == mavlink.MAV_COMP_ID_ONBOARD_COMPUTER:
+            peer.onboard = True
         target = _target_of(msg)
         for_us = target is None or (target[0] in (0, self.sysid) and target[1] in (0, self.compid))
         for_others = target is None or target[0] != self.sysid or target[1] not in (0, self.compid)

@@ -42,12 +42,15 @@ SENSORS = (
     | mavlink.MAV_SYS_STATUS_PREARM_CHECK
 )
 
-# Default stream rates in Hz of simulated time. The three state messages run at the outer-loop rate:
-# they are what the offboard controller closes its loop on.
+# The offboard controller closes its loop on these: onboard peers get them at every outer-loop tick, as
+# PX4 streams its "onboard" MAVLink instance faster than a GCS link.
+ONBOARD_STREAMS = ("LOCAL_POSITION_NED", "ATTITUDE_QUATERNION", "POSITION_TARGET_LOCAL_NED")
+
+# Default stream rates in Hz of simulated time, for every peer (ground stations).
 DEFAULT_RATES_HZ = {
-    "LOCAL_POSITION_NED": None,  # None: every outer tick
-    "ATTITUDE_QUATERNION": None,
-    "POSITION_TARGET_LOCAL_NED": None,
+    "LOCAL_POSITION_NED": 10.0,
+    "ATTITUDE_QUATERNION": 10.0,
+    "POSITION_TARGET_LOCAL_NED": 10.0,
     "GLOBAL_POSITION_INT": 10.0,
     "ATTITUDE": 10.0,
     "VFR_HUD": 4.0,
@@ -66,11 +69,11 @@ CELL_FULL_V, CELL_EMPTY_V, CELLS = 4.2, 3.5, 4
 class Telemetry:
     """Builds and schedules the vehicle's outgoing state messages."""
 
-    def __init__(self, vehicle: Vehicle, send) -> None:
+    def __init__(self, vehicle: Vehicle, link) -> None:
         self.vehicle = vehicle
-        self.send = send  # callable(msg), to every live peer
-        self.intervals: dict[str, float | None] = dict(DEFAULT_RATES_HZ)
-        self.intervals = {name: (None if hz is None else 1.0 / hz) for name, hz in DEFAULT_RATES_HZ.items()}
+        self.link = link
+        self.send = link.send  # callable(msg, peer=None): None means every live peer
+        self.intervals: dict[str, float] = {name: 1.0 / hz for name, hz in DEFAULT_RATES_HZ.items()}
         self.next_due: dict[str, float] = dict.fromkeys(self.intervals, 0.0)
         self.builders = {
             "LOCAL_POSITION_NED": self.local_position_ned,
@@ -87,18 +90,21 @@ class Telemetry:
             "HOME_POSITION": self.home_position,
             "AUTOPILOT_VERSION": self.autopilot_version,
         }
-        self.link_stats = None  # set by the server: drop counters go into SYS_STATUS
+        self.link_stats = link.stats  # drop counters go into SYS_STATUS
 
     # ----- scheduling
     def publish_due(self) -> None:
         """Send every stream whose interval has elapsed in simulated time (called after each tick)."""
         t = self.vehicle.t
+        peers = self.link.live_peers()
+        onboard = [p for p in peers if p.onboard]
+        ground = [p for p in peers if not p.onboard]
+        for name in ONBOARD_STREAMS:
+            self.link.send_to(self.builders[name](), onboard)
         for name, interval in self.intervals.items():
-            if interval is None:
-                self.send(self.builders[name]())
-            elif interval > 0 and t >= self.next_due[name]:
+            if interval > 0 and t >= self.next_due[name]:
                 self.next_due[name] = max(self.next_due[name] + interval, t)
-                self.send(self.builders[name]())
+                self.link.send_to(self.builders[name](), ground if name in ONBOARD_STREAMS else peers)
 
     def set_interval(self, msg_id: int, interval_us: float) -> CommandResult:
         """MAV_CMD_SET_MESSAGE_INTERVAL: -1 disables, 0 restores the default, >0 microseconds."""
@@ -108,8 +114,7 @@ class Telemetry:
         if not math.isfinite(interval_us):
             return CommandResult.DENIED
         if interval_us == 0:
-            hz = DEFAULT_RATES_HZ.get(name)
-            self.intervals[name] = None if hz is None else 1.0 / hz
+            self.intervals[name] = 1.0 / DEFAULT_RATES_HZ[name] if name in DEFAULT_RATES_HZ else 0.0
         elif interval_us < 0:
             self.intervals[name] = 0.0  # disabled
         else:

@@ -1,0 +1,89 @@
+"""`python -m adrc_offboard` / `adrc-offboard`: the outer position loop as its own process."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+import signal
+import sys
+
+EPILOG = """\
+examples:
+  adrc-offboard                              # ADRC outer loop for the vehicle on udp 127.0.0.1:14540
+  adrc-offboard --controller pid             # the PID baseline, same structure, rates and limits
+  adrc-offboard --no-engage                  # answer setpoints but never ask for OFFBOARD
+"""
+
+
+def parse_connect(text: str) -> tuple[str, int]:
+    scheme, _, rest = text.partition(":")
+    host, _, port = rest.rpartition(":")
+    if scheme != "udpout" or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise argparse.ArgumentTypeError(f"expected udpout:HOST:PORT, got {text!r}")
+    return host, int(port)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="adrc-offboard",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Cascade-ADRC outer loop (paper Section IV): follows the vehicle's POSITION_TARGET_LOCAL_NED "
+        "and sends SET_ATTITUDE_TARGET over MAVLink.",
+    )
+    p.add_argument(
+        "--connect",
+        type=parse_connect,
+        default=("127.0.0.1", 14540),
+        metavar="udpout:HOST:PORT",
+        help="the vehicle (default udpout:127.0.0.1:14540)",
+    )
+    p.add_argument("--controller", choices=("adrc", "pid"), default="adrc", help="outer-loop law (default adrc)")
+    p.add_argument(
+        "--rate",
+        type=float,
+        default=50.0,
+        metavar="HZ",
+        help="outer-loop rate; must match the vehicle's --outer-rate (default 50)",
+    )
+    p.add_argument(
+        "--no-engage",
+        dest="engage",
+        action="store_false",
+        help="never request OFFBOARD (answer setpoints only, e.g. to keep a lockstep vehicle paced)",
+    )
+    p.add_argument("--duration", type=float, metavar="SECONDS", help="exit after this many wall-clock seconds")
+    p.add_argument("-v", "--verbose", action="store_true")
+    return p
+
+
+def make_controller(kind: str, rate_hz: float):
+    """The outer loop for the default airframe (paper Table 2)."""
+    from adrc_offboard.outer_loop import AdrcOuterLoop, PidOuterLoop
+    from sitl_quad.airframe import Airframe
+
+    airframe = Airframe.table2()
+    cls = AdrcOuterLoop if kind == "adrc" else PidOuterLoop
+    return cls(mass=airframe.mass, g=airframe.g, max_thrust_n=airframe.max_thrust_n, rate_hz=rate_hz)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose else logging.WARNING, format="adrc-offboard %(levelname)s: %(message)s"
+    )
+    if not (math.isfinite(args.rate) and 10 <= args.rate <= 250):
+        print("adrc-offboard: error: --rate must be between 10 and 250 Hz", file=sys.stderr)
+        return 2
+    from adrc_offboard.node import OffboardNode
+
+    node = OffboardNode(make_controller(args.controller, args.rate), args.connect, args.rate, args.engage)
+    signal.signal(signal.SIGTERM, lambda *_: node.stop())
+    signal.signal(signal.SIGINT, lambda *_: node.stop())
+    print(
+        f"adrc-offboard: {args.controller} outer loop at {args.rate:g} Hz -> udp {args.connect[0]}:{args.connect[1]}",
+        flush=True,
+    )
+    node.run(args.duration)
+    return 0

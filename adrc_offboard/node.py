@@ -1,0 +1,252 @@
+"""The offboard controller process: vehicle state in, SET_ATTITUDE_TARGET out, once per outer-loop tick.
+
+The vehicle sends LOCAL_POSITION_NED, ATTITUDE_QUATERNION and POSITION_TARGET_LOCAL_NED stamped with the
+same time_boot_ms every tick; as soon as all three of a tick have arrived the node runs the outer loop
+and answers with a SET_ATTITUDE_TARGET carrying that time_boot_ms (which is what a lockstep vehicle waits
+for). It asks for OFFBOARD when the vehicle flies a mission in the air, resets its observers whenever
+the vehicle is on the ground or restarted, and publishes the ESO's total-disturbance estimates z3 as
+DEBUG_VECT "ESO_Z3" (x, y, z channels, m/s^2) at 10 Hz.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import select
+import socket
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sitl_quad.mavlink import mavlink  # pymavlink's MAVLink 2 dialect, configured in one place
+from sitl_quad.state import TrajectorySetpoint, VehicleState
+
+log = logging.getLogger(__name__)
+
+OFFBOARD_MAIN_MODE = 6
+AUTO_MAIN_MODE, MISSION_SUB_MODE, TAKEOFF_SUB_MODE = 4, 4, 2
+ENGAGE_RETRY_S = 1.0  # wall clock between DO_SET_MODE attempts
+HEARTBEAT_S = 1.0
+VEHICLE_LOST_S = 3.0  # wall clock without a vehicle heartbeat: assume it is gone (MAVSDK's timeout)
+ESO_PUBLISH_EVERY = 5  # ticks (10 Hz at 50 Hz)
+
+
+@dataclass
+class VehicleView:
+    """What the node knows about the vehicle, from its messages."""
+
+    armed: bool = False
+    main_mode: int = 0
+    sub_mode: int = 0
+    landed_state: int = 0  # MAV_LANDED_STATE
+    last_heartbeat: float = -math.inf
+    last_time_ms: int = -1
+    pending: dict[int, dict[str, object]] = field(default_factory=dict)  # time_boot_ms -> messages
+
+    @property
+    def in_offboard(self) -> bool:
+        return self.main_mode == OFFBOARD_MAIN_MODE
+
+    @property
+    def flying_mission(self) -> bool:
+        return self.main_mode == AUTO_MAIN_MODE and self.sub_mode in (MISSION_SUB_MODE, TAKEOFF_SUB_MODE)
+
+    @property
+    def in_air(self) -> bool:
+        return self.landed_state in (mavlink.MAV_LANDED_STATE_IN_AIR, mavlink.MAV_LANDED_STATE_LANDING)
+
+
+def state_from_messages(local, attitude) -> VehicleState:
+    return VehicleState(
+        t=local.time_boot_ms / 1000.0,
+        position=np.array([local.x, local.y, local.z]),
+        velocity=np.array([local.vx, local.vy, local.vz]),
+        quaternion=np.array([attitude.q1, attitude.q2, attitude.q3, attitude.q4]),
+        angular_velocity=np.array([attitude.rollspeed, attitude.pitchspeed, attitude.yawspeed]),
+    )
+
+
+def setpoint_from_message(target) -> TrajectorySetpoint:
+    return TrajectorySetpoint(
+        position=np.array([target.x, target.y, target.z]),
+        velocity=np.array([target.vx, target.vy, target.vz]),
+        acceleration=np.array([target.afx, target.afy, target.afz]),
+        yaw=target.yaw,
+        yaw_rate=target.yaw_rate,
+    )
+
+
+STATE_MESSAGES = ("LOCAL_POSITION_NED", "ATTITUDE_QUATERNION", "POSITION_TARGET_LOCAL_NED")
+
+
+class OffboardNode:
+    def __init__(
+        self,
+        controller,
+        vehicle_address: tuple[str, int],
+        outer_rate_hz: float = 50.0,
+        engage: bool = True,
+        sysid: int = 1,
+        compid: int = 191,
+    ) -> None:
+        self.controller = controller
+        self.vehicle_address = vehicle_address
+        self.dt = 1.0 / outer_rate_hz
+        self.engage = engage
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.setblocking(False)
+        self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+        self.parser = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+        self.parser.robust_parsing = True
+        self.vehicle = VehicleView()
+        self.running = True
+        self.ticks_answered = 0
+        self.engage_requests = 0
+        self._next_heartbeat = 0.0
+        self._next_engage = 0.0
+        self._was_controlling = False
+
+    # ----- transport
+    def send(self, msg) -> None:
+        buf = msg.pack(self.mav)
+        self.mav.seq = (self.mav.seq + 1) % 256
+        try:
+            self.sock.sendto(buf, self.vehicle_address)
+        except OSError as exc:  # vehicle not up yet (ICMP refused): keep going, it will come
+            log.debug("send failed: %s", exc)
+
+    def receive(self, timeout: float) -> list:
+        ready, _, _ = select.select([self.sock], [], [], timeout)
+        if not ready:
+            return []
+        out = []
+        while True:
+            try:
+                data, _ = self.sock.recvfrom(65535)
+            except (BlockingIOError, InterruptedError):
+                return out
+            except OSError:
+                continue
+            self.parser.buf, self.parser.buf_index = bytearray(), 0
+            self.parser.expected_length = mavlink.HEADER_LEN_V1 + 2
+            try:
+                msgs = self.parser.parse_buffer(data) or []
+            except Exception:  # hostile or broken datagram: ignore it
+                continue
+            out.extend(
+                m
+                for m in msgs
+                if m.get_srcSystem() == 1 and m.get_srcComponent() == 1 and not isinstance(m, mavlink.MAVLink_bad_data)
+            )
+
+    # ----- the loop
+    def run(self, duration_s: float | None = None) -> None:
+        end = None if duration_s is None else time.monotonic() + duration_s
+        while self.running and (end is None or time.monotonic() < end):
+            self._wall_timers(time.monotonic())
+            for msg in self.receive(0.05):
+                self.handle(msg)
+        self.sock.close()
+
+    def stop(self) -> None:
+        self.running = False
+
+    def _wall_timers(self, now: float) -> None:
+        if now >= self._next_heartbeat:
+            self._next_heartbeat = now + HEARTBEAT_S
+            self.send(
+                mavlink.MAVLink_heartbeat_message(
+                    mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
+                    mavlink.MAV_AUTOPILOT_INVALID,
+                    0,
+                    0,
+                    mavlink.MAV_STATE_ACTIVE,
+                    3,
+                )
+            )
+        v = self.vehicle
+        if (
+            self.engage
+            and v.armed
+            and v.flying_mission
+            and v.in_air
+            and now >= self._next_engage
+            and now - v.last_heartbeat < VEHICLE_LOST_S
+            and self.ticks_answered > 0
+        ):
+            self._next_engage = now + ENGAGE_RETRY_S
+            self.engage_requests += 1
+            base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+            self.send(
+                mavlink.MAVLink_command_long_message(
+                    1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, base, OFFBOARD_MAIN_MODE, 0, 0, 0, 0, 0
+                )
+            )
+
+    def handle(self, msg) -> None:
+        kind = msg.get_type()
+        v = self.vehicle
+        if kind == "HEARTBEAT":
+            v.last_heartbeat = time.monotonic()
+            v.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+            v.main_mode, v.sub_mode = (msg.custom_mode >> 16) & 0xFF, (msg.custom_mode >> 24) & 0xFF
+        elif kind == "EXTENDED_SYS_STATE":
+            v.landed_state = msg.landed_state
+        elif kind in STATE_MESSAGES:
+            self._collect(msg)
+
+    def _collect(self, msg) -> None:
+        v = self.vehicle
+        t_ms = msg.time_boot_ms
+        if t_ms < v.last_time_ms:  # time went backwards: the vehicle restarted
+            log.warning("vehicle time went back from %d to %d ms: restart, observers reset", v.last_time_ms, t_ms)
+            v.pending.clear()
+            v.last_time_ms = -1
+            self.controller.reset()
+            self._was_controlling = False
+        slot = v.pending.setdefault(t_ms, {})
+        slot[msg.get_type()] = msg
+        if len(slot) == len(STATE_MESSAGES):
+            del v.pending[t_ms]
+            for stale in [k for k in v.pending if k < t_ms]:  # a lost datagram leaves an incomplete tick
+                del v.pending[stale]
+            v.last_time_ms = t_ms
+            self._answer(t_ms, slot)
+
+    def _answer(self, t_ms: int, slot: dict) -> None:
+        v = self.vehicle
+        estimate = state_from_messages(slot["LOCAL_POSITION_NED"], slot["ATTITUDE_QUATERNION"])
+        setpoint = setpoint_from_message(slot["POSITION_TARGET_LOCAL_NED"])
+        controlling = v.armed and (v.in_air or v.in_offboard)
+        if not v.armed or (self._was_controlling and not controlling):
+            self.controller.reset()  # on the ground the ESO would learn the ground reaction: forget it
+        self._was_controlling = controlling
+        target = self.controller.update(setpoint, estimate, self.dt)
+        w, x, y, z = (float(c) for c in target.quaternion)
+        self.send(
+            mavlink.MAVLink_set_attitude_target_message(
+                t_ms,
+                1,
+                1,
+                mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_ROLL_RATE_IGNORE
+                | mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_PITCH_RATE_IGNORE
+                | mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_YAW_RATE_IGNORE,
+                [w, x, y, z],
+                0.0,
+                0.0,
+                0.0,
+                float(target.thrust),
+            )
+        )
+        self.ticks_answered += 1
+        if self.ticks_answered % ESO_PUBLISH_EVERY == 0:
+            z3 = self.controller.disturbance_estimates()
+            if z3:
+                self.send(
+                    mavlink.MAVLink_debug_vect_message(
+                        b"ESO_Z3", t_ms * 1000, z3.get("x", 0.0), z3.get("y", 0.0), z3.get("z", 0.0)
+                    )
+                )
