@@ -5,9 +5,10 @@ As PX4's PositionControl (mc_pos_control): velocity setpoint = feed-forward + P 
 acceleration, limited (horizontal norm, up, down); then sitl_quad.rotation.acceleration_to_attitude turns it
 into an AttitudeTarget (tilt limit, thrust normalised to the airframe's maximum). A NaN position component
 means "no position control on that axis" (velocity control, e.g. a constant-rate descent); NaN velocity or
-acceleration feed-forward counts as 0. The velocity integrator is clamped, frozen horizontally while the
-horizontal acceleration is limited and vertically while thrust is saturated in the direction it would push
-(anti-windup). Gains use PX4's names and defaults (MPC_*), which are in SI units.
+acceleration feed-forward counts as 0, a NaN yaw keeps the current heading. The velocity integrator is
+clamped, frozen horizontally while the horizontal acceleration is limited and vertically while thrust is
+saturated in the direction it would push (anti-windup). Gains use PX4's names and defaults (MPC_*), which
+are in SI units.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sitl_quad.airframe import Airframe, ModelParameterError
-from sitl_quad.rotation import acceleration_to_attitude
+from sitl_quad.rotation import acceleration_to_attitude, euler_from_quat
 from sitl_quad.state import AttitudeTarget, TrajectorySetpoint, VehicleState
 
 
@@ -114,7 +115,10 @@ class PidPositionController:
             acc_sp[1] *= g.mpc_acc_hor_max / horizontal
         acc_sp[2] = min(max(acc_sp[2], -g.mpc_acc_up_max), g.mpc_acc_down_max)
         af = self.airframe
-        target = acceleration_to_attitude(acc_sp, float(setpoint.yaw), af.mass, af.g, af.max_thrust_n,
+        yaw = float(setpoint.yaw)
+        if not math.isfinite(yaw):  # PX4: no yaw setpoint means keep the current heading
+            yaw = euler_from_quat(estimate.quaternion)[2]
+        target = acceleration_to_attitude(acc_sp, yaw, af.mass, af.g, af.max_thrust_n,
                                           math.radians(g.mpc_tiltmax_air))
         yaw_rate = _finite_or(float(setpoint.yaw_rate), 0.0)
         if yaw_rate != 0.0:
