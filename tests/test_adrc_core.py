@@ -41,6 +41,17 @@ def test_td_reaches_a_unit_step_in_the_time_optimal_time_without_overshoot(r0: f
     assert settled_at == pytest.approx(2.0 / math.sqrt(r0), rel=0.1)
 
 
+def test_td_filter_factor_above_the_step_smooths_a_noisy_reference() -> None:
+    # Han: h0 = h is time-optimal but follows noise bang-bang; a larger h0 low-passes v2
+    h = 0.004
+    noise = np.random.default_rng(0).normal(0.0, 0.005, 2000)
+    spreads = {}
+    for h0 in (h, 10 * h):
+        td = TrackingDifferentiator(150.0, h0, h)
+        spreads[h0] = np.std([td.update(0.2 + n)[1] for n in noise][500:])
+    assert spreads[10 * h] < 0.2 * spreads[h]
+
+
 def test_fhan_is_a_pd_near_the_origin_and_bounded_by_r_far_away() -> None:
     r, h = 10.0, 0.5
     for x1, x2 in [(0.1, 0.0), (-0.2, 0.1), (0.05, -0.3)]:
