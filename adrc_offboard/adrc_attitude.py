@@ -13,11 +13,17 @@ comes first: the roll and pitch errors are the rotation vector of the shortest t
 axis onto the target's, whatever the heading; the yaw error is the rotation about z that remains, taken
 the short way round, so a yaw target of +179 deg seen from -179 deg is a 2 deg turn. (A plain rotation
 vector of q_err would mix a large heading error into roll and pitch and tilt the thrust the wrong way
-while the weak yaw axis catches up.) Each
-channel's "measured output" is the body-axis angle theta_i integrated from the gyro rate, and its reference
-is theta_i + e_i: the ESO then sees only the vehicle's motion, and a jump in the target (the outer loop
-updates at 50 Hz) goes through the TD, not into the disturbance estimate. theta_i is only a bookkeeping
-coordinate (its drift cancels in theta_i + e_i - theta_i).
+while the weak yaw axis catches up.)
+
+Each channel's "measured output" is the body-axis angle theta_i integrated from the gyro rate, and its
+reference is theta_i + e_i: the ESO then sees only the vehicle's motion, and a jump in the target (the outer
+loop updates at 50 Hz) goes through the TD, not into the disturbance estimate. theta_i is only a
+bookkeeping coordinate (its drift cancels in theta_i + e_i - theta_i).
+
+The ESO is fed the torque the rotors deliver, not the command: with `actuator_time_constant` (the
+airframe's motor lag, 0.02 s for Table 2, taken by `for_airframe`) the command goes through a first-order
+lag first. Fed the raw command, the observer reads the lag as a disturbance (a 9 rad/s^2 phantom z3 on a
+0.3 rad step in the simulator instead of 0.7).
 
 AttitudeTarget.body_rates (feed-forward) is ignored; the thrust field is the mixer's business.
 """
