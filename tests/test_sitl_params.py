@@ -1,0 +1,83 @@
+"""The parameter table: PX4 bytewise INT32 encoding, validation, files."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from sitl_quad.config import VehicleConfig
+from sitl_quad.params import INT32, REAL32, ParameterError, ParameterTable, decode_value, encode_value
+from sitl_quad.vehicle_params import VEHICLE_PARAMETERS
+
+
+@pytest.fixture
+def table() -> ParameterTable:
+    return ParameterTable(VEHICLE_PARAMETERS, VehicleConfig())
+
+
+def test_int32_travels_bytewise_not_cast():
+    raw = encode_value(1, INT32)
+    assert raw != 1.0  # a cast would read back as 1065353216 in MAVSDK
+    assert decode_value(raw, INT32) == 1
+    assert decode_value(encode_value(-7, INT32), INT32) == -7
+    assert encode_value(2.5, REAL32) == 2.5
+
+
+def test_defaults_come_from_the_config(table):
+    assert table.get("SIM_MASS") == pytest.approx(1.3)
+    assert table.get("SIM_IZZ") == pytest.approx(0.151)
+    assert table.get("OFFB_LOSS_T") == pytest.approx(0.5)
+    assert all(len(spec.name) <= 16 for spec in table.specs)
+
+
+def test_set_updates_the_config_and_refusals_change_nothing(table):
+    assert table.set("SIM_WIND_SPD", 5.0) == 5.0
+    assert table.config.wind.speed_m_s == 5.0
+    for name, bad in [("SIM_WIND_SPD", -1.0), ("SIM_WIND_SPD", float("nan")), ("OFFB_LOSS_ACT", 1.5),
+                      ("OFFB_LOSS_ACT", 7), ("NOPE", 1.0)]:
+        with pytest.raises(ParameterError):
+            table.set(name, bad)
+    assert table.config.wind.speed_m_s == 5.0
+    assert table.get("OFFB_LOSS_ACT") == 0
+
+
+def test_file_round_trip_and_all_or_nothing_load(table, tmp_path):
+    table.set("MPC_XY_CRUISE", 7.5)
+    table.set("OFFB_LOSS_ACT", 2)
+    path = tmp_path / "vehicle.params"
+    table.save(path)
+    fresh = ParameterTable(VEHICLE_PARAMETERS, VehicleConfig())
+    assert fresh.load(path) == len(VEHICLE_PARAMETERS)
+    assert fresh.get("MPC_XY_CRUISE") == 7.5 and fresh.get("OFFB_LOSS_ACT") == 2
+    bad = tmp_path / "bad.params"
+    bad.write_text("MPC_XY_CRUISE 3.0\nSIM_MASS -4\n")
+    with pytest.raises(ParameterError, match="SIM_MASS"):
+        fresh.load(bad)
+    assert fresh.get("MPC_XY_CRUISE") == 7.5  # the good first line was not applied either
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--params", "{tmp}/garbage.params"], "garbage.params:1"),
+    (["--param", "SIM_MASS=-1"], "SIM_MASS"),
+    (["--param", "NOT_A_PARAM=1"], "unknown parameter"),
+    (["--home", "95,10"], "outside"),
+    (["--speed", "0"], "--speed"),
+])
+def test_cli_rejects_bad_input_with_a_message(tmp_path, argv, message):
+    (tmp_path / "garbage.params").write_text("this is not a parameter file\n")
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    result = subprocess.run([sys.executable, "-m", "sitl_quad", *argv, "--list-params"],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert message in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_cli_lists_parameters():
+    result = subprocess.run([sys.executable, "-m", "sitl_quad", "--param", "SIM_WIND_SPD=4", "--list-params"],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0
+    line = next(line for line in result.stdout.splitlines() if line.startswith("SIM_WIND_SPD"))
+    assert line.split()[1] == "4"
