@@ -86,10 +86,22 @@ def test_free_fall_accelerates_at_g_with_rotors_off():
     sim.step(2000)
     assert sim.state.velocity[2] == pytest.approx(2.0 * 9.81, rel=1e-9)
     assert sim.state.position[2] == pytest.approx(-100.0 + 0.5 * 9.81 * 4.0, rel=1e-9)
-    # with drag the fall is slower, and the vertical drag grows with speed
+    # with drag it starts at g, then the vertical drag grows with speed and the fall is slower
     draggy = Simulator(AIRFRAME, position=(0.0, 0.0, -100.0))
-    draggy.step(2000)
+    draggy.step(1)
+    assert draggy.state.velocity[2] / draggy.dt == pytest.approx(9.81, rel=1e-3)
+    draggy.step(1999)
     assert 0.0 < draggy.state.velocity[2] < 2.0 * 9.81
+
+
+def test_rotors_follow_commands_with_the_motor_lag_and_limits():
+    sim = Simulator(AIRFRAME, position=(0.0, 0.0, -100.0), rotor_speed=300.0)
+    sim.set_rotor_commands([400.0, 200.0, 300.0, 900.0])
+    sim.step(round(AIRFRAME.motor_time_constant / sim.dt))  # one time constant: 63 % of the way
+    expected = np.array([300.0, 300.0, 300.0, 300.0]) + (1 - math.exp(-1)) * np.array([100.0, -100.0, 0.0, 200.0])
+    np.testing.assert_allclose(sim.state.rotor_speeds, expected, rtol=1e-6)
+    sim.step(1000)
+    np.testing.assert_allclose(sim.state.rotor_speeds, [400.0, 200.0, 300.0, AIRFRAME.rotor_speed_max])
 
 
 @pytest.mark.parametrize(("axis", "pattern", "inertia", "coefficient"), [
