@@ -169,6 +169,8 @@ def chnn_ga(dist: np.ndarray, seed: int = 0, time_limit_s: float = 2.0, ga: GAPa
             energy_trace = trace.tolist()
         accepted = {"chnn": 0, "crossover": 0, "ils": 0}
         for k in range(size):
+            if time.perf_counter() - started >= time_limit_s:
+                break  # anytime: the rest of this generation keeps its parents
             if use_chnn[k]:
                 kind, child = "chnn", children[k]
                 if child is None:
