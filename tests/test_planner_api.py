@@ -92,3 +92,12 @@ def test_bad_options_and_matrices_raise_typed_errors():
         plan_tour(mission(0, n_buoys=16), method="exact")
     with pytest.raises(TooLargeError, match="pure CHNN"):
         plan_tour(np.random.default_rng(0).uniform(0, 1, (80, 2)), method="chnn")
+
+
+def test_chnn_ga_is_anytime_it_returns_its_best_tour_when_time_runs_out():
+    points = np.random.default_rng(3).uniform(0, 5000, (200, 2))
+    result = plan_tour(points, method="chnn-ga", seed=0, time_limit_s=0.05)
+    assert is_valid_tour(result.order, 200)
+    # stopped by the clock, long before the stall rule (60 generations without progress at 200 nodes)
+    assert len(result.history) - 1 < 60
+    assert result.length == pytest.approx(min(h["best_length"] for h in result.history))
