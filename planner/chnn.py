@@ -30,8 +30,9 @@ Two parameter sets are offered:
     every valid tour is a stable corner        <=   C excess > 2 D  and  A + B > C excess
     a second neuron in a row/column is unstable <=   A > C excess  and  B > C excess
     a missing row/column is filled              <=   C (1 + excess) > 2 D
-  so A = B = 6, C = 6, excess = 0.5, D = 1.4 satisfies all (D as large as they allow: the larger D, the
-  shorter the tours). δ is scaled down (init_noise = 0.01, with gain u0 = 1) so that the distances, not the
+  so A = B = 8, C = 4, excess = 1.5, D = 2.9 satisfies all (D as large as they allow: the larger D relative
+  to A and B, the shorter the tours; a sweep of such sets gave 99 % valid runs here against 80 % for bolder
+  ones). δ is scaled down (init_noise = 0.01, with gain u0 = 1) so that the distances, not the
   initial noise, decide which corner the flow falls into. The leak is dropped (tau = None) so E is a
   Lyapunov function of the flow: dE/dt = -sum f'(u) (dE/dv)^2 <= 0. The Euler steps keep that property
   with step control (a step that would raise E is refused and Δt halved; accepted steps grow Δt up to 0.3):
@@ -76,7 +77,7 @@ HOPFIELD_TANK = CHNNParameters(
     excess=0.5, excess_per_node=True, tau=1.0, init_noise=0.002,
 )
 VALID_TOURS = CHNNParameters(
-    name="valid-tours", A=6.0, B=6.0, C=6.0, D=1.4, u0=1.0, dt=0.01, steps=300, excess=0.5,
+    name="valid-tours", A=8.0, B=8.0, C=4.0, D=2.9, u0=1.0, dt=0.01, steps=300, excess=1.5,
     init_noise=0.01, adaptive_step=True, dt_max=0.3,
 )
 PRESETS = {p.name: p for p in (VALID_TOURS, HOPFIELD_TANK)}
