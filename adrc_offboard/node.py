@@ -3,9 +3,9 @@
 The vehicle sends LOCAL_POSITION_NED, ATTITUDE_QUATERNION and POSITION_TARGET_LOCAL_NED stamped with the
 same time_boot_ms every tick; as soon as all three of a tick have arrived the node runs the outer loop
 and answers with a SET_ATTITUDE_TARGET carrying that time_boot_ms (which is what a lockstep vehicle waits
-for). It asks for OFFBOARD when the vehicle flies a mission in the air, resets its observers whenever
-the vehicle is on the ground or restarted, and publishes the ESO's total-disturbance estimates z3 as
-DEBUG_VECT "ESO_Z3" (x, y, z channels, m/s^2) at 10 Hz.
+for). It asks for OFFBOARD as soon as the vehicle is armed in mission (or takeoff) mode, keeps its
+observers reset whenever it is not in control (disarmed, another mode) or the vehicle restarted, and
+publishes the ESO's total-disturbance estimates z3 as DEBUG_VECT "ESO_Z3" (x, y, z, m/s^2) at 10 Hz.
 """
 
 from __future__ import annotations
@@ -26,9 +26,8 @@ log = logging.getLogger(__name__)
 
 OFFBOARD_MAIN_MODE = 6
 AUTO_MAIN_MODE, MISSION_SUB_MODE, TAKEOFF_SUB_MODE = 4, 4, 2
-ENGAGE_RETRY_S = 1.0  # wall clock between DO_SET_MODE attempts
+ENGAGE_RETRY_TICKS = 25  # outer-loop ticks between DO_SET_MODE attempts (0.5 s at 50 Hz)
 HEARTBEAT_S = 1.0
-VEHICLE_LOST_S = 3.0  # wall clock without a vehicle heartbeat: assume it is gone (MAVSDK's timeout)
 ESO_PUBLISH_EVERY = 5  # ticks (10 Hz at 50 Hz)
 
 
@@ -52,9 +51,6 @@ class VehicleView:
     def flying_mission(self) -> bool:
         return self.main_mode == AUTO_MAIN_MODE and self.sub_mode in (MISSION_SUB_MODE, TAKEOFF_SUB_MODE)
 
-    @property
-    def in_air(self) -> bool:
-        return self.landed_state in (mavlink.MAV_LANDED_STATE_IN_AIR, mavlink.MAV_LANDED_STATE_LANDING)
 
 
 def state_from_messages(local, attitude) -> VehicleState:
@@ -106,8 +102,7 @@ class OffboardNode:
         self.ticks_answered = 0
         self.engage_requests = 0
         self._next_heartbeat = 0.0
-        self._next_engage = 0.0
-        self._was_controlling = False
+        self._next_engage_tick = 0
 
     # ----- transport
     def send(self, msg) -> None:
@@ -167,24 +162,6 @@ class OffboardNode:
                     3,
                 )
             )
-        v = self.vehicle
-        if (
-            self.engage
-            and v.armed
-            and v.flying_mission
-            and v.in_air
-            and now >= self._next_engage
-            and now - v.last_heartbeat < VEHICLE_LOST_S
-            and self.ticks_answered > 0
-        ):
-            self._next_engage = now + ENGAGE_RETRY_S
-            self.engage_requests += 1
-            base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_SAFETY_ARMED
-            self.send(
-                mavlink.MAVLink_command_long_message(
-                    1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, base, OFFBOARD_MAIN_MODE, 0, 0, 0, 0, 0
-                )
-            )
 
     def handle(self, msg) -> None:
         kind = msg.get_type()
@@ -206,7 +183,6 @@ class OffboardNode:
             v.pending.clear()
             v.last_time_ms = -1
             self.controller.reset()
-            self._was_controlling = False
         slot = v.pending.setdefault(t_ms, {})
         slot[msg.get_type()] = msg
         if len(slot) == len(STATE_MESSAGES):
@@ -220,10 +196,16 @@ class OffboardNode:
         v = self.vehicle
         estimate = state_from_messages(slot["LOCAL_POSITION_NED"], slot["ATTITUDE_QUATERNION"])
         setpoint = setpoint_from_message(slot["POSITION_TARGET_LOCAL_NED"])
-        controlling = v.armed and (v.in_air or v.in_offboard)
-        if not v.armed or (self._was_controlling and not controlling):
-            self.controller.reset()  # on the ground the ESO would learn the ground reaction: forget it
-        self._was_controlling = controlling
+        if self.engage and v.armed and v.flying_mission and self.ticks_answered >= self._next_engage_tick:
+            # Decided on this tick's heartbeat and sent before the answer, so a lockstep vehicle switches at
+            # the same tick in every run. Takeoff included: the ADRC flies the whole mission.
+            self._next_engage_tick = self.ticks_answered + ENGAGE_RETRY_TICKS
+            self.engage_requests += 1
+            base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+            self.send(mavlink.MAVLink_command_long_message(
+                1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, base, OFFBOARD_MAIN_MODE, 0, 0, 0, 0, 0))
+        if not (v.armed and v.in_offboard):
+            self.controller.reset()  # not in control: start fresh when control comes (no ground learning)
         target = self.controller.update(setpoint, estimate, self.dt)
         w, x, y, z = (float(c) for c in target.quaternion)
         self.send(

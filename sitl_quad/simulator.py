@@ -68,15 +68,8 @@ class Simulator:
             raise ModelParameterError(f"reset needs a finite NED position of 3 numbers and a yaw, got {position}")
         if seed is not None:
             self.seed = seed
-        wind_rng, disturbance_rng, sensor_rng = (
-            np.random.default_rng(s) for s in np.random.SeedSequence(self.seed).spawn(3)
-        )
-        self.wind = WindModel(self.wind_config, wind_rng)
-        self.disturbance = GaussianDisturbance(self.disturbance_config, disturbance_rng)
-        self.sensors = Sensors(self.sensor_noise, sensor_rng)
-        self._steps_per_sample = max(1, round(self.disturbance_config.sample_time_s / self.dt))
-        self._disturbance_now = np.zeros(6)
         self._step_index = 0
+        self.restart_disturbances()
         self._state[:] = 0.0
         self._state[0:3] = position
         self._state[6:10] = quat_from_euler(0.0, 0.0, yaw)
@@ -111,6 +104,28 @@ class Simulator:
             self.sensor_noise = sensor_noise
             self.sensors = Sensors(sensor_noise, self.sensors.rng)
 
+    def restart_disturbances(self) -> None:
+        """Restart wind, turbulence, D-term and sensor-noise streams from the seed, with their clock at zero now.
+
+        The vehicle calls this at takeoff, so a flight's disturbances (including a gust at gust_start_s) are
+        the same for a given seed however long the vehicle sat on the ground before: that is what makes a
+        lockstep flight repeatable when the ground station's commands arrive at arbitrary ticks.
+        """
+        wind_rng, disturbance_rng, sensor_rng = (
+            np.random.default_rng(s) for s in np.random.SeedSequence(self.seed).spawn(3)
+        )
+        self.wind = WindModel(self.wind_config, wind_rng)
+        self.disturbance = GaussianDisturbance(self.disturbance_config, disturbance_rng)
+        self.sensors = Sensors(self.sensor_noise, sensor_rng)
+        self._steps_per_sample = max(1, round(self.disturbance_config.sample_time_s / self.dt))
+        self._disturbance_now = np.zeros(6)
+        self._epoch = self._step_index
+
+    @property
+    def disturbance_time(self) -> float:
+        """Seconds on the disturbances' clock (since the last restart_disturbances)."""
+        return (self._step_index - self._epoch) * self.dt
+
     def set_state(self, state: VehicleState) -> None:
         """Overwrite the body's state (not the time, the commands or the random streams); for tests and
         scenario set-up. The quaternion is normalised."""
@@ -136,7 +151,7 @@ class Simulator:
             raise ModelParameterError(f"step count must be a non-negative integer, got {n!r}")
         if n == 0:
             return
-        first = self._step_index
+        first = self._step_index - self._epoch  # the disturbances' own clock
         period = self._steps_per_sample
         samples = (first + n - 1) // period - (first - 1) // period  # multiples of period in [first, first+n)
         self._on_ground = bool(advance(

@@ -271,6 +271,17 @@ class Vehicle:
             self._emit("mode", mode.label)
         if not self.armed:
             return
+        if self.sim.on_ground and not self._was_airborne and mode in (FlightMode.AUTO_MISSION,
+                                                                       FlightMode.AUTO_TAKEOFF):
+            # Takeoff: the flight's disturbances start now, from the seed (see Simulator.restart_disturbances).
+            self.sim.restart_disturbances()
+            self.attitude.reset()  # forget what idling on the ground taught the loops
+            self.position.reset()
+            self.estimate = self.sim.measure()
+            if first_seq is None and self.navigator.mission_state != "complete":
+                first_seq = self.navigator.current_seq
+            self.navigator = Navigator(self.frame, self.config.navigator)  # plan from rest, not from idling
+            self.navigator.set_mission(self.mission)
         t, est = self.t, self.estimate
         if mode == FlightMode.AUTO_MISSION:
             if self.navigator.mission_state == "complete" and first_seq is None:

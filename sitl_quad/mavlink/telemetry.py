@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 from sitl_quad.mavlink import mavlink
+from sitl_quad.mavlink.heartbeat import heartbeat_message
 from sitl_quad.modes import FlightMode
 from sitl_quad.rotation import euler_from_quat
 from sitl_quad.vehicle import CommandResult, Vehicle
@@ -99,6 +100,11 @@ class Telemetry:
         peers = self.link.live_peers()
         onboard = [p for p in peers if p.onboard]
         ground = [p for p in peers if not p.onboard]
+        if onboard:
+            # A heartbeat with every tick's state lets the offboard controller act on mode and arming in
+            # step with simulated time (what keeps a lockstep flight repeatable); a second HEARTBEAT source
+            # rate is harmless to MAVLink tools.
+            self.link.send_to(heartbeat_message(self.vehicle), onboard)
         for name in ONBOARD_STREAMS:
             self.link.send_to(self.builders[name](), onboard)
         for name, interval in self.intervals.items():
