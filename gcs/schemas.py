@@ -132,6 +132,7 @@ class MissionOut(BaseModel):
     input_order_length_m: float
     improvement_pct: float
     method: str
+    elapsed_s: float = Field(description="planner time")
     altitude_m: float
     speed_m_s: float
     dwell_s: float

@@ -33,7 +33,7 @@ def list_missions(service: Service, limit: Annotated[int, Query(ge=1, le=1000)] 
 
 
 @router.get("/missions/{mission_id}", response_model=MissionOut)
-def get_mission(mission_id: MissionId, service: Service) -> dict:
+async def get_mission(mission_id: MissionId, service: Service) -> dict:
     return mission_out(service.get(mission_id))
 
 
