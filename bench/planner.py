@@ -56,10 +56,17 @@ def lkh(dist: np.ndarray, scale: float) -> tuple[float, float]:
 def cold_compile_seconds() -> float:
     """First-call compile time of the numba kernels, measured in a fresh process with an empty cache."""
     with tempfile.TemporaryDirectory() as cache:
-        code = "import time; t = time.perf_counter(); from planner.local_search import warm_up; warm_up(); " \
-               "print(time.perf_counter() - t)"
-        out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "NUMBA_CACHE_DIR": cache},
-                             capture_output=True, text=True, check=True)
+        code = (
+            "import time; t = time.perf_counter(); from planner.local_search import warm_up; warm_up(); "
+            "print(time.perf_counter() - t)"
+        )
+        out = subprocess.run(
+            [sys.executable, "-c", code],
+            env={**os.environ, "NUMBA_CACHE_DIR": cache},
+            capture_output=True,
+            text=True,
+            check=True,
+        )
     return float(out.stdout.strip())
 
 
@@ -83,19 +90,29 @@ def small_missions() -> dict:
             for kind, count in generation["accepted"].items():
                 accepted[kind] += count
         initial = ga.history[0]
-        rows.append({
-            "seed": seed, "optimum": optimum, "exact_s": exact_s,
-            "ga_length": ga.length, "ga_s": ga.elapsed_s, "ga_generations": len(ga.history) - 1,
-            "auto_length": auto.length, "auto_s": auto.elapsed_s,
-            "no_chnn_length": no_chnn.length, "no_chnn_s": no_chnn.elapsed_s,
-            "chnn_length": pure.length, "chnn_s": pure.elapsed_s,
-            "chnn_first_batch_valid": first["chnn_valid"] / first["chnn_children"],
-            "ga_initial_chnn_valid": initial["chnn_valid"] / max(initial["chnn_children"], 1),
-            "ga_initial_chnn_best": initial.get("chnn_best_length"),
-            "ga_after_first_repair": initial["best_length"],
-            "ga_accepted": accepted,
-            "lkh_length": lkh_length, "lkh_s": lkh_s,
-        })
+        rows.append(
+            {
+                "seed": seed,
+                "optimum": optimum,
+                "exact_s": exact_s,
+                "ga_length": ga.length,
+                "ga_s": ga.elapsed_s,
+                "ga_generations": len(ga.history) - 1,
+                "auto_length": auto.length,
+                "auto_s": auto.elapsed_s,
+                "no_chnn_length": no_chnn.length,
+                "no_chnn_s": no_chnn.elapsed_s,
+                "chnn_length": pure.length,
+                "chnn_s": pure.elapsed_s,
+                "chnn_first_batch_valid": first["chnn_valid"] / first["chnn_children"],
+                "ga_initial_chnn_valid": initial["chnn_valid"] / max(initial["chnn_children"], 1),
+                "ga_initial_chnn_best": initial.get("chnn_best_length"),
+                "ga_after_first_repair": initial["best_length"],
+                "ga_accepted": accepted,
+                "lkh_length": lkh_length,
+                "lkh_s": lkh_s,
+            }
+        )
 
     def is_opt(key: str) -> float:
         return float(np.mean([abs(r[key] - r["optimum"]) < 1e-6 * r["optimum"] for r in rows]))
@@ -150,15 +167,23 @@ def tsplib_cases(optima: dict[str, int]) -> list[dict]:
         lkh_length, lkh_s = lkh(dist, 1.0)
         exact = held_karp(dist)[1] if n <= 16 else None
         lengths = [r.length for r in runs]
-        cases.append({
-            "case": f"TSPLIB {name}", "n": n, "optimum": optima[name], "time_limit_s": limit,
-            "chnn_ga_lengths": lengths, "chnn_ga_hits": sum(abs(x - optima[name]) < 0.5 for x in lengths),
-            "chnn_ga_max_s": max(r.elapsed_s for r in runs),
-            "chnn_ga_mean_gap_to_lkh_pct": float(np.mean([(x / lkh_length - 1) * 100 for x in lengths])),
-            "no_chnn_lengths": [r.length for r in no_chnn],
-            "no_chnn_hits": sum(abs(r.length - optima[name]) < 0.5 for r in no_chnn),
-            "held_karp": exact, "lkh_length": lkh_length, "lkh_s": lkh_s,
-        })
+        cases.append(
+            {
+                "case": f"TSPLIB {name}",
+                "n": n,
+                "optimum": optima[name],
+                "time_limit_s": limit,
+                "chnn_ga_lengths": lengths,
+                "chnn_ga_hits": sum(abs(x - optima[name]) < 0.5 for x in lengths),
+                "chnn_ga_max_s": max(r.elapsed_s for r in runs),
+                "chnn_ga_mean_gap_to_lkh_pct": float(np.mean([(x / lkh_length - 1) * 100 for x in lengths])),
+                "no_chnn_lengths": [r.length for r in no_chnn],
+                "no_chnn_hits": sum(abs(r.length - optima[name]) < 0.5 for r in no_chnn),
+                "held_karp": exact,
+                "lkh_length": lkh_length,
+                "lkh_s": lkh_s,
+            }
+        )
     return cases
 
 
@@ -177,10 +202,18 @@ def random_cases() -> list[dict]:
             gaps.append((result.length / lkh_length - 1) * 100)
             no_chnn_gaps.append((no_chnn.length / lkh_length - 1) * 100)
             times.append(result.elapsed_s)
-        cases.append({"case": f"uniform {n_buoys} buoys", "n": n_buoys + 1, "instances": instances,
-                      "time_limit_s": 2.0, "chnn_ga_gaps_to_lkh_pct": gaps,
-                      "chnn_ga_mean_gap_to_lkh_pct": float(np.mean(gaps)), "chnn_ga_max_s": max(times),
-                      "no_chnn_mean_gap_to_lkh_pct": float(np.mean(no_chnn_gaps))})
+        cases.append(
+            {
+                "case": f"uniform {n_buoys} buoys",
+                "n": n_buoys + 1,
+                "instances": instances,
+                "time_limit_s": 2.0,
+                "chnn_ga_gaps_to_lkh_pct": gaps,
+                "chnn_ga_mean_gap_to_lkh_pct": float(np.mean(gaps)),
+                "chnn_ga_max_s": max(times),
+                "no_chnn_mean_gap_to_lkh_pct": float(np.mean(no_chnn_gaps)),
+            }
+        )
     return cases
 
 
@@ -202,10 +235,12 @@ def narrative_figure(path: Path) -> dict:
     ga = plan_tour(points, method="chnn-ga", seed=1)
     exact = plan_tour(points, method="exact")
     fig, axes = plt.subplots(2, 3, figsize=(15, 8.5))
-    panels = [("(a) random tour", random_order, closed_tour_length(random_order, dist)),
-              ("(b) CHNN alone: local minimum", pure.order, pure.length),
-              ("(c) CHNN-GA best", ga.order, ga.length),
-              ("(d) exact optimum (Held-Karp)", exact.order, exact.length)]
+    panels = [
+        ("(a) random tour", random_order, closed_tour_length(random_order, dist)),
+        ("(b) CHNN alone: local minimum", pure.order, pure.length),
+        ("(c) CHNN-GA best", ga.order, ga.length),
+        ("(d) exact optimum (Held-Karp)", exact.order, exact.length),
+    ]
     for ax, (title, order, length) in zip(axes.flat[:4], panels, strict=True):
         draw_route(ax, points, order, f"{title}: {length:.0f} m")
     energy = pure.history[0]["energy"]
@@ -220,8 +255,7 @@ def narrative_figure(path: Path) -> dict:
     reference, _ = lkh(euclidean_matrix(big), 100.0)
     generations = [h["generation"] for h in big_run.history]
     axes.flat[5].step(generations, [h["best_length"] for h in big_run.history], where="post", label="best")
-    axes.flat[5].step(generations, [h["mean_length"] for h in big_run.history], where="post",
-                      label="population mean")
+    axes.flat[5].step(generations, [h["mean_length"] for h in big_run.history], where="post", label="population mean")
     axes.flat[5].axhline(reference, color="k", ls="--", lw=1, label="LKH-3")
     axes.flat[5].set_title("(f) CHNN-GA length per generation, 100-buoy mission", fontsize=9)
     axes.flat[5].set_xlabel("generation")
@@ -231,8 +265,13 @@ def narrative_figure(path: Path) -> dict:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    return {"random_m": panels[0][2], "chnn_m": pure.length, "chnn_ga_m": ga.length, "optimum_m": exact.length,
-            "figure": str(path.relative_to(REPO))}
+    return {
+        "random_m": panels[0][2],
+        "chnn_m": pure.length,
+        "chnn_ga_m": ga.length,
+        "optimum_m": exact.length,
+        "figure": str(path.relative_to(REPO)),
+    }
 
 
 def main() -> None:
@@ -249,37 +288,61 @@ def main() -> None:
 
     print(f"numba kernels: first compile {compile_s:.1f} s (cold cache), cached load {cached_load_s:.2f} s\n")
     print("| case | measured | target |\n| --- | --- | --- |")
-    print(f"| {N_SMALL} x 13 buoys, CHNN-GA | optimal {small['chnn_ga_optimal_rate']:.0%}, median "
-          f"{small['chnn_ga_median_s'] * 1000:.0f} ms (max {small['chnn_ga_max_s'] * 1000:.0f} ms) "
-          "| 100 %, <= 100 ms |")
-    print(f"| {N_SMALL} x 13 buoys, auto (Held-Karp) | optimal {small['auto_optimal_rate']:.0%}, median "
-          f"{small['auto_median_s'] * 1000:.0f} ms | - |")
-    print(f"| {N_SMALL} x 13 buoys, GA without CHNN | optimal {small['no_chnn_optimal_rate']:.0%}, median "
-          f"{small['no_chnn_median_s'] * 1000:.0f} ms | (ablation) |")
-    print(f"| {N_SMALL} x 13 buoys, CHNN alone | valid {small['chnn_alone_validity_rate']:.0%} of runs, mean gap "
-          f"{small['chnn_alone_mean_gap_pct']:.1f} % (best of a batch of 8), optimal "
-          f"{small['chnn_alone_optimal_rate']:.0%} | report |")
-    print(f"| {N_SMALL} x 13 buoys, LKH-3 (elkai) | optimal {small['lkh_optimal_rate']:.0%}, median "
-          f"{small['lkh_median_s'] * 1000:.0f} ms | reference |")
+    print(
+        f"| {N_SMALL} x 13 buoys, CHNN-GA | optimal {small['chnn_ga_optimal_rate']:.0%}, median "
+        f"{small['chnn_ga_median_s'] * 1000:.0f} ms (max {small['chnn_ga_max_s'] * 1000:.0f} ms) "
+        "| 100 %, <= 100 ms |"
+    )
+    print(
+        f"| {N_SMALL} x 13 buoys, auto (Held-Karp) | optimal {small['auto_optimal_rate']:.0%}, median "
+        f"{small['auto_median_s'] * 1000:.0f} ms | - |"
+    )
+    print(
+        f"| {N_SMALL} x 13 buoys, GA without CHNN | optimal {small['no_chnn_optimal_rate']:.0%}, median "
+        f"{small['no_chnn_median_s'] * 1000:.0f} ms | (ablation) |"
+    )
+    print(
+        f"| {N_SMALL} x 13 buoys, CHNN alone | valid {small['chnn_alone_validity_rate']:.0%} of runs, mean gap "
+        f"{small['chnn_alone_mean_gap_pct']:.1f} % (best of a batch of 8), optimal "
+        f"{small['chnn_alone_optimal_rate']:.0%} | report |"
+    )
+    print(
+        f"| {N_SMALL} x 13 buoys, LKH-3 (elkai) | optimal {small['lkh_optimal_rate']:.0%}, median "
+        f"{small['lkh_median_s'] * 1000:.0f} ms | reference |"
+    )
     for case in tsplib:
         target = "optimum on >= 4/5" if case["n"] <= 52 else "gap to LKH <= 0.3 %"
-        print(f"| {case['case']} (n={case['n']}, {case['time_limit_s']} s) | optimum {case['optimum']}: hit "
-              f"{case['chnn_ga_hits']}/{SEEDS} {case['chnn_ga_lengths']}, gap to LKH "
-              f"{case['chnn_ga_mean_gap_to_lkh_pct']:.2f} %; without CHNN hit {case['no_chnn_hits']}/{SEEDS} "
-              f"| {target} |")
+        print(
+            f"| {case['case']} (n={case['n']}, {case['time_limit_s']} s) | optimum {case['optimum']}: hit "
+            f"{case['chnn_ga_hits']}/{SEEDS} {case['chnn_ga_lengths']}, gap to LKH "
+            f"{case['chnn_ga_mean_gap_to_lkh_pct']:.2f} %; without CHNN hit {case['no_chnn_hits']}/{SEEDS} "
+            f"| {target} |"
+        )
     for case in uniform:
         target = "<= 0.3 %" if case["n"] <= 101 else "<= 1 %"
-        print(f"| {case['case']} ({case['instances']} instances, 2 s) | mean gap to LKH "
-              f"{case['chnn_ga_mean_gap_to_lkh_pct']:.2f} % (max time {case['chnn_ga_max_s']:.2f} s); without CHNN "
-              f"{case['no_chnn_mean_gap_to_lkh_pct']:.2f} % | {target} |")
-    print(f"\nwhere the quality comes from (13-buoy set): CHNN initial population best gap "
-          f"{small['chnn_initial_population_mean_gap_pct']:.1f} % -> after 2-opt/Or-opt "
-          f"{small['after_first_local_search_mean_gap_pct']:.2f} %; children accepted over all runs "
-          f"{small['ga_accepted_children']}")
-    print(f"narrative (seed 1): random {narrative['random_m']:.0f} m, CHNN {narrative['chnn_m']:.0f} m, CHNN-GA "
-          f"{narrative['chnn_ga_m']:.0f} m, optimum {narrative['optimum_m']:.0f} m -> {narrative['figure']}")
-    report = {"numba_first_compile_s": compile_s, "numba_cached_load_s": cached_load_s,
-              "small_missions": small, "tsplib": tsplib, "uniform": uniform, "narrative": narrative}
+        print(
+            f"| {case['case']} ({case['instances']} instances, 2 s) | mean gap to LKH "
+            f"{case['chnn_ga_mean_gap_to_lkh_pct']:.2f} % (max time {case['chnn_ga_max_s']:.2f} s); without CHNN "
+            f"{case['no_chnn_mean_gap_to_lkh_pct']:.2f} % | {target} |"
+        )
+    print(
+        f"\nwhere the quality comes from (13-buoy set): CHNN initial population best gap "
+        f"{small['chnn_initial_population_mean_gap_pct']:.1f} % -> after 2-opt/Or-opt "
+        f"{small['after_first_local_search_mean_gap_pct']:.2f} %; children accepted over all runs "
+        f"{small['ga_accepted_children']}"
+    )
+    print(
+        f"narrative (seed 1): random {narrative['random_m']:.0f} m, CHNN {narrative['chnn_m']:.0f} m, CHNN-GA "
+        f"{narrative['chnn_ga_m']:.0f} m, optimum {narrative['optimum_m']:.0f} m -> {narrative['figure']}"
+    )
+    report = {
+        "numba_first_compile_s": compile_s,
+        "numba_cached_load_s": cached_load_s,
+        "small_missions": small,
+        "tsplib": tsplib,
+        "uniform": uniform,
+        "narrative": narrative,
+    }
     (RESULTS / "planner.json").write_text(json.dumps(report, indent=1))
     print(f"wrote {(RESULTS / 'planner.json').relative_to(REPO)}")
 

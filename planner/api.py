@@ -42,8 +42,9 @@ class PlanResult:
     history: list[dict] = field(default_factory=list)  # per generation: best_length, energy trace, ...
 
 
-def _pure_chnn(dist: np.ndarray, seed: int, time_limit_s: float, batch: int = 8,
-               params: chnn.CHNNParameters = chnn.VALID_TOURS) -> tuple[list[int], list[dict]]:
+def _pure_chnn(
+    dist: np.ndarray, seed: int, time_limit_s: float, batch: int = 8, params: chnn.CHNNParameters = chnn.VALID_TOURS
+) -> tuple[list[int], list[dict]]:
     """Algorithm 1 alone: batches of networks until one ends valid (or time runs out); the shortest."""
     n = len(dist)
     if n - 1 > CHNN_MAX_NODES:
@@ -67,16 +68,29 @@ def _pure_chnn(dist: np.ndarray, seed: int, time_limit_s: float, batch: int = 8,
             length = closed_tour_length(tour, dist)
             if length < best_length:
                 best, best_length = tour, length
-        history.append({"generation": len(history), "best_length": float(best_length), "chnn_children": batch,
-                        "chnn_valid": valid, "energy": run.energy[:, 0].tolist()})
+        history.append(
+            {
+                "generation": len(history),
+                "best_length": float(best_length),
+                "chnn_children": batch,
+                "chnn_valid": valid,
+                "energy": run.energy[:, 0].tolist(),
+            }
+        )
     if best is None:
         runs = batch * len(history)
         raise NoValidTourError(f"the CHNN found no valid tour in {time_limit_s} s ({runs} runs)")
     return best, history
 
 
-def plan_tour(points=None, method: str = "chnn-ga", seed: int = 0, time_limit_s: float = 2.0,
-              distance=None, ga: GAParameters | None = None) -> PlanResult:
+def plan_tour(
+    points=None,
+    method: str = "chnn-ga",
+    seed: int = 0,
+    time_limit_s: float = 2.0,
+    distance=None,
+    ga: GAParameters | None = None,
+) -> PlanResult:
     """Plan the closed tour from node 0 (the depot) through every other node and back.
 
     points: (n, 2) array of planar coordinates (metres), node 0 the depot; or None with ``distance``, an
@@ -108,5 +122,10 @@ def plan_tour(points=None, method: str = "chnn-ga", seed: int = 0, time_limit_s:
     else:
         result = chnn_ga(dist, seed=seed, time_limit_s=time_limit_s, ga=ga)
         order, history = result.order, result.history
-    return PlanResult(order=[int(i) for i in order], length=closed_tour_length(order, dist), method=method,
-                      elapsed_s=time.perf_counter() - started, history=history)
+    return PlanResult(
+        order=[int(i) for i in order],
+        length=closed_tour_length(order, dist),
+        method=method,
+        elapsed_s=time.perf_counter() - started,
+        history=history,
+    )

@@ -73,12 +73,32 @@ class CHNNParameters:
 
 
 HOPFIELD_TANK = CHNNParameters(
-    name="hopfield-tank", A=500.0, B=500.0, C=200.0, D=500.0, u0=0.02, dt=1e-5, steps=1000,
-    excess=0.5, excess_per_node=True, tau=1.0, init_noise=0.002,
+    name="hopfield-tank",
+    A=500.0,
+    B=500.0,
+    C=200.0,
+    D=500.0,
+    u0=0.02,
+    dt=1e-5,
+    steps=1000,
+    excess=0.5,
+    excess_per_node=True,
+    tau=1.0,
+    init_noise=0.002,
 )
 VALID_TOURS = CHNNParameters(
-    name="valid-tours", A=8.0, B=8.0, C=4.0, D=2.9, u0=1.0, dt=0.01, steps=300, excess=1.5,
-    init_noise=0.01, adaptive_step=True, dt_max=0.3,
+    name="valid-tours",
+    A=8.0,
+    B=8.0,
+    C=4.0,
+    D=2.9,
+    u0=1.0,
+    dt=0.01,
+    steps=300,
+    excess=1.5,
+    init_noise=0.01,
+    adaptive_step=True,
+    dt_max=0.3,
 )
 PRESETS = {p.name: p for p in (VALID_TOURS, HOPFIELD_TANK)}
 
@@ -115,15 +135,17 @@ def _energy_and_gradient(v, d, shift, boundary, params: CHNNParameters):
     total = rows.sum(axis=-2, keepdims=True)
     # neighbour field h_xi = sum_y d_xy (v_y,i+1 + v_y,i-1), the clamped ends included
     field = d @ v @ shift + boundary
-    gradient = (params.A * rows + params.B * cols + params.C * (total - n_bar) - (params.A + params.B) * v
-                + params.D * field)
+    gradient = (
+        params.A * rows + params.B * cols + params.C * (total - n_bar) - (params.A + params.B) * v + params.D * field
+    )
     linear = params.D * (v * boundary).sum(axis=(-1, -2)) - params.C * n_bar * total[..., 0, 0]
     e = 0.5 * ((v * gradient).sum(axis=(-1, -2)) + linear) + 0.5 * params.C * n_bar**2
     return e, gradient
 
 
-def energy_terms(v: np.ndarray, d: np.ndarray, d_start: np.ndarray, d_end: np.ndarray,
-                 params: CHNNParameters) -> dict[str, np.ndarray]:
+def energy_terms(
+    v: np.ndarray, d: np.ndarray, d_start: np.ndarray, d_end: np.ndarray, params: CHNNParameters
+) -> dict[str, np.ndarray]:
     """E1..E4 of eq. (15) evaluated term by term (for tests and plots; the dynamics uses the fast form)."""
     m = v.shape[-1]
     rows = v.sum(axis=-1)
@@ -140,15 +162,15 @@ def energy_terms(v: np.ndarray, d: np.ndarray, d_start: np.ndarray, d_end: np.nd
     }
 
 
-def energy(v: np.ndarray, d: np.ndarray, d_start: np.ndarray, d_end: np.ndarray,
-           params: CHNNParameters) -> np.ndarray:
+def energy(v: np.ndarray, d: np.ndarray, d_start: np.ndarray, d_end: np.ndarray, params: CHNNParameters) -> np.ndarray:
     """E = E1 + E2 + E3 + E4 of eq. (15) for each network of a (K, m, m) batch (distances normalised)."""
     m = v.shape[-1]
     return _energy_and_gradient(v, d, _shift_matrix(m), _boundary(d_start, d_end, m), params)[0]
 
 
-def energy_gradient(v: np.ndarray, d: np.ndarray, d_start: np.ndarray, d_end: np.ndarray,
-                    params: CHNNParameters) -> np.ndarray:
+def energy_gradient(
+    v: np.ndarray, d: np.ndarray, d_start: np.ndarray, d_end: np.ndarray, params: CHNNParameters
+) -> np.ndarray:
     """dE/dv for each network of a (K, m, m) batch."""
     m = v.shape[-1]
     return _energy_and_gradient(v, d, _shift_matrix(m), _boundary(d_start, d_end, m), params)[1]
@@ -159,8 +181,14 @@ def activation(u: np.ndarray, u0: float) -> np.ndarray:
     return 0.5 * (1.0 + np.tanh(u / u0))
 
 
-def initial_state(batch: int, m: int, params: CHNNParameters, rng: np.random.Generator,
-                  parents: np.ndarray | None = None, parent_bias: float = 0.0) -> np.ndarray:
+def initial_state(
+    batch: int,
+    m: int,
+    params: CHNNParameters,
+    rng: np.random.Generator,
+    parents: np.ndarray | None = None,
+    parent_bias: float = 0.0,
+) -> np.ndarray:
     """Eq. (16): u = 1/2 u0 ln(m - 1) + δ. With ``parents`` ((K, m) buoy order per network) the neurons of
     each parent's tour get +parent_bias and the others -parent_bias: the GA's "input of the next CHNN"."""
     delta = rng.uniform(-1.0, 1.0, size=(batch, m, m)) * params.init_noise
@@ -172,8 +200,9 @@ def initial_state(batch: int, m: int, params: CHNNParameters, rng: np.random.Gen
     return u
 
 
-def run_chnn(d: np.ndarray, d_start: np.ndarray, d_end: np.ndarray, params: CHNNParameters,
-             u_init: np.ndarray) -> CHNNRun:
+def run_chnn(
+    d: np.ndarray, d_start: np.ndarray, d_end: np.ndarray, params: CHNNParameters, u_init: np.ndarray
+) -> CHNNRun:
     """Integrate K networks side by side from u_init ((K, m, m)) for params.steps Euler steps.
 
     d: (m, m) distances between the free nodes, d_start / d_end: (m,) distances to the clamped ends, all

@@ -69,9 +69,13 @@ def _order_crossover(first: np.ndarray, second: np.ndarray, rng: np.random.Gener
     return np.concatenate([kept, rest[~taken[rest]]]).astype(np.int64)
 
 
-def _chnn_children(parents: list[np.ndarray], dist: np.ndarray, ga: GAParameters,
-                   params: chnn.CHNNParameters, rng: np.random.Generator,
-                   ) -> tuple[list[np.ndarray | None], np.ndarray]:
+def _chnn_children(
+    parents: list[np.ndarray],
+    dist: np.ndarray,
+    ga: GAParameters,
+    params: chnn.CHNNParameters,
+    rng: np.random.Generator,
+) -> tuple[list[np.ndarray | None], np.ndarray]:
     """Re-run the CHNN on a window of each parent's tour; None where the network ended on an invalid state.
     Returns the children and the energy trace of the first network."""
     n = len(dist)
@@ -90,8 +94,7 @@ def _chnn_children(parents: list[np.ndarray], dist: np.ndarray, ga: GAParameters
         windows.append((positions[1:-1], free))
     mutation = chnn.with_steps(params, ga.chnn_steps)
     parent_rows = np.tile(np.arange(w), (batch, 1))  # each window's buoys are listed in the parent's order
-    u_init = chnn.initial_state(batch, w, mutation, rng, parents=parent_rows,
-                                parent_bias=ga.parent_bias * params.u0)
+    u_init = chnn.initial_state(batch, w, mutation, rng, parents=parent_rows, parent_bias=ga.parent_bias * params.u0)
     run = chnn.run_chnn(d, d_start, d_end, mutation, u_init)
     children: list[np.ndarray | None] = []
     for k, tour in enumerate(parents):
@@ -106,8 +109,9 @@ def _chnn_children(parents: list[np.ndarray], dist: np.ndarray, ga: GAParameters
     return children, run.energy[:, 0]
 
 
-def _initial_population(dist: np.ndarray, size: int, ga: GAParameters, params: chnn.CHNNParameters,
-                        rng: np.random.Generator) -> tuple[list[np.ndarray], dict]:
+def _initial_population(
+    dist: np.ndarray, size: int, ga: GAParameters, params: chnn.CHNNParameters, rng: np.random.Generator
+) -> tuple[list[np.ndarray], dict]:
     """Algorithm 2's start: the CHNN from random states (small missions) or random tours (large ones, where
     an n^2-neuron network is too slow). An invalid network state is replaced by a random tour."""
     n = len(dist)
@@ -130,8 +134,13 @@ def _initial_population(dist: np.ndarray, size: int, ga: GAParameters, params: c
     return [t if t is not None else rng.permutation(n).astype(np.int64) for t in tours], info
 
 
-def chnn_ga(dist: np.ndarray, seed: int = 0, time_limit_s: float = 2.0, ga: GAParameters | None = None,
-            params: chnn.CHNNParameters = chnn.VALID_TOURS) -> GAResult:
+def chnn_ga(
+    dist: np.ndarray,
+    seed: int = 0,
+    time_limit_s: float = 2.0,
+    ga: GAParameters | None = None,
+    params: chnn.CHNNParameters = chnn.VALID_TOURS,
+) -> GAResult:
     """Best closed tour found by the memetic CHNN-GA within the time limit (node 0 first)."""
     ga = ga or GAParameters()
     started = time.perf_counter()
@@ -149,8 +158,15 @@ def chnn_ga(dist: np.ndarray, seed: int = 0, time_limit_s: float = 2.0, ga: GAPa
     lengths = np.array([local_search(t, dist, neighbours) for t in population])
     best = int(np.argmin(lengths))
     best_tour, best_length = population[best].copy(), float(lengths[best])
-    history = [{"generation": 0, "best_length": best_length, "mean_length": float(lengths.mean()),
-                "elapsed_s": time.perf_counter() - started, **info}]
+    history = [
+        {
+            "generation": 0,
+            "best_length": best_length,
+            "mean_length": float(lengths.mean()),
+            "elapsed_s": time.perf_counter() - started,
+            **info,
+        }
+    ]
     stall = 0
     generation = 0
     stall_limit = max(ga.stall_generations, int(ga.stall_per_node * n))
@@ -183,8 +199,7 @@ def chnn_ga(dist: np.ndarray, seed: int = 0, time_limit_s: float = 2.0, ga: GAPa
                 length = local_search(child, dist, neighbours)
             else:
                 kind, child = "ils", population[k].copy()
-                length = iterated_local_search(child, dist, neighbours, kicks, ga.ils_segment,
-                                               int(rng.integers(2**31)))
+                length = iterated_local_search(child, dist, neighbours, kicks, ga.ils_segment, int(rng.integers(2**31)))
             if length < lengths[k] - 1e-9:  # Algorithm 2, line 9: shorter (and valid, by construction)
                 population[k], lengths[k] = child, length
                 accepted[kind] += 1
@@ -193,10 +208,16 @@ def chnn_ga(dist: np.ndarray, seed: int = 0, time_limit_s: float = 2.0, ga: GAPa
             best = int(np.argmin(lengths))
             best_tour, best_length = population[best].copy(), float(lengths[best])
         stall = 0 if improved else stall + 1
-        history.append({
-            "generation": generation, "best_length": best_length, "mean_length": float(lengths.mean()),
-            "elapsed_s": time.perf_counter() - started, "chnn_children": len(chnn_idx),
-            "chnn_valid": sum(children[k] is not None for k in chnn_idx), "accepted": accepted,
-            "energy": energy_trace,
-        })
+        history.append(
+            {
+                "generation": generation,
+                "best_length": best_length,
+                "mean_length": float(lengths.mean()),
+                "elapsed_s": time.perf_counter() - started,
+                "chnn_children": len(chnn_idx),
+                "chnn_valid": sum(children[k] is not None for k in chnn_idx),
+                "accepted": accepted,
+                "energy": energy_trace,
+            }
+        )
     return GAResult(_rotate_to_depot(best_tour), float(tour_length(best_tour, dist)), history)

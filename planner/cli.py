@@ -27,14 +27,18 @@ EXIT_OUTPUT = 1
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="buoy-plan", description=__doc__.splitlines()[0])
     parser.add_argument("file", help="mission file: .geojson/.json, .csv (lat,lon) or TSPLIB .tsp")
-    parser.add_argument("--method", choices=METHODS, default="chnn-ga",
-                        help="chnn-ga (default), chnn (network alone), exact (Held-Karp, <= 16 nodes), "
-                             "auto (exact when it is fast, else chnn-ga)")
+    parser.add_argument(
+        "--method",
+        choices=METHODS,
+        default="chnn-ga",
+        help="chnn-ga (default), chnn (network alone), exact (Held-Karp, <= 16 nodes), "
+        "auto (exact when it is fast, else chnn-ga)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="random seed (same seed, same route)")
-    parser.add_argument("--time-limit", type=float, default=2.0, metavar="SECONDS",
-                        help="planning time budget (default 2)")
-    parser.add_argument("--depot", metavar="LAT,LON",
-                        help="depot position; then every point in the file is a buoy")
+    parser.add_argument(
+        "--time-limit", type=float, default=2.0, metavar="SECONDS", help="planning time budget (default 2)"
+    )
+    parser.add_argument("--depot", metavar="LAT,LON", help="depot position; then every point in the file is a buoy")
     parser.add_argument("--json", action="store_true", help="print {order, length, method, elapsed_s}")
     parser.add_argument("--plot", metavar="FILE.png", help="draw the route (like the paper's Figure 8)")
     return parser
@@ -71,8 +75,9 @@ def main(argv: list[str] | None = None) -> int:
         from planner.api import plan_tour  # the solvers (and numba) load only once the input is good
 
         if distance is not None:
-            result = plan_tour(None, method=args.method, seed=args.seed, time_limit_s=args.time_limit,
-                               distance=distance)
+            result = plan_tour(
+                None, method=args.method, seed=args.seed, time_limit_s=args.time_limit, distance=distance
+            )
         else:
             result = plan_tour(points, method=args.method, seed=args.seed, time_limit_s=args.time_limit)
     except PlannerError as exc:
@@ -88,11 +93,21 @@ def main(argv: list[str] | None = None) -> int:
             print(f"buoy-plan: error: cannot write {args.plot}: {exc}", file=sys.stderr)
             return EXIT_OUTPUT
     if args.json:
-        print(json.dumps({"order": result.order, "length": length, "method": result.method,
-                          "elapsed_s": round(result.elapsed_s, 6)}))
+        print(
+            json.dumps(
+                {
+                    "order": result.order,
+                    "length": length,
+                    "method": result.method,
+                    "elapsed_s": round(result.elapsed_s, 6),
+                }
+            )
+        )
     else:
-        print(f"{len(result.order)} nodes (depot + {len(result.order) - 1} buoys), {result.method}, "
-              f"{result.elapsed_s:.3f} s: closed tour {result.length:.1f} {unit}")
+        print(
+            f"{len(result.order)} nodes (depot + {len(result.order) - 1} buoys), {result.method}, "
+            f"{result.elapsed_s:.3f} s: closed tour {result.length:.1f} {unit}"
+        )
         print("order: " + " ".join(map(str, [*result.order, result.order[0]])))
         if args.plot:
             print(f"route drawn in {args.plot}")

@@ -83,8 +83,11 @@ _LON_NAMES = ("lon", "lng", "long", "longitude")
 
 def parse_csv(text: str, depot: tuple[float, float] | None = None) -> np.ndarray:
     """CSV rows of lat,lon (optional header, optional role column) -> (n, 2) [lat, lon] with the depot first."""
-    rows = [row for row in csv.reader(io.StringIO(text))
-            if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")]
+    rows = [
+        row
+        for row in csv.reader(io.StringIO(text))
+        if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")
+    ]
     if not rows:
         raise InputError("the CSV file has no rows")
     lat_col, lon_col, role_col = 0, 1, None

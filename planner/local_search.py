@@ -154,8 +154,7 @@ def _improve_city(a, tour, position, dist, neighbours, queue, queued, head_tail)
                     insert_cost = min(forward_cost, reverse_cost) - dist[left, right]
                     gain = removal_gain - insert_cost
                     if gain > _EPS:
-                        _move_segment(tour, position, start, seg_len, position[left],
-                                      reverse_cost < forward_cost)
+                        _move_segment(tour, position, start, seg_len, position[left], reverse_cost < forward_cost)
                         for city in (a, end_city, prev_city, next_city, left, right):
                             _push(queue, queued, head_tail, city)
                         return gain
@@ -243,11 +242,11 @@ def iterated_local_search(tour, dist, neighbours, n_kicks, max_segment, seed):
         after = tour[(start + len_b + len_c) % n]
         b_first = tour[(start + len_c) % n]
         c_last = tour[(start + len_c - 1) % n]
-        delta = (dist[before, tour[start]] + dist[c_last, b_first]
-                 + dist[tour[(start + len_b + len_c - 1) % n], after])
+        delta = dist[before, tour[start]] + dist[c_last, b_first] + dist[tour[(start + len_b + len_c - 1) % n], after]
         b_last, c_first = saved[(start + len_b - 1) % n], saved[(start + len_b) % n]
-        delta -= (dist[before, saved[start]] + dist[b_last, c_first]
-                  + dist[saved[(start + len_b + len_c - 1) % n], after])
+        delta -= (
+            dist[before, saved[start]] + dist[b_last, c_first] + dist[saved[(start + len_b + len_c - 1) % n], after]
+        )
         for q in (-1, 0, len_c - 1, len_c, len_b + len_c - 1, len_b + len_c):
             _push(queue, queued, head_tail, tour[(start + q) % n])
         gain = _local_search_queue(tour, position, dist, neighbours, queue, queued, head_tail)

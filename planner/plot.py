@@ -14,8 +14,7 @@ def draw_route(ax, points: np.ndarray, order, title: str, unit: str = "m") -> No
     points = np.asarray(points, dtype=float)
     closed = np.asarray([*order, order[0]])
     ax.plot(points[closed, 0], points[closed, 1], "-", color="tab:blue", lw=1.5, zorder=1)
-    ax.scatter(points[1:, 0], points[1:, 1], s=40, facecolors="none", edgecolors="red", zorder=2,
-               label="buoy")
+    ax.scatter(points[1:, 0], points[1:, 1], s=40, facecolors="none", edgecolors="red", zorder=2, label="buoy")
     ax.scatter(points[:1, 0], points[:1, 1], s=70, marker="s", color="black", zorder=3, label="depot")
     for rank, node in enumerate(order[1:], start=1):  # label = visiting rank
         ax.annotate(str(rank), points[node], textcoords="offset points", xytext=(4, 4), fontsize=7)
@@ -26,8 +25,7 @@ def draw_route(ax, points: np.ndarray, order, title: str, unit: str = "m") -> No
     ax.grid(True, alpha=0.3)
 
 
-def save_route_png(path: str, points: np.ndarray, order, length: float, method: str,
-                   unit: str = "m") -> None:
+def save_route_png(path: str, points: np.ndarray, order, length: float, method: str, unit: str = "m") -> None:
     """One route, as a PNG file."""
     fig, ax = plt.subplots(figsize=(7, 5))
     draw_route(ax, points, order, f"{method}: closed tour {length:.1f} {unit}, {len(order)} nodes", unit)

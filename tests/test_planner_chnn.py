@@ -24,8 +24,12 @@ def weights_eq14(d, params, m):
         for i in range(m):
             for y in range(m):
                 for j in range(m):
-                    w[x, i, y, j] = (-params.A * (x == y) * (i != j) - params.B * (i == j) * (x != y) - params.C
-                                     - params.D * d[x, y] * ((j == i + 1) + (j == i - 1)))
+                    w[x, i, y, j] = (
+                        -params.A * (x == y) * (i != j)
+                        - params.B * (i == j) * (x != y)
+                        - params.C
+                        - params.D * d[x, y] * ((j == i + 1) + (j == i - 1))
+                    )
     return w
 
 
@@ -58,8 +62,9 @@ def test_energy_is_the_sum_of_the_four_terms_of_eq15():
     full[1:-1, 1:-1] = d
     full[0, 1:-1] = full[1:-1, 0] = d_start
     full[m + 1, 1:-1] = full[1:-1, m + 1] = d_end
-    e4 = p.D * sum(full[x, y] * padded[x, i] * padded[y, i + 1]
-                   for x in range(m + 2) for y in range(m + 2) for i in range(m + 1))
+    e4 = p.D * sum(
+        full[x, y] * padded[x, i] * padded[y, i + 1] for x in range(m + 2) for y in range(m + 2) for i in range(m + 1)
+    )
     terms = chnn.energy_terms(v[None], d, d_start, d_end, p)
     assert [float(terms[k][0]) for k in ("E1", "E2", "E3", "E4")] == pytest.approx([e1, e2, e3, e4], rel=1e-10)
     assert chnn.energy(v[None], d, d_start, d_end, p)[0] == pytest.approx(e1 + e2 + e3 + e4, rel=1e-10)

@@ -19,16 +19,18 @@ TSPLIB = REPO.parent / "shared" / "tsplib"
 
 
 def run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "planner", *map(str, args)], capture_output=True, text=True,
-                          cwd=REPO, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "planner", *map(str, args)], capture_output=True, text=True, cwd=REPO, timeout=120
+    )
 
 
 def geojson(points, roles=None) -> str:
     features = []
     for i, (lat, lon) in enumerate(points):
         props = {"role": roles[i]} if roles and roles[i] else {}
-        features.append({"type": "Feature", "properties": props,
-                         "geometry": {"type": "Point", "coordinates": [lon, lat]}})
+        features.append(
+            {"type": "Feature", "properties": props, "geometry": {"type": "Point", "coordinates": [lon, lat]}}
+        )
     return json.dumps({"type": "FeatureCollection", "features": features})
 
 
@@ -119,11 +121,21 @@ def bad(tmp_path, name: str, text: str | bytes) -> Path:
         ("single.geojson", geojson([(38.9, 121.6)]), [], "at least one buoy"),
         ("dup.geojson", geojson([(38.9, 121.6), (38.91, 121.61), (38.91, 121.61)]), [], "same place"),
         ("range.geojson", geojson([(38.9, 121.6), (95.0, 121.6)]), [], "outside"),
-        ("nan.geojson", '{"type": "FeatureCollection", "features": [{"type": "Feature", "geometry": '
-         '{"type": "Point", "coordinates": [NaN, 38.9]}}]}', [], "finite"),
+        (
+            "nan.geojson",
+            '{"type": "FeatureCollection", "features": [{"type": "Feature", "geometry": '
+            '{"type": "Point", "coordinates": [NaN, 38.9]}}]}',
+            [],
+            "finite",
+        ),
         ("broken.geojson", "{not json", [], "not valid JSON"),
-        ("line.geojson", '{"type": "FeatureCollection", "features": [{"type": "Feature", "geometry": '
-         '{"type": "LineString", "coordinates": [[0, 0], [1, 1]]}}]}', [], "Point"),
+        (
+            "line.geojson",
+            '{"type": "FeatureCollection", "features": [{"type": "Feature", "geometry": '
+            '{"type": "LineString", "coordinates": [[0, 0], [1, 1]]}}]}',
+            [],
+            "Point",
+        ),
         ("two.geojson", geojson([(38.9, 121.6), (38.91, 121.6)], ["depot", "depot"]), [], "marked as depot"),
         ("empty.csv", "", [], "no rows"),
         ("text.csv", "38.9,121.6\n38.91,east\n", [], "not a number"),

@@ -13,8 +13,11 @@ TSPLIB = Path(__file__).resolve().parents[1].parent / "shared" / "tsplib"
 
 
 def optima() -> dict[str, int]:
-    rows = [line.split() for line in (TSPLIB / "OPTIMA.txt").read_text().splitlines()
-            if line.strip() and not line.startswith("#")]
+    rows = [
+        line.split()
+        for line in (TSPLIB / "OPTIMA.txt").read_text().splitlines()
+        if line.strip() and not line.startswith("#")
+    ]
     return {name: int(value) for name, value in rows}
 
 
