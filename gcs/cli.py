@@ -8,6 +8,7 @@ from pathlib import Path
 
 from gcs.link import parse_udpout
 from gcs.settings import TOKEN_ENV, Settings
+from gcs.storage import Storage, StorageError
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -52,6 +53,11 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         if not 0 < args.port < 65536:
             print(f"buoy-gcs: --port {args.port} is not a TCP port", file=sys.stderr)
+            return 2
+        try:  # open (and migrate) the database now, so a bad --db is a message, not a server traceback
+            Storage(args.db).close()
+        except (StorageError, OSError) as error:
+            print(f"buoy-gcs: --db {args.db}: {error}", file=sys.stderr)
             return 2
         serve(settings_from_args(args))
     return 0

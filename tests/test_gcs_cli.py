@@ -1,0 +1,56 @@
+"""The command line: bad options give a message and exit 2, never a traceback."""
+
+import subprocess
+import sys
+
+import pytest
+
+from gcs.cli import build_parser, main, settings_from_args
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["serve", "--vehicle", "tcp:127.0.0.1:5760"], "expected udpout:HOST:PORT"),
+        (["serve", "--vehicle", "udpout:127.0.0.1:notaport"], "expected udpout:HOST:PORT"),
+        (["serve", "--port", "70000"], "not a TCP port"),
+    ],
+)
+def test_bad_options_exit_2_with_a_message(argv, message, capsys):
+    assert main(argv) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_unusable_database_path_is_a_message(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    assert main(["serve", "--db", str(blocker / "gcs.sqlite")]) == 2
+    assert "--db" in capsys.readouterr().err
+
+
+def test_settings_from_the_documented_options(tmp_path, monkeypatch):
+    monkeypatch.delenv("BUOY_GCS_TOKEN", raising=False)
+    args = build_parser().parse_args(
+        [
+            "serve",
+            "--vehicle",
+            "udpout:127.0.0.1:14600",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            "8123",
+            "--db",
+            str(tmp_path / "x.sqlite"),
+            "--token",
+            "t",
+        ]
+    )
+    settings = settings_from_args(args)
+    assert (settings.vehicle_url, settings.port, settings.token) == ("udpout:127.0.0.1:14600", 8123, "t")
+    assert settings.db_path == tmp_path / "x.sqlite"
+    assert build_parser().parse_args(["serve"]).host == "127.0.0.1"  # loopback by default
+
+
+def test_module_entry_point_without_a_command_shows_usage():
+    result = subprocess.run([sys.executable, "-m", "gcs"], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2 and "usage: buoy-gcs" in result.stderr and "Traceback" not in result.stderr
