@@ -16,7 +16,9 @@ from sitl_quad.mavlink import mavlink
 from sitl_quad.state import AttitudeTarget
 from sitl_quad.vehicle import Vehicle
 
-STREAM_TIMEOUT_WALL_S = 0.5  # no setpoint this long (wall clock): lockstep stops waiting for this peer
+# No setpoint this long (wall clock): lockstep stops waiting for the peer. Generous, because a loaded machine
+# can stall a process for a second, and a lockstep tick taken without the answer breaks repeatability.
+STREAM_TIMEOUT_WALL_S = 2.0
 IGNORE_ATTITUDE = mavlink.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE
 IGNORE_THROTTLE = mavlink.ATTITUDE_TARGET_TYPEMASK_THROTTLE_IGNORE
 IGNORE_RATES = (
