@@ -106,7 +106,7 @@ def test_reference_mission_flies_to_completion_and_survives_a_restart(tmp_path, 
         assert [m["id"] for m in client.get("/missions").json()] == [mission_id]
 
 
-def test_vehicle_lost_mid_flight_ends_failed_not_hanging(tmp_path, vehicle):
+def test_vehicle_lost_mid_flight_ends_failed_and_the_link_reconnects_after_restart(tmp_path, vehicle):
     port, process = vehicle
     with TestClient(create_app(settings_for(tmp_path, port))) as client:
         mission_id = client.post("/missions", json={"buoys": BUOYS[:3]}).json()["id"]
@@ -116,3 +116,44 @@ def test_vehicle_lost_mid_flight_ends_failed_not_hanging(tmp_path, vehicle):
         mission = wait_for(client, mission_id, lambda m: m["status"] in TERMINAL, timeout_s=15)
         assert mission["status"] == "failed" and "link lost" in mission["reason"]
         assert client.get("/vehicle").json()["connected"] is False
+        # the vehicle comes back on the same port: the link reconnects by itself and sees the restart
+        restarted = subprocess.Popen(
+            [sys.executable, "-m", "sitl_quad", "--port", str(port), "--lockstep"],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        try:
+            deadline = time.monotonic() + 60
+            while not (state := client.get("/vehicle").json())["connected"] and time.monotonic() < deadline:
+                time.sleep(0.2)
+            time.sleep(0.5)  # a few state messages with the new time_boot_ms
+            state = client.get("/vehicle").json()
+            assert state["connected"] and state["reboots"] == 1
+        finally:
+            restarted.terminate()
+            restarted.wait(10)
+
+
+def test_mission_with_the_offboard_controller_records_its_eso_estimates(tmp_path, vehicle):
+    port, _ = vehicle
+    log = open(tmp_path / "offboard.log", "w")  # noqa: SIM115 - closed below
+    offboard = subprocess.Popen(
+        [sys.executable, "-m", "adrc_offboard", "--connect", f"udpout:127.0.0.1:{port}"],
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
+    try:
+        with TestClient(create_app(settings_for(tmp_path, port))) as client:
+            mission_id = client.post("/missions", json={"buoys": BUOYS[:3]}).json()["id"]
+            mission = wait_for(client, mission_id, lambda m: m["status"] in TERMINAL, timeout_s=300)
+            assert (mission["status"], mission["reason"]) == ("completed", None)
+            assert all(result["reached"] for result in mission["buoy_results"])
+            samples = client.get(f"/missions/{mission_id}/telemetry").json()
+            airborne = [s for s in samples if s["landed_state"] == 2]
+            # the controller's DEBUG_VECT estimates, forwarded by the vehicle, are in the recorded samples
+            with_estimates = [s for s in airborne if s["eso"] and any(s["eso"].get("ESO_Z3") or [])]
+            assert len(with_estimates) > 0.9 * len(airborne) > 0
+    finally:
+        offboard.terminate()
+        offboard.wait(10)
+        log.close()
