@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from gcs import tracking
-from gcs.link import ARMED_FLAG, ON_GROUND, CommandTimeoutError, LinkManager, mavlink, result_name
+from gcs.link import ARMED_FLAG, AUTOPILOT_COMPID, ON_GROUND, CommandTimeoutError, LinkManager, mavlink, result_name
 from gcs.mission_protocol import MissionTransferError, upload_mission
 from gcs.planning import FIRST_BUOY_SEQ, FlightParams, Plan, buoy_of_seq, leg_of_seq, make_plan, mission_items
 from gcs.schemas import MissionRequest, PlanRequest
@@ -81,15 +81,15 @@ class Recorder:
     def __call__(self, message: Any) -> None:
         kind = message.get_type()
         status = self.link.status
-        if kind == "MISSION_ITEM_REACHED" and message.get_srcComponent() == 1:
+        if kind == "MISSION_ITEM_REACHED" and message.get_srcComponent() == AUTOPILOT_COMPID:
             if message.seq not in self.reached_seqs:
                 self.reached_seqs.append(message.seq)
             buoy = buoy_of_seq(message.seq, self.plan)
             if buoy is not None and status.time_boot_ms is not None:
                 self.reached_at.setdefault(buoy, status.time_boot_ms / 1000.0)
-        elif kind == "MISSION_CURRENT" and message.get_srcComponent() == 1:
+        elif kind == "MISSION_CURRENT" and message.get_srcComponent() == AUTOPILOT_COMPID:
             self.highest_seq = max(self.highest_seq, message.seq)
-        elif kind == "LOCAL_POSITION_NED" and message.get_srcComponent() == 1:
+        elif kind == "LOCAL_POSITION_NED" and message.get_srcComponent() == AUTOPILOT_COMPID:
             now_ms = message.time_boot_ms
             if self.last_ms is None or now_ms - self.last_ms >= self.period_ms or now_ms < self.last_ms:
                 self.last_ms = now_ms

@@ -14,6 +14,7 @@ from gcs.routes.deps import get_service
 from gcs.schemas import MissionOut, MissionRequest, MissionSummary, TelemetrySample
 from gcs.security import require_token
 from gcs.views import mission_out, mission_summary
+from sitl_quad.mission_items import MissionItem
 
 router = APIRouter(tags=["missions"])
 Service = Annotated[MissionService, Depends(get_service)]
@@ -22,7 +23,12 @@ MissionId = Annotated[int, Path(ge=1, le=2**63 - 1, description="the mission's i
 
 @router.post("/missions", status_code=201, response_model=MissionOut, dependencies=[Depends(require_token)])
 async def create_mission(request: MissionRequest, service: Service) -> dict:
-    """Plan, store, and (start=true) upload, arm and fly. Answers once planned; poll the mission for progress."""
+    """Plan, store, and (start=true) upload, arm and fly.
+
+    Answers 201 as soon as the mission is planned and stored (status `planned`); the upload, arming and flight
+    run in the background: poll GET /missions/{id} or watch /ws. With no vehicle heard within the service's
+    vehicle wait (default 5 s) the mission ends `failed` with reason "no vehicle". 409 while another mission
+    uses the vehicle."""
     mission_id = await service.create(request)
     return mission_out(service.get(mission_id))
 
@@ -73,7 +79,9 @@ def get_track(mission_id: MissionId, service: Service) -> Response:
     return _download(json.dumps(document), "application/geo+json", f"mission-{mission_id}-track.geojson")
 
 
-def _items(service: MissionService, mission_id: int):
+def _items(
+    service: MissionService, mission_id: int
+) -> tuple[list[MissionItem], tuple[float, float, float], FlightParams]:
     record = service.get(mission_id)
     plan, flight = Plan.from_dict(record.plan), FlightParams(**record.flight)
     home = (plan.depot[0], plan.depot[1], 0.0)
