@@ -31,7 +31,7 @@ from gcs.mission_protocol import MissionTransferError, upload_mission
 from gcs.planning import FIRST_BUOY_SEQ, FlightParams, Plan, buoy_of_seq, leg_of_seq, make_plan, mission_items
 from gcs.schemas import MissionRequest, PlanRequest
 from gcs.settings import Settings
-from gcs.storage import UNFINISHED, Storage
+from gcs.storage import UNFINISHED, MissionRecord, Storage
 from gcs.validation import validate_request, validate_route_length
 
 log = logging.getLogger(__name__)
@@ -241,7 +241,12 @@ class MissionService:
         plan, flight = await asyncio.to_thread(self.plan, request)
         mission_id = self.storage.create_mission(asdict(flight), plan.to_dict())
         if request.start:
-            self.launch(mission_id)
+            try:
+                self.launch(mission_id)
+            except MissionConflictError as error:  # another mission started while this one was planned
+                raise MissionConflictError(
+                    f"{error}; mission {mission_id} is stored as planned: POST /missions/{mission_id}/start later"
+                ) from None
         return mission_id
 
     def launch(self, mission_id: int) -> None:
@@ -252,7 +257,7 @@ class MissionService:
             raise MissionConflictError(f"mission {mission_id} is {record.status}; only a planned mission can start")
         self._tasks[mission_id] = asyncio.create_task(self._run(mission_id), name=f"mission-{mission_id}")
 
-    def get(self, mission_id: int):
+    def get(self, mission_id: int) -> MissionRecord:
         record = self.storage.get_mission(mission_id)
         if record is None:
             raise MissionNotFoundError(mission_id)
