@@ -15,7 +15,7 @@ from schemathesis.checks import not_a_server_error
 from gcs.app import create_app
 from gcs.settings import Settings
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
 
 
 def _free_udp_port() -> int:
