@@ -3,7 +3,9 @@
 Upload: MISSION_COUNT -> MISSION_REQUEST_INT(seq) ... <- MISSION_ITEM_INT -> MISSION_ACK. A missing item is
 re-requested after RETRY_S of wall-clock time; the transfer is abandoned after TIMEOUT_S without progress;
 every way a transfer ends (accepted, refused, timed out, superseded by a new MISSION_COUNT, cancelled)
-resets the state, so an aborted upload never blocks the next one. Items are stored verbatim.
+resets the state, so an aborted upload never blocks the next one. Items are stored verbatim. The last item
+arriving again after an accepted upload means the GCS lost our final MISSION_ACK: it is acknowledged again,
+as PX4 does, or a lossy link turns a successful upload into a reported failure.
 Download needs no state: each MISSION_REQUEST(_INT) is answered from the stored mission.
 """
 
@@ -86,6 +88,7 @@ class MissionProtocol:
         self.send = send  # callable(msg, peer=None)
         self.sysid, self.compid = sysid, compid
         self.upload: Upload | None = None
+        self.accepted: Upload | None = None  # the last upload that succeeded, to repeat its ACK if asked
         self.transfers_completed = 0
         self.transfers_failed = 0
 
@@ -117,7 +120,7 @@ class MissionProtocol:
             return
         if self.upload is not None:
             log.info("new MISSION_COUNT while uploading: previous transfer dropped")
-        self.upload = None
+        self.upload = self.accepted = None
         if msg.count > MAX_ITEMS:
             self._ack(peer, msg, mavlink.MAV_MISSION_NO_SPACE)
             return
@@ -139,7 +142,13 @@ class MissionProtocol:
 
     def on_item(self, peer, msg) -> None:
         up = self.upload
-        if up is None or peer is not up.peer or getattr(msg, "mission_type", MISSION) != MISSION:
+        if getattr(msg, "mission_type", MISSION) != MISSION:
+            return
+        done = self.accepted
+        if up is None and done is not None and peer is done.peer and msg.seq == done.count - 1:
+            self._ack(peer, done, mavlink.MAV_MISSION_ACCEPTED)  # our final ACK was lost: say it again
+            return
+        if up is None or peer is not up.peer:
             return  # not in a transfer with this peer: PX4 ignores stray items too
         expected = len(up.items)
         if msg.seq != expected:
@@ -158,7 +167,7 @@ class MissionProtocol:
         if len(up.items) < up.count:
             self._request_next(now)
             return
-        self.upload = None
+        self.upload, self.accepted = None, up
         self.vehicle.set_mission(up.items)
         self.transfers_completed += 1
         self._ack(peer, up, mavlink.MAV_MISSION_ACCEPTED)
@@ -215,7 +224,7 @@ class MissionProtocol:
     # ----- clear, set current
     def on_clear_all(self, peer, msg) -> None:
         if msg.mission_type in (MISSION, mavlink.MAV_MISSION_TYPE_ALL):
-            self.upload = None
+            self.upload = self.accepted = None
             self.vehicle.set_mission([])
         self._ack(peer, msg, mavlink.MAV_MISSION_ACCEPTED, msg.mission_type)
 
