@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sitl_quad.airframe import ModelParameterError
+from sitl_quad.normal_stream import NormalStream, Zeros
 
 CHANNELS = ("x", "y", "z", "roll", "pitch", "yaw")
 
@@ -68,12 +69,14 @@ class GaussianDisturbance:
         self.active = bool(np.any(self._std > 0))
         self._index = -1
         self._current = np.zeros(6)
+        self._normals = NormalStream(self.rng, 6)
+        self._zeros = Zeros(6)
 
     def draw(self, count: int) -> np.ndarray:
         """The next `count` samples, (count, 6) [D_x, D_y, D_z, D_phi, D_theta, D_psi]."""
         if not self.active:
-            return np.zeros((count, 6))
-        return self.rng.standard_normal((count, 6)) * self._std
+            return self._zeros.take(count)
+        return self._normals.take(count) * self._std
 
     def value(self, t: float) -> np.ndarray:
         """The disturbance held at time t (t must not go backwards past a sample)."""

@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit
 
 from sitl_quad.airframe import ModelParameterError
+from sitl_quad.normal_stream import NormalStream, Zeros
 
 FEET = 0.3048
 MIN_TURBULENCE_AIRSPEED = 1.0  # m/s
@@ -219,12 +220,14 @@ class WindModel:
         self.turbulence = initial_turbulence_state(self.rng) if self.turbulent else np.zeros(5)
         self._t: float | None = None
         self._out = np.zeros(3)
+        self._normals: NormalStream | Zeros | None = None
 
     def noise(self, steps: int) -> np.ndarray:
         """Unit normals driving `steps` turbulence updates (zeros, and no draw, without turbulence)."""
-        if not self.turbulent:
-            return np.zeros((steps, TURBULENCE_NOISE_PER_STEP))
-        return self.rng.standard_normal((steps, TURBULENCE_NOISE_PER_STEP))
+        if self._normals is None:
+            self._normals = (NormalStream(self.rng, TURBULENCE_NOISE_PER_STEP) if self.turbulent
+                             else Zeros(TURBULENCE_NOISE_PER_STEP))
+        return self._normals.take(steps)
 
     def velocity(self, t: float, altitude_m: float, airspeed_m_s: float) -> np.ndarray:
         """Wind (NED m/s) at time t; t must not go backwards."""

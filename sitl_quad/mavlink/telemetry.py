@@ -92,25 +92,31 @@ class Telemetry:
             "AUTOPILOT_VERSION": self.autopilot_version,
         }
         self.link_stats = link.stats  # drop counters go into SYS_STATUS
+        self._geodetic_cache: tuple[float, tuple[float, float, float]] = (-1.0, (0.0, 0.0, 0.0))
 
     # ----- scheduling
     def publish_due(self) -> None:
-        """Send every stream whose interval has elapsed in simulated time (called after each tick)."""
+        """Send every stream whose interval has elapsed in simulated time (called after each tick).
+
+        What is due in a tick goes out as one datagram per peer, as PX4 batches its UDP output: a loopback
+        datagram costs a context switch on the receiving side, a MAVLink frame inside it almost nothing.
+        """
         t = self.vehicle.t
         peers = self.link.live_peers()
         onboard = [p for p in peers if p.onboard]
         ground = [p for p in peers if not p.onboard]
-        if onboard:
-            # A heartbeat with every tick's state lets the offboard controller act on mode and arming in
-            # step with simulated time (what keeps a lockstep flight repeatable); a second HEARTBEAT source
-            # rate is harmless to MAVLink tools.
-            self.link.send_to(heartbeat_message(self.vehicle), onboard)
-        for name in ONBOARD_STREAMS:
-            self.link.send_to(self.builders[name](), onboard)
+        for_everyone, for_ground = [], []
         for name, interval in self.intervals.items():
             if interval > 0 and t >= self.next_due[name]:
                 self.next_due[name] = max(self.next_due[name] + interval, t)
-                self.link.send_to(self.builders[name](), ground if name in ONBOARD_STREAMS else peers)
+                (for_ground if name in ONBOARD_STREAMS else for_everyone).append(self.builders[name]())
+        if onboard:
+            # A heartbeat with every tick's state lets the offboard controller act on mode and arming in
+            # step with simulated time (what keeps a lockstep flight repeatable).
+            state = [heartbeat_message(self.vehicle), *(self.builders[name]() for name in ONBOARD_STREAMS)]
+            self.link.send_batch(state + for_everyone, onboard)
+        if ground:
+            self.link.send_batch(for_ground + for_everyone, ground)
 
     def set_interval(self, msg_id: int, interval_us: float) -> CommandResult:
         """MAV_CMD_SET_MESSAGE_INTERVAL: -1 disables, 0 restores the default, >0 microseconds."""
@@ -163,10 +169,13 @@ class Telemetry:
         return mavlink.MAVLink_attitude_message(self.vehicle.time_boot_ms, roll, pitch, yaw, p, q, r)
 
     def _geodetic(self):
+        """The estimate as lat, lon, alt; computed once per tick (pymap3d is exact but not cheap)."""
         v = self.vehicle
-        n, e, d = map(float, v.estimate.position)
-        lat, lon, alt = v.frame.from_ned(n, e, d)
-        return float(lat), float(lon), float(alt)
+        if self._geodetic_cache[0] != v.t:
+            n, e, d = map(float, v.estimate.position)
+            lat, lon, alt = v.frame.from_ned(n, e, d)
+            self._geodetic_cache = (v.t, (float(lat), float(lon), float(alt)))
+        return self._geodetic_cache[1]
 
     def global_position_int(self):
         v = self.vehicle

@@ -1,0 +1,79 @@
+"""The vehicle's UDP side: --out push targets, routing between peers, and signing."""
+
+from __future__ import annotations
+
+import socket
+import time
+
+import pytest
+from sitl_process import GroundStation, free_udp_port
+
+from sitl_quad.mavlink import mavlink
+
+pytestmark = pytest.mark.integration
+
+
+def test_out_target_receives_telemetry_without_asking(start_sitl):
+    port = free_udp_port()
+    listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    listener.bind(("127.0.0.1", port))
+    listener.settimeout(1.0)
+    start_sitl(speed=5.0, extra_args=("--out", f"127.0.0.1:{port}"))
+    parser = mavlink.MAVLink(None)
+    kinds = set()
+    deadline = time.monotonic() + 20
+    try:
+        while time.monotonic() < deadline and not {"HEARTBEAT", "GLOBAL_POSITION_INT"} <= kinds:
+            try:
+                data = listener.recv(65535)
+            except TimeoutError:
+                continue
+            kinds.update(m.get_type() for m in parser.parse_buffer(data) or [])
+    finally:
+        listener.close()
+    assert {"HEARTBEAT", "GLOBAL_POSITION_INT"} <= kinds
+
+
+def test_vehicle_routes_messages_between_peers(start_sitl):
+    sitl = start_sitl(speed=5.0)
+    gcs = GroundStation(sitl.port)
+    onboard = GroundStation(sitl.port, sysid=1, compid=mavlink.MAV_COMP_ID_ONBOARD_COMPUTER)
+    try:
+        gcs.connect()
+        onboard.connect()
+        # broadcast messages from the onboard computer reach the ground station through the vehicle
+        seen = None
+        deadline = time.monotonic() + 10
+        while seen is None and time.monotonic() < deadline:
+            onboard.mav.debug_vect_send(b"ESO_Z3", 0, 1.0, 2.0, 3.0)
+            msg = gcs.conn.recv_match(type="DEBUG_VECT", blocking=True, timeout=0.5)
+            if msg is not None and msg.get_srcComponent() == mavlink.MAV_COMP_ID_ONBOARD_COMPUTER:
+                seen = msg
+        assert seen is not None and (seen.x, seen.y, seen.z) == (1.0, 2.0, 3.0)
+        # a command for the vehicle itself is answered by the vehicle and not echoed to the other peer
+        ack = onboard.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+        assert ack.result == mavlink.MAV_RESULT_ACCEPTED
+        echoed = gcs.conn.recv_match(type="COMMAND_LONG", blocking=True, timeout=1.0)
+        assert echoed is None
+    finally:
+        gcs.close()
+        onboard.close()
+
+
+def test_signed_vehicle_refuses_unsigned_commands_and_obeys_the_keyed_station(start_sitl):
+    key = bytes(range(32))
+    vehicle = start_sitl(speed=5.0, extra_args=("--signing-key", key.hex()))
+    keyed = GroundStation(vehicle.port)
+    keyed.conn.setup_signing(key, sign_outgoing=True)
+    stranger = GroundStation(vehicle.port, sysid=254)
+    try:
+        keyed.connect()
+        assert stranger.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, timeout=3) is None  # silently refused
+        heartbeat = keyed.recv("HEARTBEAT", timeout=5)
+        assert not heartbeat.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+        assert keyed.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == mavlink.MAV_RESULT_ACCEPTED
+        status = keyed.recv("SYS_STATUS", timeout=5)
+        assert status.errors_count4 > 0  # the refused unsigned messages are counted
+    finally:
+        keyed.close()
+        stranger.close()
