@@ -18,6 +18,7 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -26,7 +27,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "bench"))
-sys.path.insert(0, str(REPO / "tests"))
+sys.path.append(str(REPO / "tests"))  # after: sitl_physics rewrites sys.path[0]
 
 from sitl_physics import physics_alone, vehicle_loop  # noqa: E402
 from sitl_process import GroundStation, SitlProcess  # noqa: E402
@@ -35,7 +36,7 @@ from sitl_quad.mavlink import mavlink  # noqa: E402
 
 RESULTS = REPO / "bench" / "results"
 LOCKSTEP_SIM_S = 60.0
-JITTER_WALL_S = 10.0
+JITTER_SIM_S = 12.0
 HOVER_CONTROLLER = "bench/hover_offboard.py"
 
 
@@ -72,31 +73,34 @@ def lockstep_full_loop(controller: list[str]) -> dict:
 
 
 def tick_jitter_at_speed_1() -> dict:
-    """Receive the per-tick state as an onboard peer would and measure interval deviations from 20 ms."""
-    vehicle = SitlProcess(speed=1.0).start()
+    """--speed 1 with an onboard peer attached: how late each 50 Hz tick starts (the vehicle's own count,
+    --stats) and how evenly the per-tick state reaches the peer (its arrival intervals against 20 ms)."""
+    stats_path = Path(tempfile.mkstemp(suffix=".json")[1])
+    vehicle = SitlProcess(speed=1.0, extra_args=("--duration", f"{JITTER_SIM_S:g}", "--stats", str(stats_path)))
+    vehicle.start()
     peer = GroundStation(vehicle.port, sysid=1, compid=mavlink.MAV_COMP_ID_ONBOARD_COMPUTER)
     try:
         peer.connect(timeout=60)
         arrivals: list[float] = []
-        end = time.monotonic() + JITTER_WALL_S
         next_heartbeat = 0.0
-        while time.monotonic() < end:
+        while vehicle.alive():
             if time.monotonic() > next_heartbeat:
                 peer.send_heartbeat()
                 next_heartbeat = time.monotonic() + 1.0
             msg = peer.conn.recv_match(type="LOCAL_POSITION_NED", blocking=True, timeout=0.5)
             if msg is not None:
                 arrivals.append(time.monotonic())
-        # the first second includes the peer's discovery; keep the steady part
-        intervals = np.diff(np.array(arrivals[50:]))
+        vehicle.process.wait(30)
+        lateness = json.loads(stats_path.read_text())["tick_lateness_ms"]
+        intervals = np.diff(np.array(arrivals[50:]))  # the first second includes the peer's discovery
         deviation_ms = np.abs(intervals - 0.02) * 1000
-        return {"ticks": len(intervals), "mean_interval_ms": float(intervals.mean() * 1000),
-                "jitter_p50_ms": float(np.percentile(deviation_ms, 50)),
-                "jitter_p99_ms": float(np.percentile(deviation_ms, 99)),
-                "jitter_max_ms": float(deviation_ms.max())}
+        return {"tick_lateness_ms": lateness, "ticks_received": len(intervals),
+                "arrival_deviation_p50_ms": float(np.percentile(deviation_ms, 50)),
+                "arrival_deviation_p99_ms": float(np.percentile(deviation_ms, 99))}
     finally:
         peer.close()
         vehicle.cleanup()
+        stats_path.unlink(missing_ok=True)
 
 
 def main() -> None:
@@ -118,8 +122,10 @@ def main() -> None:
         ("vehicle onboard loop (PID 250 Hz + mixer + physics)", f"{loop['real_time_factor']:.0f}x", ""),
         ("lockstep, minimal pymavlink controller, 50 Hz", f"{minimal['real_time_factor']:.1f}x", ">= 20x"),
         ("lockstep, adrc_offboard (ADRC), 50 Hz", f"{adrc['real_time_factor']:.1f}x", ""),
-        ("--speed 1 tick jitter p50 / p99",
-         f"{jitter['jitter_p50_ms']:.2f} / {jitter['jitter_p99_ms']:.2f} ms", "p99 <= 2 ms"),
+        ("--speed 1 outer-loop tick lateness p50 / p99",
+         f"{jitter['tick_lateness_ms']['p50']:.2f} / {jitter['tick_lateness_ms']['p99']:.2f} ms", "p99 <= 2 ms"),
+        ("--speed 1 state arrival at the peer, |interval - 20 ms| p50 / p99",
+         f"{jitter['arrival_deviation_p50_ms']:.2f} / {jitter['arrival_deviation_p99_ms']:.2f} ms", ""),
     ]
     width = max(len(r[0]) for r in rows)
     print(f"{'case':{width}}  {'measured':>18}  target")

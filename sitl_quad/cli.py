@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import json
 import logging
 import math
 import signal
@@ -91,6 +92,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="MAVLink 2 signing key (64 hex digits, or a passphrase): unsigned messages are refused")
     p.add_argument("--duration", type=float, metavar="SECONDS",
                    help="exit after this much simulated time (default: run until interrupted)")
+    p.add_argument("--stats", type=Path, metavar="FILE",
+                   help="at exit, write JSON counters: tick pacing, link drops by kind, mission transfers")
     p.add_argument("--list-params", action="store_true", help="print every parameter with its value and exit")
     p.add_argument("-v", "--verbose", action="store_true", help="log every peer and protocol event")
     return p
@@ -149,6 +152,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"sitl-quad: listening on udp {host}:{port} ({pacing}, seed {args.seed}, home {args.home})",
           flush=True)
     server.run(args.duration)
+    if args.stats is not None:
+        args.stats.write_text(json.dumps(server.stats(), indent=2) + "\n")
     return 0
 
 

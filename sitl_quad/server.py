@@ -41,8 +41,7 @@ class VehicleServer:
         self.lockstep = lockstep
         self.running = True
         self.handler_errors = 0
-        self.tick_wall_times: list[float] = []  # kept only when record_ticks is set (benchmarks)
-        self.record_ticks = False
+        self.tick_lateness_s: list[float] = []  # paced mode: how late each tick started (for --stats)
         self.telemetry = Telemetry(vehicle, link)
         self.heartbeat = Heartbeat(vehicle, self.send)
         self.parameters = Parameters(params, self.send, self._param_changed)
@@ -104,8 +103,9 @@ class VehicleServer:
             wall_anchor, sim_anchor = self._wait_for_next_tick(wall_anchor, sim_anchor)
             if not self.running:
                 break
-            if self.record_ticks:
-                self.tick_wall_times.append(time.monotonic())
+            if not self.lockstep:
+                due = wall_anchor + (self.vehicle.t - sim_anchor) / self.speed
+                self.tick_lateness_s.append(time.monotonic() - due)
             record = self.vehicle.tick()
             self._publish_events()
             self.telemetry.publish_due()
@@ -180,6 +180,25 @@ class VehicleServer:
         row += [*dist.get("wind_ned", (0, 0, 0)), *dist.get("external_accel_ned", (0, 0, 0))]
         row += [v.navigator.current_seq]
         self._log_writer.writerow([f"{x:.5g}" if isinstance(x, float) else x for x in row])
+
+    def stats(self) -> dict:
+        """Counters for --stats: ticks, pacing, link drops, mission transfers."""
+        lateness_ms = sorted(x * 1000 for x in self.tick_lateness_s[50:])  # skip start-up
+        def percentile(q: float) -> float | None:
+            return lateness_ms[min(len(lateness_ms) - 1, int(q * len(lateness_ms)))] if lateness_ms else None
+
+        link = self.link.stats
+        return {
+            "simulated_s": self.vehicle.t,
+            "ticks": round(self.vehicle.t / self.vehicle.outer_dt),
+            "tick_lateness_ms": {"p50": percentile(0.5), "p99": percentile(0.99), "max": percentile(1.0)},
+            "link": {k: v for k, v in vars(link).items() if k != "by_type"} | {"dropped": link.dropped},
+            "received_by_type": dict(link.by_type),
+            "handler_errors": self.handler_errors,
+            "mission_uploads": {"completed": self.mission.transfers_completed, "failed": self.mission.transfers_failed},
+            "offboard_setpoints": self.vehicle.offboard.count,
+            "motor_saturated_ticks": self.vehicle.saturated_ticks,
+        }
 
     def close(self) -> None:
         if self._log_file is not None:
