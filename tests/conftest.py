@@ -2,48 +2,75 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 
 import pytest
 from sitl_process import GroundStation, SitlProcess
 
 
-@pytest.fixture
-def start_sitl() -> Iterator[Callable[..., SitlProcess]]:
-    """Start vehicles with start_sitl(speed=..., extra_args=(...)); each is stopped at teardown, where it must
-    exit cleanly after SIGTERM and must not have logged a traceback (a handler error it swallowed)."""
-    started: list[SitlProcess] = []
+class VehicleStarter:
+    """Starts vehicles on free ports and, at the end, stops them and reports any that misbehaved."""
 
-    def start(speed: float = 20.0, extra_args: tuple[str, ...] = ()) -> SitlProcess:
+    def __init__(self) -> None:
+        self.started: list[SitlProcess] = []
+
+    def __call__(self, speed: float = 20.0, extra_args: tuple[str, ...] = ()) -> SitlProcess:
         vehicle = SitlProcess(speed=speed, extra_args=extra_args)
-        started.append(vehicle)
+        self.started.append(vehicle)
         return vehicle.start()
 
-    yield start
-    problems = []
-    for vehicle in started:
-        code = vehicle.stop()
-        stderr = vehicle.stderr()
-        vehicle.cleanup()
-        if code != 0 or "Traceback" in stderr:
-            problems.append(f"vehicle on port {vehicle.port} exited with {code}; stderr:\n{stderr[-3000:]}")
-    if problems:
-        pytest.fail("\n".join(problems))
+    def stop_all(self) -> None:
+        """Each vehicle must exit cleanly on SIGTERM and must not have logged a traceback (a handler error
+        it swallowed to stay up counts as a failure too)."""
+        problems = []
+        for vehicle in self.started:
+            code = vehicle.stop()
+            stderr = vehicle.stderr()
+            vehicle.cleanup()
+            if code != 0 or "Traceback" in stderr:
+                problems.append(f"vehicle on port {vehicle.port} exited with {code}:\n{stderr[-3000:]}")
+        if problems:
+            pytest.fail("\n".join(problems))
 
 
-@pytest.fixture
-def sitl(start_sitl) -> SitlProcess:
-    """One vehicle at 20x real time."""
-    return start_sitl(speed=20.0)
-
-
-@pytest.fixture
-def gcs(sitl) -> Iterator[GroundStation]:
-    """A pymavlink ground station connected to `sitl` (it has seen a HEARTBEAT)."""
-    station = GroundStation(sitl.port)
+def connected(vehicle: SitlProcess) -> GroundStation:
+    station = GroundStation(vehicle.port)
     try:
         station.connect()
     except TimeoutError:
-        raise RuntimeError(f"vehicle alive: {sitl.alive()}; stderr:\n{sitl.stderr()[-3000:]}") from None
+        station.close()
+        alive, stderr = vehicle.alive(), vehicle.stderr()[-3000:]
+        raise RuntimeError(f"no HEARTBEAT; vehicle alive: {alive}; stderr:\n{stderr}") from None
+    return station
+
+
+@pytest.fixture
+def start_sitl() -> Iterator[VehicleStarter]:
+    """start_sitl(speed=..., extra_args=(...)) starts a vehicle of this test's own."""
+    starter = VehicleStarter()
+    yield starter
+    starter.stop_all()
+
+
+@pytest.fixture(scope="module")
+def shared_sitl() -> Iterator[SitlProcess]:
+    """One vehicle at 2x real time for a whole test module: for tests that set up the state they need."""
+    starter = VehicleStarter()
+    yield starter(speed=2.0)
+    starter.stop_all()
+
+
+@pytest.fixture(scope="module")
+def shared_gcs(shared_sitl) -> Iterator[GroundStation]:
+    station = connected(shared_sitl)
     yield station
     station.close()
+
+
+@pytest.fixture
+def gcs(shared_gcs, shared_sitl) -> GroundStation:
+    """The module's ground station on the shared vehicle, with nothing left over from earlier tests."""
+    assert shared_sitl.alive(), f"the shared vehicle died:\n{shared_sitl.stderr()[-3000:]}"
+    shared_gcs.drain()
+    shared_gcs.send_heartbeat()  # a peer silent for 10 s stops getting telemetry: be a peer again
+    return shared_gcs

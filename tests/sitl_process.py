@@ -1,4 +1,4 @@
-"""Integration-test helpers: the vehicle (`python -m sitl_quad`) as a subprocess, and a pymavlink ground station.
+"""Integration-test helpers: the vehicle (`python -m sitl_quad`) as a subprocess, and a pymavlink GCS.
 
 `SitlProcess` starts the vehicle on a free UDP port, waits for its "listening" line and stops it with SIGTERM
 (then SIGKILL); its stderr goes to a file so a test can check that no handler raised. `GroundStation` is the
@@ -42,7 +42,8 @@ def free_udp_port() -> int:
 class SitlProcess:
     """The vehicle as a child process on 127.0.0.1:port."""
 
-    def __init__(self, speed: float = 20.0, extra_args: tuple[str, ...] = (), port: int | None = None) -> None:
+    def __init__(self, speed: float = 20.0, extra_args: tuple[str, ...] = (),
+                 port: int | None = None) -> None:
         self.port = port or free_udp_port()
         self.args = [sys.executable, "-m", "sitl_quad", "--port", str(self.port), "--speed", f"{speed:g}",
                      *extra_args]
@@ -52,7 +53,8 @@ class SitlProcess:
 
     def start(self, timeout: float = START_TIMEOUT_S) -> SitlProcess:
         with open(self.stderr_path, "w") as stderr:
-            self.process = subprocess.Popen(self.args, cwd=REPO, stdout=subprocess.PIPE, stderr=stderr, text=True)
+            self.process = subprocess.Popen(self.args, cwd=REPO, stdout=subprocess.PIPE, stderr=stderr,
+                                            text=True)
         lines: queue.Queue[str] = queue.Queue()
         # A thread drains stdout for the whole run, so the vehicle can never block on a full pipe.
         threading.Thread(target=_pump, args=(self.process.stdout, lines), daemon=True).start()
@@ -110,6 +112,11 @@ class GroundStation:
     def close(self) -> None:
         self.conn.close()
 
+    def drain(self) -> None:
+        """Forget every message already received and not yet read."""
+        while self.conn.recv_match(blocking=False) is not None:
+            pass
+
     def send_heartbeat(self) -> None:
         self.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
 
@@ -126,7 +133,7 @@ class GroundStation:
         return None
 
     def connect(self, timeout: float = 20.0):
-        """Make ourselves a peer (the vehicle answers whoever sends it a datagram) and wait for a HEARTBEAT."""
+        """Become a peer (the vehicle answers whoever sends it a datagram) and wait for a HEARTBEAT."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             self.send_heartbeat()
@@ -137,14 +144,14 @@ class GroundStation:
 
     def command(self, command: int, *params: float, timeout: float = 5.0, use_int: bool = False,
                 target_system: int = VEHICLE_SYSID):
-        """Send COMMAND_LONG (or COMMAND_INT) and return its COMMAND_ACK, resending every second like MAVSDK."""
+        """Send COMMAND_LONG (or COMMAND_INT) and return its COMMAND_ACK, resent every second like MAVSDK."""
         p = [*params, *[math.nan] * (7 - len(params))]
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             if use_int:
-                self.mav.command_int_send(target_system, VEHICLE_COMPID, mavlink.MAV_FRAME_GLOBAL, command, 0, 0,
-                                          p[0], p[1], p[2], p[3], int(p[4]) if math.isfinite(p[4]) else 0,
-                                          int(p[5]) if math.isfinite(p[5]) else 0, p[6])
+                x, y = (int(v) if math.isfinite(v) else 0 for v in p[4:6])
+                self.mav.command_int_send(target_system, VEHICLE_COMPID, mavlink.MAV_FRAME_GLOBAL, command,
+                                          0, 0, p[0], p[1], p[2], p[3], x, y, p[6])
             else:
                 self.mav.command_long_send(target_system, VEHICLE_COMPID, command, 0, *p)
             ack = self.recv("COMMAND_ACK", timeout=1.0, condition=lambda m: m.command == command)
@@ -177,7 +184,7 @@ class GroundStation:
 
     # ----- parameters
     def read_param(self, name: str | None = None, index: int = -1, timeout: float = 5.0):
-        """PARAM_REQUEST_READ by name (index -1) or by index, retried every second; the PARAM_VALUE or None."""
+        """PARAM_REQUEST_READ by name (index -1) or by index, retried every second: PARAM_VALUE or None."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             self.mav.param_request_read_send(VEHICLE_SYSID, VEHICLE_COMPID, (name or "").encode(), index)
@@ -207,7 +214,7 @@ class GroundStation:
         sent = 0
         self.mav.mission_count_send(VEHICLE_SYSID, VEHICLE_COMPID, len(items), mission_type)
         while time.monotonic() < deadline:
-            msg = self.recv(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"], timeout=0.5,
+            msg = self.recv(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"], timeout=0.4,
                             condition=lambda m: m.mission_type == mission_type)
             if stop_after is not None and sent >= stop_after:
                 return None
@@ -236,14 +243,15 @@ class GroundStation:
         count = None
         while count is None and time.monotonic() < deadline:
             self.mav.mission_request_list_send(VEHICLE_SYSID, VEHICLE_COMPID, mission_type)
-            count = self.recv("MISSION_COUNT", timeout=0.5, condition=lambda m: m.mission_type == mission_type)
+            count = self.recv("MISSION_COUNT", timeout=0.5,
+                              condition=lambda m: m.mission_type == mission_type)
         if count is None:
             return None
         items = []
         while len(items) < count.count and time.monotonic() < deadline:
             seq = len(items)
             self.mav.mission_request_int_send(VEHICLE_SYSID, VEHICLE_COMPID, seq, mission_type)
-            item = self.recv("MISSION_ITEM_INT", timeout=0.5, condition=lambda m, s=seq: m.seq == s)
+            item = self.recv("MISSION_ITEM_INT", timeout=0.3, condition=lambda m, s=seq: m.seq == s)
             if item is not None:
                 items.append(item)
         if len(items) < count.count:
@@ -253,7 +261,8 @@ class GroundStation:
 
 
 def mission_item(seq: int, command: int, lat: float = 0.0, lon: float = 0.0, alt: float = 0.0,
-                 frame: int = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, params: tuple = (0.0, 0.0, 0.0, math.nan),
+                 frame: int = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                 params: tuple = (0.0, 0.0, 0.0, math.nan),
                  mission_type: int = mavlink.MAV_MISSION_TYPE_MISSION):
     """One MISSION_ITEM_INT addressed to the vehicle; lat/lon in degrees."""
     return mavlink.MAVLink_mission_item_int_message(
@@ -262,7 +271,7 @@ def mission_item(seq: int, command: int, lat: float = 0.0, lon: float = 0.0, alt
 
 
 def short_mission(home: tuple[float, float, float], leg_m: float = 30.0) -> list:
-    """Takeoff to 5 m, two waypoints leg_m apart (north, then east), return to launch: a few seconds at 20x."""
+    """Takeoff to 5 m, two waypoints leg_m apart (north, then east), return to launch: seconds at 20x."""
     from planner.geodesy import LocalFrame
 
     frame = LocalFrame(*home)
@@ -270,7 +279,8 @@ def short_mission(home: tuple[float, float, float], leg_m: float = 30.0) -> list
     north_east = frame.from_ned(leg_m, leg_m, 0.0)
     return [
         mission_item(0, mavlink.MAV_CMD_NAV_TAKEOFF, home[0], home[1], 5.0),
-        mission_item(1, mavlink.MAV_CMD_NAV_WAYPOINT, north[0], north[1], 5.0, params=(0.0, 2.0, 0.0, math.nan)),
+        mission_item(1, mavlink.MAV_CMD_NAV_WAYPOINT, north[0], north[1], 5.0,
+                     params=(0.0, 2.0, 0.0, math.nan)),
         mission_item(2, mavlink.MAV_CMD_NAV_WAYPOINT, north_east[0], north_east[1], 5.0,
                      params=(0.0, 2.0, 0.0, math.nan)),
         mission_item(3, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, frame=mavlink.MAV_FRAME_MISSION),

@@ -95,6 +95,7 @@ def test_int32_parameter_travels_bytewise_both_ways(gcs):
     assert int_from_wire(answer.param_value) == 1
     assert answer.param_value != 1.0  # a float cast would read back as 1065353216 in MAVSDK
     assert int_from_wire(gcs.read_param("MC_ATT_CTRL").param_value) == 1
+    assert int_from_wire(gcs.set_param("MC_ATT_CTRL", int_bytewise(0), INT32).param_value) == 0
 
 
 def test_param_read_by_index_matches_read_by_name(gcs):
@@ -141,7 +142,14 @@ def test_arm_when_already_armed_is_temporarily_rejected(gcs):
     assert gcs.wait_heartbeat(lambda hb: not armed(hb)) is not None
 
 
+def clear_mission(gcs: GroundStation) -> None:
+    gcs.mav.mission_clear_all_send(VEHICLE_SYSID, VEHICLE_COMPID, mavlink.MAV_MISSION_TYPE_MISSION)
+    ack = gcs.recv("MISSION_ACK", timeout=5)
+    assert ack is not None and ack.type == mavlink.MAV_MISSION_ACCEPTED
+
+
 def test_mission_start_without_a_mission_is_denied(gcs):
+    clear_mission(gcs)
     ack = gcs.command(mavlink.MAV_CMD_MISSION_START, 0, 0)
     assert ack.result == mavlink.MAV_RESULT_DENIED
 
@@ -170,6 +178,7 @@ def test_do_set_mode_changes_the_heartbeat_mode(gcs):
 
 
 def test_do_set_mode_refuses_what_it_cannot_fly(gcs):
+    clear_mission(gcs)
     assert gcs.set_mode(1).result == mavlink.MAV_RESULT_UNSUPPORTED  # MANUAL: no RC on this vehicle
     assert gcs.set_mode(4, 4).result == mavlink.MAV_RESULT_DENIED  # AUTO.MISSION with no mission
 
@@ -190,7 +199,8 @@ def test_request_message_autopilot_version_has_the_capabilities_tools_need(gcs):
     assert version is not None
     for bit in (mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT, mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT,
                 mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE,
-                mavlink.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET, mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2):
+                mavlink.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET,
+                mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2):
         assert version.capabilities & bit, f"capability bit {bit} missing"
 
 
@@ -208,6 +218,8 @@ def test_home_position_on_request_is_the_home(gcs, how):
     assert home is not None
     assert home.latitude == round(DEFAULT_HOME[0] * 1e7) and home.longitude == round(DEFAULT_HOME[1] * 1e7)
     assert home.altitude == round(DEFAULT_HOME[2] * 1000)
+    restore = gcs.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAVLINK_MSG_ID_HOME_POSITION, 0)
+    assert restore.result == ACCEPTED
 
 
 def test_request_message_for_an_unknown_message_is_unsupported(gcs):
@@ -259,9 +271,7 @@ def test_mission_upload_then_download_gives_the_items_back(gcs):
 
 def test_mission_clear_all_leaves_an_empty_mission(gcs):
     assert gcs.upload_mission(short_mission(DEFAULT_HOME)).type == mavlink.MAV_MISSION_ACCEPTED
-    gcs.mav.mission_clear_all_send(VEHICLE_SYSID, VEHICLE_COMPID, mavlink.MAV_MISSION_TYPE_MISSION)
-    ack = gcs.recv("MISSION_ACK", timeout=5)
-    assert ack is not None and ack.type == mavlink.MAV_MISSION_ACCEPTED
+    clear_mission(gcs)
     assert gcs.download_mission() == []
 
 
@@ -320,7 +330,8 @@ def test_fence_and_rally_are_answered_never_silent(gcs, mission_type):
     assert ack.mission_type == mission_type
     gcs.mav.mission_clear_all_send(VEHICLE_SYSID, VEHICLE_COMPID, mission_type)
     cleared = gcs.recv("MISSION_ACK", timeout=5, condition=lambda m: m.mission_type == mission_type)
-    assert cleared is not None and cleared.type in (mavlink.MAV_MISSION_ACCEPTED, mavlink.MAV_MISSION_UNSUPPORTED)
+    assert cleared is not None
+    assert cleared.type in (mavlink.MAV_MISSION_ACCEPTED, mavlink.MAV_MISSION_UNSUPPORTED)
 
 
 def longer_mission(n_waypoints: int = 8) -> list:
@@ -340,7 +351,7 @@ def longer_mission(n_waypoints: int = 8) -> list:
 @pytest.mark.slow
 def test_mission_upload_succeeds_through_a_link_dropping_20_percent_each_way(start_sitl):
     vehicle = start_sitl(speed=1)  # no flight here: real time keeps the telemetry light for the relay
-    items = longer_mission()
+    items = longer_mission(6)
     with LossyUdpRelay(vehicle.port, drop_fraction=0.2, seed=7) as relay:
         gcs = GroundStation(relay.port)
         gcs.connect()
@@ -394,7 +405,10 @@ def _garbage(rng: random.Random, valid_frames: list[bytes]) -> bytes:
     return bytes(frame) + rng.randbytes(rng.randrange(1, 40))  # a good frame followed by junk
 
 
-def test_garbage_datagrams_are_counted_and_the_vehicle_keeps_answering(gcs, sitl):
+def test_garbage_datagrams_are_counted_and_the_vehicle_keeps_answering(start_sitl):
+    sitl = start_sitl(speed=2)
+    gcs = GroundStation(sitl.port)
+    gcs.connect()
     before = sys_status(gcs)
     encoder = mavlink.MAVLink(None, srcSystem=200, srcComponent=1)
     samples = [
@@ -420,6 +434,7 @@ def test_garbage_datagrams_are_counted_and_the_vehicle_keeps_answering(gcs, sitl
     assert after.errors_comm > before.errors_comm
     assert after.errors_count1 > before.errors_count1  # malformed frames
     assert after.drop_rate_comm > 0
+    gcs.close()
 
 
 def test_wrong_target_is_ignored_and_counted(gcs):
