@@ -12,21 +12,22 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
 	touch $(STAMP)
 
-# The main job. Until the whole stack lands this plans the paper's reference scenario and draws it.
+# The main job: vehicle + ADRC offboard controller + service + map page, flying the paper's reference
+# scenario in lockstep, then serving the map page at http://127.0.0.1:8000 until Ctrl-C.
 run: $(STAMP)
-	$(BIN)/python -m planner examples/reference_buoys.geojson --method chnn-ga --seed 1 --plot bench/results/reference_route.png
-	@echo "route drawn in bench/results/reference_route.png"
+	$(BIN)/python -m gcs up --demo
 
 test: $(STAMP)
 	$(BIN)/python -m ruff check .
-	$(BIN)/python -m pytest -n 2 --dist loadgroup
+	$(BIN)/python -m pytest -n 2
 
 lint: $(STAMP)
 	$(BIN)/python -m ruff check .
-	$(BIN)/python -m ruff format --check .
 
 bench: $(STAMP)
 	$(BIN)/python bench/planner.py
+	$(BIN)/python bench/sitl.py
+	$(BIN)/python bench/gcs.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache

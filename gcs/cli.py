@@ -1,8 +1,9 @@
-"""Command line: `python -m gcs serve` (the service and map page). `up` and `report` are added by the lead."""
+"""Command line: `python -m gcs serve` (the service and map page), `python -m gcs up` (the whole stack)."""
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -21,7 +22,38 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--db", type=Path, default=Path("data/gcs.sqlite"), help="SQLite file")
     serve.add_argument("--token", default=None, help=f"API token for mutating endpoints (or ${TOKEN_ENV})")
     serve.add_argument("--vehicle-wait", type=float, default=5.0, help="seconds a mission waits for a vehicle")
+    up = commands.add_parser("up", help="the main job: vehicle + offboard controller + service, supervised",
+                             description="Start sitl_quad, adrc_offboard and the service as supervised children "
+                             "(Ctrl-C or SIGTERM stops them all); the map page is at http://HOST:PORT/.")
+    pacing = up.add_mutually_exclusive_group()
+    pacing.add_argument("--lockstep", action="store_true", default=None,
+                        help="vehicle and controller in lockstep: deterministic, faster than real time (default)")
+    pacing.add_argument("--speed", type=float, help="pace the vehicle at N times real time instead of lockstep")
+    up.add_argument("--seed", type=int, default=0, help="the vehicle's wind, turbulence and noise seed")
+    up.add_argument("--wind", type=_wind, default=(0.0, 0.0), metavar="SPEED[,FROM_DEG]",
+                    help="steady wind in m/s, blowing from FROM_DEG (default calm)")
+    up.add_argument("--controller", choices=("adrc", "pid", "none"), default="adrc",
+                    help="outer loop: the ADRC process (default), the PID baseline, or none (the vehicle's own)")
+    up.add_argument("--host", default="127.0.0.1")
+    up.add_argument("--port", type=int, default=8000, help="HTTP port of the service and map page")
+    up.add_argument("--vehicle-port", type=int, default=14540, help="UDP port the vehicle listens on")
+    up.add_argument("--data", type=Path, default=Path("data"), help="data directory (database, logs, parameters)")
+    up.add_argument("--token", default=None, help=f"API token for mutating endpoints (or ${TOKEN_ENV})")
+    up.add_argument("--demo", action="store_true", help="fly the paper's reference scenario and print its report")
+    up.add_argument("--demo-seed", type=int, default=1, help="which reference scenario the demo flies")
+    up.add_argument("--exit-after-demo", action="store_true", help="stop the stack once the demo has flown")
     return parser
+
+
+def _wind(text: str) -> tuple[float, float]:
+    parts = text.split(",")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) not in (1, 2) or not all(map(math.isfinite, values)) or not 0 <= values[0] <= 40:
+        raise argparse.ArgumentTypeError(f"expected SPEED[,FROM_DEG] with 0 <= SPEED <= 40 m/s, got {text!r}")
+    return values[0], values[1] if len(values) == 2 else 0.0
 
 
 def settings_from_args(args: argparse.Namespace) -> Settings:
@@ -43,8 +75,28 @@ def serve(settings: Settings) -> None:
     uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level="info")
 
 
+def up(args: argparse.Namespace) -> int:
+    from gcs.up import UpOptions, run_up
+
+    if args.speed is not None and not (math.isfinite(args.speed) and 0 < args.speed <= 1000):
+        print("buoy-gcs: --speed must be in (0, 1000]", file=sys.stderr)
+        return 2
+    for name in ("port", "vehicle_port"):
+        if not 0 < getattr(args, name) < 65536:
+            print(f"buoy-gcs: --{name.replace('_', '-')} {getattr(args, name)} is not a port", file=sys.stderr)
+            return 2
+    options = UpOptions(
+        lockstep=args.speed is None, speed=args.speed or 1.0, seed=args.seed, wind_m_s=args.wind[0],
+        wind_from_deg=args.wind[1], controller=args.controller, host=args.host, port=args.port,
+        vehicle_port=args.vehicle_port, data_dir=args.data, demo=args.demo, demo_seed=args.demo_seed,
+        exit_after_demo=args.exit_after_demo, token=Settings.token_from_env(args.token))
+    return run_up(options, say=lambda text: print(text, flush=True))
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if args.command == "up":
+        return up(args)
     if args.command == "serve":
         try:
             parse_udpout(args.vehicle)
