@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sqlite3
 import sys
 from pathlib import Path
 
@@ -22,6 +23,15 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--db", type=Path, default=Path("data/gcs.sqlite"), help="SQLite file")
     serve.add_argument("--token", default=None, help=f"API token for mutating endpoints (or ${TOKEN_ENV})")
     serve.add_argument("--vehicle-wait", type=float, default=5.0, help="seconds a mission waits for a vehicle")
+    serve.add_argument("--signing-key", default=None, metavar="KEY",
+                       help="MAVLink 2 signing key (64 hex digits, or a passphrase), as the vehicle's --signing-key")
+    report = commands.add_parser("report", help="draw a mission's report (PNG figures + index.html)",
+                                 description="The paper's Section VI from one recorded mission: route, flown "
+                                 "track, tracking error, altitude and yaw tracking, ESO estimates.")
+    report.add_argument("mission_id", type=int, metavar="MISSION_ID")
+    report.add_argument("--db", type=Path, default=Path("data/gcs.sqlite"), help="SQLite file of the service")
+    report.add_argument("--out", type=Path, default=None, metavar="DIR",
+                        help="folder for the report (default: reports/mission-ID beside the database)")
     up = commands.add_parser("up", help="the main job: vehicle + offboard controller + service, supervised",
                              description="Start sitl_quad, adrc_offboard and the service as supervised children "
                              "(Ctrl-C or SIGTERM stops them all); the map page is at http://HOST:PORT/.")
@@ -64,6 +74,7 @@ def settings_from_args(args: argparse.Namespace) -> Settings:
         db_path=args.db,
         token=Settings.token_from_env(args.token),
         vehicle_wait_s=args.vehicle_wait,
+        signing_key=args.signing_key,
     )
 
 
@@ -93,10 +104,44 @@ def up(args: argparse.Namespace) -> int:
     return run_up(options, say=lambda text: print(text, flush=True))
 
 
+def report(args: argparse.Namespace) -> int:
+    """`python -m gcs report`: a missing database or an unknown mission is a message and exit 2."""
+    from gcs.report import ReportError, cached_report, write_report
+
+    if not args.db.is_file():
+        print(f"buoy-gcs: no database at {args.db} (give the service's --db file)", file=sys.stderr)
+        return 2
+    try:
+        storage = Storage(args.db)
+    except (StorageError, OSError, sqlite3.Error) as error:
+        print(f"buoy-gcs: --db {args.db}: {error}", file=sys.stderr)
+        return 2
+    try:
+        if args.out is None:
+            index = cached_report(storage, args.mission_id, args.db.parent / "reports")
+        else:
+            record = storage.get_mission(args.mission_id)
+            if record is None:
+                raise ReportError(f"no mission {args.mission_id} in {args.db}")
+            index = write_report(record, storage.telemetry(args.mission_id), args.out)
+    except ReportError as error:
+        print(f"buoy-gcs: {error.args[0]}", file=sys.stderr)
+        return 2
+    except OSError as error:
+        print(f"buoy-gcs: cannot write the report: {error}", file=sys.stderr)
+        return 2
+    finally:
+        storage.close()
+    print(index)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.command == "up":
         return up(args)
+    if args.command == "report":
+        return report(args)
     if args.command == "serve":
         try:
             parse_udpout(args.vehicle)

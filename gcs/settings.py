@@ -47,6 +47,12 @@ class Settings:
     live_rate_hz: float = 20.0  # WebSocket push rate to each client
     mission_timeout_margin_s: float = 120.0  # simulated seconds allowed beyond the planned flight time
     web_dir: Path = Path(__file__).resolve().parent.parent / "web"
+    signing_key: str | None = None  # MAVLink 2 signing: 64 hex digits or a passphrase (sitl_quad's format)
+
+    @property
+    def reports_dir(self) -> Path:
+        """Where GET /missions/{id}/report caches its drawings: beside the database."""
+        return self.db_path.parent / "reports"
 
     @staticmethod
     def token_from_env(token: str | None) -> str | None:

@@ -295,7 +295,8 @@ async function refreshHistory() {
   }
   const rows = missions.map((m) => {
     const t = m.tracking || {};
-    const files = ["track.geojson", "plan", "waypoints"].map((f) => `<a href="/missions/${m.id}/${f}" download>${f === "plan" ? ".plan" : f === "waypoints" ? ".waypoints" : f}</a>`).join("");
+    const files = ["track.geojson", "plan", "waypoints"].map((f) => `<a href="/missions/${m.id}/${f}" download>${f === "plan" ? ".plan" : f === "waypoints" ? ".waypoints" : f}</a>`).join("") +
+      `<a href="/missions/${m.id}/report" target="_blank" data-testid="report-link">report</a>`;
     return `<tr><td>${m.id}</td><td title="${m.reason || ""}">${m.status}${m.reason ? " *" : ""}</td><td>${m.buoys}</td>` +
       `<td>${fmt(m.length_m, 0)}</td><td>${fmt(t.distance_flown_m, 0)}</td><td>${fmt(t.rms_cross_track_m, 2)}</td>` +
       `<td>${fmt(t.max_cross_track_m, 2)}</td><td>${fmt(t.flight_time_s)}</td><td>${files}</td>` +

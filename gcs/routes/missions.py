@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import asyncio
 import json
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Path, Query, Response
+from fastapi import APIRouter, Depends, HTTPException, Path, Query, Response
+from fastapi.responses import FileResponse, RedirectResponse
 
-from gcs import exports
+from gcs import exports, report
 from gcs.missions import MissionService
 from gcs.planning import FlightParams, Plan, mission_items
 from gcs.routes.deps import get_service
@@ -99,3 +101,22 @@ def get_qgc_plan(mission_id: MissionId, service: Service) -> Response:
 def get_waypoints(mission_id: MissionId, service: Service) -> Response:
     items, home, _ = _items(service, mission_id)
     return _download(exports.waypoints_text(items, home), "text/plain", f"mission-{mission_id}.waypoints")
+
+
+@router.get("/missions/{mission_id}/report", response_class=RedirectResponse)
+def get_report(mission_id: MissionId, service: Service) -> RedirectResponse:
+    """The mission report (figures table and PNGs, the paper's Section VI from this flight): redirects to
+    its index.html, which names its figures relative to itself."""
+    service.get(mission_id)
+    return RedirectResponse(f"/missions/{mission_id}/report/index.html", status_code=307)
+
+
+@router.get("/missions/{mission_id}/report/{name}")
+async def get_report_file(mission_id: MissionId, name: str, service: Service) -> FileResponse:
+    """index.html or one of its figures, drawn on first request and again only after the mission changed."""
+    service.get(mission_id)
+    if name != "index.html" and name not in report.FIGURES:
+        raise HTTPException(404, f"no report file {name!r}")
+    cache = service.settings.reports_dir
+    index = await asyncio.to_thread(report.cached_report, service.storage, mission_id, cache)
+    return FileResponse(index.parent / name, headers={"Cache-Control": "no-cache"})

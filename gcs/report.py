@@ -1,0 +1,301 @@
+"""The mission report: the paper's Section VI (route, flown track, tracking error, altitude and yaw tracking,
+ESO estimates) drawn from one recorded mission, as PNG figures and an index.html with the figures table.
+
+`report_series` turns the stored samples into time series (pure); `write_report` draws them into a folder;
+`cached_report` keeps one folder per mission under a cache root and redraws it only when the mission changed
+(its `updated_at` or its number of samples), for `python -m gcs report` and GET /missions/{id}/report.
+Matplotlib is used through its object API (no pyplot state), so reports can be drawn from worker threads.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gcs.planning import Plan
+from gcs.storage import MissionRecord, Storage
+
+FIGURES = ("route.png", "tracking_error.png", "cross_track.png", "altitude.png", "yaw.png", "eso.png")
+STAMP_FILE = "stamp.json"
+DPI = 110
+
+
+class ReportError(LookupError):
+    """The mission to report on does not exist (the message says which)."""
+
+
+@dataclass
+class ReportSeries:
+    """A recorded flight as arrays over the vehicle's time (seconds). NaN where a sample lacked the value."""
+
+    t_s: np.ndarray
+    east: np.ndarray
+    north: np.ndarray
+    altitude: np.ndarray
+    ref_altitude: np.ndarray
+    yaw_deg: np.ndarray
+    ref_yaw_deg: np.ndarray
+    cross_track_m: np.ndarray
+    position_error_m: np.ndarray  # 3-D distance from the reference trajectory point (the ADRC tracking error)
+    eso: dict[str, np.ndarray] = field(default_factory=dict)  # name -> (n, k) estimates, NaN when absent
+
+
+def _column(samples: list[dict[str, Any]], name: str) -> np.ndarray:
+    return np.array([np.nan if s.get(name) is None else float(s[name]) for s in samples], dtype=float)
+
+
+def _wrap_deg(angle_rad: np.ndarray) -> np.ndarray:
+    return np.degrees((angle_rad + math.pi) % (2 * math.pi) - math.pi)
+
+
+def _eso_series(samples: list[dict[str, Any]]) -> dict[str, np.ndarray]:
+    names = sorted({name for s in samples for name in (s.get("eso") or {})})
+    series = {}
+    for name in names:
+        width = max(len(np.atleast_1d(s["eso"][name])) for s in samples if s.get("eso") and name in s["eso"])
+        rows = []
+        for s in samples:
+            value = (s.get("eso") or {}).get(name)
+            row = np.full(width, np.nan)
+            if value is not None:
+                values = np.array([np.nan if v is None else v for v in np.atleast_1d(value)], dtype=float)
+                row[: len(values)] = values
+            rows.append(row)
+        series[name] = np.array(rows).reshape(len(samples), width)
+    return series
+
+
+def report_series(samples: list[dict[str, Any]]) -> ReportSeries:
+    """Stored telemetry samples -> the time series the report draws (pure)."""
+    north, east, down = (_column(samples, k) for k in ("north", "east", "down"))
+    ref_north, ref_east, ref_down = (_column(samples, k) for k in ("ref_north", "ref_east", "ref_down"))
+    error = np.sqrt((ref_north - north) ** 2 + (ref_east - east) ** 2 + (ref_down - down) ** 2)
+    return ReportSeries(
+        t_s=_column(samples, "t_s"),
+        east=east,
+        north=north,
+        altitude=-down,
+        ref_altitude=-ref_down,
+        yaw_deg=_wrap_deg(_column(samples, "yaw")),
+        ref_yaw_deg=_wrap_deg(_column(samples, "ref_yaw")),
+        cross_track_m=_column(samples, "cross_track_m"),
+        position_error_m=error,
+        eso=_eso_series(samples),
+    )
+
+
+def _rms(values: np.ndarray) -> float | None:
+    finite = values[np.isfinite(values)]
+    return float(np.sqrt(np.mean(finite**2))) if len(finite) else None
+
+
+def _max(values: np.ndarray) -> float | None:
+    finite = values[np.isfinite(values)]
+    return float(finite.max()) if len(finite) else None
+
+
+def _yaw_error_deg(series: ReportSeries) -> np.ndarray:
+    return (series.ref_yaw_deg - series.yaw_deg + 180.0) % 360.0 - 180.0
+
+
+def summary_rows(record: MissionRecord, series: ReportSeries) -> list[tuple[str, str]]:
+    """The figures table: (what, value) pairs, all from the record and the series (pure)."""
+    plan = Plan.from_dict(record.plan)
+    tracking = (record.results or {}).get("tracking") or {}
+    buoys = (record.results or {}).get("buoys") or []
+
+    def metres(value: float | None, digits: int = 3) -> str:
+        return "–" if value is None else f"{value:.{digits}f} m"
+
+    in_flight = np.isfinite(series.cross_track_m)
+    closest = [b["closest_m"] for b in buoys if b.get("closest_m") is not None]
+    return [
+        ("status", record.status + (f" ({record.reason})" if record.reason else "")),
+        ("buoys", str(len(plan.order))),
+        ("planner", f"{plan.method}, {plan.elapsed_s:.2f} s"),
+        ("planned route", f"{plan.length_m:.1f} m ({plan.improvement_pct:.1f} % shorter than the input order)"),
+        ("flown (horizontal)", metres(tracking.get("distance_flown_m"), 1)),
+        ("flight time (vehicle)", _seconds(tracking.get("flight_time_s"))),
+        ("buoys reached", f"{sum(1 for b in buoys if b.get('reached'))} of {len(plan.order)}"),
+        ("worst closest approach", metres(_max(np.array(closest, dtype=float)))),
+        ("acceptance radius", f"{record.flight['acceptance_radius_m']:g} m"),
+        ("cross-track RMS", metres(tracking.get("rms_cross_track_m"))),
+        ("cross-track max", metres(tracking.get("max_cross_track_m"))),
+        ("3-D tracking error RMS (on legs)", metres(_rms(series.position_error_m[in_flight]))),
+        ("3-D tracking error max (on legs)", metres(_max(series.position_error_m[in_flight]))),
+        ("altitude error RMS (on legs)", metres(_rms((series.ref_altitude - series.altitude)[in_flight]))),
+        ("yaw error RMS (on legs)", _degrees(_rms(_yaw_error_deg(series)[in_flight]))),
+        ("samples", str(len(series.t_s))),
+    ]
+
+
+def _seconds(value: float | None) -> str:
+    return "–" if value is None else f"{value:.1f} s"
+
+
+def _degrees(value: float | None) -> str:
+    return "–" if value is None else f"{value:.2f}°"
+
+
+# ----- drawing
+def _figure(height: float = 3.2):
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(9, height), dpi=DPI, layout="constrained")
+    return figure, figure.add_subplot()
+
+
+def _save(figure, path: Path) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(figure)
+    figure.savefig(path)
+
+
+def _draw_route(plan: Plan, radius_m: float, series: ReportSeries, path: Path) -> None:
+    figure, ax = _figure(6.0)
+    route = plan.route_local()
+    ax.plot(route[:, 0], route[:, 1], "--", color="0.5", lw=1, label="planned route")
+    ax.plot(series.east, series.north, color="tab:blue", lw=1.2, label="flown track")
+    buoys = np.asarray(plan.buoys_local)
+    ax.scatter(buoys[:, 0], buoys[:, 1], marker="o", color="tab:orange", zorder=3, label="buoys")
+    for visit, index in enumerate(plan.order, start=1):
+        east, north = buoys[index]
+        ax.add_patch(_circle((east, north), radius_m))
+        ax.annotate(
+            f"{plan.buoy_ids[index]} ({visit})", (east, north), textcoords="offset points", xytext=(5, 5), fontsize=8
+        )
+    ax.scatter([0.0], [0.0], marker="s", color="k", zorder=3, label="depot")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set(xlabel="east (m)", ylabel="north (m)", title="Route: planned and flown (visiting order in brackets)")
+    ax.legend(loc="best", fontsize=8)
+    _save(figure, path)
+
+
+def _circle(centre: tuple[float, float], radius: float):
+    from matplotlib.patches import Circle
+
+    return Circle(centre, radius, fill=False, color="tab:orange", lw=0.8)
+
+
+def _draw_lines(path: Path, title: str, ylabel: str, t_s: np.ndarray, lines: list[tuple[np.ndarray, str]]) -> None:
+    figure, ax = _figure()
+    for values, label in lines:
+        ax.plot(t_s, values, lw=1, label=label)
+    ax.set(xlabel="vehicle time (s)", ylabel=ylabel, title=title)
+    ax.grid(alpha=0.3)
+    if len(lines) > 1:
+        ax.legend(loc="best", fontsize=8)
+    _save(figure, path)
+
+
+def _draw_eso(series: ReportSeries, path: Path) -> None:
+    lines = []
+    for name, values in series.eso.items():
+        axes = "xyz" if values.shape[1] == 3 else [str(i) for i in range(values.shape[1])]
+        lines += [(values[:, k], f"{name} {axis}" if values.shape[1] > 1 else name) for k, axis in enumerate(axes)]
+    if not lines:
+        lines = [(np.full(len(series.t_s), np.nan), "no estimates recorded (no offboard controller?)")]
+    _draw_lines(path, "ESO total-disturbance estimates z3 (paper eq. 11, Figure 7)", "m/s²", series.t_s, lines)
+
+
+def write_report(record: MissionRecord, samples: list[dict[str, Any]], out_dir: Path) -> Path:
+    """Draw every figure and write index.html into out_dir; returns the index.html path."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    plan = Plan.from_dict(record.plan)
+    series = report_series(samples)
+    t = series.t_s
+    _draw_route(plan, record.flight["acceptance_radius_m"], series, out_dir / "route.png")
+    _draw_lines(
+        out_dir / "tracking_error.png",
+        "3-D tracking error |reference − position|",
+        "m",
+        t,
+        [(series.position_error_m, "tracking error")],
+    )
+    _draw_lines(
+        out_dir / "cross_track.png",
+        "Cross-track error to the planned leg",
+        "m",
+        t,
+        [(series.cross_track_m, "cross-track")],
+    )
+    _draw_lines(
+        out_dir / "altitude.png",
+        "Altitude: desired and actual",
+        "m",
+        t,
+        [(series.ref_altitude, "desired"), (series.altitude, "actual")],
+    )
+    _draw_lines(
+        out_dir / "yaw.png",
+        "Yaw: desired and actual",
+        "degrees",
+        t,
+        [(series.ref_yaw_deg, "desired"), (series.yaw_deg, "actual")],
+    )
+    _draw_eso(series, out_dir / "eso.png")
+    index = out_dir / "index.html"
+    index.write_text(report_html(record, summary_rows(record, series)))
+    return index
+
+
+def report_html(record: MissionRecord, rows: list[tuple[str, str]]) -> str:
+    """The page: figures table, per-buoy table, then the PNGs (by relative name, so the folder is portable)."""
+    table = "\n".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows)
+    buoys = (record.results or {}).get("buoys") or []
+    buoy_rows = "\n".join(
+        f"<tr><td>{html.escape(str(b.get('id', b['index'])))}</td><td>{'yes' if b.get('reached') else 'no'}</td>"
+        f"<td>{_cell(b.get('closest_m'), 2)}</td><td>{_cell(b.get('arrival_s'), 1)}</td></tr>"
+        for b in buoys
+    )
+    images = "\n".join(f'<figure><img src="{name}" alt="{name[:-4]}"></figure>' for name in FIGURES)
+    return f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><title>Mission {record.id} report</title>
+<style>body{{font-family:sans-serif;max-width:1000px;margin:1em auto}} table{{border-collapse:collapse}}
+th,td{{border:1px solid #ccc;padding:2px 8px;text-align:left}} img{{max-width:100%}}</style></head>
+<body>
+<h1>Mission {record.id} report</h1>
+<p>Created {html.escape(record.created_at)}, last updated {html.escape(record.updated_at)}.</p>
+<h2>Figures</h2>
+<table data-testid="figures">
+{table}
+</table>
+<h2>Buoys</h2>
+<table><thead><tr><th>buoy</th><th>reached</th><th>closest m</th><th>arrival s</th></tr></thead>
+<tbody>
+{buoy_rows}
+</tbody></table>
+{images}
+</body></html>
+"""
+
+
+def _cell(value: float | None, digits: int) -> str:
+    return "–" if value is None else f"{value:.{digits}f}"
+
+
+def cached_report(storage: Storage, mission_id: int, cache_root: Path) -> Path:
+    """The mission's report folder under cache_root, drawn again only when the mission changed since.
+    Raises ReportError for an unknown mission."""
+    record = storage.get_mission(mission_id)
+    if record is None:
+        raise ReportError(f"no mission {mission_id} in {storage.path}")
+    out_dir = cache_root / f"mission-{mission_id}"
+    stamp = {"updated_at": record.updated_at, "samples": storage.telemetry_count(mission_id)}
+    stamp_path = out_dir / STAMP_FILE
+    index = out_dir / "index.html"
+    try:
+        if index.exists() and json.loads(stamp_path.read_text()) == stamp:
+            return index
+    except (OSError, ValueError):
+        pass
+    write_report(record, storage.telemetry(mission_id), out_dir)
+    stamp_path.write_text(json.dumps(stamp))
+    return index
