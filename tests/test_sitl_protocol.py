@@ -126,6 +126,22 @@ def test_param_set_refused_answers_the_old_value(gcs, name, raw, param_type):
     assert gcs.read_param(name).param_value == before.param_value
 
 
+def test_mavlink_ftp_request_is_refused_at_once(gcs):
+    # MAVProxy asks for @PARAM/param.pck over MAVLink FTP first; a NAK lets it fall back to the
+    # PARAM protocol at once instead of after its FTP timeouts.
+    path = b"@PARAM/param.pck"
+    open_read_only = 4
+    request = (7).to_bytes(2, "little") + bytes([0, open_read_only, len(path), 0, 0, 0]) + bytes(4) + path
+    gcs.mav.file_transfer_protocol_send(0, VEHICLE_SYSID, VEHICLE_COMPID, list(request.ljust(251, b"\0")))
+    reply = gcs.recv("FILE_TRANSFER_PROTOCOL", timeout=5)
+    assert reply is not None
+    assert reply.target_system == gcs.mav.srcSystem
+    payload = bytes(reply.payload)
+    assert int.from_bytes(payload[0:2], "little") == 8  # the request's seq + 1
+    assert payload[3] == 129 and payload[5] == open_read_only  # NAK of OpenFileRO
+    assert payload[4] == 1 and payload[12] != 0  # one byte of data: a non-zero error code
+
+
 # ----- commands
 @pytest.mark.parametrize("use_int", [False, True], ids=["COMMAND_LONG", "COMMAND_INT"])
 def test_unknown_command_is_acked_unsupported(gcs, use_int):
