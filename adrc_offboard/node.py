@@ -52,7 +52,6 @@ class VehicleView:
         return self.main_mode == AUTO_MAIN_MODE and self.sub_mode in (MISSION_SUB_MODE, TAKEOFF_SUB_MODE)
 
 
-
 def state_from_messages(local, attitude) -> VehicleState:
     return VehicleState(
         t=local.time_boot_ms / 1000.0,
@@ -76,7 +75,101 @@ def setpoint_from_message(target) -> TrajectorySetpoint:
 STATE_MESSAGES = ("LOCAL_POSITION_NED", "ATTITUDE_QUATERNION", "POSITION_TARGET_LOCAL_NED")
 
 
+class OffboardProtocol:
+    """The node's side of the MAVLink conversation without its socket: `handle(msg)` takes one message from the
+    vehicle and returns the messages to send back, in order. The in-process lockstep harness
+    (adrc_offboard.offline) drives the same object, so both fly by exactly the same decisions."""
+
+    def __init__(self, controller, outer_rate_hz: float = 50.0, engage: bool = True) -> None:
+        self.controller = controller
+        self.dt = 1.0 / outer_rate_hz
+        self.engage = engage
+        self.vehicle = VehicleView()
+        self.ticks_answered = 0
+        self.engage_requests = 0
+        self._next_engage_tick = 0
+
+    def handle(self, msg) -> list:
+        kind = msg.get_type()
+        v = self.vehicle
+        if kind == "HEARTBEAT":
+            v.last_heartbeat = time.monotonic()
+            v.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+            v.main_mode, v.sub_mode = (msg.custom_mode >> 16) & 0xFF, (msg.custom_mode >> 24) & 0xFF
+        elif kind == "EXTENDED_SYS_STATE":
+            v.landed_state = msg.landed_state
+        elif kind in STATE_MESSAGES:
+            return self._collect(msg)
+        return []
+
+    def _collect(self, msg) -> list:
+        v = self.vehicle
+        t_ms = msg.time_boot_ms
+        if t_ms < v.last_time_ms:  # time went backwards: the vehicle restarted
+            log.warning("vehicle time went back from %d to %d ms: restart, observers reset", v.last_time_ms, t_ms)
+            v.pending.clear()
+            v.last_time_ms = -1
+            self.controller.reset()
+        slot = v.pending.setdefault(t_ms, {})
+        slot[msg.get_type()] = msg
+        if len(slot) == len(STATE_MESSAGES):
+            del v.pending[t_ms]
+            for stale in [k for k in v.pending if k < t_ms]:  # a lost datagram leaves an incomplete tick
+                del v.pending[stale]
+            v.last_time_ms = t_ms
+            return self._answer(t_ms, slot)
+        return []
+
+    def _answer(self, t_ms: int, slot: dict) -> list:
+        v = self.vehicle
+        out = []
+        estimate = state_from_messages(slot["LOCAL_POSITION_NED"], slot["ATTITUDE_QUATERNION"])
+        setpoint = setpoint_from_message(slot["POSITION_TARGET_LOCAL_NED"])
+        if self.engage and v.armed and v.flying_mission and self.ticks_answered >= self._next_engage_tick:
+            # Decided on this tick's heartbeat and sent before the answer, so a lockstep vehicle switches at
+            # the same tick in every run. Takeoff included: the ADRC flies the whole mission.
+            self._next_engage_tick = self.ticks_answered + ENGAGE_RETRY_TICKS
+            self.engage_requests += 1
+            base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+            out.append(
+                mavlink.MAVLink_command_long_message(
+                    1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, base, OFFBOARD_MAIN_MODE, 0, 0, 0, 0, 0
+                )
+            )
+        if not (v.armed and v.in_offboard):
+            self.controller.reset()  # not in control: start fresh when control comes (no ground learning)
+        target = self.controller.update(setpoint, estimate, self.dt)
+        w, x, y, z = (float(c) for c in target.quaternion)
+        out.append(
+            mavlink.MAVLink_set_attitude_target_message(
+                t_ms,
+                1,
+                1,
+                mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_ROLL_RATE_IGNORE
+                | mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_PITCH_RATE_IGNORE
+                | mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_YAW_RATE_IGNORE,
+                [w, x, y, z],
+                0.0,
+                0.0,
+                0.0,
+                float(target.thrust),
+            )
+        )
+        self.ticks_answered += 1
+        if self.ticks_answered % ESO_PUBLISH_EVERY == 0:
+            z3 = self.controller.disturbance_estimates()
+            if z3:
+                out.append(
+                    mavlink.MAVLink_debug_vect_message(
+                        b"ESO_Z3", t_ms * 1000, z3.get("x", 0.0), z3.get("y", 0.0), z3.get("z", 0.0)
+                    )
+                )
+        return out
+
+
 class OffboardNode:
+    """`OffboardProtocol` on a UDP socket, with a 1 Hz wall-clock heartbeat."""
+
     def __init__(
         self,
         controller,
@@ -86,10 +179,8 @@ class OffboardNode:
         sysid: int = 1,
         compid: int = 191,
     ) -> None:
-        self.controller = controller
+        self.protocol = OffboardProtocol(controller, outer_rate_hz, engage)
         self.vehicle_address = vehicle_address
-        self.dt = 1.0 / outer_rate_hz
-        self.engage = engage
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
         self.sock.bind(("127.0.0.1", 0))
@@ -97,12 +188,16 @@ class OffboardNode:
         self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
         self.parser = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
         self.parser.robust_parsing = True
-        self.vehicle = VehicleView()
         self.running = True
-        self.ticks_answered = 0
-        self.engage_requests = 0
         self._next_heartbeat = 0.0
-        self._next_engage_tick = 0
+
+    @property
+    def controller(self):
+        return self.protocol.controller
+
+    @property
+    def vehicle(self) -> VehicleView:
+        return self.protocol.vehicle
 
     # ----- transport
     def send(self, msg) -> None:
@@ -164,71 +259,5 @@ class OffboardNode:
             )
 
     def handle(self, msg) -> None:
-        kind = msg.get_type()
-        v = self.vehicle
-        if kind == "HEARTBEAT":
-            v.last_heartbeat = time.monotonic()
-            v.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
-            v.main_mode, v.sub_mode = (msg.custom_mode >> 16) & 0xFF, (msg.custom_mode >> 24) & 0xFF
-        elif kind == "EXTENDED_SYS_STATE":
-            v.landed_state = msg.landed_state
-        elif kind in STATE_MESSAGES:
-            self._collect(msg)
-
-    def _collect(self, msg) -> None:
-        v = self.vehicle
-        t_ms = msg.time_boot_ms
-        if t_ms < v.last_time_ms:  # time went backwards: the vehicle restarted
-            log.warning("vehicle time went back from %d to %d ms: restart, observers reset", v.last_time_ms, t_ms)
-            v.pending.clear()
-            v.last_time_ms = -1
-            self.controller.reset()
-        slot = v.pending.setdefault(t_ms, {})
-        slot[msg.get_type()] = msg
-        if len(slot) == len(STATE_MESSAGES):
-            del v.pending[t_ms]
-            for stale in [k for k in v.pending if k < t_ms]:  # a lost datagram leaves an incomplete tick
-                del v.pending[stale]
-            v.last_time_ms = t_ms
-            self._answer(t_ms, slot)
-
-    def _answer(self, t_ms: int, slot: dict) -> None:
-        v = self.vehicle
-        estimate = state_from_messages(slot["LOCAL_POSITION_NED"], slot["ATTITUDE_QUATERNION"])
-        setpoint = setpoint_from_message(slot["POSITION_TARGET_LOCAL_NED"])
-        if self.engage and v.armed and v.flying_mission and self.ticks_answered >= self._next_engage_tick:
-            # Decided on this tick's heartbeat and sent before the answer, so a lockstep vehicle switches at
-            # the same tick in every run. Takeoff included: the ADRC flies the whole mission.
-            self._next_engage_tick = self.ticks_answered + ENGAGE_RETRY_TICKS
-            self.engage_requests += 1
-            base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_SAFETY_ARMED
-            self.send(mavlink.MAVLink_command_long_message(
-                1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, base, OFFBOARD_MAIN_MODE, 0, 0, 0, 0, 0))
-        if not (v.armed and v.in_offboard):
-            self.controller.reset()  # not in control: start fresh when control comes (no ground learning)
-        target = self.controller.update(setpoint, estimate, self.dt)
-        w, x, y, z = (float(c) for c in target.quaternion)
-        self.send(
-            mavlink.MAVLink_set_attitude_target_message(
-                t_ms,
-                1,
-                1,
-                mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_ROLL_RATE_IGNORE
-                | mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_PITCH_RATE_IGNORE
-                | mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_YAW_RATE_IGNORE,
-                [w, x, y, z],
-                0.0,
-                0.0,
-                0.0,
-                float(target.thrust),
-            )
-        )
-        self.ticks_answered += 1
-        if self.ticks_answered % ESO_PUBLISH_EVERY == 0:
-            z3 = self.controller.disturbance_estimates()
-            if z3:
-                self.send(
-                    mavlink.MAVLink_debug_vect_message(
-                        b"ESO_Z3", t_ms * 1000, z3.get("x", 0.0), z3.get("y", 0.0), z3.get("z", 0.0)
-                    )
-                )
+        for reply in self.protocol.handle(msg):
+            self.send(reply)
