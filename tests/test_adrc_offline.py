@@ -1,0 +1,172 @@
+"""The in-process lockstep harness flies exactly the flight of the real processes over UDP lockstep."""
+
+from __future__ import annotations
+
+import csv
+import math
+import subprocess
+import sys
+import time
+
+import pytest
+from sitl_process import REPO, GroundStation, free_udp_port
+
+from adrc_offboard.cli import make_controller
+from adrc_offboard.offline import LockstepHarness
+from planner.geodesy import LocalFrame
+from planner.scenario import DEFAULT_HOME
+from sitl_quad.config import VehicleConfig
+from sitl_quad.mavlink import mavlink
+from sitl_quad.mission_items import FRAME_GLOBAL_RELATIVE_ALT_INT, NAV_LAND, NAV_TAKEOFF, NAV_WAYPOINT, MissionItem
+from sitl_quad.server import VehicleServer
+from sitl_quad.vehicle import Vehicle
+
+pytestmark = pytest.mark.integration
+
+SEED = 7
+FRAME = LocalFrame(*DEFAULT_HOME)  # the vehicle's default home
+# Armed this long on the ground before the mission starts, in both flights: the rotors spin up to idle with a
+# 20 ms lag, and only after ~40 ticks is their speed the same to the last bit however long they idled.
+IDLE_BEFORE_START_S = 1.5
+
+
+def short_mission() -> list[MissionItem]:
+    """Takeoff to 5 m, one 36 m leg with a 0.5 s dwell, land there."""
+    items = []
+    for seq, (command, north, east, alt) in enumerate(
+        [(NAV_TAKEOFF, 0, 0, 5), (NAV_WAYPOINT, 30, 20, 5), (NAV_LAND, 30, 20, 0)]
+    ):
+        lat, lon, _ = FRAME.from_ned(north, east, 0.0)
+        items.append(
+            MissionItem(
+                seq=seq,
+                frame=FRAME_GLOBAL_RELATIVE_ALT_INT,
+                command=command,
+                current=int(seq == 0),
+                param1=0.5,
+                param2=1.0,
+                param3=0.0,
+                x=round(float(lat) * 1e7),
+                y=round(float(lon) * 1e7),
+                z=float(alt),
+            )
+        )
+    return items
+
+
+def fly_over_udp(tmp_path) -> list[list[str]]:
+    """`python -m sitl_quad --lockstep --log` + `python -m adrc_offboard`; a pymavlink GCS flies the mission."""
+    port = free_udp_port()
+    log = tmp_path / "udp.csv"
+    vehicle = subprocess.Popen(
+        [sys.executable, "-m", "sitl_quad", "--port", str(port), "--lockstep", "--seed", str(SEED), "--log", str(log)],
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    controller = subprocess.Popen(
+        [sys.executable, "-m", "adrc_offboard", "--connect", f"udpout:127.0.0.1:{port}"],
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    gcs = GroundStation(port)
+    try:
+        gcs.connect(timeout=60)
+        assert gcs.recv("HEARTBEAT", timeout=60, condition=lambda m: m.get_srcComponent() == 191) is not None
+        items = [
+            mavlink.MAVLink_mission_item_int_message(
+                1,
+                1,
+                it.seq,
+                it.frame,
+                it.command,
+                it.current,
+                it.autocontinue,
+                it.param1,
+                it.param2,
+                it.param3,
+                it.param4,
+                it.x,
+                it.y,
+                it.z,
+                0,
+            )
+            for it in short_mission()
+        ]
+        assert gcs.upload_mission(items).type == mavlink.MAV_MISSION_ACCEPTED
+        assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == mavlink.MAV_RESULT_ACCEPTED
+        gcs.drain()  # what is queued may predate the arming
+        armed_ms = gcs.recv("LOCAL_POSITION_NED", timeout=10).time_boot_ms
+        assert (
+            gcs.recv(
+                "LOCAL_POSITION_NED",
+                timeout=30,
+                condition=lambda m: m.time_boot_ms >= armed_ms + 1000 * IDLE_BEFORE_START_S,
+            )
+            is not None
+        )
+        assert gcs.command(mavlink.MAV_CMD_MISSION_START, 0, 0).result == mavlink.MAV_RESULT_ACCEPTED
+        deadline = time.monotonic() + 90
+        while time.monotonic() < deadline:
+            gcs.send_heartbeat()
+            hb = gcs.recv("HEARTBEAT", timeout=2, condition=lambda m: m.get_srcComponent() == 1)
+            if hb is not None and not hb.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED:
+                break
+        else:
+            pytest.fail("the UDP mission did not finish")
+    finally:
+        gcs.close()
+        for process in (controller, vehicle):
+            process.terminate()
+        errors = [p.communicate(timeout=20)[1] for p in (controller, vehicle)]
+    assert all("Traceback" not in e for e in errors), errors
+    with open(log) as f:
+        return list(csv.reader(f))
+
+
+class LogRows:
+    """Stands in for the vehicle server so that its own CSV row format (VehicleServer._write_log) is applied
+    to the harness's ticks; rows come out as the strings csv.reader reads back."""
+
+    def __init__(self, vehicle: Vehicle) -> None:
+        self.vehicle = vehicle
+        self._log_writer = self
+        self.rows = [list(VehicleServer.LOG_COLUMNS)]
+
+    def writerow(self, row: list) -> None:
+        self.rows.append([str(x) for x in row])
+
+    def __call__(self, record) -> None:
+        VehicleServer._write_log(self, record)
+
+
+def fly_in_process() -> list[list[str]]:
+    vehicle = Vehicle(VehicleConfig(), home=DEFAULT_HOME, seed=SEED)
+    harness = LockstepHarness(vehicle, make_controller("adrc", 50.0))
+    log = LogRows(vehicle)
+    harness.fly_mission(short_mission(), idle_ticks=round(IDLE_BEFORE_START_S * 50), on_tick=log)
+    return log.rows
+
+
+def from_takeoff(rows: list[list[str]]) -> list[list[str]]:
+    """Every column but absolute time, from the first tick flown by a position loop to the disarm."""
+    col = {name: i for i, name in enumerate(rows[0])}
+    body = rows[1:]
+    start = next(i for i, r in enumerate(body) if r[col["source"]] in ("builtin", "offboard"))
+    end = next(i for i in range(start, len(body)) if body[i][col["armed"]] == "0")
+    return [r[1:] for r in body[start : end + 1]]
+
+
+def test_harness_flight_equals_the_udp_lockstep_flight_tick_by_tick(tmp_path):
+    udp = from_takeoff(fly_over_udp(tmp_path))
+    offline = from_takeoff(fly_in_process())
+    col = {name: i - 1 for i, name in enumerate(VehicleServer.LOG_COLUMNS)}
+    flown = [r for r in udp if r[col["source"]] == "offboard"]
+    assert len(flown) > 500  # the ADRC flew most of it
+    assert max(math.dist([float(r[col[k]]) for k in ("x", "y", "z")], [30.0, 20.0, 0.0]) for r in udp[-5:]) < 1.0
+    assert len(offline) == len(udp)
+    first_difference = next((i for i, (a, b) in enumerate(zip(udp, offline, strict=True)) if a != b), None)
+    assert first_difference is None, (first_difference, udp[first_difference], offline[first_difference])
