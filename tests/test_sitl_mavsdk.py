@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 import pytest
 from mavsdk import ComponentType, Configuration, Mavsdk
@@ -14,6 +15,7 @@ from mavsdk.plugins.mission_raw import MissionItem, MissionRaw
 from mavsdk.plugins.param import Param
 from mavsdk.plugins.telemetry import LandedState, Telemetry
 from sitl_process import short_mission
+from udp_relay import LossyUdpRelay
 
 from planner.scenario import DEFAULT_HOME
 
@@ -31,18 +33,24 @@ def wait_until(condition: Callable[[], bool], timeout: float, what: str) -> None
         time.sleep(0.05)
 
 
-@pytest.fixture
-def system(start_sitl) -> Iterator:
-    # OFFB_LOSS_ACT=1 gives an INT32 parameter a non-zero value: 0 reads the same however it is encoded.
-    vehicle = start_sitl(speed=20, extra_args=("--param", "OFFB_LOSS_ACT=1"))
+@contextmanager
+def mavsdk_system(port: int) -> Iterator:
     sdk = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
     try:
-        assert sdk.add_any_connection(f"udpout://127.0.0.1:{vehicle.port}").name == "SUCCESS"
+        assert sdk.add_any_connection(f"udpout://127.0.0.1:{port}").name == "SUCCESS"
         found = sdk.first_autopilot(20.0)
         assert found is not None, "MAVSDK discovered no autopilot"
         yield found
     finally:
         sdk.destroy()  # before the vehicle stops, so MAVSDK's threads never talk to a closed port
+
+
+@pytest.fixture
+def system(start_sitl) -> Iterator:
+    # OFFB_LOSS_ACT=1 gives an INT32 parameter a non-zero value: 0 reads the same however it is encoded.
+    vehicle = start_sitl(speed=20, extra_args=("--param", "OFFB_LOSS_ACT=1"))
+    with mavsdk_system(vehicle.port) as found:
+        yield found
 
 
 def as_mavsdk_item(msg) -> MissionItem:
@@ -99,3 +107,15 @@ def test_mavsdk_reads_parameters_flies_a_mission_and_sees_it_land(system):
     assert max_altitude > 4.0
     assert {1, 2, 3} <= seen_current  # followed item by item, not jumped to the end
     assert abs(telemetry.position().relative_altitude_m) < 0.5  # back on the ground at home
+
+
+def test_mavsdk_mission_round_trip_through_a_link_dropping_20_percent_each_way(start_sitl):
+    vehicle = start_sitl(speed=1)  # no flight: real time keeps the relay's work small
+    items = [as_mavsdk_item(msg) for msg in short_mission(DEFAULT_HOME)]
+    with LossyUdpRelay(vehicle.port, drop_fraction=0.2, seed=3) as relay, mavsdk_system(relay.port) as lossy:
+        mission_raw = MissionRaw(lossy)
+        mission_raw.upload_mission(items)
+        downloaded = mission_raw.download_mission()
+    assert relay.to_vehicle.dropped > 0 and relay.to_client.dropped > 0
+    assert len(downloaded) == len(items)
+    assert all(same_item(a, b) for a, b in zip(items, downloaded, strict=True))
