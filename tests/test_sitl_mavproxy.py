@@ -114,6 +114,8 @@ def test_mavproxy_fetches_every_parameter(mavproxy):
     proxy.type("param show OFFB_LOSS_T")
     shown = proxy.wait_for(r"OFFB_LOSS_T\s+(\S+)", timeout=10)
     assert float(shown.group(1)) == pytest.approx(0.5)
+    # MAVProxy reads the GEOFENCE health bit of SYS_STATUS: clear, it announces a breach of no fence.
+    assert not any("fence breach" in line for line in proxy.transcript)
 
 
 def test_mavproxy_loads_and_lists_a_waypoints_file(mavproxy, tmp_path):

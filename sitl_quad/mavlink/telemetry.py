@@ -42,6 +42,9 @@ SENSORS = (
     | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
     | mavlink.MAV_SYS_STATUS_PREARM_CHECK
 )
+# There is no geofence, so none is breached: the GEOFENCE health bit alone (not present, not enabled), as
+# ArduPilot reports it. Without it MAVProxy announces "fence breach" as soon as it connects.
+HEALTH = SENSORS | mavlink.MAV_SYS_STATUS_GEOFENCE
 
 # The offboard controller closes its loop on these: onboard peers get them at every outer-loop tick, as
 # PX4 streams its "onboard" MAVLink instance faster than a GCS link.
@@ -111,9 +114,10 @@ class Telemetry:
                 self.next_due[name] = max(self.next_due[name] + interval, t)
                 (for_ground if name in ONBOARD_STREAMS else for_everyone).append(self.builders[name]())
         if onboard:
-            # A heartbeat with every tick's state lets the offboard controller act on mode and arming in
-            # step with simulated time (what keeps a lockstep flight repeatable).
-            state = [heartbeat_message(self.vehicle), *(self.builders[name]() for name in ONBOARD_STREAMS)]
+            # Heartbeat and landed state with every tick's state let the offboard controller act on mode,
+            # arming and takeoff in step with simulated time (what keeps a lockstep flight repeatable).
+            state = [heartbeat_message(self.vehicle), self.extended_sys_state(),
+                     *(self.builders[name]() for name in ONBOARD_STREAMS)]
             self.link.send_batch(state + for_everyone, onboard)
         if ground:
             self.link.send_batch(for_ground + for_everyone, ground)
@@ -223,7 +227,7 @@ class Telemetry:
         received = max(1, stats.messages + dropped) if stats else 1
         drop_rate = min(10000, int(10000 * dropped / received))  # centi-percent
         return mavlink.MAVLink_sys_status_message(
-            SENSORS, SENSORS, SENSORS, 250, voltage_mv, 800 if self.vehicle.armed else 50,
+            SENSORS, SENSORS, HEALTH, 250, voltage_mv, 800 if self.vehicle.armed else 50,
             round(fraction * 100), drop_rate, min(65535, dropped),
             min(65535, stats.malformed if stats else 0), min(65535, stats.unknown if stats else 0),
             min(65535, stats.wrong_target if stats else 0), min(65535, stats.unsigned_rejected if stats else 0))
