@@ -57,6 +57,12 @@ def sys_status(gcs: GroundStation):
     return status
 
 
+def clear_mission(gcs: GroundStation) -> None:
+    gcs.mav.mission_clear_all_send(VEHICLE_SYSID, VEHICLE_COMPID, mavlink.MAV_MISSION_TYPE_MISSION)
+    ack = gcs.recv("MISSION_ACK", timeout=5)
+    assert ack is not None and ack.type == mavlink.MAV_MISSION_ACCEPTED
+
+
 # ----- identity
 def test_heartbeat_identifies_a_px4_quadrotor_on_component_1(gcs):
     heartbeat = gcs.recv("HEARTBEAT", timeout=5)
@@ -150,18 +156,38 @@ def test_unknown_command_is_acked_unsupported(gcs, use_int):
     assert ack.target_system == gcs.mav.srcSystem and ack.target_component == gcs.mav.srcComponent
 
 
+DENIED, UNSUPPORTED = mavlink.MAV_RESULT_DENIED, mavlink.MAV_RESULT_UNSUPPORTED
+
+
+@pytest.mark.parametrize(("command", "params", "expected"), [
+    (mavlink.MAV_CMD_NAV_TAKEOFF, (), DENIED),  # disarmed
+    (mavlink.MAV_CMD_NAV_LAND, (), ACCEPTED),  # a mode change: fine on the ground
+    (mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, (), ACCEPTED),
+    (mavlink.MAV_CMD_NAV_LOITER_UNLIM, (), ACCEPTED),
+    (mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, (99,), DENIED),  # no such item
+    (mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, (math.nan,), DENIED),
+    (mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (0.5,), DENIED),  # neither arm nor disarm
+    (mavlink.MAV_CMD_DO_SET_MODE, (0, 4, 3), DENIED),  # no custom-mode flag
+    (mavlink.MAV_CMD_DO_SET_MODE, (1, math.nan, 3), DENIED),
+    (mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, (1,), ACCEPTED),
+    (mavlink.MAV_CMD_REQUEST_PROTOCOL_VERSION, (1,), UNSUPPORTED),  # PROTOCOL_VERSION is deprecated
+    (mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, (65000, 1000), UNSUPPORTED),  # no such stream
+    (mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, (mavlink.MAVLINK_MSG_ID_ATTITUDE, math.nan), DENIED),
+], ids=lambda v: str(v))
+def test_each_command_is_acknowledged_with_its_result(gcs, command, params, expected):
+    clear_mission(gcs)
+    ack = gcs.command(command, *params)
+    assert ack is not None, f"no COMMAND_ACK for command {command}"
+    assert ack.result == expected
+    assert gcs.set_mode(4, 3).result == ACCEPTED  # leave the shared vehicle in AUTO.LOITER
+
+
 def test_arm_when_already_armed_is_temporarily_rejected(gcs):
     assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == ACCEPTED
     again = gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1)
     assert again.result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED
     assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0).result == ACCEPTED  # on the ground: fine
     assert gcs.wait_heartbeat(lambda hb: not armed(hb)) is not None
-
-
-def clear_mission(gcs: GroundStation) -> None:
-    gcs.mav.mission_clear_all_send(VEHICLE_SYSID, VEHICLE_COMPID, mavlink.MAV_MISSION_TYPE_MISSION)
-    ack = gcs.recv("MISSION_ACK", timeout=5)
-    assert ack is not None and ack.type == mavlink.MAV_MISSION_ACCEPTED
 
 
 def test_mission_start_without_a_mission_is_denied(gcs):
