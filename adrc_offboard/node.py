@@ -136,8 +136,8 @@ class OffboardProtocol:
                     1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, base, OFFBOARD_MAIN_MODE, 0, 0, 0, 0, 0
                 )
             )
-        if not (v.armed and v.in_offboard):
-            self.controller.reset()  # not in control: start fresh when control comes (no ground learning)
+        if not (v.armed and v.in_offboard and v.landed_state != mavlink.MAV_LANDED_STATE_ON_GROUND):
+            self.controller.reset()  # not in control, or idling on the ground: start fresh at the climb
         target = self.controller.update(setpoint, estimate, self.dt)
         w, x, y, z = (float(c) for c in target.quaternion)
         out.append(

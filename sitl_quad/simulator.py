@@ -122,6 +122,11 @@ class Simulator:
         self._epoch = self._step_index
 
     @property
+    def step_index(self) -> int:
+        """Steps of dt since the start: simulated time as an exact integer."""
+        return self._step_index
+
+    @property
     def disturbance_time(self) -> float:
         """Seconds on the disturbances' clock (since the last restart_disturbances)."""
         return (self._step_index - self._epoch) * self.dt

@@ -29,6 +29,7 @@ ATTITUDE_RATE_HZ = 250
 PHYSICS_RATE_HZ = 1000
 IDLE_THROTTLE = 0.05  # armed on the ground: rotors spin at idle, as PX4 does
 TOUCHDOWN_CONFIRM_S = 1.0  # on the ground this long while landing -> landed, disarm
+SPOOLUP_S = 1.0  # from a takeoff or mission command on the ground to the climb (PX4's COM_SPOOLUP_TIME)
 PREFLIGHT_DISARM_S = 10.0  # armed on the ground without taking off this long -> disarm (COM_DISARM_PRFLT)
 FORCE_DISARM_MAGIC = 21196  # COMPONENT_ARM_DISARM param2 that disarms even in the air
 
@@ -66,7 +67,7 @@ class OffboardStream:
     """The latest SET_ATTITUDE_TARGET from the offboard controller."""
 
     target: AttitudeTarget | None = None
-    received_t: float = -math.inf  # simulated time it arrived
+    received_step: int = -10**12  # the physics step it arrived at
     answered_ms: int = -1  # the state time_boot_ms it answers (lockstep)
     count: int = 0
 
@@ -117,6 +118,7 @@ class Vehicle:
         self._ground_since: float | None = None
         self._armed_at = 0.0
         self._was_airborne = False
+        self._pending_start: tuple | None = None  # (time, mode, first_seq, altitude) of a takeoff spooling up
 
     # ----- construction from config (also after parameter changes)
     def _make_simulator(self) -> Simulator:
@@ -160,6 +162,15 @@ class Vehicle:
         return self.sim.t
 
     @property
+    def clock(self) -> float:
+        """The flight's own clock for the navigator and landing: seconds since the last takeoff preparation.
+
+        Relative to the flight and computed from integer steps, so a lockstep flight rounds identically
+        whatever the absolute time it started at.
+        """
+        return self.sim.disturbance_time
+
+    @property
     def time_boot_ms(self) -> int:
         return round(self.sim.t * 1000)
 
@@ -172,7 +183,8 @@ class Vehicle:
         return self.landed_state in (LandedState.IN_AIR, LandedState.TAKEOFF, LandedState.LANDING)
 
     def offboard_fresh(self) -> bool:
-        return self.t - self.offboard.received_t <= self.config.failsafe.offboard_loss_timeout_s
+        age_s = (self.sim.step_index - self.offboard.received_step) * self.sim.dt  # exact: integer steps
+        return age_s <= self.config.failsafe.offboard_loss_timeout_s + 1e-9
 
     def _emit(self, kind: str, text: str = "", severity: int = 6, seq: int = -1) -> None:
         self.events.append(VehicleEvent(kind=kind, text=text, severity=severity, seq=seq))
@@ -244,22 +256,22 @@ class Vehicle:
         self.mission = list(items)
         self.navigator.set_mission(self.mission)
         if self.armed and self.mode == FlightMode.AUTO_MISSION:
-            self.navigator.start_mission(self.t, self.estimate, 0)
+            self.navigator.start_mission(self.clock, self.estimate, 0)
         self._emit("mission_current", seq=self.navigator.current_seq)
 
     def set_current_item(self, seq: int) -> bool:
         if not 0 <= seq < len(self.mission):
             return False
         if self.armed and self.mode == FlightMode.AUTO_MISSION:
-            self.navigator.start_mission(self.t, self.estimate, seq)
+            self.navigator.start_mission(self.clock, self.estimate, seq)
         else:
-            self.navigator.set_current(self.t, self.estimate, seq)
+            self.navigator.set_current(self.clock, self.estimate, seq)
         self._emit("mission_current", seq=seq)
         return True
 
     def set_offboard_target(self, target: AttitudeTarget, answered_ms: int) -> None:
         self.offboard.target = target
-        self.offboard.received_t = self.t
+        self.offboard.received_step = self.sim.step_index
         self.offboard.answered_ms = answered_ms
         self.offboard.count += 1
 
@@ -269,20 +281,35 @@ class Vehicle:
         self.mode = mode
         if changed:
             self._emit("mode", mode.label)
-        if not self.armed:
-            return
+        if not self.armed or mode == FlightMode.OFFBOARD:
+            return  # OFFBOARD: the navigator keeps flying whatever it flies; only the outer loop changes hands
+        self._pending_start = None
         if self.sim.on_ground and not self._was_airborne and mode in (FlightMode.AUTO_MISSION,
                                                                        FlightMode.AUTO_TAKEOFF):
-            # Takeoff: the flight's disturbances start now, from the seed (see Simulator.restart_disturbances).
-            self.sim.restart_disturbances()
-            self.attitude.reset()  # forget what idling on the ground taught the loops
-            self.position.reset()
-            self.estimate = self.sim.measure()
-            if first_seq is None and self.navigator.mission_state != "complete":
-                first_seq = self.navigator.current_seq
-            self.navigator = Navigator(self.frame, self.config.navigator)  # plan from rest, not from idling
-            self.navigator.set_mission(self.mission)
-        t, est = self.t, self.estimate
+            self._prepare_takeoff(mode, first_seq, altitude)
+            return
+        self._start_activity(mode, first_seq, altitude)
+
+    def _prepare_takeoff(self, mode: FlightMode, first_seq: int | None, altitude: float | None) -> None:
+        """A flight starts here: disturbances from the seed, fresh loops and navigator, motors spooling up.
+
+        Everything a flight depends on restarts at this tick, and the climb begins a fixed SPOOLUP_S later
+        with the rotors settled at idle, so a lockstep flight is the same whenever the command arrived
+        (see Simulator.restart_disturbances). PX4 likewise waits COM_SPOOLUP_TIME before taking off.
+        """
+        self.sim.restart_disturbances()
+        self.attitude.reset()
+        self.position.reset()
+        self.estimate = self.sim.measure()
+        if first_seq is None and self.navigator.mission_state != "complete":
+            first_seq = self.navigator.current_seq
+        self.navigator = Navigator(self.frame, self.config.navigator)
+        self.navigator.set_mission(self.mission)
+        self.navigator.hold(self.clock, self.estimate)
+        self._pending_start = (self.clock + SPOOLUP_S, mode, first_seq, altitude)
+
+    def _start_activity(self, mode: FlightMode, first_seq: int | None = None, altitude: float | None = None) -> None:
+        t, est = self.clock, self.estimate
         if mode == FlightMode.AUTO_MISSION:
             if self.navigator.mission_state == "complete" and first_seq is None:
                 first_seq = 0  # re-arming after a finished mission flies it again, from the start
@@ -295,14 +322,23 @@ class Vehicle:
             self.navigator.start_land(t, est)
         elif mode in (FlightMode.AUTO_LOITER, FlightMode.POSCTL, FlightMode.AUTO_READY):
             self.navigator.hold(t, est)
-        # OFFBOARD: the navigator keeps flying whatever it was flying; only the outer loop changes hands.
+
+    def _start_pending_takeoff(self) -> None:
+        """Called each tick: begin the climb once the motors have spooled up (if still armed and wanted)."""
+        if self._pending_start is None or self.clock + 1e-9 < self._pending_start[0]:
+            return
+        _, mode, first_seq, altitude = self._pending_start
+        self._pending_start = None
+        if self.armed:
+            self._start_activity(mode, first_seq, altitude)
 
     # ----- the loop
     def tick(self) -> TickRecord:
         """Advance one outer-loop period of simulated time."""
         self.estimate = est = self.sim.measure()
+        self._start_pending_takeoff()
         if self.armed:
-            self.setpoint = self.navigator.update(self.t, est)
+            self.setpoint = self.navigator.update(self.clock, est)
             self._drain_navigator()
         else:
             self.setpoint = self._hold_here()
@@ -333,7 +369,7 @@ class Vehicle:
         if not self.armed:
             return AttitudeTarget(quaternion=np.array([1.0, 0, 0, 0]), thrust=0.0), "off"
         climbing = self.navigator.activity in ("takeoff", "mission", "rtl") and not self.navigator.is_landing
-        if self.sim.on_ground and not self._was_airborne and not climbing and self.mode != FlightMode.OFFBOARD:
+        if self.sim.on_ground and not self._was_airborne and not climbing:  # motors idle until a climb starts
             level = AttitudeTarget(quaternion=self._level_quaternion(est), thrust=IDLE_THROTTLE)
             return level, "idle"
         if self.mode == FlightMode.OFFBOARD and self.offboard.target is not None:
@@ -386,15 +422,15 @@ class Vehicle:
         if self.navigator.is_landing or (self._was_airborne and on_ground):
             self.landed_state = LandedState.LANDING
             if on_ground:
-                self._ground_since = self.t if self._ground_since is None else self._ground_since
-                if self.t - self._ground_since >= TOUCHDOWN_CONFIRM_S:
+                self._ground_since = self.clock if self._ground_since is None else self._ground_since
+                if self.clock - self._ground_since >= TOUCHDOWN_CONFIRM_S - 1e-9:
                     self._ground_since = None
                     self._emit("text", "Landing detected", 6)
                     self._disarm("Disarmed after landing")
             else:
                 self._ground_since = None
         elif on_ground and not self._was_airborne:
-            climbing = self.navigator.activity in ("takeoff", "mission", "rtl")
+            climbing = self.navigator.activity in ("takeoff", "mission", "rtl") or self._pending_start is not None
             self.landed_state = LandedState.TAKEOFF if climbing else LandedState.ON_GROUND
             if not climbing and self.t - self._armed_at > PREFLIGHT_DISARM_S:
                 self._disarm("Disarmed: no takeoff")

@@ -100,8 +100,10 @@ def _fly_lockstep_mission(tmp_path, tag: str, seed: int) -> list[list[str]]:
     gcs = GroundStation(port)
     try:
         gcs.connect(timeout=60)
-        # wait until the controller streams, so the whole flight runs in lockstep from the start
-        assert gcs.recv("HEARTBEAT", timeout=60, condition=lambda m: m.get_srcComponent() == 191) is not None
+        # Wait until the controller answers ticks (its ESO estimates, forwarded by the vehicle, prove it), so
+        # the vehicle is in lockstep before the mission starts; a mission started while the vehicle still
+        # runs freely would hand over to the controller after a timing-dependent number of ticks.
+        assert gcs.recv("DEBUG_VECT", timeout=60, condition=lambda m: m.get_srcComponent() == 191) is not None
         items = []
         for seq, (command, north, east, alt) in enumerate([(22, 0, 0, 5), (16, 30, 20, 5), (21, 30, 20, 0)]):
             lat, lon, _ = FRAME.from_ned(north, east, 0.0)
