@@ -10,7 +10,8 @@ What it does: sends the GCS heartbeat at 1 Hz (sysid 255, compid 190, type GCS);
 vehicle state; detects link loss (no heartbeat for `heartbeat_timeout_s`, wall clock) and vehicle restarts
 (`time_boot_ms` going backwards), and reconnects by itself since every datagram it sends makes it the
 vehicle's peer again; sends COMMAND_LONG with acknowledgement and retries; hands chosen messages to
-subscribers (the mission protocol, the recorder) through queues and listeners.
+subscribers (the mission protocol, the recorder) through queues and listeners. With a signing key it signs
+every message it sends (MAVLink 2 message signing) and accepts only signed messages, as a keyed vehicle does.
 """
 
 from __future__ import annotations
@@ -32,6 +33,8 @@ GCS_SYSID, GCS_COMPID = 255, 190
 VEHICLE_SYSID, AUTOPILOT_COMPID = 1, 1
 RECEIVE_BUFFER_BYTES = 4 << 20
 REBOOT_BACKSTEP_MS = 1000  # time_boot_ms falling by more than this means the vehicle restarted
+STATUS_TEXTS_KEPT = 10
+SIGNING_EPOCH_S = 1420070400  # MAVLink signing timestamps count 10 us units from 2015-01-01 00:00 UTC
 ON_GROUND = mavlink.MAV_LANDED_STATE_ON_GROUND
 ARMED_FLAG = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
 
@@ -69,6 +72,14 @@ def result_name(enum: str, value: int) -> str:
     """MAV_RESULT / MAV_MISSION_RESULT number -> its name, for messages people read."""
     entry = mavlink.enums.get(enum, {}).get(value)
     return entry.name if entry is not None else f"{enum} {value}"
+
+
+def statustext(message: Any) -> str:
+    """A STATUSTEXT's text (pymavlink gives str or bytes, NUL-padded)."""
+    text = message.text
+    if isinstance(text, bytes):
+        text = text.decode("utf-8", "replace")
+    return text.rstrip("\x00").strip()
 
 
 def parse_udpout(url: str) -> tuple[str, int]:
@@ -114,6 +125,7 @@ class VehicleStatus:
     mission_state: int | None = None
     home: tuple[float, float, float] | None = None
     estimates: dict[str, Any] = field(default_factory=dict)  # the offboard controller's ESO outputs by name
+    status_texts: list[str] = field(default_factory=list)  # the vehicle's latest STATUSTEXTs, oldest first
 
     @property
     def mode(self) -> str:
@@ -148,13 +160,21 @@ class _Protocol(asyncio.DatagramProtocol):
 class LinkManager:
     """Owns the UDP socket to the vehicle. Create, `await start()`, use, `await stop()`."""
 
-    def __init__(self, url: str = "udpout:127.0.0.1:14540", heartbeat_timeout_s: float = 3.0) -> None:
+    def __init__(
+        self, url: str = "udpout:127.0.0.1:14540", heartbeat_timeout_s: float = 3.0, signing_key: bytes | None = None
+    ) -> None:
         self.address = parse_udpout(url)
         self.heartbeat_timeout_s = heartbeat_timeout_s
         self.status = VehicleStatus()
         self.encoder = mavlink.MAVLink(None, srcSystem=GCS_SYSID, srcComponent=GCS_COMPID)
         self._parser = mavlink.MAVLink(None, srcSystem=GCS_SYSID, srcComponent=GCS_COMPID)
         self._parser.robust_parsing = True
+        self.signing_key = signing_key
+        if signing_key is not None:
+            # what pymavlink's setup_signing(key, sign_outgoing=True) does on a connection, on the bare codec
+            self.encoder.signing.secret_key = signing_key
+            self.encoder.signing.sign_outgoing = True
+            self._parser.signing.secret_key = signing_key  # and no allow_unsigned_callback: unsigned is refused
         self._transport: asyncio.DatagramTransport | None = None
         self._tasks: list[asyncio.Task] = []
         self._queues: list[tuple[frozenset[str], asyncio.Queue]] = []
@@ -197,6 +217,10 @@ class LinkManager:
     def send(self, message: Any) -> None:
         if self._transport is None:
             raise LinkError("the link is not started")
+        if self.signing_key is not None:
+            # a timestamp never behind the wall clock, so a restarted service is not taken for a replay
+            wall = int((time.time() - SIGNING_EPOCH_S) * 100_000)
+            self.encoder.signing.timestamp = max(self.encoder.signing.timestamp + 1, wall)
         self._transport.sendto(message.pack(self.encoder))
         self.encoder.seq = (self.encoder.seq + 1) % 256
 
@@ -312,6 +336,8 @@ class LinkManager:
             s.mission_state = m.mission_state
         elif kind == "HOME_POSITION":
             s.home = (m.latitude * 1e-7, m.longitude * 1e-7, m.altitude / 1000.0)
+        elif kind == "STATUSTEXT":
+            s.status_texts = [*s.status_texts[1 - STATUS_TEXTS_KEPT :], statustext(m)]
 
     def _rebooted(self) -> None:
         s = self.status

@@ -3,8 +3,14 @@
 States: planned -> uploading -> uploaded -> flying -> completed | aborted | failed (with a reason). Every way a
 flight can go wrong ends in a terminal state, never a hang: no vehicle within `vehicle_wait_s` ("no vehicle"),
 a refused upload, arm or mode change, a lost link (no heartbeat for `heartbeat_timeout_s`), a vehicle reboot,
-a disarm before the end, or a flight longer than planned plus a margin (simulated time). A mission left
-unfinished by a previous run of the service is marked failed at start-up.
+a disarm before the end (named after the vehicle's failsafe when it reported one, e.g. "Failsafe: offboard
+setpoints lost, AUTO.RTL", with the mode change), or a flight longer than planned plus a margin (simulated
+time).
+
+A mission left unfinished by a previous run of the service is re-attached at start-up when the vehicle is still
+flying it (the same waypoints on board, downloaded and compared, and armed): recording and monitoring go on
+where they stopped, and the mission ends as it would have. A vehicle that finished it meanwhile (mission
+complete, landed, disarmed) completes it; anything else fails it with reason RESTART_NOT_FLYING.
 
 Completed means: the vehicle reported the mission complete (MISSION_CURRENT.mission_state COMPLETE, or the
 last item reached), and it is on the ground (EXTENDED_SYS_STATE) and disarmed (HEARTBEAT base_mode).
@@ -26,8 +32,18 @@ from typing import Any
 import numpy as np
 
 from gcs import tracking
-from gcs.link import ARMED_FLAG, AUTOPILOT_COMPID, ON_GROUND, CommandTimeoutError, LinkManager, mavlink, result_name
-from gcs.mission_protocol import MissionTransferError, upload_mission
+from gcs.link import (
+    ARMED_FLAG,
+    AUTOPILOT_COMPID,
+    ON_GROUND,
+    CommandTimeoutError,
+    LinkManager,
+    mavlink,
+    px4_mode_name,
+    result_name,
+    statustext,
+)
+from gcs.mission_protocol import MissionTransferError, download_mission, upload_mission
 from gcs.planning import FIRST_BUOY_SEQ, FlightParams, Plan, buoy_of_seq, leg_of_seq, make_plan, mission_items
 from gcs.schemas import MissionRequest, PlanRequest
 from gcs.settings import Settings
@@ -41,6 +57,10 @@ FLUSH_PERIOD_S = 0.5  # wall clock between telemetry writes and checks
 DISARM_GRACE_S = 3.0  # wall clock a flying mission may be disarmed (before takeoff) before it counts as ended
 CLIMB_RATE_M_S = 1.0  # for the flight-time budget only
 ABORTED_BEFORE_TAKEOFF = "aborted by the operator before takeoff"
+RESTART_NOT_FLYING = "GCS restarted; vehicle no longer flying this mission"
+REATTACHED = "GCS restarted; re-attached to the vehicle flying this mission"
+VEHICLE_EVENTS_KEPT = 50  # STATUSTEXTs and mode changes kept in a mission's progress
+MISSION_CURRENT_WAIT_S = 3.0  # wall clock a re-attaching service waits for the vehicle's MISSION_CURRENT
 
 
 class MissionNotFoundError(KeyError):
@@ -77,11 +97,33 @@ class Recorder:
         self.highest_seq = -1  # the vehicle moved past every item below this one
         self.latest: dict[str, Any] | None = None
         self.route = plan.route_local()
+        self.vehicle_events: list[dict[str, Any]] = []  # {t_s, text}: the vehicle's STATUSTEXTs, mode changes
+        self.custom_mode: int | None = None
+
+    def restore(self, progress: dict[str, Any]) -> None:
+        """Continue from the progress a previous run of the service stored (re-attaching after a restart)."""
+        self.reached_seqs = list(progress.get("reached_seqs") or [])
+        self.reached_at = {int(k): float(v) for k, v in (progress.get("reached_at") or {}).items()}
+        current = progress.get("current_seq")
+        self.highest_seq = -1 if current is None else int(current)
+        self.vehicle_events = list(progress.get("vehicle_events") or [])
+
+    def _event(self, text: str) -> None:
+        t_ms = self.link.status.time_boot_ms
+        self.vehicle_events = [*self.vehicle_events, {"t_s": None if t_ms is None else t_ms / 1000.0, "text": text}]
+        self.vehicle_events = self.vehicle_events[-VEHICLE_EVENTS_KEPT:]
 
     def __call__(self, message: Any) -> None:
         kind = message.get_type()
         status = self.link.status
-        if kind == "MISSION_ITEM_REACHED" and message.get_srcComponent() == AUTOPILOT_COMPID:
+        from_autopilot = message.get_srcComponent() == AUTOPILOT_COMPID
+        if kind == "STATUSTEXT" and from_autopilot:
+            self._event(statustext(message))
+        elif kind == "HEARTBEAT" and from_autopilot and message.custom_mode != self.custom_mode:
+            if self.custom_mode is not None:
+                self._event(f"mode {px4_mode_name(self.custom_mode)} -> {px4_mode_name(message.custom_mode)}")
+            self.custom_mode = message.custom_mode
+        elif kind == "MISSION_ITEM_REACHED" and message.get_srcComponent() == AUTOPILOT_COMPID:
             if message.seq not in self.reached_seqs:
                 self.reached_seqs.append(message.seq)
             buoy = buoy_of_seq(message.seq, self.plan)
@@ -146,11 +188,26 @@ class Recorder:
             "visited": visited,
             "buoys": len(self.plan.order),
             "reached_at": {str(k): v for k, v in self.reached_at.items()},
+            "vehicle_events": list(self.vehicle_events),
         }
 
     def take(self) -> list[dict[str, Any]]:
         samples, self.samples = self.samples, []
         return samples
+
+
+def ended_early_reason(events: list[dict[str, Any]], visited: int, buoys: int) -> str:
+    """Why a mission ended with the vehicle disarmed before completing it: its failsafe, when it reported one
+    (the last "Failsafe..." STATUSTEXT and the mode change that followed it), else the plain fact."""
+    texts = [event["text"] for event in events]
+    failsafes = [i for i, text in enumerate(texts) if text.lower().startswith("failsafe")]
+    count = f"{visited} of {buoys} buoys visited"
+    if not failsafes:
+        return f"the vehicle disarmed before completing the mission ({count})"
+    first = failsafes[-1]
+    modes = [text for text in texts[first:] if text.startswith("mode ")]
+    mode = f"; {modes[0]}" if modes else ""
+    return f"vehicle failsafe: {texts[first]}{mode}; landed and disarmed with {count}"
 
 
 def _airborne(sample: dict[str, Any]) -> bool:
@@ -194,10 +251,17 @@ class MissionService:
         self._statuses: dict[int, str] = {}  # last status of missions run here, for the live view
 
     async def start(self) -> None:
-        failed = self.storage.fail_unfinished("the service restarted during the mission")
-        if failed:
-            log.warning("missions %s were unfinished at start-up and are marked failed", failed)
+        unfinished = self.storage.unfinished_missions()
         await self.link.start()
+        # the vehicle flies one mission at a time: only the latest unfinished one can still be in the air
+        for mission_id in unfinished[:-1]:
+            self._transition(mission_id, "failed", RESTART_NOT_FLYING)
+        if unfinished:
+            mission_id = unfinished[-1]
+            log.warning("mission %s was unfinished at start-up: re-attaching if the vehicle still flies it", mission_id)
+            self._tasks[mission_id] = asyncio.create_task(
+                self._run(mission_id, resume=True), name=f"mission-{mission_id}"
+            )
 
     async def stop(self) -> None:
         for task in list(self._tasks.values()):
@@ -281,13 +345,17 @@ class MissionService:
             self._transition(mission_id, "aborted", ABORTED_BEFORE_TAKEOFF)
 
     # ----- the lifecycle
-    async def _run(self, mission_id: int) -> None:
+    async def _run(self, mission_id: int, resume: bool = False) -> None:
         record = self.get(mission_id)
         plan, flight = Plan.from_dict(record.plan), FlightParams(**record.flight)
         recorder = Recorder(self.link, plan, self.settings.telemetry_period_s)
         status, reason = "failed", "internal error"
         try:
-            await self._fly(mission_id, plan, flight, recorder)
+            if resume:
+                recorder.restore(record.progress)
+                await self._resume(mission_id, plan, flight, recorder)
+            else:
+                await self._fly(mission_id, plan, flight, recorder)
         except MissionEndError as ended:
             status, reason = ended.status, ended.reason
         except MissionTransferError as error:
@@ -348,6 +416,30 @@ class MissionService:
         self._transition(mission_id, "flying")
         await self._monitor(mission_id, plan, flight, recorder, boot, len(items))
 
+    async def _resume(self, mission_id: int, plan: Plan, flight: FlightParams, recorder: Recorder) -> None:
+        """Re-attach to a mission a previous run of the service left unfinished, or end it (see the module doc)."""
+        if not await self.link.wait_connected(self.settings.vehicle_wait_s):
+            raise MissionEndError("failed", f"{RESTART_NOT_FLYING} (no vehicle)")
+        s = self.link.status
+        deadline = time.monotonic() + MISSION_CURRENT_WAIT_S
+        while s.mission_total is None and time.monotonic() < deadline:
+            await asyncio.sleep(0.1)
+        home = s.home
+        expected = mission_items(plan, flight, None if home is None else (home[0], home[1]))
+        on_board = await download_mission(self.link)
+        same = len(on_board) == len(expected) and all(
+            (a.command, a.x, a.y) == (b.command, b.x, b.y) for a, b in zip(on_board, expected, strict=True)
+        )
+        if not same:
+            raise MissionEndError("failed", f"{RESTART_NOT_FLYING} (another mission is on board)")
+        self.link.add_listener(recorder)
+        self.recorders[mission_id] = recorder
+        if not s.armed:
+            finished = s.mission_state == MISSION_STATE_COMPLETE and s.landed_state == ON_GROUND
+            raise MissionEndError("completed", None) if finished else MissionEndError("failed", RESTART_NOT_FLYING)
+        self._transition(mission_id, "flying", REATTACHED)
+        await self._monitor(mission_id, plan, flight, recorder, s.reboots, len(expected))
+
     async def _monitor(
         self, mission_id: int, plan: Plan, flight: FlightParams, recorder: Recorder, boot: int, n_items: int
     ) -> None:
@@ -381,16 +473,14 @@ class MissionService:
             if not s.armed:
                 disarmed_since = disarmed_since or time.monotonic()
                 if time.monotonic() - disarmed_since > DISARM_GRACE_S:
-                    visited = progress["visited"]
-                    raise MissionEndError(
-                        "failed",
-                        f"the vehicle disarmed before completing the mission ({visited} of "
-                        f"{len(plan.order)} buoys visited)",
-                    )
+                    reason = ended_early_reason(recorder.vehicle_events, progress["visited"], len(plan.order))
+                    raise MissionEndError("failed", reason)
             else:
                 disarmed_since = None
             elapsed = (s.time_boot_ms or 0) / 1000.0 - start_s
-            if elapsed > budget_s and not aborting:
+            # a vehicle already down and disarmed is not overrunning: the disarm check above ends the mission
+            # (a lockstep vehicle with no controller runs free, so the wall-clock grace is many simulated seconds)
+            if elapsed > budget_s and not aborting and s.armed:
                 with contextlib.suppress(CommandTimeoutError):
                     await self.link.command_long(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, [])
                 raise MissionEndError(

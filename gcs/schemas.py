@@ -112,6 +112,13 @@ class TrackingFigures(BaseModel):
     flight_time_s: float | None
 
 
+class VehicleEvent(BaseModel):
+    """A STATUSTEXT of the vehicle, or a mode change ("mode OFFBOARD -> AUTO.RTL"), at the vehicle's time."""
+
+    t_s: float | None
+    text: str
+
+
 class Progress(BaseModel):
     current_seq: int | None = None
     total: int | None = None
@@ -119,6 +126,7 @@ class Progress(BaseModel):
     reached_seqs: list[int] = []
     visited: int = 0
     buoys: int = 0
+    vehicle_events: list[VehicleEvent] = []
 
 
 class MissionOut(BaseModel):

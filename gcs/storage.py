@@ -176,6 +176,15 @@ class Storage:
                 "UPDATE missions SET results = ?, updated_at = ? WHERE id = ?", (_json(results), _now(), mission_id)
             )
 
+    def unfinished_missions(self) -> list[int]:
+        """Ids of missions a previous run of the service left uploading, uploaded or flying, oldest first."""
+        with self._lock:
+            rows = self._db.execute(
+                f"SELECT id FROM missions WHERE status IN ({', '.join('?' * len(UNFINISHED))}) ORDER BY id",
+                UNFINISHED,
+            ).fetchall()
+        return [int(row["id"]) for row in rows]
+
     def fail_unfinished(self, reason: str) -> list[int]:
         """Missions left mid-flight by a previous run of the service end as failed (never stuck 'flying')."""
         with self._lock:

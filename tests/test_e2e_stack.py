@@ -1,0 +1,469 @@
+"""End to end: the whole stack as real processes on loopback UDP, driven through the GCS's REST API.
+
+Every test starts its own vehicle (`python -m sitl_quad --lockstep`), offboard controller (`python -m
+adrc_offboard`) and service (`python -m gcs serve`) on free ports, and stops them in a finalizer. The faults are
+real too: processes are killed with SIGKILL, datagrams are dropped by a relay (tests/udp_relay.py), hostile
+datagrams are sent at every UDP socket of the stack, and signing is the vehicle's own.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("MAVLINK20", "1")  # pymavlink picks its wire protocol at import time
+
+import math
+import random
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+from pymavlink.dialects.v20 import common as mavlink
+from sitl_process import GroundStation, free_udp_port, short_mission
+from udp_relay import LossyUdpRelay
+
+from gcs.missions import REATTACHED
+from gcs.up import UpOptions, reference_request
+from planner.scenario import DEFAULT_HOME, reference_scenario
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+REPO = Path(__file__).resolve().parent.parent
+TERMINAL = ("completed", "aborted", "failed")
+START_TIMEOUT_S = 90.0  # a fresh machine compiles the numba kernels on first start
+SIGNING_PASSPHRASE = "buoy inspection e2e"
+
+
+# ----- processes
+class Child:
+    """One process of the stack, its output in a log file; stopped (SIGTERM, then SIGKILL) by the fixture."""
+
+    def __init__(self, name: str, args: list[str], log_dir: Path) -> None:
+        self.name, self.args = name, [sys.executable, "-m", *args]
+        self.log_path = log_dir / f"{name}.log"
+        self.process: subprocess.Popen | None = None
+
+    def start(self, ready: Callable[[], bool]) -> Child:
+        with open(self.log_path, "a") as log:
+            log.write(f"--- starting: {' '.join(self.args)}\n")
+            log.flush()
+            self.process = subprocess.Popen(self.args, cwd=REPO, stdout=log, stderr=subprocess.STDOUT,
+                                            stdin=subprocess.DEVNULL)
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while not ready():
+            assert self.process.poll() is None, f"{self.name} exited while starting:\n{self.log()[-3000:]}"
+            assert time.monotonic() < deadline, f"{self.name} not ready in {START_TIMEOUT_S} s:\n{self.log()}"
+            time.sleep(0.1)
+        return self
+
+    def log(self) -> str:
+        return self.log_path.read_text(errors="replace") if self.log_path.exists() else ""
+
+    def alive(self) -> bool:
+        return self.process is not None and self.process.poll() is None
+
+    def kill(self) -> None:
+        """SIGKILL: the process gets no chance to clean up, as in a crash."""
+        self.process.kill()
+        self.process.wait(10)
+
+    def stop(self) -> int | None:
+        if self.process is None:
+            return None
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+            try:
+                self.process.wait(10)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait(10)
+        return self.process.returncode
+
+
+class Stack:
+    """Vehicle, offboard controller and service of one test; `api` is an HTTP client to the service."""
+
+    def __init__(self, tmp_path: Path) -> None:
+        self.dir = tmp_path
+        self.children: list[Child] = []
+        self.vehicle_port = free_udp_port()
+        self.http_port = free_tcp_port()
+        self.api = httpx.Client(base_url=f"http://127.0.0.1:{self.http_port}", timeout=30, follow_redirects=True)
+        self.vehicle = self.offboard = self.gcs = None
+
+    def start_vehicle(self, *extra: str) -> Child:
+        child = Child("sitl_quad", ["sitl_quad", "--port", str(self.vehicle_port), "--lockstep", "--seed", "1",
+                                    *extra], self.dir)
+        self.children.append(child)
+        self.vehicle = child.start(lambda: "listening" in child.log().rpartition("--- starting")[2])
+        return child
+
+    def start_offboard(self) -> Child:
+        child = Child("adrc_offboard", ["adrc_offboard", "--connect", f"udpout:127.0.0.1:{self.vehicle_port}"],
+                      self.dir)
+        self.children.append(child)
+        self.offboard = child.start(lambda: "outer loop at" in child.log().rpartition("--- starting")[2])
+        return child
+
+    def start_gcs(self, vehicle_port: int | None = None, *extra: str) -> Child:
+        port = vehicle_port or self.vehicle_port
+        child = Child("gcs", ["gcs", "serve", "--vehicle", f"udpout:127.0.0.1:{port}", "--port",
+                              str(self.http_port), "--db", str(self.dir / "gcs.sqlite"), "--vehicle-wait", "30",
+                              *extra], self.dir)
+        self.children.append(child)
+        self.gcs = child.start(self._http_ready)
+        return child
+
+    def _http_ready(self) -> bool:
+        try:
+            return self.api.get("/vehicle", timeout=1).status_code == 200
+        except httpx.HTTPError:
+            return False
+
+    def wait_connected(self, timeout_s: float = 30) -> dict:
+        return wait_until(lambda: (v := self.api.get("/vehicle").json())["connected"] and v, timeout_s,
+                          "the service never heard the vehicle")
+
+    def fly(self, request: dict) -> int:
+        response = self.api.post("/missions", json=request)
+        assert response.status_code == 201, response.text
+        return response.json()["id"]
+
+    def mission(self, mission_id: int) -> dict:
+        return self.api.get(f"/missions/{mission_id}").json()
+
+    def wait_mission(self, mission_id: int, done: Callable[[dict], bool], timeout_s: float) -> dict:
+        def finished() -> dict | None:
+            mission = self.mission(mission_id)
+            return mission if done(mission) else None
+
+        return wait_until(finished, timeout_s, lambda: f"mission {mission_id}: {self.mission(mission_id)}")
+
+    def close(self) -> list[str]:
+        """Stop everything; the logs of children that logged a traceback."""
+        self.api.close()
+        problems = []
+        for child in reversed(self.children):
+            child.stop()
+            if "Traceback" in child.log():
+                problems.append(f"{child.name} logged a traceback:\n{child.log()[-4000:]}")
+        return problems
+
+
+@pytest.fixture
+def stack(tmp_path) -> Iterator[Stack]:
+    running = Stack(tmp_path)
+    yield running
+    problems = running.close()
+    if problems:
+        pytest.fail("\n".join(problems))
+
+
+def free_tcp_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def wait_until(probe: Callable[[], object], timeout_s: float, what) -> object:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if value := probe():
+            return value
+        time.sleep(0.2)
+    raise AssertionError(f"after {timeout_s} s: {what() if callable(what) else what}")
+
+
+# ----- missions
+REFERENCE = reference_request(UpOptions(demo_seed=1))
+
+
+def near_buoys(count: int) -> dict:
+    """The reference request cut to the `count` buoys nearest the depot: a short flight (about 10 s wall)."""
+    scenario = reference_scenario(1)
+    nearest = np.argsort(np.hypot(*scenario.buoys_local.T))[:count]
+    return {**REFERENCE, "buoys": [REFERENCE["buoys"][i] for i in sorted(nearest)]}
+
+
+def assert_landed_at_depot(stack: Stack, radius_m: float) -> None:
+    vehicle = stack.api.get("/vehicle").json()
+    assert vehicle["connected"] and not vehicle["armed"], vehicle
+    assert vehicle["landed_state"] == mavlink.MAV_LANDED_STATE_ON_GROUND, vehicle
+    assert math.hypot(vehicle["north"], vehicle["east"]) <= radius_m, vehicle
+
+
+# ----- the reference scenario
+def test_reference_scenario_flies_from_post_to_landed_at_the_depot_within_the_adrc_targets(stack):
+    stack.start_vehicle()
+    stack.start_offboard()
+    stack.start_gcs()
+    stack.wait_connected()
+    started = time.monotonic()
+    mission_id = stack.fly(REFERENCE)
+    mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=60)
+    wall_s = time.monotonic() - started
+    assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
+    assert [e["status"] for e in mission["events"]] == ["planned", "uploading", "uploaded", "flying", "completed"]
+    radius = REFERENCE["acceptance_radius_m"]
+    assert len(mission["buoy_results"]) == 13
+    for result in mission["buoy_results"]:
+        assert result["reached"] and result["closest_m"] <= radius, result
+    assert mission["progress"]["visited"] == 13
+    tracking = mission["tracking"]
+    assert tracking["rms_cross_track_m"] <= 0.25, tracking
+    assert tracking["max_cross_track_m"] <= 1.0, tracking
+    assert all(leg["samples"] > 0 for leg in tracking["legs"])
+    assert_landed_at_depot(stack, radius)
+    # the vehicle flew all of it in simulated time, much faster than the wall clock (lockstep)
+    assert tracking["flight_time_s"] > 3 * wall_s
+    report = stack.api.get(f"/missions/{mission_id}/report")
+    assert report.status_code == 200 and "cross-track RMS" in report.text
+    assert stack.api.get(f"/missions/{mission_id}/report/route.png").headers["content-type"] == "image/png"
+
+
+# ----- faults
+def test_offboard_controller_killed_mid_flight_returns_and_the_mission_fails_naming_the_failsafe(stack):
+    stack.start_vehicle("--param", "OFFB_LOSS_ACT=2")  # 2: return to launch
+    offboard = stack.start_offboard()
+    stack.start_gcs()
+    stack.wait_connected()
+    request = near_buoys(3)
+    mission_id = stack.fly(request)
+    flying = stack.wait_mission(mission_id, lambda m: m["progress"].get("visited", 0) >= 1, timeout_s=60)
+    assert flying["status"] == "flying"
+    offboard.kill()
+    mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=60)
+    assert mission["status"] == "failed", mission
+    assert "Failsafe: offboard setpoints lost, AUTO.RTL" in mission["reason"], (mission, stack.vehicle.log())
+    assert "mode OFFBOARD -> AUTO.RTL" in mission["reason"], mission["reason"]
+    assert mission["progress"]["visited"] < 3
+    texts = [e["text"] for e in mission["progress"]["vehicle_events"]]
+    assert "Failsafe: offboard setpoints lost, AUTO.RTL" in texts
+    # the return flight was recorded to the ground: nothing after the fault is lost
+    samples = stack.api.get(f"/missions/{mission_id}/telemetry").json()
+    failsafe_t = next(e["t_s"] for e in mission["progress"]["vehicle_events"] if e["text"].startswith("Failsafe"))
+    after = [s for s in samples if s["t_s"] > failsafe_t]
+    assert len(after) > 50 and after[-1]["landed_state"] == mavlink.MAV_LANDED_STATE_ON_GROUND
+    assert_landed_at_depot(stack, 3.0)
+
+
+def test_gcs_restarted_mid_flight_reattaches_keeps_recording_and_completes(stack):
+    stack.start_vehicle()
+    stack.start_offboard()
+    gcs = stack.start_gcs()
+    stack.wait_connected()
+    mission_id = stack.fly(REFERENCE)
+    stack.wait_mission(mission_id, lambda m: m["progress"].get("visited", 0) >= 2, timeout_s=60)
+    before = len(stack.api.get(f"/missions/{mission_id}/telemetry").json())
+    gcs.kill()
+    stack.start_gcs()
+    mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=90)
+    assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
+    statuses = [(e["status"], e["reason"]) for e in mission["events"]]
+    assert statuses[-2:] == [("flying", REATTACHED), ("completed", None)]
+    assert all(result["reached"] for result in mission["buoy_results"])
+    assert mission["progress"]["visited"] == 13
+    samples = stack.api.get(f"/missions/{mission_id}/telemetry").json()
+    times = [s["t_s"] for s in samples]
+    assert times == sorted(times) and len(samples) > before + 500
+    # recording resumed: the flight time is covered, the restart left one gap and no more
+    assert np.diff(times).max() < 0.25 * mission["tracking"]["flight_time_s"]
+    assert mission["tracking"]["rms_cross_track_m"] <= 0.25
+    assert_landed_at_depot(stack, REFERENCE["acceptance_radius_m"])
+
+
+def test_mission_uploads_and_completes_through_20_percent_datagram_loss(stack):
+    stack.start_vehicle()
+    stack.start_offboard()
+    with LossyUdpRelay(stack.vehicle_port, drop_fraction=0.2, seed=6) as relay:
+        stack.start_gcs(relay.port)
+        stack.wait_connected()
+        request = near_buoys(3)
+        mission_id = stack.fly(request)
+        mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=90)
+        assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
+        assert all(result["reached"] for result in mission["buoy_results"])
+        assert mission["progress"]["visited"] == 3
+        for counts in (relay.to_vehicle, relay.to_client):
+            assert counts.dropped > 0.15 * (counts.dropped + counts.forwarded), counts
+    assert_landed_at_depot(stack, request["acceptance_radius_m"])
+
+
+def test_vehicle_restarted_mid_mission_fails_it_with_a_reason_and_a_new_mission_flies(stack):
+    vehicle = stack.start_vehicle()
+    stack.start_offboard()
+    stack.start_gcs()
+    stack.wait_connected()
+    mission_id = stack.fly(near_buoys(3))
+    stack.wait_mission(mission_id, lambda m: m["progress"].get("visited", 0) >= 1, timeout_s=60)
+    vehicle.kill()
+    stack.start_vehicle()
+    mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=60)
+    assert mission["status"] == "failed"
+    # a restart quicker than the heartbeat timeout shows as a reboot, a slower one as a lost link first
+    assert ("rebooted" in mission["reason"]) or ("link lost" in mission["reason"]), mission["reason"]
+    stack.wait_connected()
+    again = stack.fly(near_buoys(2))
+    mission = stack.wait_mission(again, lambda m: m["status"] in TERMINAL, timeout_s=60)
+    assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
+    assert_landed_at_depot(stack, REFERENCE["acceptance_radius_m"])
+
+
+# ----- hostile datagrams
+def udp_ports_of(pid: int) -> list[int]:
+    """The local UDP ports of a process's sockets, from /proc (no psutil)."""
+    inodes = set()
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        try:
+            target = os.readlink(fd)
+        except OSError:
+            continue
+        if target.startswith("socket:["):
+            inodes.add(target[8:-1])
+    ports = []
+    for line in Path("/proc/net/udp").read_text().splitlines()[1:]:
+        fields = line.split()
+        if fields[9] in inodes:
+            ports.append(int(fields[1].split(":")[1], 16))
+    return ports
+
+
+def hostile_datagrams(count: int, seed: int) -> Iterator[bytes]:
+    """Random bytes, mutated and truncated MAVLink frames, and valid-CRC frames with wrong targets or unknown
+    message ids: the mix a fuzzer or a misconfigured network throws at a MAVLink endpoint."""
+    rng = random.Random(seed)
+    codec = mavlink.MAVLink(None, srcSystem=42, srcComponent=1)
+    valid = [  # well-formed, checksummed, and addressed to systems that are not this vehicle
+        codec.command_long_encode(2, 1, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 21196, 0, 0, 0, 0, 0),
+        codec.command_long_encode(7, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, 1, 4, 4, 0, 0, 0, 0),
+        codec.param_set_encode(3, 1, b"OFFB_LOSS_ACT", 0.0, mavlink.MAV_PARAM_TYPE_INT32),
+        codec.mission_clear_all_encode(9, 1, 0),
+        codec.mission_count_encode(5, 1, 3, 0),
+        codec.set_mode_encode(8, 1, 6 << 16),
+    ]
+    frames = [bytes(m.pack(codec)) for m in valid]
+    for _ in range(count):
+        kind = rng.random()
+        if kind < 0.35:
+            yield rng.randbytes(rng.randrange(0, 300))
+        elif kind < 0.55:  # a real frame with a few bytes flipped: bad CRC or nonsense fields
+            frame = bytearray(rng.choice(frames))
+            for _ in range(rng.randrange(1, 4)):
+                frame[rng.randrange(len(frame))] = rng.randrange(256)
+            yield bytes(frame)
+        elif kind < 0.65:
+            frame = rng.choice(frames)
+            yield frame[: rng.randrange(1, len(frame))]
+        elif kind < 0.85:
+            yield rng.choice(frames)
+        else:  # MAVLink 2 header with a message id outside the dialect: the frame cannot be checked
+            msgid = rng.randrange(20000, 1 << 24)
+            payload = rng.randbytes(rng.randrange(1, 40))
+            header = bytes([0xFD, len(payload), 0, 0, 0, 42, 1, msgid & 0xFF, (msgid >> 8) & 0xFF, msgid >> 16])
+            yield header + payload + rng.randbytes(2)
+
+
+def blast(port: int, count: int, seed: int) -> int:
+    sent = 0
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        for datagram in hostile_datagrams(count, seed):
+            try:
+                sock.sendto(datagram, ("127.0.0.1", port))
+                sent += 1
+            except OSError:  # a full buffer or ICMP unreachable from an earlier datagram: keep going
+                pass
+    return sent
+
+
+def sys_status(station: GroundStation):
+    station.send_heartbeat()
+    return station.recv("SYS_STATUS", timeout=5.0)
+
+
+def test_hostile_datagrams_at_every_udp_port_change_nothing(stack):
+    stack.start_vehicle()
+    stack.start_offboard()
+    stack.start_gcs()
+    stack.wait_connected()
+    station = GroundStation(stack.vehicle_port, sysid=254)
+    try:
+        station.connect()
+        home = DEFAULT_HOME
+        ack = station.upload_mission(short_mission(home))
+        assert ack is not None and ack.type == mavlink.MAV_MISSION_ACCEPTED
+        params_before = {name: station.read_param(name).param_value for name in ("OFFB_LOSS_ACT", "OFFB_LOSS_T")}
+        status_before = sys_status(station)
+        vehicle_before = stack.api.get("/vehicle").json()
+        targets = {
+            "vehicle": [stack.vehicle_port],
+            "offboard": udp_ports_of(stack.offboard.process.pid),
+            "gcs": udp_ports_of(stack.gcs.process.pid),
+        }
+        assert all(targets.values()), targets
+        sent = {name: sum(blast(port, 100_000, seed=i) for port in ports)
+                for i, (name, ports) in enumerate(targets.items())}
+        assert all(count >= 100_000 for count in sent.values()), sent
+        time.sleep(1.5)  # let every process work through what its socket buffer kept
+
+        for child in (stack.vehicle, stack.offboard, stack.gcs):
+            assert child.alive(), f"{child.name} died:\n{child.log()[-3000:]}"
+        vehicle_after = stack.api.get("/vehicle").json()  # the service still answers and still hears
+        assert vehicle_after["connected"] and not vehicle_after["armed"]
+        assert vehicle_after["mode"] == vehicle_before["mode"]
+        assert stack.api.get("/missions").status_code == 200
+        station.drain()
+        after = {name: station.read_param(name).param_value for name in params_before}
+        assert after == params_before
+        items = station.download_mission()
+        assert [(i.command, i.x, i.y) for i in items] == [(i.command, i.x, i.y) for i in short_mission(home)]
+        status_after = sys_status(station)
+        assert status_after.errors_count1 > status_before.errors_count1  # malformed
+        assert status_after.errors_count2 > status_before.errors_count2  # unknown message ids
+        assert status_after.errors_count3 > status_before.errors_count3  # wrong target
+        assert status_after.drop_rate_comm > 0
+    finally:
+        station.close()
+
+
+# ----- signing
+def test_signed_vehicle_refuses_an_unkeyed_peer_while_the_keyed_gcs_flies(stack):
+    from sitl_quad.cli import signing_key
+
+    stack.start_vehicle("--signing-key", SIGNING_PASSPHRASE)
+    stack.start_gcs(None, "--signing-key", SIGNING_PASSPHRASE)  # no offboard controller: the built-in loop flies
+    stack.wait_connected()
+    keyed = GroundStation(stack.vehicle_port, sysid=250)
+    keyed.conn.setup_signing(signing_key(SIGNING_PASSPHRASE), sign_outgoing=True)
+    intruder = GroundStation(stack.vehicle_port, sysid=251)
+    try:
+        keyed.connect()
+        loss_action = keyed.read_param("OFFB_LOSS_ACT").param_value
+        # the unkeyed peer hears the vehicle (its telemetry is signed, not secret) but is never answered
+        intruder.send_heartbeat()
+        assert intruder.recv("HEARTBEAT", timeout=5) is not None
+        assert intruder.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, timeout=2) is None
+        intruder.mav.param_set_send(1, 1, b"OFFB_LOSS_ACT", loss_action + 1, mavlink.MAV_PARAM_TYPE_INT32)
+        mission_id = stack.fly(near_buoys(2))
+        stack.wait_mission(mission_id, lambda m: m["status"] == "flying", timeout_s=30)
+        deadline = time.monotonic() + 120
+        while (mission := stack.mission(mission_id))["status"] not in TERMINAL and time.monotonic() < deadline:
+            # while the keyed GCS flies, the intruder keeps ordering a disarm and a landing: refused
+            intruder.mav.command_long_send(1, 1, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, 21196, 0, 0, 0, 0, 0)
+            intruder.mav.command_long_send(1, 1, mavlink.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0)
+            time.sleep(0.1)
+        assert (mission["status"], mission["reason"]) == ("completed", None), mission
+        assert all(result["reached"] for result in mission["buoy_results"])
+        keyed.drain()
+        assert keyed.read_param("OFFB_LOSS_ACT").param_value == loss_action
+        status = sys_status(keyed)
+        assert status.errors_count4 > 10  # unsigned messages refused
+    finally:
+        keyed.close()
+        intruder.close()
