@@ -39,6 +39,10 @@ def free_udp_port() -> int:
         return sock.getsockname()[1]
 
 
+class PortTakenError(RuntimeError):
+    """The vehicle could not bind its UDP port."""
+
+
 class SitlProcess:
     """The vehicle as a child process on 127.0.0.1:port."""
 
@@ -51,7 +55,18 @@ class SitlProcess:
         self.process: subprocess.Popen | None = None
         self.returncode: int | None = None
 
-    def start(self, timeout: float = START_TIMEOUT_S) -> SitlProcess:
+    def start(self, timeout: float = START_TIMEOUT_S, attempts: int = 3) -> SitlProcess:
+        """Start and wait for the "listening" line. The free port can be taken by another process between
+        free_udp_port() and the vehicle's bind (parallel test workers): then try again on a new port."""
+        for _ in range(attempts - 1):
+            try:
+                return self._start_once(timeout)
+            except PortTakenError:
+                self.port = free_udp_port()
+                self.args[self.args.index("--port") + 1] = str(self.port)
+        return self._start_once(timeout)
+
+    def _start_once(self, timeout: float) -> SitlProcess:
         with open(self.stderr_path, "w") as stderr:
             self.process = subprocess.Popen(self.args, cwd=REPO, stdout=subprocess.PIPE, stderr=stderr,
                                             text=True)
@@ -69,6 +84,8 @@ class SitlProcess:
             if "listening" in line:
                 return self
         self.stop()
+        if "cannot listen" in self.stderr():
+            raise PortTakenError(self.stderr())
         raise RuntimeError(f"sitl_quad did not start listening on port {self.port}: {self.stderr()}")
 
     def alive(self) -> bool:

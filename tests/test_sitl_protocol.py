@@ -407,6 +407,7 @@ def test_mission_upload_succeeds_through_a_link_dropping_20_percent_each_way(sta
         (i.seq, i.command, i.x, i.y, i.z) for i in items]
 
 
+@pytest.mark.slow  # waits out the vehicle's 5 s transfer timeout
 def test_upload_aborted_half_way_leaves_the_next_upload_working(start_sitl):
     vehicle = start_sitl(speed=1)
     gcs = GroundStation(vehicle.port)
