@@ -4,12 +4,13 @@ Each `LockstepHarness.step()` does what `python -m sitl_quad --lockstep` and `py
 for one outer-loop tick, with the same code on both sides:
 
 1. `vehicle.tick()` (sitl_quad.vehicle);
-2. the vehicle's per-tick onboard stream (HEARTBEAT, LOCAL_POSITION_NED, ATTITUDE_QUATERNION,
-   POSITION_TARGET_LOCAL_NED, built by sitl_quad.mavlink.telemetry) is packed to MAVLink 2 bytes and parsed
-   back, so the controller sees the same float32-rounded numbers it would receive over UDP;
+2. the vehicle's per-tick onboard stream (HEARTBEAT, EXTENDED_SYS_STATE, LOCAL_POSITION_NED,
+   ATTITUDE_QUATERNION, POSITION_TARGET_LOCAL_NED, built by sitl_quad.mavlink.telemetry) is packed to
+   MAVLink 2 bytes and parsed back, so the controller sees the same float32-rounded numbers it would
+   receive over UDP;
 3. the offboard node's own `OffboardProtocol` (adrc_offboard.node) handles them: it asks for OFFBOARD when
-   the vehicle is armed in mission mode, resets the controller while it is not in control, and answers with
-   a SET_ATTITUDE_TARGET stamped with the tick's time_boot_ms;
+   the vehicle is armed in mission mode, resets the controller while it is not in control or still on the
+   ground, and answers with a SET_ATTITUDE_TARGET stamped with the tick's time_boot_ms;
 4. its replies are packed and parsed again and handed to the vehicle's own MAVLink handlers
    (sitl_quad.mavlink.commands for DO_SET_MODE, sitl_quad.mavlink.offboard for SET_ATTITUDE_TARGET), which
    the lockstep server runs before it starts the next tick.
@@ -130,7 +131,12 @@ class LockstepHarness:
         """The tick's state to the offboard node and its answer back to the vehicle."""
         if self.node is None:
             return
-        stream = [heartbeat_message(self.vehicle), *(self._telemetry.builders[n]() for n in ONBOARD_STREAMS)]
+        # the batch Telemetry.publish_due sends onboard peers every tick, in its order
+        stream = [
+            heartbeat_message(self.vehicle),
+            self._telemetry.extended_sys_state(),
+            *(self._telemetry.builders[n]() for n in ONBOARD_STREAMS),
+        ]
         replies = []
         for msg in self._to_node(stream):
             replies += self.node.handle(msg)

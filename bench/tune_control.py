@@ -37,8 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the repository before bench/ (bench/planner.py)
 
 from control import FIRST_BUOY_SEQ, RESULTS, Scenario, build_scenario, fly, gust_start_time
 
