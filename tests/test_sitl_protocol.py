@@ -32,6 +32,7 @@ pytestmark = [pytest.mark.integration, pytest.mark.timeout(60)]
 
 INT32, REAL32 = mavlink.MAV_PARAM_TYPE_INT32, mavlink.MAV_PARAM_TYPE_REAL32
 ACCEPTED = mavlink.MAV_RESULT_ACCEPTED
+MISSION = mavlink.MAV_MISSION_TYPE_MISSION
 
 
 def int_bytewise(value: int) -> float:
@@ -426,6 +427,20 @@ def test_upload_aborted_half_way_leaves_the_next_upload_working(start_sitl):
     assert gcs.upload_mission(items).type == mavlink.MAV_MISSION_ACCEPTED
     assert len(gcs.download_mission()) == len(items)
     gcs.close()
+
+
+def test_upload_taken_over_by_another_station_is_cancelled_for_the_first(gcs, shared_sitl):
+    other = GroundStation(shared_sitl.port, sysid=250)
+    try:
+        other.connect()
+        items = short_mission(DEFAULT_HOME)
+        gcs.mav.mission_count_send(VEHICLE_SYSID, VEHICLE_COMPID, len(items), MISSION)
+        assert gcs.recv("MISSION_REQUEST_INT", timeout=5) is not None  # the first station's upload is live
+        assert other.upload_mission(items).type == mavlink.MAV_MISSION_ACCEPTED
+        cancelled = gcs.recv("MISSION_ACK", timeout=5)
+        assert cancelled is not None and cancelled.type == mavlink.MAV_MISSION_OPERATION_CANCELLED
+    finally:
+        other.close()
 
 
 # ----- hostile input

@@ -118,8 +118,11 @@ class MissionProtocol:
         if msg.mission_type != MISSION:
             self._ack(peer, msg, mavlink.MAV_MISSION_UNSUPPORTED, msg.mission_type)
             return
-        if self.upload is not None:
+        old = self.upload
+        if old is not None:
             log.info("new MISSION_COUNT while uploading: previous transfer dropped")
+            if old.peer is not peer:  # another GCS took over: tell the first one rather than leave it hanging
+                self._ack(old.peer, old, mavlink.MAV_MISSION_OPERATION_CANCELLED)
         self.upload = self.accepted = None
         if msg.count > MAX_ITEMS:
             self._ack(peer, msg, mavlink.MAV_MISSION_NO_SPACE)
