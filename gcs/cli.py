@@ -52,6 +52,9 @@ def build_parser() -> argparse.ArgumentParser:
     up.add_argument("--demo", action="store_true", help="fly the paper's reference scenario and print its report")
     up.add_argument("--demo-seed", type=int, default=1, help="which reference scenario the demo flies")
     up.add_argument("--exit-after-demo", action="store_true", help="stop the stack once the demo has flown")
+    up.add_argument("--signing-key", default=None, metavar="KEY",
+                    help="MAVLink 2 signing key for the vehicle and the service (needs --controller none: "
+                    "adrc_offboard does not sign yet)")
     return parser
 
 
@@ -96,11 +99,16 @@ def up(args: argparse.Namespace) -> int:
         if not 0 < getattr(args, name) < 65536:
             print(f"buoy-gcs: --{name.replace('_', '-')} {getattr(args, name)} is not a port", file=sys.stderr)
             return 2
+    if args.signing_key is not None and args.controller != "none":
+        print("buoy-gcs: --signing-key needs --controller none (adrc_offboard cannot sign its messages yet, "
+              "so a keyed vehicle would refuse them)", file=sys.stderr)
+        return 2
     options = UpOptions(
         lockstep=args.speed is None, speed=args.speed or 1.0, seed=args.seed, wind_m_s=args.wind[0],
         wind_from_deg=args.wind[1], controller=args.controller, host=args.host, port=args.port,
         vehicle_port=args.vehicle_port, data_dir=args.data, demo=args.demo, demo_seed=args.demo_seed,
-        exit_after_demo=args.exit_after_demo, token=Settings.token_from_env(args.token))
+        exit_after_demo=args.exit_after_demo, token=Settings.token_from_env(args.token),
+        signing_key=args.signing_key)
     return run_up(options, say=lambda text: print(text, flush=True))
 
 

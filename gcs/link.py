@@ -179,6 +179,7 @@ class LinkManager:
         self._tasks: list[asyncio.Task] = []
         self._queues: list[tuple[frozenset[str], asyncio.Queue]] = []
         self._listeners: list[Callable[[Any], None]] = []
+        self._datagram_ends: list[Callable[[], None]] = []
         self._connected_event = asyncio.Event()
         self.messages_received = 0
 
@@ -270,13 +271,22 @@ class LinkManager:
         finally:
             self._queues.remove(entry)
 
-    def add_listener(self, listener: Callable[[Any], None]) -> None:
-        """Call listener(message) for every message from the vehicle's system, after `status` is updated."""
+    def add_listener(self, listener: Callable[[Any], None], end_of_datagram: Callable[[], None] | None = None) -> None:
+        """Call listener(message) for every message from the vehicle's system, after `status` is updated, and
+        end_of_datagram() once every message of a datagram is in `status`. The vehicle sends what one tick
+        produced as one datagram, so only then do position, reference and attitude in `status` belong to the
+        same instant (reading them on the first message of a tick pairs it with the previous tick's rest)."""
         self._listeners.append(listener)
+        if end_of_datagram is not None:
+            self._datagram_ends.append(end_of_datagram)
 
-    def remove_listener(self, listener: Callable[[Any], None]) -> None:
+    def remove_listener(
+        self, listener: Callable[[Any], None], end_of_datagram: Callable[[], None] | None = None
+    ) -> None:
         with contextlib.suppress(ValueError):
             self._listeners.remove(listener)
+        with contextlib.suppress(ValueError):
+            self._datagram_ends.remove(end_of_datagram)
 
     def _datagram(self, data: bytes) -> None:
         try:
@@ -294,6 +304,8 @@ class LinkManager:
                         queue.put_nowait(message)
             for listener in list(self._listeners):
                 listener(message)
+        for end in list(self._datagram_ends):
+            end()
 
     def _update(self, m: Any) -> None:
         """Fold one message into `status`. Offboard-controller messages only add their estimates."""

@@ -99,6 +99,7 @@ class Recorder:
         self.route = plan.route_local()
         self.vehicle_events: list[dict[str, Any]] = []  # {t_s, text}: the vehicle's STATUSTEXTs, mode changes
         self.custom_mode: int | None = None
+        self.sample_due = False
 
     def restore(self, progress: dict[str, Any]) -> None:
         """Continue from the progress a previous run of the service stored (re-attaching after a restart)."""
@@ -135,8 +136,13 @@ class Recorder:
             now_ms = message.time_boot_ms
             if self.last_ms is None or now_ms - self.last_ms >= self.period_ms or now_ms < self.last_ms:
                 self.last_ms = now_ms
-                self.latest = self.sample()
-                self.samples.append(self.latest)
+                self.sample_due = True  # taken at the end of the datagram, with the rest of this tick
+
+    def end_of_datagram(self) -> None:
+        if self.sample_due:
+            self.sample_due = False
+            self.latest = self.sample()
+            self.samples.append(self.latest)
 
     def sample(self) -> dict[str, Any]:
         s = self.link.status
@@ -376,7 +382,7 @@ class MissionService:
     def _finish(
         self, mission_id: int, plan: Plan, flight: FlightParams, recorder: Recorder, status: str, reason: str | None
     ) -> None:
-        self.link.remove_listener(recorder)
+        self.link.remove_listener(recorder, recorder.end_of_datagram)
         self.recorders.pop(mission_id, None)
         self._abort_requested.discard(mission_id)
         self.storage.add_telemetry(mission_id, recorder.take())
@@ -405,7 +411,7 @@ class MissionService:
         items = mission_items(plan, flight, None if home is None else (home[0], home[1]))
         await upload_mission(self.link, items)
         self._transition(mission_id, "uploaded")
-        self.link.add_listener(recorder)
+        self.link.add_listener(recorder, recorder.end_of_datagram)
         self.recorders[mission_id] = recorder
         await self._command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, [1], "arm")
         # AUTO.MISSION as MAVSDK's start_mission does: DO_SET_MODE(custom | armed, main 4, sub 4)
@@ -432,7 +438,7 @@ class MissionService:
         )
         if not same:
             raise MissionEndError("failed", f"{RESTART_NOT_FLYING} (another mission is on board)")
-        self.link.add_listener(recorder)
+        self.link.add_listener(recorder, recorder.end_of_datagram)
         self.recorders[mission_id] = recorder
         if not s.armed:
             finished = s.mission_state == MISSION_STATE_COMPLETE and s.landed_state == ON_GROUND

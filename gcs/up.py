@@ -38,6 +38,7 @@ class UpOptions:
     demo_seed: int = 1  # which reference scenario to fly
     exit_after_demo: bool = False
     token: str | None = None
+    signing_key: str | None = None  # MAVLink 2 signing, passed to the vehicle and the service
 
 
 def stack(options: UpOptions) -> list[ChildSpec]:
@@ -47,6 +48,8 @@ def stack(options: UpOptions) -> list[ChildSpec]:
                     "--param", f"SIM_WIND_SPD={options.wind_m_s:g}",
                     "--param", f"SIM_WIND_DIR={options.wind_from_deg:g}"]
     vehicle_args += ["--lockstep"] if options.lockstep else ["--speed", f"{options.speed:g}"]
+    signing = ["--signing-key", options.signing_key] if options.signing_key else []
+    vehicle_args += signing
     vehicle_log = options.data_dir / "logs" / "sitl_quad.log"
     children = [ChildSpec("sitl_quad", python_module("sitl_quad", *vehicle_args),
                           ready=lambda: _log_says(vehicle_log, "listening"))]
@@ -58,6 +61,7 @@ def stack(options: UpOptions) -> list[ChildSpec]:
                 "--port", str(options.port), "--db", str(options.data_dir / "gcs.sqlite")]
     if options.token:
         gcs_args += ["--token", options.token]
+    gcs_args += signing
     base = f"http://{options.host}:{options.port}"
     children.append(ChildSpec("gcs", python_module("gcs", *gcs_args), ready=lambda: _http_ok(f"{base}/vehicle")))
     return children

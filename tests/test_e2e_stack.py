@@ -29,7 +29,9 @@ from pymavlink.dialects.v20 import common as mavlink
 from sitl_process import GroundStation, free_udp_port, short_mission
 from udp_relay import LossyUdpRelay
 
-from gcs.missions import REATTACHED
+from gcs.missions import REATTACHED, RESTART_NOT_FLYING
+from gcs.planning import make_plan
+from gcs.storage import Storage
 from gcs.up import UpOptions, reference_request
 from planner.scenario import DEFAULT_HOME, reference_scenario
 
@@ -220,6 +222,12 @@ def test_reference_scenario_flies_from_post_to_landed_at_the_depot_within_the_ad
     assert tracking["rms_cross_track_m"] <= 0.25, tracking
     assert tracking["max_cross_track_m"] <= 1.0, tracking
     assert all(leg["samples"] > 0 for leg in tracking["legs"])
+    # the ADRC target on the full 3-D tracking error, over the samples recorded on the legs
+    samples = stack.api.get(f"/missions/{mission_id}/telemetry").json()
+    on_legs = [s for s in samples if s["cross_track_m"] is not None and s["ref_north"] is not None]
+    errors = [math.dist((s["north"], s["east"], s["down"]), (s["ref_north"], s["ref_east"], s["ref_down"]))
+              for s in on_legs]
+    assert len(on_legs) > 1000 and math.sqrt(np.mean(np.square(errors))) <= 0.25
     assert_landed_at_depot(stack, radius)
     # the vehicle flew all of it in simulated time, much faster than the wall clock (lockstep)
     assert tracking["flight_time_s"] > 3 * wall_s
@@ -277,6 +285,23 @@ def test_gcs_restarted_mid_flight_reattaches_keeps_recording_and_completes(stack
     assert np.diff(times).max() < 0.25 * mission["tracking"]["flight_time_s"]
     assert mission["tracking"]["rms_cross_track_m"] <= 0.25
     assert_landed_at_depot(stack, REFERENCE["acceptance_radius_m"])
+
+
+def test_gcs_restarted_while_the_vehicle_flies_nothing_fails_the_unfinished_missions(stack):
+    storage = Storage(stack.dir / "gcs.sqlite")  # what a service killed mid-upload and mid-flight left behind
+    request = near_buoys(2)
+    plan = make_plan((request["depot"]["lat"], request["depot"]["lon"]),
+                     [(b["lat"], b["lon"]) for b in request["buoys"]], ["A", "B"], "exact")
+    flight = {"altitude_m": 5.0, "speed_m_s": 10.0, "dwell_s": 1.0, "acceptance_radius_m": 2.0}
+    left = [storage.create_mission(flight, plan.to_dict()) for _ in range(2)]
+    storage.set_status(left[0], "uploading")
+    storage.set_status(left[1], "flying")
+    storage.close()
+    stack.start_vehicle()
+    stack.start_gcs()
+    for mission_id in left:
+        mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=30)
+        assert mission["status"] == "failed" and mission["reason"].startswith(RESTART_NOT_FLYING), mission
 
 
 def test_mission_uploads_and_completes_through_20_percent_datagram_loss(stack):
