@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import queue
 import re
+import struct
 import subprocess
 import sys
 import threading
@@ -104,8 +105,8 @@ def write_waypoints(path: Path) -> list[tuple]:
     return rows
 
 
-def test_mavproxy_fetches_every_parameter(mavproxy):
-    proxy, _ = mavproxy
+def test_mavproxy_fetches_every_parameter_and_sets_an_int32_one(mavproxy):
+    proxy, port = mavproxy
     proxy.wait_for(r"Detected vehicle 1:1", timeout=30)
     proxy.type("param fetch")
     # MAVProxy tries MAVLink FTP first; the vehicle has none, so it falls back to PARAM_REQUEST_LIST.
@@ -116,6 +117,20 @@ def test_mavproxy_fetches_every_parameter(mavproxy):
     assert float(shown.group(1)) == pytest.approx(0.5)
     # MAVProxy reads the GEOFENCE health bit of SYS_STATUS: clear, it announces a breach of no fence.
     assert not any("fence breach" in line for line in proxy.transcript)
+
+    # An INT32 set by MAVProxy (it packs the int's bytes into the float, as PX4 expects) lands as that int.
+    proxy.type("param set OFFB_LOSS_ACT 2")
+    gcs = GroundStation(port)
+    gcs.connect()
+    deadline = time.monotonic() + 10
+    while (value := gcs.read_param("OFFB_LOSS_ACT")) is not None and time.monotonic() < deadline:
+        if struct.unpack("<i", struct.pack("<f", value.param_value))[0] == 2:
+            break
+        time.sleep(0.2)
+    gcs.close()
+    assert value is not None and struct.unpack("<i", struct.pack("<f", value.param_value))[0] == 2
+    proxy.type("param show OFFB_LOSS_ACT")
+    assert proxy.wait_for(r"OFFB_LOSS_ACT\s+(\S+)", timeout=10).group(1) == "2"
 
 
 def test_mavproxy_loads_and_lists_a_waypoints_file(mavproxy, tmp_path):
