@@ -9,6 +9,10 @@ Structure as PX4's mc_att_control + mc_rate_control (AttitudeControl.cpp, RateCo
    low-pass filtered; the integrator is clamped and its gain fades for large errors (PX4's i_factor).
 Gains are in SI units (N m per rad/s, etc.), unlike PX4's normalised outputs, and are tuned for Table 2:
 rate loop crossover about 25 rad/s on roll/pitch (motor lag 0.02 s), attitude P 6.5 (PX4's default).
+
+The law is a numba kernel on flat float arrays (gains: ``PidAttitudeGains.as_array``, controller state: the
+``S_*`` layout below), so the vehicle's compiled inner loop (sitl_quad.inner_loop) runs the very same code;
+``PidAttitudeController`` is its Python face.
 """
 
 from __future__ import annotations
@@ -18,9 +22,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from sitl_quad.airframe import ModelParameterError
-from sitl_quad.rotation import quat_conjugate, quat_multiply, rotate
+from sitl_quad.quaternion_kernels import Quat, Vec3, quat_inverse, quat_product, rotate_vector
 from sitl_quad.state import AttitudeTarget, VehicleState
 
 
@@ -57,17 +62,63 @@ class PidAttitudeGains:
         if self.mc_yaw_weight > 1:
             raise ModelParameterError("mc_yaw_weight must be in [0, 1]")
 
+    def as_array(self) -> np.ndarray:
+        """The gains as float64 in declaration order, for the kernels (read through the G_* indices)."""
+        return np.array([getattr(self, f.name) for f in dataclasses.fields(self)], dtype=np.float64)
 
-def _shortest_rotation(v1, v2) -> tuple[float, float, float, float]:
+
+# Index of each gain in PidAttitudeGains.as_array().
+_INDEX = {f.name: i for i, f in enumerate(dataclasses.fields(PidAttitudeGains))}
+G_ROLL_P = _INDEX["mc_roll_p"]
+G_PITCH_P = _INDEX["mc_pitch_p"]
+G_YAW_P = _INDEX["mc_yaw_p"]
+G_YAW_WEIGHT = _INDEX["mc_yaw_weight"]
+G_ROLLRATE_P = _INDEX["mc_rollrate_p"]
+G_ROLLRATE_I = _INDEX["mc_rollrate_i"]
+G_ROLLRATE_D = _INDEX["mc_rollrate_d"]
+G_PITCHRATE_P = _INDEX["mc_pitchrate_p"]
+G_PITCHRATE_I = _INDEX["mc_pitchrate_i"]
+G_PITCHRATE_D = _INDEX["mc_pitchrate_d"]
+G_YAWRATE_P = _INDEX["mc_yawrate_p"]
+G_YAWRATE_I = _INDEX["mc_yawrate_i"]
+G_YAWRATE_D = _INDEX["mc_yawrate_d"]
+G_RR_INT_LIM = _INDEX["mc_rr_int_lim"]
+G_PR_INT_LIM = _INDEX["mc_pr_int_lim"]
+G_YR_INT_LIM = _INDEX["mc_yr_int_lim"]
+G_ROLLRATE_MAX = _INDEX["mc_rollrate_max"]
+G_PITCHRATE_MAX = _INDEX["mc_pitchrate_max"]
+G_YAWRATE_MAX = _INDEX["mc_yawrate_max"]
+G_DTERM_CUTOFF = _INDEX["mc_dterm_cutoff"]
+
+# The controller's state, one flat float array: rate integrators [0:3] (N m), the previous measured rates
+# [3:6] and a flag [6] telling they are set (the D term needs two measurements), the low-passed rate
+# derivative [7:10], the last rate setpoint [10:13] (reported, not fed back).
+S_INTEGRAL = 0
+S_PREVIOUS_RATES = 3
+S_HAS_PREVIOUS = 6
+S_RATE_DERIVATIVE = 7
+S_RATE_SETPOINT = 10
+PID_STATE_SIZE = 13
+
+I_FADE_RATE = math.radians(400.0)  # rad/s of rate error at which PX4's integrator gain has faded to zero
+
+
+@njit(cache=True)
+def shortest_rotation(v1: Vec3, v2: Vec3) -> Quat:
     """Unit quaternion turning unit vector v1 onto unit vector v2 by the shortest arc (PX4's Quatf(v1, v2))."""
     cx, cy, cz = v1[1] * v2[2] - v1[2] * v2[1], v1[2] * v2[0] - v1[0] * v2[2], v1[0] * v2[1] - v1[1] * v2[0]
     dot = v1[0] * v2[0] + v1[1] * v2[1] + v1[2] * v2[2]
     if math.sqrt(cx * cx + cy * cy + cz * cz) < 1e-6 and dot < 0:  # opposite: any perpendicular axis
-        ax = [abs(c) for c in v1]
-        k = ax.index(min(ax))
-        e = [0.0, 0.0, 0.0]
-        e[k] = 1.0
-        cx, cy, cz = v1[1] * e[2] - v1[2] * e[1], v1[2] * e[0] - v1[0] * e[2], v1[0] * e[1] - v1[1] * e[0]
+        # cross v1 with the unit axis along which v1 is smallest (the first such axis on a tie)
+        a0, a1, a2 = abs(v1[0]), abs(v1[1]), abs(v1[2])
+        e0, e1, e2 = 0.0, 0.0, 0.0
+        if a0 <= a1 and a0 <= a2:
+            e0 = 1.0
+        elif a1 <= a2:
+            e1 = 1.0
+        else:
+            e2 = 1.0
+        cx, cy, cz = v1[1] * e2 - v1[2] * e1, v1[2] * e0 - v1[0] * e2, v1[0] * e1 - v1[1] * e0
         w = 0.0
     else:
         w = dot + 1.0
@@ -75,72 +126,110 @@ def _shortest_rotation(v1, v2) -> tuple[float, float, float, float]:
     return w / n, cx / n, cy / n, cz / n
 
 
+@njit(cache=True)
+def attitude_rate_setpoint_kernel(gains: np.ndarray, q: np.ndarray, qd: np.ndarray,
+                                  feedforward: np.ndarray) -> Vec3:
+    """Body-rate setpoint (rad/s) from attitude q toward qd plus the feed-forward body rates, PX4's
+    AttitudeControl::update."""
+    q_now = (q[0], q[1], q[2], q[3])
+    q_goal = (qd[0], qd[1], qd[2], qd[3])
+    # reduced attitude: only turn the thrust axis, then add a weighted share of the yaw error
+    down = (0.0, 0.0, 1.0)
+    qd_red = shortest_rotation(rotate_vector(q_now, down), rotate_vector(q_goal, down))
+    near_flip = abs(qd_red[1]) > 1 - 1e-5 or abs(qd_red[2]) > 1 - 1e-5  # thrust axis upside down: full
+    qd_red = q_goal if near_flip else quat_product(qd_red, q_now)
+    q_mix = quat_product(quat_inverse(qd_red), q_goal)
+    if q_mix[0] < 0:
+        q_mix = (-q_mix[0], -q_mix[1], -q_mix[2], -q_mix[3])
+    mix_w = min(max(q_mix[0], -1.0), 1.0)
+    mix_z = min(max(q_mix[3], -1.0), 1.0)
+    weight = gains[G_YAW_WEIGHT]
+    yaw_share = (math.cos(weight * math.acos(mix_w)), 0.0, 0.0, math.sin(weight * math.asin(mix_z)))
+    qe = quat_product(quat_inverse(q_now), quat_product(qd_red, yaw_share))
+    sign = 2.0 if qe[0] >= 0 else -2.0
+    yaw_p = gains[G_YAW_P] / weight if weight > 1e-4 else gains[G_YAW_P]
+    roll = sign * qe[1] * gains[G_ROLL_P] + feedforward[0]
+    pitch = sign * qe[2] * gains[G_PITCH_P] + feedforward[1]
+    yaw = sign * qe[3] * yaw_p + feedforward[2]
+    roll_max, pitch_max, yaw_max = gains[G_ROLLRATE_MAX], gains[G_PITCHRATE_MAX], gains[G_YAWRATE_MAX]
+    return (min(max(roll, -roll_max), roll_max), min(max(pitch, -pitch_max), pitch_max),
+            min(max(yaw, -yaw_max), yaw_max))
+
+
+@njit(cache=True)
+def pid_attitude_torque(gains: np.ndarray, pid_state: np.ndarray, q: np.ndarray, rates: np.ndarray,
+                        qd: np.ndarray, feedforward: np.ndarray, dt: float, torque: np.ndarray) -> None:
+    """One step of the cascade: writes the body torque [roll, pitch, yaw] (N m) toward qd from the measured
+    attitude q and body rates into torque, and advances pid_state (S_* layout) by dt seconds."""
+    rate_sp = attitude_rate_setpoint_kernel(gains, q, qd, feedforward)
+    # D term: low-passed derivative of the measured rate
+    if pid_state[S_HAS_PREVIOUS] != 0.0:
+        cutoff = gains[G_DTERM_CUTOFF]
+        alpha = dt / (dt + 1.0 / (2.0 * math.pi * cutoff)) if cutoff > 0 else 1.0
+        for i in range(3):
+            raw = (rates[i] - pid_state[S_PREVIOUS_RATES + i]) / dt
+            pid_state[S_RATE_DERIVATIVE + i] += alpha * (raw - pid_state[S_RATE_DERIVATIVE + i])
+    for i in range(3):
+        pid_state[S_PREVIOUS_RATES + i] = rates[i]
+    pid_state[S_HAS_PREVIOUS] = 1.0
+    p_gains = (gains[G_ROLLRATE_P], gains[G_PITCHRATE_P], gains[G_YAWRATE_P])
+    i_gains = (gains[G_ROLLRATE_I], gains[G_PITCHRATE_I], gains[G_YAWRATE_I])
+    d_gains = (gains[G_ROLLRATE_D], gains[G_PITCHRATE_D], gains[G_YAWRATE_D])
+    limits = (gains[G_RR_INT_LIM], gains[G_PR_INT_LIM], gains[G_YR_INT_LIM])
+    for i in range(3):
+        error = rate_sp[i] - rates[i]
+        integral = pid_state[S_INTEGRAL + i]
+        torque[i] = p_gains[i] * error + integral - d_gains[i] * pid_state[S_RATE_DERIVATIVE + i]
+        fade = max(0.0, 1.0 - (error / I_FADE_RATE) ** 2)  # PX4: less I for large errors
+        integral += fade * i_gains[i] * error * dt
+        pid_state[S_INTEGRAL + i] = min(max(integral, -limits[i]), limits[i])
+        pid_state[S_RATE_SETPOINT + i] = rate_sp[i]
+
+
+_NO_FEEDFORWARD = np.zeros(3)
+
+
+def _floats(values) -> np.ndarray:
+    return np.ascontiguousarray(values, dtype=np.float64)
+
+
 class PidAttitudeController:
-    """Implements sitl_quad.attitude_control.AttitudeController with PX4's cascade (see module docstring)."""
+    """Implements sitl_quad.attitude_control.AttitudeController with PX4's cascade (see module docstring).
+
+    ``kernel_gains`` and ``kernel_state`` are the arrays the kernels read and advance; the compiled inner
+    loop works on them directly, so both paths share one controller state.
+    """
 
     def __init__(self, gains: PidAttitudeGains | None = None) -> None:
         self.gains = gains or PidAttitudeGains()
-        self.reset()
+        self.kernel_gains = self.gains.as_array()
+        self.kernel_state = np.zeros(PID_STATE_SIZE)
 
     def reset(self) -> None:
-        self._integral = [0.0, 0.0, 0.0]
-        self._previous_rates: tuple[float, float, float] | None = None
-        self._rate_derivative = [0.0, 0.0, 0.0]
-        self.rate_setpoint = np.zeros(3)
+        self.kernel_state[:] = 0.0
+
+    @property
+    def rate_setpoint(self) -> np.ndarray:
+        """The body-rate setpoint (rad/s) of the last update."""
+        return self.kernel_state[S_RATE_SETPOINT:S_RATE_SETPOINT + 3].copy()
+
+    @staticmethod
+    def target_arrays(target: AttitudeTarget) -> tuple[np.ndarray, np.ndarray]:
+        """The target's quaternion and feed-forward body rates (zeros when it has none) as kernel inputs."""
+        feedforward = _NO_FEEDFORWARD if target.body_rates is None else _floats(target.body_rates)
+        return _floats(target.quaternion), feedforward
 
     def attitude_rate_setpoint(self, target: AttitudeTarget, q) -> list[float]:
-        """Body-rate setpoint (rad/s) from the attitude error, PX4's AttitudeControl::update.
-
-        Quaternions travel as lists of Python floats: numpy's per-element cost would dominate at 250 Hz.
-        """
-        g = self.gains
-        q = [float(c) for c in q]
-        qd = target.quaternion.tolist() if isinstance(target.quaternion, np.ndarray) else list(target.quaternion)
-        # reduced attitude: only turn the thrust axis, then add a weighted share of the yaw error
-        down = (0.0, 0.0, 1.0)
-        qd_red = _shortest_rotation(rotate(q, down).tolist(), rotate(qd, down).tolist())
-        near_flip = abs(qd_red[1]) > 1 - 1e-5 or abs(qd_red[2]) > 1 - 1e-5  # thrust axis upside down: full
-        qd_red = qd if near_flip else quat_multiply(qd_red, q).tolist()
-        q_mix = quat_multiply(quat_conjugate(qd_red).tolist(), qd).tolist()
-        if q_mix[0] < 0:
-            q_mix = [-c for c in q_mix]
-        mix_w = min(max(q_mix[0], -1.0), 1.0)
-        mix_z = min(max(q_mix[3], -1.0), 1.0)
-        weight = g.mc_yaw_weight
-        yaw_share = (math.cos(weight * math.acos(mix_w)), 0.0, 0.0, math.sin(weight * math.asin(mix_z)))
-        qe = quat_multiply(quat_conjugate(q).tolist(), quat_multiply(qd_red, yaw_share).tolist()).tolist()
-        sign = 2.0 if qe[0] >= 0 else -2.0
-        yaw_p = g.mc_yaw_p / weight if weight > 1e-4 else g.mc_yaw_p
-        rates = [sign * qe[1] * g.mc_roll_p, sign * qe[2] * g.mc_pitch_p, sign * qe[3] * yaw_p]
-        if target.body_rates is not None:
-            rates = [r + float(f) for r, f in zip(rates, target.body_rates, strict=True)]
-        limits = (g.mc_rollrate_max, g.mc_pitchrate_max, g.mc_yawrate_max)
-        return [min(max(r, -lim), lim) for r, lim in zip(rates, limits, strict=True)]
+        """Body-rate setpoint (rad/s) from the attitude error, PX4's AttitudeControl::update."""
+        qd, feedforward = self.target_arrays(target)
+        return list(attitude_rate_setpoint_kernel(self.kernel_gains, _floats(q), qd, feedforward))
 
     def update(self, target: AttitudeTarget, state: VehicleState, dt: float) -> np.ndarray:
         """Body torque [roll, pitch, yaw] (N m) toward target from the measured state, after dt seconds."""
         if not dt > 0:
             raise ModelParameterError(f"attitude update needs dt > 0, got {dt}")
-        g = self.gains
-        rate_sp = self.attitude_rate_setpoint(target, state.quaternion.tolist())
-        rates = tuple(state.angular_velocity.tolist())
-        # D term: low-passed derivative of the measured rate
-        if self._previous_rates is not None:
-            alpha = dt / (dt + 1.0 / (2.0 * math.pi * g.mc_dterm_cutoff)) if g.mc_dterm_cutoff > 0 else 1.0
-            for i in range(3):
-                raw = (rates[i] - self._previous_rates[i]) / dt
-                self._rate_derivative[i] += alpha * (raw - self._rate_derivative[i])
-        self._previous_rates = rates
-        p_gains = (g.mc_rollrate_p, g.mc_pitchrate_p, g.mc_yawrate_p)
-        i_gains = (g.mc_rollrate_i, g.mc_pitchrate_i, g.mc_yawrate_i)
-        d_gains = (g.mc_rollrate_d, g.mc_pitchrate_d, g.mc_yawrate_d)
-        limits = (g.mc_rr_int_lim, g.mc_pr_int_lim, g.mc_yr_int_lim)
-        torque = [0.0, 0.0, 0.0]
-        for i in range(3):
-            error = rate_sp[i] - rates[i]
-            torque[i] = p_gains[i] * error + self._integral[i] - d_gains[i] * self._rate_derivative[i]
-            fade = max(0.0, 1.0 - (error / math.radians(400.0)) ** 2)  # PX4: less I for large errors
-            integral = self._integral[i] + fade * i_gains[i] * error * dt
-            self._integral[i] = min(max(integral, -limits[i]), limits[i])
-        self.rate_setpoint = np.array(rate_sp)
-        return np.array(torque)
+        qd, feedforward = self.target_arrays(target)
+        torque = np.empty(3)
+        pid_attitude_torque(self.kernel_gains, self.kernel_state, _floats(state.quaternion),
+                            _floats(state.angular_velocity), qd, feedforward, float(dt), torque)
+        return torque

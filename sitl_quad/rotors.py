@@ -17,11 +17,12 @@ of L * kf = 3.7e-7 N m s^2.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from numba import njit
 
-from sitl_quad.airframe import P_ARM, P_KF, P_KL, Airframe, ModelParameterError
+from sitl_quad.airframe import P_ARM, P_KF, P_KL, P_OMEGA_MAX, P_OMEGA_MIN, Airframe, ModelParameterError
 
 
 @njit(cache=True)
@@ -36,6 +37,45 @@ def rotor_wrench(omega: np.ndarray, params: np.ndarray) -> tuple[float, float, f
     return thrust, roll, pitch, yaw
 
 
+@njit(cache=True)
+def mix(thrust_n: float, tx: float, ty: float, tz: float, params: np.ndarray, omega: np.ndarray) -> bool:
+    """Write into omega the rotor speeds (rad/s) for collective thrust (N) and body torque (N m): the
+    inverse of eq. (3) with Mixer's saturation priorities. Returns whether the request had to be changed."""
+    kl, kf, arm = params[P_KL], params[P_KF], params[P_ARM]
+    s_min, s_max = params[P_OMEGA_MIN] ** 2, params[P_OMEGA_MAX] ** 2
+    # Per-rotor squared speeds of each input, from solving eq. (3) for Omega_i^2.
+    a = thrust_n / kl / 4.0
+    b = tx / (arm * kl) / 4.0
+    c = ty / (arm * kl) / 4.0
+    d = tz / (arm * kf) / 4.0
+    roll_pitch = np.array([b + c, b - c, -b - c, -b + c])
+    yaw = (d, -d, d, -d)
+    saturated = False
+
+    span = roll_pitch.max() - roll_pitch.min()
+    if span > s_max - s_min:
+        roll_pitch *= (s_max - s_min) / span
+        saturated = True
+    lowest, highest = s_min - roll_pitch.min(), s_max - roll_pitch.max()
+    collective = min(max(a, lowest), highest)
+    if collective != a:
+        saturated = True
+    squared = collective + roll_pitch
+
+    yaw_scale = 1.0
+    for i in range(4):
+        if yaw[i] > 0.0:
+            yaw_scale = min(yaw_scale, (s_max - squared[i]) / yaw[i])
+        elif yaw[i] < 0.0:
+            yaw_scale = min(yaw_scale, (s_min - squared[i]) / yaw[i])
+    yaw_scale = max(yaw_scale, 0.0)
+    if yaw_scale < 1.0:
+        saturated = True
+    for i in range(4):
+        omega[i] = math.sqrt(max(squared[i] + yaw_scale * yaw[i], 0.0))
+    return saturated
+
+
 class Mixer:
     """Collective thrust + body torque -> four rotor-speed commands, the inverse of eq. (3).
 
@@ -43,12 +83,13 @@ class Mixer:
     (scaled down together only if they alone exceed the range), then collective thrust is shifted as little as
     possible, and yaw gets whatever room is left (PX4's priority: attitude over altitude over heading).
     ``saturated`` tells whether the last command had to be changed; ``saturated_steps`` counts such calls.
+    The law is the kernel ``mix`` (also called by the vehicle's compiled inner loop, which reports its calls
+    through ``record``).
     """
 
     def __init__(self, airframe: Airframe) -> None:
         self.airframe = airframe
-        self._s_min = airframe.rotor_speed_min**2
-        self._s_max = airframe.rotor_speed_max**2
+        self.params = airframe.as_array()
         self.saturated = False
         self.saturated_steps = 0
         self.calls = 0
@@ -59,38 +100,15 @@ class Mixer:
         thrust_n = float(thrust_n)
         if not all(math.isfinite(v) for v in (thrust_n, tx, ty, tz)):
             raise ModelParameterError(f"mixer input must be finite, got thrust {thrust_n}, torque {torque_body}")
-        af = self.airframe
-        s_min, s_max = self._s_min, self._s_max
-        # Per-rotor squared speeds of each input, from solving eq. (3) for Omega_i^2.
-        a = thrust_n / af.kl / 4.0
-        b = tx / (af.arm_length * af.kl) / 4.0
-        c = ty / (af.arm_length * af.kl) / 4.0
-        d = tz / (af.arm_length * af.kf) / 4.0
-        roll_pitch = [b + c, b - c, -b - c, -b + c]
-        yaw = [d, -d, d, -d]
-        saturated = False
+        omega = np.empty(4)
+        self.record((mix(thrust_n, tx, ty, tz, self.params, omega),))
+        return omega
 
-        span = max(roll_pitch) - min(roll_pitch)
-        if span > s_max - s_min:
-            scale = (s_max - s_min) / span
-            roll_pitch = [v * scale for v in roll_pitch]
-            saturated = True
-        lowest, highest = s_min - min(roll_pitch), s_max - max(roll_pitch)
-        collective = min(max(a, lowest), highest)
-        if collective != a:
-            saturated = True
-        squared = [collective + v for v in roll_pitch]
-
-        yaw_scale = 1.0
-        for s, y in zip(squared, yaw, strict=True):
-            if y > 0.0:
-                yaw_scale = min(yaw_scale, (s_max - s) / y)
-            elif y < 0.0:
-                yaw_scale = min(yaw_scale, (s_min - s) / y)
-        yaw_scale = max(yaw_scale, 0.0)
-        if yaw_scale < 1.0:
-            saturated = True
-        self.saturated = saturated
-        self.calls += 1
-        self.saturated_steps += saturated
-        return np.array([math.sqrt(max(s + yaw_scale * y, 0.0)) for s, y in zip(squared, yaw, strict=True)])
+    def record(self, saturated: Sequence[bool] | np.ndarray) -> None:
+        """Count calls of the kernel ``mix`` made for this mixer, in call order, each flagged whether it
+        saturated."""
+        calls = len(saturated)
+        if calls:
+            self.saturated = bool(saturated[-1])
+            self.calls += calls
+            self.saturated_steps += int(np.count_nonzero(saturated))

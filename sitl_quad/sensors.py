@@ -4,6 +4,10 @@ White Gaussian noise, fresh at every measurement: position and velocity per NED 
 random rotation (body-frame rotation vector, std per axis) applied to the true quaternion, gyro per body axis.
 Defaults are a good GNSS/vision-aided estimate (2 cm, 5 cm/s, 0.3 deg, 0.01 rad/s); ``SensorNoise.none()``
 reports the truth.
+
+The noise is applied by the kernel ``add_sensor_noise`` on the simulator's flat state layout
+(sitl_quad.rigid_body), so the vehicle's compiled inner loop measures with the same code; the unit normals
+come from one seeded stream, 12 per measurement in order, however they are drawn.
 """
 
 from __future__ import annotations
@@ -13,10 +17,14 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from sitl_quad.airframe import ModelParameterError
-from sitl_quad.rotation import quat_multiply
+from sitl_quad.normal_stream import NormalStream, Zeros
+from sitl_quad.quaternion_kernels import quat_product
 from sitl_quad.state import VehicleState
+
+NOISE_PER_MEASUREMENT = 12  # position, velocity, attitude rotation vector, gyro: 3 each
 
 
 @dataclass(frozen=True)
@@ -39,8 +47,29 @@ class SensorNoise:
         return cls(0.0, 0.0, 0.0, 0.0)
 
 
+@njit(cache=True)
+def add_sensor_noise(truth: np.ndarray, noise: np.ndarray, measured: np.ndarray) -> None:
+    """Write into measured the flat state truth (rigid_body layout) with noise added. noise holds position
+    [0:3], velocity [3:6], the attitude error as a body rotation vector [6:9] and gyro [9:12]; rotor speeds
+    pass unchanged."""
+    for i in range(6):
+        measured[i] = truth[i] + noise[i]
+    rx, ry, rz = noise[6], noise[7], noise[8]
+    angle = math.sqrt(rx * rx + ry * ry + rz * rz)
+    q = (truth[6], truth[7], truth[8], truth[9])
+    if angle > 0.0:
+        s = math.sin(0.5 * angle) / angle
+        q = quat_product(q, (math.cos(0.5 * angle), rx * s, ry * s, rz * s))
+    for i in range(4):
+        measured[6 + i] = q[i]
+    for i in range(3):
+        measured[10 + i] = truth[10 + i] + noise[9 + i]
+    for i in range(13, 17):
+        measured[i] = truth[i]
+
+
 class Sensors:
-    """Adds SensorNoise to a true VehicleState; seeded, one draw of 12 normals per measurement."""
+    """Adds SensorNoise to a true VehicleState; seeded, 12 normals per measurement (none if noise is off)."""
 
     def __init__(self, config: SensorNoise | None = None, seed: int | np.random.Generator = 0) -> None:
         self.config = config or SensorNoise.none()
@@ -48,28 +77,32 @@ class Sensors:
         c = self.config
         self._std = np.repeat([c.position_std_m, c.velocity_std_m_s, c.attitude_std_rad, c.gyro_std_rad_s], 3)
         self.active = bool(np.any(self._std > 0))
+        self._normals = NormalStream(self.rng, NOISE_PER_MEASUREMENT)
+        self._zeros = Zeros(NOISE_PER_MEASUREMENT)
+
+    def reconfigured(self, config: SensorNoise) -> Sensors:
+        """Sensors with a new configuration that go on with this one's random stream where it stands."""
+        sensors = Sensors(config, self.rng)
+        sensors._normals = self._normals
+        return sensors
+
+    def noise(self, measurements: int) -> np.ndarray:
+        """The noise of the next `measurements` measurements, (measurements, 12) as add_sensor_noise takes it
+        (zeros, and no draw, when the noise is off)."""
+        if not self.active:
+            return self._zeros.take(measurements)
+        return self._normals.take(measurements) * self._std
 
     def measure(self, state: VehicleState) -> VehicleState:
         """A noisy copy of state (the input is not modified)."""
-        if not self.active:
-            return dataclasses.replace(
-                state, position=state.position.copy(), velocity=state.velocity.copy(),
-                quaternion=state.quaternion.copy(), angular_velocity=state.angular_velocity.copy(),
-                rotor_speeds=state.rotor_speeds.copy(),
-            )
-        noise = (self.rng.standard_normal(12) * self._std).tolist()
-        rx, ry, rz = noise[6:9]
-        angle = math.sqrt(rx * rx + ry * ry + rz * rz)
-        if angle > 0.0:
-            s = math.sin(0.5 * angle) / angle
-            quaternion = quat_multiply(state.quaternion.tolist(), (math.cos(0.5 * angle), rx * s, ry * s, rz * s))
-        else:
-            quaternion = state.quaternion.copy()
-        return VehicleState(
-            t=state.t,
-            position=state.position + noise[0:3],
-            velocity=state.velocity + noise[3:6],
-            quaternion=quaternion,
-            angular_velocity=state.angular_velocity + noise[9:12],
-            rotor_speeds=state.rotor_speeds.copy(),
-        )
+        truth = np.concatenate([state.position, state.velocity, state.quaternion, state.angular_velocity,
+                                state.rotor_speeds]).astype(np.float64, copy=False)
+        return self.measure_flat(truth, state.t)
+
+    def measure_flat(self, truth: np.ndarray, t: float) -> VehicleState:
+        """A noisy copy of the flat state truth (rigid_body layout) at time t, as measure() gives."""
+        measured = np.array(truth, dtype=np.float64)
+        if self.active:
+            add_sensor_noise(truth, self.noise(1)[0], measured)
+        return VehicleState(t=t, position=measured[0:3], velocity=measured[3:6], quaternion=measured[6:10],
+                            angular_velocity=measured[10:13], rotor_speeds=measured[13:17])

@@ -12,11 +12,14 @@ import math
 import numpy as np
 
 from sitl_quad.airframe import Airframe, ModelParameterError
+from sitl_quad.attitude_pid import PidAttitudeController
 from sitl_quad.disturbances import DisturbanceConfig, GaussianDisturbance
+from sitl_quad.inner_loop import disturbance_samples_due, pid_inner_loop
 from sitl_quad.rigid_body import INFO_SIZE, STATE_SIZE, advance
 from sitl_quad.rotation import euler_from_quat, quat_from_euler
+from sitl_quad.rotors import Mixer
 from sitl_quad.sensors import SensorNoise, Sensors
-from sitl_quad.state import VehicleState
+from sitl_quad.state import AttitudeTarget, VehicleState
 from sitl_quad.wind import WindConfig, WindModel
 
 
@@ -102,7 +105,7 @@ class Simulator:
             self._steps_per_sample = max(1, round(disturbance.sample_time_s / self.dt))
         if sensor_noise is not None:
             self.sensor_noise = sensor_noise
-            self.sensors = Sensors(sensor_noise, self.sensors.rng)
+            self.sensors = self.sensors.reconfigured(sensor_noise)
 
     def restart_disturbances(self) -> None:
         """Restart wind, turbulence, D-term and sensor-noise streams from the seed, with their clock at zero now.
@@ -158,13 +161,51 @@ class Simulator:
             return
         first = self._step_index - self._epoch  # the disturbances' own clock
         period = self._steps_per_sample
-        samples = (first + n - 1) // period - (first - 1) // period  # multiples of period in [first, first+n)
+        samples = disturbance_samples_due(first, n, period)
         self._on_ground = bool(advance(
             self._state, self._omega_cmd, self._params, self.wind.params, self.wind.turbulence,
             self.wind.noise(n), self._disturbance_now, self.disturbance.draw(samples), period, first,
             self.dt, n, self._info,
         ))
         self._step_index += n
+
+    def run_pid_attitude_steps(self, controller: PidAttitudeController, mixer: Mixer, target: AttitudeTarget,
+                               thrust_n: float, attitude_steps: int, physics_steps: int, attitude_dt: float,
+                               apply_torque: bool = True) -> bool:
+        """The attitude loop in one compiled call (sitl_quad.inner_loop): attitude_steps times measure(),
+        controller.update(target, measured, attitude_dt), mixer.rotor_commands(thrust_n, torque) (zero torque
+        unless apply_torque), set_rotor_commands and step(physics_steps). Same results as those calls, the
+        same random streams; the controller's state and the mixer's counters advance as they would.
+        Returns whether the mixer saturated at any of the steps.
+
+        Raises ModelParameterError for a non-finite mixer input, after the steps before it (the sensor-noise,
+        wind and disturbance streams have then advanced by all the steps).
+        """
+        counts_valid = all(isinstance(c, int | np.integer) for c in (attitude_steps, physics_steps))
+        if not (counts_valid and attitude_steps >= 0 and physics_steps >= 1 and attitude_dt > 0):
+            raise ModelParameterError("attitude loop needs attitude_steps >= 0, physics_steps >= 1, dt > 0; "
+                                      f"got {attitude_steps}, {physics_steps}, {attitude_dt}")
+        n = attitude_steps * physics_steps
+        first = self._step_index - self._epoch  # the disturbances' own clock
+        period = self._steps_per_sample
+        samples = disturbance_samples_due(first, n, period)
+        qd, feedforward = controller.target_arrays(target)
+        saturated = np.zeros(attitude_steps, dtype=np.bool_)
+        completed, on_ground = pid_inner_loop(
+            self._state, self._omega_cmd, self._params, self.wind.params, self.wind.turbulence,
+            self.wind.noise(n), self._disturbance_now, self.disturbance.draw(samples), period, first, self.dt,
+            self._info, self.sensors.noise(attitude_steps),
+            controller.kernel_gains, controller.kernel_state, qd, feedforward, float(attitude_dt),
+            float(thrust_n), bool(apply_torque), attitude_steps, physics_steps, saturated,
+        )
+        self._step_index += completed * physics_steps
+        if completed > 0:
+            self._on_ground = bool(on_ground)
+        mixer.record(saturated[:completed])
+        if completed < attitude_steps:
+            raise ModelParameterError(f"mixer input must be finite, got thrust {thrust_n} and the attitude "
+                                      f"controller's torque at attitude step {completed}")
+        return bool(saturated.any())
 
     @property
     def t(self) -> float:
@@ -192,7 +233,7 @@ class Simulator:
 
     def measure(self) -> VehicleState:
         """The state as the sensors see it (SensorNoise added; the truth when there is none)."""
-        return self.sensors.measure(self.state)
+        return self.sensors.measure_flat(self._state, self.t)
 
     @property
     def last_disturbance(self) -> dict[str, np.ndarray]:

@@ -1,0 +1,44 @@
+"""Quaternion products for numba kernels: sitl_quad.rotation's formulas on tuples of floats.
+
+The attitude PID and the sensor noise run inside the vehicle's compiled 250 Hz loop, where rotation's numpy
+helpers cannot be called. Same conventions: (w, x, y, z), body FRD -> world NED.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+Quat = tuple[float, float, float, float]
+Vec3 = tuple[float, float, float]
+
+
+@njit(cache=True)
+def quat_product(a: Quat, b: Quat) -> Quat:
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    )
+
+
+@njit(cache=True)
+def quat_inverse(q: Quat) -> Quat:
+    """The conjugate, which is the inverse of a unit quaternion."""
+    return (q[0], -q[1], -q[2], -q[3])
+
+
+@njit(cache=True)
+def rotate_vector(q: Quat, v: Vec3) -> Vec3:
+    """Rotate the body vector v into the world frame by q."""
+    w, x, y, z = q
+    vx, vy, vz = v
+    # v' = v + 2w (r x v) + 2 r x (r x v), r = (x, y, z)
+    cx, cy, cz = y * vz - z * vy, z * vx - x * vz, x * vy - y * vx
+    return (
+        vx + 2 * (w * cx + y * cz - z * cy),
+        vy + 2 * (w * cy + z * cx - x * cz),
+        vz + 2 * (w * cz + x * cy - y * cx),
+    )
