@@ -177,3 +177,16 @@ def test_report_route_serves_the_page_and_its_figures(stored, tmp_path):
     assert (settings.reports_dir / f"mission-{mission_id}" / "index.html").is_file()
     with sqlite3.connect(storage.path) as db:  # the route read, never wrote, the mission
         assert db.execute("SELECT status FROM missions WHERE id = ?", (mission_id,)).fetchone()[0] == "completed"
+
+
+def test_a_mission_that_never_flew_still_gets_a_report(tmp_path):
+    storage = Storage(tmp_path / "gcs.sqlite")
+    depot = DEFAULT_HOME[:2]
+    plan = make_plan(depot, [(depot[0] + 0.0005, depot[1])], ["A"], "exact")
+    mission_id = storage.create_mission(asdict(FLIGHT), plan.to_dict())
+    storage.set_status(mission_id, "failed", "no vehicle")
+    index = write_report(storage.get_mission(mission_id), storage.telemetry(mission_id), tmp_path / "out")
+    page = index.read_text()
+    assert "failed (no vehicle)" in page and "<th>samples</th><td>0</td>" in page
+    assert all((index.parent / name).stat().st_size > 0 for name in FIGURES)
+    storage.close()
