@@ -11,7 +11,7 @@ from contextlib import contextmanager
 import pytest
 from mavsdk import ComponentType, Configuration, Mavsdk
 from mavsdk.plugins.action import Action
-from mavsdk.plugins.mission_raw import MissionItem, MissionRaw
+from mavsdk.plugins.mission_raw import MissionItem, MissionRaw, MissionRawError, MissionRawResult
 from mavsdk.plugins.param import Param
 from mavsdk.plugins.telemetry import LandedState, Telemetry
 from sitl_process import short_mission
@@ -19,7 +19,7 @@ from udp_relay import LossyUdpRelay
 
 from planner.scenario import DEFAULT_HOME
 
-pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.timeout(90)]
+pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.timeout(120)]
 
 FIELDS = ("seq", "frame", "command", "current", "autocontinue", "param1", "param2", "param3", "param4",
           "x", "y", "z", "mission_type")
@@ -109,13 +109,28 @@ def test_mavsdk_reads_parameters_flies_a_mission_and_sees_it_land(system):
     assert abs(telemetry.position().relative_altitude_m) < 0.5  # back on the ground at home
 
 
+def with_retries(transfer: Callable, attempts: int = 5):
+    """Run a MissionRaw transfer again when it times out, as an application on a lossy radio has to."""
+    for _ in range(attempts - 1):
+        try:
+            return transfer()
+        except MissionRawError as exc:
+            if exc.result != MissionRawResult.TIMEOUT:
+                raise
+    return transfer()
+
+
 def test_mavsdk_mission_round_trip_through_a_link_dropping_20_percent_each_way(start_sitl):
+    # MAVSDK 4.1 never resends the last item when the vehicle's final MISSION_ACK is lost: it only waits,
+    # then reports TIMEOUT although the vehicle has the mission (PX4 behaves the same; the vehicle answers
+    # a resent last item with the ACK again, which pymavlink-based stations use). With one datagram in five
+    # lost, about one upload in four ends so; the application retries, and what it reads back must be exact.
     vehicle = start_sitl(speed=1)  # no flight: real time keeps the relay's work small
     items = [as_mavsdk_item(msg) for msg in short_mission(DEFAULT_HOME)]
     with LossyUdpRelay(vehicle.port, drop_fraction=0.2, seed=3) as relay, mavsdk_system(relay.port) as lossy:
         mission_raw = MissionRaw(lossy)
-        mission_raw.upload_mission(items)
-        downloaded = mission_raw.download_mission()
+        with_retries(lambda: mission_raw.upload_mission(items))
+        downloaded = with_retries(mission_raw.download_mission)
     assert relay.to_vehicle.dropped > 0 and relay.to_client.dropped > 0
     assert len(downloaded) == len(items)
     assert all(same_item(a, b) for a, b in zip(items, downloaded, strict=True))
