@@ -10,9 +10,12 @@ Scenario (the paper's Section VI, made concrete; every number below is in contro
   1 s inspection dwell and a 2 m acceptance radius, RTL), in-process lockstep (adrc_offboard.offline).
 - Wind: 5 m/s mean crosswind perpendicular to the route's longest leg (blowing from its right-hand side).
 - Gust: 1-cosine, 4 m/s along the crosswind, rise 1 s, starting when the navigator's reference is halfway
-  along the longest leg (time from takeoff computed from the reference's own timeline, see
-  `gust_start_time`). It holds 10 s and falls back (gust_hold_s = 10): the onset is the step-like "sudden
-  wind change" of the paper's Figure 6, and falling back keeps the rest of the mission at the 5 m/s mean.
+  along the longest leg (computed from the reference's own timeline, see `gust_start_time`). Like every
+  wind time it counts on the flight's disturbance clock, which starts at the mission start command (the
+  climb follows the vehicle's 1 s motor spool-up, so the gust meets the reference about 1 s before its
+  midpoint: still mid-cruise on a 41 s leg; each flight's item at the onset is in per_seed). It holds
+  10 s and falls back (gust_hold_s = 10): the onset is the step-like "sudden wind change" of the paper's
+  Figure 6, and falling back keeps the rest of the mission at the 5 m/s mean.
 - Turbulence: Dryden, MIL-F-8785C low-altitude form, W20 chosen so that sigma_u = sigma_v = 1.0 m/s at the
   5 m flight altitude (`dryden_w20_for_sigma`: W20 = 5.15 m/s, sigma_w = 0.52 m/s). W20 ~ 5 m/s is also
   consistent with the 5 m/s mean wind.
@@ -24,10 +27,12 @@ Scenario (the paper's Section VI, made concrete; every number below is in contro
   air (paired design).
 
 Controllers:
-- "adrc": ADRC outer loop (adrc_offboard.outer_loop.AdrcOuterLoop, gains/outer_adrc.json) + ADRC inner
-  loop (MC_ATT_CTRL = 1, gains/attitude_adrc.json): the paper's cascade dual ADRC.
-- "pid": PID outer loop at the same closed-loop bandwidth (PidOuterLoop, gains/outer_pid.json, see
-  outer_loop.matched_gains) + the vehicle's PID attitude loop (MC_ATT_CTRL = 0).
+- "adrc": ADRC outer loop (adrc_offboard.outer_loop.AdrcOuterLoop) + ADRC inner loop (MC_ATT_CTRL = 1,
+  gains/attitude_adrc.json): the paper's cascade dual ADRC.
+- "pid": PID outer loop (PidOuterLoop) + the vehicle's PID attitude loop (MC_ATT_CTRL = 0).
+  Both outer loops fly the gains bench/tune_control.py chose (results/control_tuning.json: one shared
+  bandwidth, each controller's free parameter tuned with the same budget, rebuilt by
+  outer_loop.matched_gains); --shipped-gains flies adrc_offboard/gains/outer_*.json instead.
 - "px4": the vehicle's built-in PX4-default PID cascade, no offboard controller ("PX4 defaults").
 
 Metrics per flight (times t_k are outer-loop ticks; the truth at t_k is compared with the reference
@@ -73,7 +78,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from adrc_offboard.offline import HarnessError, LockstepHarness
-from adrc_offboard.outer_loop import AdrcOuterGains, AdrcOuterLoop, PidOuterGains, PidOuterLoop
+from adrc_offboard.outer_loop import AdrcOuterGains, AdrcOuterLoop, PidOuterGains, PidOuterLoop, matched_gains
 from gcs.planning import FIRST_BUOY_SEQ, FlightParams, make_plan, mission_items
 from planner.scenario import ALTITUDE_M, CRUISE_SPEED_M_S, reference_scenario
 from sitl_quad.config import AttitudeControllerKind, ControlConfig, VehicleConfig
@@ -436,12 +441,20 @@ def hover_mission(home) -> list[MissionItem]:
     ]
 
 
-def step_response(kind: str, seed: int, scenario: Scenario) -> tuple[dict, np.ndarray]:
+def step_response(
+    kind: str,
+    seed: int,
+    scenario: Scenario,
+    adrc_gains: AdrcOuterGains | None = None,
+    pid_gains: PidOuterGains | None = None,
+) -> tuple[dict, np.ndarray]:
     """Hover at 5 m in still air, then a 5 m step east; returns metrics and [t, east] after the step."""
     config = scenario.config(kind)
     config.wind = WindConfig()
     vehicle = Vehicle(config, scenario.home, seed=seed, outer_rate_hz=OUTER_RATE_HZ)
-    harness = LockstepHarness(vehicle, make_controller(kind, config), outer_rate_hz=OUTER_RATE_HZ)
+    harness = LockstepHarness(
+        vehicle, make_controller(kind, config, adrc_gains, pid_gains), outer_rate_hz=OUTER_RATE_HZ
+    )
     harness.upload_mission(hover_mission(scenario.home))
     harness.arm()
     for _ in range(60):
@@ -578,17 +591,44 @@ def wilcoxon_signed_rank(a: np.ndarray, b: np.ndarray) -> float:
 # ----------------------------------------------------------------------------------------------- running
 def _flight_job(job: tuple) -> tuple:
     kind, seed, paper, keep = job
-    metrics, series = fly(kind, seed, SCENARIO, paper_disturbance=paper)
+    metrics, series = fly(kind, seed, SCENARIO, paper_disturbance=paper, adrc_gains=GAINS[0], pid_gains=GAINS[1])
     return kind, seed, paper, metrics, (series if keep else None)
 
 
 def _step_job(job: tuple) -> tuple:
     kind, seed = job
-    metrics, trace = step_response(kind, seed, SCENARIO)
+    metrics, trace = step_response(kind, seed, SCENARIO, *GAINS)
     return kind, seed, metrics, (trace if seed == 0 else None)
 
 
 SCENARIO: Scenario  # set in main() before the pool forks
+GAINS: tuple[AdrcOuterGains | None, PidOuterGains | None] = (None, None)  # None: the shipped gains files
+
+
+def tuned_gains(path: Path) -> tuple[tuple[AdrcOuterGains, PidOuterGains], dict]:
+    """The outer-loop gains bench/tune_control.py chose (its JSON), rebuilt with outer_loop.matched_gains."""
+    data = json.loads(path.read_text())
+    grid, chosen = data["grid"], data["chosen"]
+    omega_c = float(data["shared_omega_c"])
+    adrc, _ = matched_gains(
+        omega_c,
+        grid["vertical_ratio"] * omega_c,
+        observer_ratio=chosen["adrc"]["second"],
+        delta=grid["adrc_delta"],
+        r1=tuple(grid["adrc_r1"]),
+    )
+    _, pid = matched_gains(omega_c, grid["vertical_ratio"] * omega_c, integral_ratio=chosen["pid"]["second"])
+    described = {
+        "source": str(path.relative_to(RESULTS.parent.parent)),
+        "omega_c_horizontal": omega_c,
+        "omega_c_vertical": grid["vertical_ratio"] * omega_c,
+        "adrc_observer_ratio": chosen["adrc"]["second"],
+        "pid_integral_ratio": chosen["pid"]["second"],
+        "adrc_delta": grid["adrc_delta"],
+        "adrc_r1": grid["adrc_r1"],
+        "pid": asdict(pid),
+    }
+    return (adrc, pid), described
 
 
 METRICS = (
@@ -784,19 +824,38 @@ def _save(fig, path: Path) -> str:
 
 # ----------------------------------------------------------------------------------------------- main
 def main(argv: list[str] | None = None) -> int:
-    global SCENARIO
+    global SCENARIO, GAINS
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--seeds", type=int, default=30)
     p.add_argument("--paper-seeds", type=int, default=5, help="extra seeds with the paper's variance-15 D terms")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--no-figures", dest="figures", action="store_false")
     p.add_argument("--out", type=Path, default=RESULTS / "control.json")
+    p.add_argument(
+        "--tuning",
+        type=Path,
+        default=RESULTS / "control_tuning.json",
+        help="outer-loop gains chosen by bench/tune_control.py (default); see --shipped-gains",
+    )
+    p.add_argument("--shipped-gains", action="store_true", help="fly adrc_offboard/gains/outer_*.json instead")
     args = p.parse_args(argv)
     if args.seeds < 3 or args.workers < 1 or args.paper_seeds < 0:
         print("control.py: error: need --seeds >= 3, --workers >= 1, --paper-seeds >= 0", file=sys.stderr)
         return 2
     started = time.perf_counter()
     SCENARIO = build_scenario()
+    gains_used = {
+        "adrc_outer": "adrc_offboard/gains/outer_adrc.json",
+        "pid_outer": "adrc_offboard/gains/outer_pid.json",
+    }
+    if not args.shipped_gains:
+        if not args.tuning.exists():
+            print(
+                f"control.py: error: {args.tuning} not found: run bench/tune_control.py or use --shipped-gains",
+                file=sys.stderr,
+            )
+            return 2
+        GAINS, gains_used = tuned_gains(args.tuning)
     print(
         f"route {SCENARIO.route_length_m:.0f} m, longest leg {SCENARIO.longest_leg}, crosswind from "
         f"{SCENARIO.crosswind_from_deg:.0f} deg, gust at {SCENARIO.gust_start_s:g} s after takeoff, "
@@ -866,9 +925,9 @@ def main(argv: list[str] | None = None) -> int:
         },
         "controllers": LABELS,
         "gains": {
-            "adrc_outer": "adrc_offboard/gains/outer_adrc.json",
-            "pid_outer": "adrc_offboard/gains/outer_pid.json",
+            **gains_used,
             "adrc_inner": "adrc_offboard/gains/attitude_adrc.json",
+            "pid_inner": "the vehicle's PidAttitudeGains (PX4 defaults)",
         },
         "seeds": args.seeds,
         "mission": summary,
