@@ -348,24 +348,23 @@ class Vehicle:
         saturated = False
         from sitl_quad.attitude_pid import PidAttitudeController
 
-        if source != "off" and isinstance(self.attitude, PidAttitudeController):
-            # the same steps as below in one compiled call ("idle": the PID runs, its torque unused)
-            thrust_n = target.thrust * self.config.airframe.max_thrust_n
+        thrust_n = target.thrust * self.config.airframe.max_thrust_n
+        if source == "off":  # rotors commanded to 0 all tick: the physics steps in one batch, same result
+            self.sim.set_rotor_commands(np.zeros(4))
+            self.sim.step(self.attitude_steps * self.physics_steps)
+        elif isinstance(self.attitude, PidAttitudeController):
+            # the steps of the loop below in one compiled call ("idle": the PID runs, its torque unused)
             saturated = self.sim.run_pid_attitude_steps(
                 self.attitude, self.mixer, target, thrust_n, self.attitude_steps, self.physics_steps,
                 self.attitude_dt, apply_torque=source != "idle")
         else:
             for _ in range(self.attitude_steps):
-                if source == "off":
-                    self.sim.set_rotor_commands(np.zeros(4))
-                else:
-                    measured = self.sim.measure()
-                    torque = self.attitude.update(target, measured, self.attitude_dt)
-                    if source == "idle":
-                        torque = np.zeros(3)
-                    thrust_n = target.thrust * self.config.airframe.max_thrust_n
-                    self.sim.set_rotor_commands(self.mixer.rotor_commands(thrust_n, torque))
-                    saturated = saturated or self.mixer.saturated
+                measured = self.sim.measure()
+                torque = self.attitude.update(target, measured, self.attitude_dt)
+                if source == "idle":
+                    torque = np.zeros(3)
+                self.sim.set_rotor_commands(self.mixer.rotor_commands(thrust_n, torque))
+                saturated = saturated or self.mixer.saturated
                 self.sim.step(self.physics_steps)
         self.saturated_ticks += int(saturated)
         if self.armed:
