@@ -216,8 +216,12 @@ class PidAttitudeController:
     @staticmethod
     def target_arrays(target: AttitudeTarget) -> tuple[np.ndarray, np.ndarray]:
         """The target's quaternion and feed-forward body rates (zeros when it has none) as kernel inputs."""
+        qd = _floats(target.quaternion)
         feedforward = _NO_FEEDFORWARD if target.body_rates is None else _floats(target.body_rates)
-        return _floats(target.quaternion), feedforward
+        if qd.shape != (4,) or feedforward.shape != (3,):  # the kernels index without bounds checks
+            raise ModelParameterError(f"attitude target needs 4 quaternion components and 3 body rates, got "
+                                      f"{target.quaternion!r}, {target.body_rates!r}")
+        return qd, feedforward
 
     def attitude_rate_setpoint(self, target: AttitudeTarget, q) -> list[float]:
         """Body-rate setpoint (rad/s) from the attitude error, PX4's AttitudeControl::update."""

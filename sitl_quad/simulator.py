@@ -3,6 +3,8 @@
 Pure computation, no I/O. One seed fixes everything random: it is split into independent streams for the
 wind, the disturbance terms and the sensors, so e.g. changing the sensor noise does not change the wind.
 Results do not depend on how the steps are batched (step(4) twice equals step(1) eight times).
+``run_pid_attitude_steps`` runs the vehicle's 250 Hz loop with the PID attitude controller in one compiled
+call (sitl_quad.inner_loop), with the same results as stepping it from Python.
 """
 
 from __future__ import annotations

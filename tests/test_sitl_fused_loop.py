@@ -140,7 +140,7 @@ def test_sensor_noise_is_the_seeds_normals_in_order_however_drawn():
     assert not np.any(Sensors(SensorNoise.none(), seed=4).noise(3))
 
 
-def test_non_finite_thrust_and_bad_step_counts_are_refused():
+def test_non_finite_thrust_bad_step_counts_and_malformed_targets_are_refused():
     sim, controller, mixer = Simulator(AIRFRAME, position=(0.0, 0.0, -10.0)), PidAttitudeController(), Mixer(AIRFRAME)
     level = AttitudeTarget(np.array([1.0, 0.0, 0.0, 0.0]), 0.5)
     with pytest.raises(ModelParameterError, match="finite"):
@@ -149,3 +149,8 @@ def test_non_finite_thrust_and_bad_step_counts_are_refused():
     for steps, physics, dt in [(-1, 4, 0.004), (5, 0, 0.004), (5, 4, 0.0), (2.5, 4, 0.004)]:
         with pytest.raises(ModelParameterError):
             sim.run_pid_attitude_steps(controller, mixer, level, 10.0, steps, physics, dt)
+    with pytest.raises(ModelParameterError, match="body rates"):
+        sim.run_pid_attitude_steps(controller, mixer, AttitudeTarget(level.quaternion, 0.5, np.zeros(2)), 10.0,
+                                   ATTITUDE_STEPS, PHYSICS_STEPS, ATTITUDE_DT)
+    with pytest.raises(ModelParameterError, match="quaternion"):
+        controller.update(AttitudeTarget(np.ones(3), 0.5), sim.state, ATTITUDE_DT)
