@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sitl_quad.mavlink import mavlink  # pymavlink's MAVLink 2 dialect, configured in one place
+from sitl_quad.mavlink.codec import Encoder, new_parser, parse_datagram
 from sitl_quad.state import TrajectorySetpoint, VehicleState
 
 log = logging.getLogger(__name__)
@@ -178,6 +179,7 @@ class OffboardNode:
         engage: bool = True,
         sysid: int = 1,
         compid: int = 191,
+        signing_key: bytes | None = None,
     ) -> None:
         self.protocol = OffboardProtocol(controller, outer_rate_hz, engage)
         self.vehicle_address = vehicle_address
@@ -185,9 +187,8 @@ class OffboardNode:
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
         self.sock.bind(("127.0.0.1", 0))
         self.sock.setblocking(False)
-        self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
-        self.parser = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
-        self.parser.robust_parsing = True
+        self.encoder = Encoder(sysid, compid, signing_key)
+        self.parser = new_parser(sysid, compid, signing_key)
         self.running = True
         self._next_heartbeat = 0.0
 
@@ -201,8 +202,7 @@ class OffboardNode:
 
     # ----- transport
     def send(self, msg) -> None:
-        buf = msg.pack(self.mav)
-        self.mav.seq = (self.mav.seq + 1) % 256
+        buf = self.encoder.pack(msg)
         try:
             self.sock.sendto(buf, self.vehicle_address)
         except OSError as exc:  # vehicle not up yet (ICMP refused): keep going, it will come
@@ -220,10 +220,8 @@ class OffboardNode:
                 return out
             except OSError:
                 continue
-            self.parser.buf, self.parser.buf_index = bytearray(), 0
-            self.parser.expected_length = mavlink.HEADER_LEN_V1 + 2
             try:
-                msgs = self.parser.parse_buffer(data) or []
+                msgs = parse_datagram(self.parser, data)
             except Exception:  # hostile or broken datagram: ignore it
                 continue
             out.extend(

@@ -53,8 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
     up.add_argument("--demo-seed", type=int, default=1, help="which reference scenario the demo flies")
     up.add_argument("--exit-after-demo", action="store_true", help="stop the stack once the demo has flown")
     up.add_argument("--signing-key", default=None, metavar="KEY",
-                    help="MAVLink 2 signing key for the vehicle and the service (needs --controller none: "
-                    "adrc_offboard does not sign yet)")
+                    help="MAVLink 2 signing key shared by the vehicle, the offboard controller and the service")
     return parser
 
 
@@ -99,10 +98,6 @@ def up(args: argparse.Namespace) -> int:
         if not 0 < getattr(args, name) < 65536:
             print(f"buoy-gcs: --{name.replace('_', '-')} {getattr(args, name)} is not a port", file=sys.stderr)
             return 2
-    if args.signing_key is not None and args.controller != "none":
-        print("buoy-gcs: --signing-key needs --controller none (adrc_offboard cannot sign its messages yet, "
-              "so a keyed vehicle would refuse them)", file=sys.stderr)
-        return 2
     options = UpOptions(
         lockstep=args.speed is None, speed=args.speed or 1.0, seed=args.seed, wind_m_s=args.wind[0],
         wind_from_deg=args.wind[1], controller=args.controller, host=args.host, port=args.port,

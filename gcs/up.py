@@ -56,7 +56,7 @@ def stack(options: UpOptions) -> list[ChildSpec]:
     if options.controller != "none":
         children.append(ChildSpec("adrc_offboard", python_module(
             "adrc_offboard", "--connect", f"udpout:127.0.0.1:{options.vehicle_port}",
-            "--controller", options.controller)))
+            "--controller", options.controller, *signing)))
     gcs_args = ["serve", "--vehicle", f"udpout:127.0.0.1:{options.vehicle_port}", "--host", options.host,
                 "--port", str(options.port), "--db", str(options.data_dir / "gcs.sqlite")]
     if options.token:

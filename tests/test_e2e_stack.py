@@ -508,8 +508,6 @@ def test_signed_vehicle_refuses_an_unkeyed_peer_while_the_keyed_gcs_flies(stack)
         intruder.close()
 
 
-@pytest.mark.xfail(strict=True, reason="adrc_offboard cannot sign (no --signing-key): a keyed vehicle refuses its "
-                   "SET_ATTITUDE_TARGET, so a signed stack can only fly with the vehicle's built-in controller")
 def test_signed_stack_flies_with_the_adrc_offboard_controller(stack):
     stack.start_vehicle("--signing-key", SIGNING_PASSPHRASE)
     stack.start_offboard("--signing-key", SIGNING_PASSPHRASE)

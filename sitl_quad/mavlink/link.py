@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass, field
 
 from sitl_quad.mavlink import mavlink
+from sitl_quad.mavlink.codec import Encoder, new_parser, parse_datagram
 
 log = logging.getLogger(__name__)
 
@@ -79,11 +80,7 @@ class UdpLink:
         self.sock.setblocking(False)
         self.address = self.sock.getsockname()
         self.signing_key = signing_key
-        self.encoder = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
-        if signing_key is not None:
-            self.encoder.signing.secret_key = signing_key
-            self.encoder.signing.sign_outgoing = True
-            self.encoder.signing.timestamp = _signing_timestamp()
+        self.encoder = Encoder(sysid, compid, signing_key)
         self.peers: dict[tuple[str, int], Peer] = {}
         for target in out_targets or []:
             peer = self._new_peer(target)
@@ -95,11 +92,7 @@ class UdpLink:
 
     # ----- sending
     def pack(self, msg) -> bytes:
-        if self.signing_key is not None:
-            self.encoder.signing.timestamp = max(self.encoder.signing.timestamp + 1, _signing_timestamp())
-        buf = msg.pack(self.encoder)
-        self.encoder.seq = (self.encoder.seq + 1) % 256
-        return buf
+        return self.encoder.pack(msg)
 
     def send(self, msg, peer: Peer | None = None) -> None:
         """Send to one peer, or to every live peer."""
@@ -170,23 +163,15 @@ class UdpLink:
                     out.append((peer, msg))
 
     def _new_peer(self, address: tuple[str, int]) -> Peer:
-        parser = mavlink.MAVLink(None, srcSystem=self.sysid, srcComponent=self.compid)
-        parser.robust_parsing = True
-        if self.signing_key is not None:
-            parser.signing.secret_key = self.signing_key
-            parser.signing.allow_unsigned_callback = _allow_unsigned
+        parser = new_parser(self.sysid, self.compid, self.signing_key)
         peer = Peer(address=address, parser=parser, last_seen=time.monotonic())
         self.peers[address] = peer
         log.info("new peer %s:%d", *address)
         return peer
 
     def _parse(self, peer: Peer, data: bytes) -> list:
-        parser = peer.parser
-        # A datagram carries whole frames: never let a truncated tail leak into the next datagram.
-        parser.buf, parser.buf_index = bytearray(), 0
-        parser.expected_length = mavlink.HEADER_LEN_V1 + 2
         try:
-            messages = parser.parse_buffer(data) or []
+            messages = parse_datagram(peer.parser, data)
         except Exception as exc:  # pymavlink raises a zoo of errors on hostile input; none may escape
             self.stats.malformed += 1
             log.debug("unparsable datagram from %s: %s", peer.address, exc)
@@ -228,16 +213,3 @@ class UdpLink:
             if p is not source:
                 self._sendto(buf, p.address)
                 self.stats.forwarded += 1
-
-
-# Messages a keyed vehicle still accepts unsigned: radio status only, as PX4 does.
-_UNSIGNED_ALLOWED = {mavlink.MAVLINK_MSG_ID_RADIO_STATUS}
-
-
-def _allow_unsigned(_mav, msg_id: int) -> bool:
-    return msg_id in _UNSIGNED_ALLOWED
-
-
-def _signing_timestamp() -> int:
-    """MAVLink signing time: 10 us units since 2015-01-01."""
-    return int((time.time() - 1420070400) * 100_000)
