@@ -9,6 +9,7 @@ the outside world should hear about is queued as `VehicleEvent`s.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from enum import IntEnum
@@ -258,6 +259,36 @@ class Vehicle:
         if self.armed and self.mode == FlightMode.AUTO_MISSION:
             self.navigator.start_mission(self.clock, self.estimate, 0)
         self._emit("mission_current", seq=self.navigator.current_seq)
+
+    def change_speed(self, speed_m_s: float) -> CommandResult:
+        """DO_CHANGE_SPEED as a command: the cruise speed of the legs planned from now on."""
+        if not (math.isfinite(speed_m_s) and 0 < speed_m_s <= self.config.position_pid.mpc_xy_vel_max):
+            return CommandResult.DENIED
+        self.config.navigator = dataclasses.replace(self.config.navigator, cruise_speed=speed_m_s)
+        self.navigator.config = self.config.navigator
+        return CommandResult.ACCEPTED
+
+    def reposition(self, lat: float, lon: float, alt_amsl: float, yaw: float) -> CommandResult:
+        """DO_REPOSITION (QGC's "go to location", MAVSDK's goto_location): hold at a place, as PX4 does.
+
+        NaN keeps the current value of a coordinate; yaw NaN keeps the heading toward the travel."""
+        if not self.armed or not self.in_air:
+            self._emit("text", "Reposition denied: not flying", 4)
+            return CommandResult.DENIED
+        here = self.estimate.position
+        north, east, down = (float(c) for c in here)
+        if math.isfinite(lat) and math.isfinite(lon):
+            if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+                return CommandResult.DENIED
+            north, east, _ = (float(c) for c in self.frame.to_ned(lat, lon, 0.0))
+        if math.isfinite(alt_amsl):
+            down = -(alt_amsl - self.home[2])
+            if down > 0:
+                return CommandResult.DENIED  # below home: into the water
+        self._enter(FlightMode.AUTO_LOITER)
+        self.navigator.hold(self.clock, self.estimate, position=(north, east, down),
+                            yaw=yaw if math.isfinite(yaw) else None)
+        return CommandResult.ACCEPTED
 
     def set_current_item(self, seq: int) -> bool:
         if not 0 <= seq < len(self.mission):

@@ -172,3 +172,34 @@ def test_same_seed_same_flight():
 def test_mission_frame_item_without_position_is_not_a_place():
     rtl = MissionItem(seq=0, frame=FRAME_MISSION, command=20)
     assert not rtl.has_position
+
+
+def test_reposition_flies_to_the_place_and_holds(vehicle):
+    assert vehicle.reposition(*FRAME.from_ned(30.0, -20.0, 0.0)[:2], 8.0, math.nan) == CommandResult.DENIED  # ground
+    vehicle.arm()
+    vehicle.takeoff(5.0)
+    fly_until(vehicle, lambda v: v.landed_state == LandedState.IN_AIR, 20.0)
+    lat, lon, _ = FRAME.from_ned(30.0, -20.0, 0.0)
+    assert vehicle.reposition(float(lat), float(lon), 8.0, math.nan) == CommandResult.ACCEPTED
+    assert vehicle.mode == FlightMode.AUTO_LOITER
+    fly_until(vehicle, lambda v: False, 25.0)
+    north, east, down = vehicle.truth.position
+    assert math.dist((north, east, -down), (30.0, -20.0, 8.0)) < 0.5
+    assert vehicle.reposition(95.0, 0.0, 8.0, math.nan) == CommandResult.DENIED  # not a latitude
+    assert vehicle.reposition(float(lat), float(lon), -3.0, math.nan) == CommandResult.DENIED  # below home
+
+
+def test_change_speed_sets_the_cruise_speed_of_later_legs(vehicle):
+    assert vehicle.change_speed(4.0) == CommandResult.ACCEPTED
+    assert vehicle.change_speed(-1.0) == CommandResult.DENIED
+    assert vehicle.change_speed(float("nan")) == CommandResult.DENIED
+    vehicle.set_mission([item(0, NAV_TAKEOFF), item(1, NAV_WAYPOINT, 80.0, 0.0, param1=0.0, param2=1.0)])
+    vehicle.arm()
+    vehicle.start_mission()
+    fastest = 0.0
+    end = vehicle.t + 60.0
+    while vehicle.navigator.mission_state != "complete" and vehicle.t < end:
+        vehicle.tick()
+        fastest = max(fastest, float(np.hypot(*vehicle.setpoint.velocity[:2])))
+    assert vehicle.navigator.mission_state == "complete"
+    assert 3.5 < fastest <= 4.0 + 1e-6

@@ -17,6 +17,8 @@ from sitl_quad.vehicle import FORCE_DISARM_MAGIC, CommandResult, Vehicle
 log = logging.getLogger(__name__)
 
 # handler(params: tuple of 7 floats) -> CommandResult
+POSITIONAL_COMMANDS = {mavlink.MAV_CMD_DO_REPOSITION, mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_CMD_NAV_LAND}
+INT32_MAX = 2**31 - 1  # COMMAND_INT's "unused" x / y
 CommandHandler = Callable[[tuple], CommandResult]
 
 
@@ -33,6 +35,8 @@ class Commands:
             mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH: lambda p: self.vehicle.set_mode(FlightMode.AUTO_RTL),
             mavlink.MAV_CMD_DO_SET_MISSION_CURRENT: self.set_mission_current,
             mavlink.MAV_CMD_NAV_LOITER_UNLIM: lambda p: self.vehicle.set_mode(FlightMode.AUTO_LOITER),
+            mavlink.MAV_CMD_DO_CHANGE_SPEED: lambda p: self.vehicle.change_speed(p[1]),
+            mavlink.MAV_CMD_DO_REPOSITION: self.reposition,
         }
 
     def register(self, command: int, handler: CommandHandler) -> None:
@@ -46,8 +50,13 @@ class Commands:
         self._run(peer, msg, params)
 
     def command_int(self, peer, msg) -> None:
-        # x, y are degE7 in a COMMAND_INT; handlers here take them as plain numbers
-        params = (msg.param1, msg.param2, msg.param3, msg.param4, float(msg.x), float(msg.y), msg.z)
+        # x, y are degE7 in a COMMAND_INT: positional commands get degrees, like COMMAND_LONG's param5/6
+        if msg.command in POSITIONAL_COMMANDS:
+            x = msg.x * 1e-7 if msg.x != INT32_MAX else math.nan
+            y = msg.y * 1e-7 if msg.y != INT32_MAX else math.nan
+        else:
+            x, y = float(msg.x), float(msg.y)
+        params = (msg.param1, msg.param2, msg.param3, msg.param4, x, y, msg.z)
         self._run(peer, msg, params)
 
     def _run(self, peer, msg, params: tuple) -> None:
@@ -104,6 +113,9 @@ class Commands:
             if altitude <= 0:
                 altitude = None
         return self.vehicle.takeoff(altitude)
+
+    def reposition(self, p: tuple) -> CommandResult:
+        return self.vehicle.reposition(p[4], p[5], p[6], math.radians(p[3]) if math.isfinite(p[3]) else math.nan)
 
     def set_mission_current(self, p: tuple) -> CommandResult:
         if not math.isfinite(p[0]):
