@@ -291,7 +291,8 @@ async function refreshHistory() {
   try {
     missions = await api("GET", "/missions?limit=50");
   } catch (error) {
-    return say(error.message);
+    say(error.message);
+    return [];
   }
   const rows = missions.map((m) => {
     const t = m.tracking || {};
@@ -303,24 +304,30 @@ async function refreshHistory() {
       `<td><button type="button" data-show="${m.id}">show</button></td></tr>`;
   });
   $("history-rows").innerHTML = rows.join("");
+  return missions;
 }
 
-$("history-rows").addEventListener("click", async (event) => {
+$("history-rows").addEventListener("click", (event) => {
   const id = event.target.dataset && event.target.dataset.show;
-  if (!id) return;
+  if (id) displayMission(id);
+});
+
+// Draw a stored mission: its buoys, planned route, flown track and charts; a flying one keeps updating live.
+async function displayMission(id) {
   try {
     const mission = await api("GET", `/missions/${id}`);
     loadBuoysOf(mission);
     startWatching(mission);
     const samples = await api("GET", `/missions/${id}/telemetry`);
     const points = samples.filter((s) => s.lat != null).map((s) => [s.lat, s.lon]);
+    state.trackPoints = points;
     track.setLatLngs(points);
     samples.forEach((s) => charts.add(s));
     charts.redraw();
   } catch (error) {
     say(error.message);
   }
-});
+}
 
 function loadBuoysOf(mission) {
   layers.buoys.clearLayers();
@@ -348,7 +355,10 @@ async function start() {
   L.control.scale({ metric: true, imperial: false }).addTo(map);
   setDepot(depot);
   connectLive();
-  refreshHistory();
+  const missions = await refreshHistory();
+  // Open on what matters: the mission flying now, else the latest one (e.g. the demo `make run` flew).
+  const shown = (vehicle && vehicle.active_mission) || (missions.length ? missions[0].id : null);
+  if (shown != null) displayMission(shown);
   tilesReachable(OSM_URL.replace("{z}/{x}/{y}", "0/0/0")).then((online) => {
     if (online) { map.removeLayer(grid); osm.addTo(map); }
   });
