@@ -6,6 +6,10 @@ Stepping that from Python costs ~70 us per attitude step in call overhead; here 
 Every law is the kernel its own module defines (add_sensor_noise, pid_attitude_torque, mix, advance): this
 module only orders the calls, exactly as Vehicle.tick() does step by step, so both paths give the same
 numbers. Simulator.run_pid_attitude_steps prepares the random draws and keeps the books.
+
+numba's on-disk cache is invalidated by edits to a kernel's own file only, not to the kernels it calls from
+other modules: after changing one of those, delete sitl_quad/__pycache__/*.nbi (tests/test_sitl_fused_loop.py
+fails on a stale cache, as the step-by-step path then runs newer code).
 """
 
 from __future__ import annotations
