@@ -160,7 +160,7 @@ class VehicleServer:
         "x_ref", "y_ref", "z_ref", "vx_ref", "vy_ref", "vz_ref", "ax_ref", "ay_ref", "az_ref", "yaw_ref",
         "qw_cmd", "qx_cmd", "qy_cmd", "qz_cmd", "thrust_cmd",
         "wind_n", "wind_e", "wind_d", "ext_acc_n", "ext_acc_e", "ext_acc_d",
-        "mission_seq",
+        "mission_seq", "offboard_age",
     )
 
     def _open_log(self, path: Path) -> None:
@@ -178,7 +178,7 @@ class VehicleServer:
         row += [*sp.position, *sp.velocity, *sp.acceleration, sp.yaw]
         row += [*target.quaternion, target.thrust]
         row += [*dist.get("wind_ned", (0, 0, 0)), *dist.get("external_accel_ned", (0, 0, 0))]
-        row += [v.navigator.current_seq]
+        row += [v.navigator.current_seq, min(v.offboard_age_s, 1e6)]
         self._log_writer.writerow([f"{x:.5g}" if isinstance(x, float) else x for x in row])
 
     def stats(self) -> dict:

@@ -183,9 +183,13 @@ class Vehicle:
     def in_air(self) -> bool:
         return self.landed_state in (LandedState.IN_AIR, LandedState.TAKEOFF, LandedState.LANDING)
 
+    @property
+    def offboard_age_s(self) -> float:
+        """Simulated seconds since the last offboard setpoint (exact: counted in integer physics steps)."""
+        return (self.sim.step_index - self.offboard.received_step) * self.sim.dt
+
     def offboard_fresh(self) -> bool:
-        age_s = (self.sim.step_index - self.offboard.received_step) * self.sim.dt  # exact: integer steps
-        return age_s <= self.config.failsafe.offboard_loss_timeout_s + 1e-9
+        return self.offboard_age_s <= self.config.failsafe.offboard_loss_timeout_s + 1e-9
 
     def _emit(self, kind: str, text: str = "", severity: int = 6, seq: int = -1) -> None:
         self.events.append(VehicleEvent(kind=kind, text=text, severity=severity, seq=seq))
