@@ -330,8 +330,12 @@ def test_mission_uploads_and_completes_through_20_percent_datagram_loss(stack):
         assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
         assert all(result["reached"] for result in mission["buoy_results"])
         assert mission["progress"]["visited"] == 3
-        for counts in (relay.to_vehicle, relay.to_client):
-            assert counts.dropped > 0.15 * (counts.dropped + counts.forwarded), counts
+        # Both ways lost datagrams. The ground station sends only a few dozen (heartbeats, the upload,
+        # commands), too few for a tight bound on its own; over both directions the loss is the relay's 20 %.
+        assert relay.to_vehicle.dropped > 0 and relay.to_client.dropped > 0, (relay.to_vehicle, relay.to_client)
+        dropped = relay.to_vehicle.dropped + relay.to_client.dropped
+        total = dropped + relay.to_vehicle.forwarded + relay.to_client.forwarded
+        assert 0.15 < dropped / total < 0.25, (relay.to_vehicle, relay.to_client)
     assert_landed_at_depot(stack, request["acceptance_radius_m"])
 
 
