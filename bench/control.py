@@ -255,6 +255,9 @@ class FlightRecorder:
         "z3_x",
         "z3_y",
         "z3_z",
+        "vx",
+        "vy",
+        "vz",
     )
 
     def __call__(self, record) -> None:
@@ -280,6 +283,7 @@ class FlightRecorder:
                 saturated,
                 float(record.source == "offboard"),
                 *(eso.get(f"{name}_{axis}", math.nan) for name in ("z1", "z2", "z3") for axis in "xyz"),
+                *truth.velocity,
             ]
         )
 
@@ -320,6 +324,11 @@ def _wrap(angle: np.ndarray) -> np.ndarray:
     return (angle + np.pi) % (2 * np.pi) - np.pi
 
 
+def _max(values: np.ndarray) -> float:
+    """Largest value; NaN for a flight that never reached the phase (e.g. crashed before it)."""
+    return float(values.max()) if values.size else math.nan
+
+
 def _rms(values: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(values)))) if values.size else math.nan
 
@@ -335,7 +344,7 @@ def flight_metrics(s: dict[str, np.ndarray], scenario: Scenario, n_items: int) -
     tracking = (seq >= FIRST_BUOY_SEQ) & (seq <= n_items - 1) & (-truth[:, 2] > TRACKING_MIN_ALTITUDE_M)
     out: dict = {"flight_s": float(s["t"][-1] - s["t"][0] + dt)}
     out["rms_error_m"] = _rms(error[tracking])
-    out["max_error_m"] = float(error[tracking].max())
+    out["max_error_m"] = _max(error[tracking])
     out["altitude_rms_m"] = _rms((truth[:, 2] - ref[:, 2])[tracking])
     # cross-track against the planned legs
     waypoints = np.asarray(scenario.waypoints_ne)
@@ -347,18 +356,22 @@ def flight_metrics(s: dict[str, np.ndarray], scenario: Scenario, n_items: int) -
         direction = b - a
         u = np.clip(((p - a) @ direction) / float(direction @ direction), 0.0, 1.0)
         cross.append(np.linalg.norm(p - (a + np.outer(u, direction)), axis=1))
-    cross_track = np.concatenate(cross)
+    cross_track = np.concatenate(cross) if cross else np.zeros(0)
     out["cross_track_rms_m"] = _rms(cross_track)
-    out["cross_track_max_m"] = float(cross_track.max())
+    out["cross_track_max_m"] = _max(cross_track)
     # the gust
     t_gust = scenario.wind.gust_start_s
     window = (t_since_takeoff >= t_gust) & (t_since_takeoff <= t_gust + GUST_WINDOW_S)
-    out["gust_peak_m"] = float(error[window].max())
+    out["gust_peak_m"] = _max(error[window])
     above = np.flatnonzero(window & (error > RECOVERED_M))
     out["gust_recovery_s"] = (
-        0.0 if above.size == 0 else float(min(t_since_takeoff[above[-1]] + dt - t_gust, GUST_WINDOW_S))
+        math.nan
+        if not window.any()
+        else 0.0
+        if above.size == 0
+        else float(min(t_since_takeoff[above[-1]] + dt - t_gust, GUST_WINDOW_S))
     )
-    out["gust_leg_seq_at_onset"] = int(seq[np.argmax(t_since_takeoff >= t_gust)])
+    out["gust_leg_seq_at_onset"] = int(seq[np.argmax(t_since_takeoff >= t_gust)]) if window.any() else -1
     # yaw at the turns
     turning = np.abs(s["yaw_rate_ref"][1:]) > 1e-3
     tail = round(TURN_TAIL_S / dt)
@@ -366,7 +379,7 @@ def flight_metrics(s: dict[str, np.ndarray], scenario: Scenario, n_items: int) -
     yaw_error = np.degrees(np.abs(_wrap(s["yaw"][:-1] - s["yaw_ref"][1:])))
     airborne = -truth[:, 2] > TRACKING_MIN_ALTITUDE_M
     out["yaw_turn_rms_deg"] = _rms(yaw_error[turns & airborne])
-    out["yaw_turn_max_deg"] = float(yaw_error[turns & airborne].max())
+    out["yaw_turn_max_deg"] = _max(yaw_error[turns & airborne])
     # control effort and saturation over the tracking phase
     thrust_step = np.diff(s["thrust"])
     q = np.column_stack([s["qw"], s["qx"], s["qy"], s["qz"]])
@@ -374,7 +387,7 @@ def flight_metrics(s: dict[str, np.ndarray], scenario: Scenario, n_items: int) -
     attitude_step = np.degrees(2.0 * np.arccos(dots))
     out["thrust_step_rms"] = _rms(thrust_step[tracking])
     out["attitude_step_rms_deg"] = _rms(attitude_step[tracking])
-    out["saturated_fraction"] = float(np.mean(s["saturated"][1:][tracking] > 0))
+    out["saturated_fraction"] = float(np.mean(s["saturated"][1:][tracking] > 0)) if tracking.any() else math.nan
     # the ESO's z3 against the true external acceleration
     if np.all(np.isnan(s["z3_x"])):
         out["eso_lateral_rel_error"] = out["eso_lateral_rel_error_best_lag"] = math.nan
@@ -389,6 +402,12 @@ def eso_errors(s: dict[str, np.ndarray], tracking: np.ndarray) -> dict:
     z3 = np.column_stack([s["z3_x"], s["z3_y"]])
     ext = np.column_stack([s["ext_x"], s["ext_y"]])
     mask = np.concatenate([[False], tracking]) & (s["offboard"] > 0)  # tracking is indexed from tick 1
+    if mask.sum() <= 2 + ESO_MAX_LAG_TICKS:
+        return {
+            "eso_lateral_rel_error": math.nan,
+            "eso_lateral_rel_error_best_lag": math.nan,
+            "eso_best_lag_s": math.nan,
+        }
     results = []
     for lag in range(ESO_MAX_LAG_TICKS + 1):
         shift = 2 + lag
@@ -719,10 +738,15 @@ def draw_figures(scenario: Scenario, series: dict[str, dict], steps: dict[str, n
             (("x", "x_ref", 1), ("y", "y_ref", 1), ("z", "z_ref", -1), ("yaw", "yaw_ref", 180 / math.pi)),
             strict=True,
         ):
+            if name in ("x", "y"):  # at 10 m/s the positions are straight lines: show the error instead
+                ax.plot(t[w], (s[name][:-1] - s[ref][1:])[w], color=colours[kind], label=LABELS[kind])
+                continue
             ax.plot(t[w], s[name][:-1][w] * scale, color=colours[kind], label=LABELS[kind])
             if kind == "adrc":
                 ax.plot(t[w], s[ref][1:][w] * scale, "b:", label="reference")
-    for ax, label in zip(axes, ("north x (m)", "east y (m)", "altitude (m)", "yaw (deg)"), strict=True):
+    for ax, label in zip(
+        axes, ("north error x - x_ref (m)", "east error y - y_ref (m)", "altitude (m)", "yaw (deg)"), strict=True
+    ):
         ax.set_ylabel(label)
         ax.axvspan(t_gust, t_gust + GUST_RISE_S, color="0.9")
     axes[0].legend(fontsize=7)
@@ -733,14 +757,19 @@ def draw_figures(scenario: Scenario, series: dict[str, dict], steps: dict[str, n
     # Figure 7: ESO outputs (ADRC) in the gust window against the true disturbance
     if "adrc" in series:
         s = series["adrc"]
-        t = s["t"] - s["t"][0] - 2.0 / OUTER_RATE_HZ  # z at tick k describes the measurement at t_(k-1)
+        # tick k ends at t[k] = t[0] + k dt on a clock that starts dt before t[0] (the mission start);
+        # z at tick k describes the measurement taken at the start of tick k-1
+        t = s["t"] - s["t"][0] - 1.0 / OUTER_RATE_HZ
         w = (t >= t_gust - 2) & (t <= t_gust + 8)
         fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
-        ext_t = s["t"] - s["t"][0]
+        ext_t = s["t"] - s["t"][0] + 1.0 / OUTER_RATE_HZ  # reported at the end of its tick
         we = (ext_t >= t_gust - 2) & (ext_t <= t_gust + 8)
         for col, axis in enumerate(("x", "y")):
-            axes[0, col].plot(t[w], s[f"z1_{axis}"][w], label="z1 (position estimate)")
-            axes[0, col].plot(t[w], s[axis][w], "k:", label="true position")
+            # z at tick k describes the measurement at t_(k-1) = the truth recorded at tick k-2
+            truth_pos = np.concatenate([[np.nan, np.nan], s[axis][:-2]])
+            truth_vel = np.concatenate([[np.nan, np.nan], s[f"v{axis}"][:-2]])
+            axes[0, col].plot(t[w], (s[f"z1_{axis}"] - truth_pos)[w], label="z1 - true position")
+            axes[1, col].plot(t[w], truth_vel[w], "k:", label="true velocity")
             axes[1, col].plot(t[w], s[f"z2_{axis}"][w], "g", label="z2 (velocity estimate)")
             axes[2, col].plot(ext_t[we], s[f"ext_{axis}"][we], color="0.6", label="true external acceleration")
             axes[2, col].plot(t[w], s[f"z3_{axis}"][w], "r", label="z3 (total disturbance estimate)")
@@ -942,9 +971,20 @@ def main(argv: list[str] | None = None) -> int:
         "figures": figures,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1, default=float))
+    args.out.write_text(json.dumps(_finite_or_null(result), indent=1, default=float))
     print(f"\nwrote {args.out} ({elapsed:.0f} s){''.join(chr(10) + '  ' + f for f in figures)}")
     return 0
+
+
+def _finite_or_null(value):
+    """NaN (a metric a crashed flight never reached) as JSON null, so the file stays strict JSON."""
+    if isinstance(value, dict):
+        return {k: _finite_or_null(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite_or_null(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
 
 
 class _InlinePool:
