@@ -131,6 +131,7 @@ def main(argv: list[str] | None = None) -> int:
         for spec in table.specs:
             print(f"{spec.name:16} {table.get(spec.name):<14.6g} {spec.description}")
         return 0
+    warm_up(config, args.home, args.outer_rate)
     vehicle = Vehicle(config, home=args.home, seed=args.seed, outer_rate_hz=args.outer_rate)
     try:
         link = UdpLink(args.host, args.port, args.out, signing_key=args.signing_key)
@@ -155,6 +156,23 @@ def main(argv: list[str] | None = None) -> int:
     if args.stats is not None:
         args.stats.write_text(json.dumps(server.stats(), indent=2) + "\n")
     return 0
+
+
+def warm_up(config, home: tuple[float, float, float], outer_rate_hz: float) -> None:
+    """Fly a throwaway copy of the vehicle for a moment before listening.
+
+    That compiles (or loads from numba's cache) every kernel a flight uses. A first compile takes seconds;
+    done later it would stall the first armed tick while ground stations wait for their command acks.
+    """
+    import copy
+
+    from sitl_quad.vehicle import Vehicle
+
+    scratch = Vehicle(copy.deepcopy(config), home=home, seed=0, outer_rate_hz=outer_rate_hz)
+    scratch.arm()
+    scratch.takeoff(2.0)
+    for _ in range(round(2.0 * outer_rate_hz)):  # spool-up, then climbing under the onboard loops
+        scratch.tick()
 
 
 def _fail(message: str) -> int:

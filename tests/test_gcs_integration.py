@@ -126,8 +126,9 @@ def test_vehicle_lost_mid_flight_ends_failed_and_the_link_reconnects_after_resta
             deadline = time.monotonic() + 60
             while not (state := client.get("/vehicle").json())["connected"] and time.monotonic() < deadline:
                 time.sleep(0.2)
-            time.sleep(0.5)  # a few state messages with the new time_boot_ms
-            state = client.get("/vehicle").json()
+            while state["connected"] and state["reboots"] == 0 and time.monotonic() < deadline:
+                time.sleep(0.2)  # the first state messages with the new time_boot_ms show the restart
+                state = client.get("/vehicle").json()
             assert state["connected"] and state["reboots"] == 1
         finally:
             restarted.terminate()

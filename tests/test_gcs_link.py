@@ -218,7 +218,9 @@ def test_reboot_and_heartbeat_loss_are_detected(vehicle):
         link = await connected_link(vehicle, timeout_s=0.5)
         try:
             vehicle.boot_start = time.monotonic() + 60.0  # time_boot_ms jumps back by a minute
-            await asyncio.sleep(0.4)
+            deadline = time.monotonic() + 5.0  # the next ATTITUDE shows it; a loaded machine may take a while
+            while link.status.reboots == 0 and time.monotonic() < deadline:
+                await asyncio.sleep(0.05)
             reboots = link.status.reboots
             vehicle.silent = True
             await asyncio.sleep(2.0)  # > timeout plus one 1 Hz check
