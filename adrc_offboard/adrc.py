@@ -254,7 +254,60 @@ class AdrcChannelParameters:
         return np.vstack([plant, observer])
 
 
-class AdrcChannel:
+class ChannelBase:
+    """What the nonlinear `AdrcChannel` and `ladrc.LinearAdrcChannel` share: the optional TD on the reference,
+    the output clip, and `update()` = `control()` then `observe_applied()`."""
+
+    __slots__ = ("_started", "_u_max", "_u_min", "tracking_differentiator")
+
+    def _setup(self, r0: float | None, h0: float | None, h: float, u_min: float, u_max: float) -> None:
+        self.tracking_differentiator = (
+            None if r0 is None else TrackingDifferentiator(r0, h0 if h0 is not None else h, h)
+        )
+        self._u_min, self._u_max = u_min, u_max
+        self._started = False
+
+    def reset(self) -> None:
+        """Forget all state; the next call starts the TD and ESO at the reference and measurement."""
+        self._started = False
+
+    def _start_reference(self, reference: float, reference_rate: float) -> None:
+        if self.tracking_differentiator is not None:
+            self.tracking_differentiator.reset(reference, reference_rate)
+        self._started = True
+
+    def _reference(self, reference: float, reference_rate: float, reference_acceleration: float):
+        """(v1, v2, feed-forward acceleration): the TD's outputs and none, or the reference as given."""
+        td = self.tracking_differentiator
+        if td is None:
+            return reference, reference_rate, reference_acceleration
+        v1, v2 = td.update(reference)
+        return v1, v2, 0.0  # eq. (12) uses only e1, e2; see AdrcChannel's docstring
+
+    def _clip(self, u: float) -> float:
+        return self._u_min if u < self._u_min else (self._u_max if u > self._u_max else u)
+
+    def control(self, reference: float, measurement: float, reference_rate: float = 0.0,
+                reference_acceleration: float = 0.0, measured_rate: float | None = None) -> float:
+        raise NotImplementedError
+
+    def observe_applied(self, applied_control: float) -> None:
+        raise NotImplementedError
+
+    def update(
+        self,
+        reference: float,
+        measurement: float,
+        reference_rate: float = 0.0,
+        reference_acceleration: float = 0.0,
+        measured_rate: float | None = None,
+    ) -> float:
+        u = self.control(reference, measurement, reference_rate, reference_acceleration, measured_rate)
+        self.observe_applied(u)
+        return u
+
+
+class AdrcChannel(ChannelBase):
     """TD + ESO + NLSEF for one second-order channel, with output limits.
 
     Per step: `control()` computes U(k) from the observer's z(k) (and the reference), clipped to
@@ -269,36 +322,16 @@ class AdrcChannel:
     makes the output chatter between its limits.
     """
 
-    __slots__ = (
-        "_b0",
-        "_feedback",
-        "_started",
-        "_u_max",
-        "_u_min",
-        "_y",
-        "h",
-        "observer",
-        "parameters",
-        "tracking_differentiator",
-    )
+    __slots__ = ("_b0", "_feedback", "_y", "h", "observer", "parameters")
 
     def __init__(self, parameters: AdrcChannelParameters, h: float) -> None:
         parameters.validate(h)
         self.parameters, self.h = parameters, h
         self.observer = parameters.make_observer(h)
         self._feedback = NonlinearStateErrorFeedback(parameters.r1, parameters.h1, parameters.c, parameters.b0)
-        self.tracking_differentiator = (
-            None
-            if parameters.r0 is None
-            else TrackingDifferentiator(parameters.r0, parameters.h0 if parameters.h0 is not None else h, h)
-        )
-        self._u_min, self._u_max, self._b0 = parameters.u_min, parameters.u_max, parameters.b0
-        self._started = False
+        self._setup(parameters.r0, parameters.h0, h, parameters.u_min, parameters.u_max)
+        self._b0 = parameters.b0
         self._y = 0.0
-
-    def reset(self) -> None:
-        """Forget all state; the next call starts the TD and ESO at the reference and measurement."""
-        self._started = False
 
     @property
     def disturbance(self) -> float:
@@ -315,37 +348,18 @@ class AdrcChannel:
     ) -> float:
         """U(k), clipped to the channel's limits. measured_rate, when given, replaces the ESO's z2 in the
         rate error (a measured velocity or gyro rate is fresher than the estimate)."""
-        observer, td = self.observer, self.tracking_differentiator
+        observer = self.observer
         if not self._started:
             observer.reset(measurement, measured_rate if measured_rate is not None else 0.0)
-            if td is not None:
-                td.reset(reference, reference_rate)
-            self._started = True
+            self._start_reference(reference, reference_rate)
         self._y = measurement
-        if td is not None:
-            v1, v2 = td.update(reference)
-            reference_acceleration = 0.0  # eq. (12) uses only e1, e2; see the class docstring
-        else:
-            v1, v2 = reference, reference_rate
+        v1, v2, reference_acceleration = self._reference(reference, reference_rate, reference_acceleration)
         rate = observer.z2 if measured_rate is None else measured_rate
-        u = self._feedback.control(v1 - observer.z1, v2 - rate, observer.z3, reference_acceleration)
-        return self._u_min if u < self._u_min else (self._u_max if u > self._u_max else u)
+        return self._clip(self._feedback.control(v1 - observer.z1, v2 - rate, observer.z3, reference_acceleration))
 
     def observe_applied(self, applied_control: float) -> None:
         """Step the ESO with this step's measurement and the control the plant really received."""
         self.observer.update(self._y, applied_control)
-
-    def update(
-        self,
-        reference: float,
-        measurement: float,
-        reference_rate: float = 0.0,
-        reference_acceleration: float = 0.0,
-        measured_rate: float | None = None,
-    ) -> float:
-        u = self.control(reference, measurement, reference_rate, reference_acceleration, measured_rate)
-        self.observer.update(measurement, u)
-        return u
 
     def state(self) -> dict[str, float]:
         o = self.observer

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from adrc_offboard.adrc import AdrcParameterError, TrackingDifferentiator, spectral_radius
+from adrc_offboard.adrc import AdrcParameterError, ChannelBase, spectral_radius
 
 
 @dataclass(frozen=True)
@@ -92,7 +92,7 @@ class LinearAdrcParameters:
                 )
 
 
-class LinearAdrcChannel:
+class LinearAdrcChannel(ChannelBase):
     """Linear ADRC for one second-order channel: optional TD, current discrete ESO, PD + cancellation."""
 
     __slots__ = (
@@ -105,11 +105,7 @@ class LinearAdrcChannel:
         "_l1",
         "_l2",
         "_l3",
-        "_started",
-        "_u_max",
-        "_u_min",
         "parameters",
-        "tracking_differentiator",
         "z1",
         "z2",
         "z3",
@@ -121,21 +117,12 @@ class LinearAdrcChannel:
         (self._l1, self._l2, self._l3), self._kp, self._kd = parameters.gains(h)
         self._h, self._b0 = h, parameters.b0
         self._g1, self._g2 = parameters.b0 * h * h / 2.0, parameters.b0 * h
-        self._u_min, self._u_max = parameters.u_min, parameters.u_max
-        self.tracking_differentiator = (
-            None
-            if parameters.r0 is None
-            else TrackingDifferentiator(parameters.r0, parameters.h0 if parameters.h0 is not None else h, h)
-        )
+        self._setup(parameters.r0, parameters.h0, h, parameters.u_min, parameters.u_max)
         self.z1 = self.z2 = self.z3 = 0.0  # after control(): z(k|k); after observe_applied(): z(k+1|k)
-        self._started = False
 
     @property
     def h(self) -> float:
         return self._h
-
-    def reset(self) -> None:
-        self._started = False
 
     @property
     def disturbance(self) -> float:
@@ -150,46 +137,23 @@ class LinearAdrcChannel:
         measured_rate: float | None = None,
     ) -> float:
         """Correct the estimate with y(k), then U(k), clipped (see `adrc.AdrcChannel.control`)."""
-        td = self.tracking_differentiator
         if not self._started:
-            self.z1, self.z2, self.z3 = (
-                measurement,
-                (measured_rate if measured_rate is not None else 0.0),
-                0.0,
-            )
-            if td is not None:
-                td.reset(reference, reference_rate)
-            self._started = True
+            self.z1, self.z2, self.z3 = measurement, (measured_rate if measured_rate is not None else 0.0), 0.0
+            self._start_reference(reference, reference_rate)
         innovation = measurement - self.z1
         self.z1 += self._l1 * innovation
         self.z2 += self._l2 * innovation
         self.z3 += self._l3 * innovation
-        if td is not None:
-            v1, v2 = td.update(reference)
-            reference_acceleration = 0.0  # eq. (12) uses only e1, e2; see the class docstring
-        else:
-            v1, v2 = reference, reference_rate
+        v1, v2, reference_acceleration = self._reference(reference, reference_rate, reference_acceleration)
         rate = self.z2 if measured_rate is None else measured_rate
-        u = (reference_acceleration + self._kp * (v1 - self.z1) + self._kd * (v2 - rate) - self.z3) / self._b0
-        return self._u_min if u < self._u_min else (self._u_max if u > self._u_max else u)
+        return self._clip((reference_acceleration + self._kp * (v1 - self.z1) + self._kd * (v2 - rate) - self.z3)
+                          / self._b0)
 
     def observe_applied(self, applied_control: float) -> None:
         """Predict z(k+1|k) = Phi z(k|k) + Gamma u(k) with the control actually applied."""
         h, z2, z3 = self._h, self.z2, self.z3
         self.z1 += h * z2 + 0.5 * h * h * z3 + self._g1 * applied_control
         self.z2 = z2 + h * z3 + self._g2 * applied_control
-
-    def update(
-        self,
-        reference: float,
-        measurement: float,
-        reference_rate: float = 0.0,
-        reference_acceleration: float = 0.0,
-        measured_rate: float | None = None,
-    ) -> float:
-        u = self.control(reference, measurement, reference_rate, reference_acceleration, measured_rate)
-        self.observe_applied(u)
-        return u
 
     def state(self) -> dict[str, float]:
         return {"z1": self.z1, "z2": self.z2, "z3": self.z3}
