@@ -48,8 +48,9 @@ buoy leg to the end of the return, vehicle above 1 m):
   rate non-zero, and 1.5 s after), the paper's Figure 11;
 - eso_lateral_rel_error (ADRC only): RMS over the tracking phase of |z3_xy - a_ext,xy| / RMS |a_ext,xy|,
   where a_ext is the simulator's true external acceleration (drag + D terms, `external_accel_ned`) at the
-  instant the ESO's measurement was taken; eso_lateral_rel_error_best_lag is the same at the best time shift
-  (0-0.5 s), a diagnostic of how much is observer lag;
+  instant the ESO's output is an estimate for (the sample after its latest measurement);
+  eso_lateral_rel_error_best_lag is the same at the best time shift (0-0.5 s), a diagnostic of how much
+  is observer lag;
 - thrust_step_rms / attitude_step_rms_deg: RMS change of the normalised thrust and of the commanded attitude
   between consecutive ticks (control effort and chatter);
 - saturated_fraction: share of tracking-phase ticks in which the mixer had to clip a rotor command.
@@ -397,12 +398,14 @@ def flight_metrics(s: dict[str, np.ndarray], scenario: Scenario, n_items: int) -
 
 
 def eso_errors(s: dict[str, np.ndarray], tracking: np.ndarray) -> dict:
-    """z3 read after tick k answers the state stamped t_k, i.e. the measurement taken at t_(k-1), whose true
-    external acceleration is the one reported at the end of tick k-2: compare z3[k] with ext[k - 2 - lag]."""
+    """z3 read after tick k has just stepped the ESO with the measurement taken at t_(k-1) (the state stamped
+    t_k); the discrete ESO's output after that step is its estimate for the next sample, t_k, whose true
+    external acceleration is the one reported at the end of tick k-1: compare z3[k] with ext[k - 1 - lag]
+    (lag 0 is the ESO's own claim; the best lag shows how much of the error is observer delay)."""
     z3 = np.column_stack([s["z3_x"], s["z3_y"]])
     ext = np.column_stack([s["ext_x"], s["ext_y"]])
     mask = np.concatenate([[False], tracking]) & (s["offboard"] > 0)  # tracking is indexed from tick 1
-    if mask.sum() <= 2 + ESO_MAX_LAG_TICKS:
+    if mask.sum() <= 1 + ESO_MAX_LAG_TICKS:
         return {
             "eso_lateral_rel_error": math.nan,
             "eso_lateral_rel_error_best_lag": math.nan,
@@ -410,7 +413,7 @@ def eso_errors(s: dict[str, np.ndarray], tracking: np.ndarray) -> dict:
         }
     results = []
     for lag in range(ESO_MAX_LAG_TICKS + 1):
-        shift = 2 + lag
+        shift = 1 + lag
         k = np.flatnonzero(mask[shift:]) + shift
         diff = z3[k] - ext[k - shift]
         results.append(_rms(np.linalg.norm(diff, axis=1)) / _rms(np.linalg.norm(ext[k - shift], axis=1)))
@@ -758,16 +761,16 @@ def draw_figures(scenario: Scenario, series: dict[str, dict], steps: dict[str, n
     if "adrc" in series:
         s = series["adrc"]
         # tick k ends at t[k] = t[0] + k dt on a clock that starts dt before t[0] (the mission start);
-        # z at tick k describes the measurement taken at the start of tick k-1
-        t = s["t"] - s["t"][0] - 1.0 / OUTER_RATE_HZ
+        # z at tick k is the ESO's estimate for t_k, the start of tick k (see eso_errors)
+        t = s["t"] - s["t"][0]
         w = (t >= t_gust - 2) & (t <= t_gust + 8)
         fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
         ext_t = s["t"] - s["t"][0] + 1.0 / OUTER_RATE_HZ  # reported at the end of its tick
         we = (ext_t >= t_gust - 2) & (ext_t <= t_gust + 8)
         for col, axis in enumerate(("x", "y")):
-            # z at tick k describes the measurement at t_(k-1) = the truth recorded at tick k-2
-            truth_pos = np.concatenate([[np.nan, np.nan], s[axis][:-2]])
-            truth_vel = np.concatenate([[np.nan, np.nan], s[f"v{axis}"][:-2]])
+            # z at tick k describes t_k = the truth recorded at the end of tick k-1
+            truth_pos = np.concatenate([[np.nan], s[axis][:-1]])
+            truth_vel = np.concatenate([[np.nan], s[f"v{axis}"][:-1]])
             axes[0, col].plot(t[w], (s[f"z1_{axis}"] - truth_pos)[w], label="z1 - true position")
             axes[1, col].plot(t[w], truth_vel[w], "k:", label="true velocity")
             axes[1, col].plot(t[w], s[f"z2_{axis}"][w], "g", label="z2 (velocity estimate)")
