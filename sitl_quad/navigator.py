@@ -74,7 +74,9 @@ class NavigatorConfig:
     land_target_depth: float = 0.5  # the landing reference ends this far under the ground, so the position
     # loop keeps pressing the vehicle down until the vehicle detects touchdown and disarms
     yaw_rate: float = math.radians(60.0)  # MPC_YAWRAUTO_MAX, rad/s
-    yaw_acceleration: float = math.radians(90.0)  # rad/s^2, smooths the start and end of each turn
+    # rad/s^2, smooths the start and end of each turn; within the airframe's yaw authority (Table 2's kf and
+    # 500 rad/s rotors give about 63 deg/s^2), so a turn asks for no more than the rotors can do
+    yaw_acceleration: float = math.radians(45.0)
     acceptance_radius: float = 2.0  # NAV_ACC_RAD, horizontal m
     altitude_acceptance: float = 1.0  # NAV_MC_ALT_RAD, vertical m
     rtl_altitude: float = 10.0  # RTL_RETURN_ALT, m above home

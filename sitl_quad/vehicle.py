@@ -369,8 +369,12 @@ class Vehicle:
 
     # ----- the loop
     def tick(self) -> TickRecord:
-        """Advance one outer-loop period of simulated time."""
-        self.estimate = est = self.sim.measure()
+        """Advance one outer-loop period of simulated time.
+
+        The outer loop acts on the estimate measured at the end of the previous tick, the one the state
+        messages of that tick carried: the offboard controller and the built-in loop see the same, fresh state.
+        """
+        est = self.estimate
         self._start_pending_takeoff()
         if self.armed:
             self.setpoint = self.navigator.update(self.clock, est)
@@ -404,8 +408,9 @@ class Vehicle:
         self.saturated_ticks += int(saturated)
         if self.armed:
             self.flight_time_s += self.outer_dt
+        self.estimate = self.sim.measure()
         self._update_landed_state()
-        return TickRecord(t=self.t, truth=self.sim.state, estimate=est, setpoint=self.setpoint,
+        return TickRecord(t=self.t, truth=self.sim.state, estimate=self.estimate, setpoint=self.setpoint,
                           target=target, source=source, disturbance=dict(self.sim.last_disturbance))
 
     def _outer_loop(self, est: VehicleState) -> tuple[AttitudeTarget, str]:
@@ -473,9 +478,11 @@ class Vehicle:
             else:
                 self._ground_since = None
         elif on_ground and not self._was_airborne:
-            climbing = self.navigator.activity in ("takeoff", "mission", "rtl") or self._pending_start is not None
+            climbing = self.navigator.activity in ("takeoff", "mission", "rtl")
+            # while the motors spool up the vehicle is still on the ground (an offboard controller resets then)
             self.landed_state = LandedState.TAKEOFF if climbing else LandedState.ON_GROUND
-            if not climbing and self.t - self._armed_at > PREFLIGHT_DISARM_S:
+            spooling = self._pending_start is not None
+            if not climbing and not spooling and self.t - self._armed_at > PREFLIGHT_DISARM_S:
                 self._disarm("Disarmed: no takeoff")
         elif self.navigator.activity == "takeoff":
             self.landed_state = LandedState.TAKEOFF
