@@ -371,10 +371,10 @@ class Vehicle:
     def tick(self) -> TickRecord:
         """Advance one outer-loop period of simulated time.
 
-        The outer loop acts on the estimate measured at the end of the previous tick, the one the state
-        messages of that tick carried: the offboard controller and the built-in loop see the same, fresh state.
+        The estimate and the reference are taken at the start of the tick and are what the tick's state
+        messages carry, so the offboard controller sees them consistent (same instant), one tick old.
         """
-        est = self.estimate
+        self.estimate = est = self.sim.measure()
         self._start_pending_takeoff()
         if self.armed:
             self.setpoint = self.navigator.update(self.clock, est)
@@ -408,9 +408,8 @@ class Vehicle:
         self.saturated_ticks += int(saturated)
         if self.armed:
             self.flight_time_s += self.outer_dt
-        self.estimate = self.sim.measure()
         self._update_landed_state()
-        return TickRecord(t=self.t, truth=self.sim.state, estimate=self.estimate, setpoint=self.setpoint,
+        return TickRecord(t=self.t, truth=self.sim.state, estimate=est, setpoint=self.setpoint,
                           target=target, source=source, disturbance=dict(self.sim.last_disturbance))
 
     def _outer_loop(self, est: VehicleState) -> tuple[AttitudeTarget, str]:
