@@ -34,7 +34,7 @@ from adrc_offboard.outer_loop import OuterLoopController
 from sitl_quad.mavlink import mavlink
 from sitl_quad.mavlink.commands import Commands
 from sitl_quad.mavlink.heartbeat import heartbeat_message
-from sitl_quad.mavlink.mission import item_from_message
+from sitl_quad.mavlink.mission import item_from_message, item_message
 from sitl_quad.mavlink.offboard import Offboard
 from sitl_quad.mavlink.telemetry import ONBOARD_STREAMS, Telemetry
 from sitl_quad.mission_items import MissionItem
@@ -87,25 +87,7 @@ class LockstepHarness:
     # ----- ground-station actions, between ticks
     def upload_mission(self, items: list[MissionItem]) -> None:
         """Store a mission as the vehicle's mission protocol would after a MISSION_ITEM_INT upload."""
-        messages = [
-            mavlink.MAVLink_mission_item_int_message(
-                *VEHICLE_IDS,
-                it.seq,
-                it.frame,
-                it.command,
-                it.current,
-                it.autocontinue,
-                it.param1,
-                it.param2,
-                it.param3,
-                it.param4,
-                it.x,
-                it.y,
-                it.z,
-                it.mission_type,
-            )
-            for it in items
-        ]
+        messages = [item_message(it, *VEHICLE_IDS) for it in items]
         self.vehicle.set_mission([item_from_message(m) for m in self._from_gcs(messages)])
 
     def arm(self) -> None:

@@ -18,6 +18,7 @@ from planner.geodesy import LocalFrame
 from planner.scenario import DEFAULT_HOME
 from sitl_quad.config import VehicleConfig
 from sitl_quad.mavlink import mavlink
+from sitl_quad.mavlink.mission import item_message
 from sitl_quad.mission_items import FRAME_GLOBAL_RELATIVE_ALT_INT, NAV_LAND, NAV_TAKEOFF, NAV_WAYPOINT, MissionItem
 from sitl_quad.server import VehicleServer
 from sitl_quad.vehicle import Vehicle
@@ -74,26 +75,7 @@ def fly_over_udp(tmp_path) -> list[list[str]]:
     try:
         gcs.connect(timeout=60)
         assert gcs.recv("HEARTBEAT", timeout=60, condition=lambda m: m.get_srcComponent() == 191) is not None
-        items = [
-            mavlink.MAVLink_mission_item_int_message(
-                1,
-                1,
-                it.seq,
-                it.frame,
-                it.command,
-                it.current,
-                it.autocontinue,
-                it.param1,
-                it.param2,
-                it.param3,
-                it.param4,
-                it.x,
-                it.y,
-                it.z,
-                0,
-            )
-            for it in short_mission()
-        ]
+        items = [item_message(it, 1, 1) for it in short_mission()]
         assert gcs.upload_mission(items).type == mavlink.MAV_MISSION_ACCEPTED
         assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == mavlink.MAV_RESULT_ACCEPTED
         assert gcs.command(mavlink.MAV_CMD_MISSION_START, 0, 0).result == mavlink.MAV_RESULT_ACCEPTED

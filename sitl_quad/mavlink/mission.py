@@ -82,6 +82,13 @@ def item_from_message(msg) -> MissionItem:
         mission_type=getattr(msg, "mission_type", MISSION))
 
 
+def item_message(item: MissionItem, target_system: int, target_component: int):
+    """The MISSION_ITEM_INT that carries a stored item, verbatim (the inverse of item_from_message)."""
+    return mavlink.MAVLink_mission_item_int_message(
+        target_system, target_component, item.seq, item.frame, item.command, item.current, item.autocontinue,
+        item.param1, item.param2, item.param3, item.param4, item.x, item.y, item.z, item.mission_type)
+
+
 class MissionProtocol:
     def __init__(self, vehicle: Vehicle, send, sysid: int = 1, compid: int = 1) -> None:
         self.vehicle = vehicle
@@ -214,9 +221,7 @@ class MissionProtocol:
         item = mission[msg.seq]
         sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
         if msg.get_type() == "MISSION_REQUEST_INT":
-            reply = mavlink.MAVLink_mission_item_int_message(
-                sysid, compid, item.seq, item.frame, item.command, item.current, item.autocontinue,
-                item.param1, item.param2, item.param3, item.param4, item.x, item.y, item.z, item.mission_type)
+            reply = item_message(item, sysid, compid)
         else:
             reply = mavlink.MAVLink_mission_item_message(
                 sysid, compid, item.seq, item.frame, item.command, item.current, item.autocontinue,
