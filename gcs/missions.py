@@ -61,6 +61,7 @@ RESTART_NOT_FLYING = "GCS restarted; vehicle no longer flying this mission"
 REATTACHED = "GCS restarted; re-attached to the vehicle flying this mission"
 VEHICLE_EVENTS_KEPT = 50  # STATUSTEXTs and mode changes kept in a mission's progress
 MISSION_CURRENT_WAIT_S = 3.0  # wall clock a re-attaching service waits for the vehicle's MISSION_CURRENT
+ARMED_CONFIRM_S = 2.0  # wall clock to see an "already armed" vehicle's heartbeat say armed
 
 
 class MissionNotFoundError(KeyError):
@@ -402,6 +403,20 @@ class MissionService:
         if result != mavlink.MAV_RESULT_ACCEPTED:
             raise MissionEndError("failed", f"the vehicle refused to {what} ({result_name('MAV_RESULT', result)})")
 
+    async def _arm(self) -> None:
+        """ARM, surviving a lost acknowledgement: the link resends a command whose ACK was lost, and the vehicle
+        answers an ARM while armed with TEMPORARILY_REJECTED. If its heartbeat then says armed, the first ARM
+        did arrive and the mission goes on."""
+        result = await self.link.command_long(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, [1])
+        if result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED:
+            deadline = time.monotonic() + ARMED_CONFIRM_S
+            while time.monotonic() < deadline and not self.link.status.armed:
+                await asyncio.sleep(0.05)
+            if self.link.status.armed:
+                return
+        if result != mavlink.MAV_RESULT_ACCEPTED:
+            raise MissionEndError("failed", f"the vehicle refused to arm ({result_name('MAV_RESULT', result)})")
+
     async def _fly(self, mission_id: int, plan: Plan, flight: FlightParams, recorder: Recorder) -> None:
         if not await self.link.wait_connected(self.settings.vehicle_wait_s):
             raise MissionEndError("failed", "no vehicle")
@@ -413,7 +428,7 @@ class MissionService:
         self._transition(mission_id, "uploaded")
         self.link.add_listener(recorder, recorder.end_of_datagram)
         self.recorders[mission_id] = recorder
-        await self._command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, [1], "arm")
+        await self._arm()
         # AUTO.MISSION as MAVSDK's start_mission does: DO_SET_MODE(custom | armed, main 4, sub 4)
         mode_flags = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | ARMED_FLAG
         result = await self.link.command_long(mavlink.MAV_CMD_DO_SET_MODE, [mode_flags, 4, 4])

@@ -35,6 +35,7 @@ class VehicleServer:
     def __init__(self, vehicle: Vehicle, params: ParameterTable, link: UdpLink, speed: float = 1.0,
                  lockstep: bool = False, flight_log: Path | None = None, on_params_changed=None) -> None:
         self.vehicle = vehicle
+        vehicle.wall_clock = time.monotonic  # protocol-facing timers also respect the wall clock
         self.params = params
         self.link = link
         self.speed = speed

@@ -118,6 +118,11 @@ class Vehicle:
         self.flight_time_s = 0.0  # armed time, drains the battery model
         self._ground_since: float | None = None
         self._armed_at = 0.0
+        self._armed_at_wall = 0.0
+        # Wall clock for the pre-flight disarm timer (the server passes time.monotonic): a ground station's
+        # command retries run on the wall clock, so at lockstep speeds 10 s of simulated time can pass between
+        # its ARM and a MISSION_START that had to be resent. None: simulated time only (tests, benchmarks).
+        self.wall_clock = None
         self._was_airborne = False
         self._pending_start: tuple | None = None  # (time, mode, first_seq, altitude) of a takeoff spooling up
 
@@ -208,6 +213,7 @@ class Vehicle:
             return CommandResult.DENIED
         self.armed = True
         self._armed_at = self.t
+        self._armed_at_wall = self.wall_clock() if self.wall_clock is not None else 0.0
         self._was_airborne = False
         self.attitude.reset()
         self.position.reset()
@@ -458,6 +464,12 @@ class Vehicle:
         truth = self.sim.state
         return self.sim.on_ground or (-truth.position[2] < 0.05 and abs(truth.velocity[2]) < 0.3)
 
+    def _preflight_timed_out(self) -> bool:
+        """Armed on the ground without a takeoff for PREFLIGHT_DISARM_S, in simulated and in wall time."""
+        if self.t - self._armed_at <= PREFLIGHT_DISARM_S:
+            return False
+        return self.wall_clock is None or self.wall_clock() - self._armed_at_wall > PREFLIGHT_DISARM_S
+
     def _update_landed_state(self) -> None:
         if not self.armed:
             self.landed_state = LandedState.ON_GROUND
@@ -481,7 +493,7 @@ class Vehicle:
             # while the motors spool up the vehicle is still on the ground (an offboard controller resets then)
             self.landed_state = LandedState.TAKEOFF if climbing else LandedState.ON_GROUND
             spooling = self._pending_start is not None
-            if not climbing and not spooling and self.t - self._armed_at > PREFLIGHT_DISARM_S:
+            if not climbing and not spooling and self._preflight_timed_out():
                 self._disarm("Disarmed: no takeoff")
         elif self.navigator.activity == "takeoff":
             self.landed_state = LandedState.TAKEOFF

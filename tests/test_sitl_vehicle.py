@@ -203,3 +203,15 @@ def test_change_speed_sets_the_cruise_speed_of_later_legs(vehicle):
         fastest = max(fastest, float(np.hypot(*vehicle.setpoint.velocity[:2])))
     assert vehicle.navigator.mission_state == "complete"
     assert 3.5 < fastest <= 4.0 + 1e-6
+
+
+def test_preflight_disarm_also_waits_for_the_wall_clock(vehicle):
+    """At lockstep speeds simulated time races ahead of a ground station's wall-clock command retries."""
+    wall = [100.0]
+    vehicle.wall_clock = lambda: wall[0]
+    vehicle.arm()
+    fly_until(vehicle, lambda v: not v.armed, PREFLIGHT_DISARM_S + 2)
+    assert vehicle.armed  # 12 s simulated, no wall time: the station's MISSION_START retry may still come
+    wall[0] += PREFLIGHT_DISARM_S + 0.5
+    fly_until(vehicle, lambda v: not v.armed, 1.0)
+    assert not vehicle.armed
