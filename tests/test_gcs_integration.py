@@ -147,6 +147,11 @@ def test_mission_with_the_offboard_controller_records_its_eso_estimates(tmp_path
     )
     try:
         with TestClient(create_app(settings_for(tmp_path, port))) as client:
+            # Start once the controller answers the vehicle's ticks (its estimates reach the service): a mission
+            # started before would fly its first, free-running part on the vehicle's own loop.
+            deadline = time.monotonic() + 60
+            while not client.get("/vehicle").json().get("estimates") and time.monotonic() < deadline:
+                time.sleep(0.2)
             mission_id = client.post("/missions", json={"buoys": BUOYS[:3]}).json()["id"]
             mission = wait_for(client, mission_id, lambda m: m["status"] in TERMINAL, timeout_s=300)
             assert (mission["status"], mission["reason"]) == ("completed", None)
