@@ -122,6 +122,13 @@ def fly_demo(base: str, options: UpOptions, supervisor: Supervisor, say) -> dict
             raise SupervisorError("the service never heard the vehicle's heartbeat")
         supervisor.poll()
         time.sleep(0.5)
+    # With a controller, fly once it answers the vehicle's ticks (its ESO estimates reach the service): in
+    # lockstep the vehicle runs freely until then, and the whole demo should be the controller's flight.
+    while options.controller == "adrc" and not _get_json(f"{base}/vehicle").get("estimates"):
+        if time.monotonic() > deadline:
+            raise SupervisorError("the offboard controller never answered the vehicle")
+        supervisor.poll()
+        time.sleep(0.2)
     headers = {"Authorization": f"Bearer {options.token}"} if options.token else {}
     mission = _post_json(f"{base}/missions", reference_request(options), headers)
     say(f"demo: mission {mission['id']} planned, {len(mission['order'])} buoys, {mission['length_m']:.0f} m; flying")
