@@ -32,9 +32,10 @@ from types import SimpleNamespace
 from adrc_offboard.node import OffboardProtocol
 from adrc_offboard.outer_loop import OuterLoopController
 from sitl_quad.mavlink import mavlink
+from sitl_quad.mavlink.codec import item_message
 from sitl_quad.mavlink.commands import Commands
 from sitl_quad.mavlink.heartbeat import heartbeat_message
-from sitl_quad.mavlink.mission import item_from_message, item_message
+from sitl_quad.mavlink.mission import item_from_message
 from sitl_quad.mavlink.offboard import Offboard
 from sitl_quad.mavlink.telemetry import ONBOARD_STREAMS, Telemetry
 from sitl_quad.mission_items import MissionItem

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from gcs.link import AUTOPILOT_COMPID, GCS_SYSID, VEHICLE_SYSID, LinkManager, mavlink, result_name
+from sitl_quad.mavlink.codec import item_message
 from sitl_quad.mission_items import MissionItem
 
 MISSION = mavlink.MAV_MISSION_TYPE_MISSION
@@ -52,24 +53,6 @@ async def _next(inbox: asyncio.Queue, timeout_s: float) -> Any | None:
     return None
 
 
-def _item_message(link: LinkManager, item: MissionItem) -> Any:
-    return link.encoder.mission_item_int_encode(
-        VEHICLE_SYSID,
-        AUTOPILOT_COMPID,
-        item.seq,
-        item.frame,
-        item.command,
-        item.current,
-        item.autocontinue,
-        item.param1,
-        item.param2,
-        item.param3,
-        item.param4,
-        item.x,
-        item.y,
-        item.z,
-        MISSION,
-    )
 
 
 async def upload_mission(
@@ -101,7 +84,8 @@ async def upload_mission(
             seq = message.seq
             if not 0 <= seq < len(items):
                 raise MissionTransferError(f"mission upload: the vehicle asked for item {seq} of {len(items)}")
-            last_sent, step, tries_left = _item_message(link, items[seq]), f"after item {seq}", retries
+            last_sent = item_message(items[seq], VEHICLE_SYSID, AUTOPILOT_COMPID)
+            step, tries_left = f"after item {seq}", retries
             highest_sent = max(highest_sent, seq)
             link.send(last_sent)
 

@@ -18,7 +18,7 @@ from planner.geodesy import LocalFrame
 from planner.scenario import DEFAULT_HOME
 from sitl_quad.config import VehicleConfig
 from sitl_quad.mavlink import mavlink
-from sitl_quad.mavlink.mission import item_message
+from sitl_quad.mavlink.codec import item_message
 from sitl_quad.mission_items import FRAME_GLOBAL_RELATIVE_ALT_INT, NAV_LAND, NAV_TAKEOFF, NAV_WAYPOINT, MissionItem
 from sitl_quad.server import VehicleServer
 from sitl_quad.vehicle import Vehicle

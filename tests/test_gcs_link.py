@@ -21,6 +21,7 @@ from gcs.app import create_app
 from gcs.link import CommandTimeoutError, LinkManager
 from gcs.mission_protocol import MissionRejectedError, MissionTimeoutError, download_mission, upload_mission
 from gcs.settings import Settings
+from sitl_quad.mavlink.codec import item_message
 from sitl_quad.mission_items import NAV_WAYPOINT, MissionItem
 
 ITEMS = [
@@ -109,23 +110,7 @@ class ScriptedVehicle(threading.Thread):
         elif kind == "MISSION_REQUEST_INT" and m.seq < len(self.stored):
             item = self.stored[m.seq]
             self.send(
-                self.mav.mission_item_int_encode(
-                    255,
-                    190,
-                    item.seq,
-                    item.frame,
-                    item.command,
-                    item.current,
-                    item.autocontinue,
-                    item.param1,
-                    item.param2,
-                    item.param3,
-                    item.param4,
-                    item.x,
-                    item.y,
-                    item.z,
-                    0,
-                )
+                item_message(item, 255, 190)
             )
 
     def stop(self) -> None:

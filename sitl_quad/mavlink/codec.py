@@ -50,3 +50,10 @@ def parse_datagram(parser: mavlink.MAVLink, data: bytes) -> list:
     parser.buf, parser.buf_index = bytearray(), 0
     parser.expected_length = mavlink.HEADER_LEN_V1 + 2
     return parser.parse_buffer(data) or []
+
+
+def item_message(item, target_system: int, target_component: int):
+    """The MISSION_ITEM_INT that carries a stored `sitl_quad.mission_items.MissionItem`, verbatim."""
+    return mavlink.MAVLink_mission_item_int_message(
+        target_system, target_component, item.seq, item.frame, item.command, item.current, item.autocontinue,
+        item.param1, item.param2, item.param3, item.param4, item.x, item.y, item.z, item.mission_type)

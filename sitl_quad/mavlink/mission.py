@@ -17,6 +17,7 @@ import time
 from dataclasses import dataclass, field
 
 from sitl_quad.mavlink import mavlink
+from sitl_quad.mavlink.codec import item_message
 from sitl_quad.mission_items import FRAME_MISSION, SUPPORTED_COMMANDS, SUPPORTED_FRAMES, MissionItem
 from sitl_quad.vehicle import Vehicle
 
@@ -80,13 +81,6 @@ def item_from_message(msg) -> MissionItem:
         seq=msg.seq, frame=frame, command=msg.command, current=msg.current, autocontinue=msg.autocontinue,
         param1=msg.param1, param2=msg.param2, param3=msg.param3, param4=msg.param4, x=x, y=y, z=msg.z,
         mission_type=getattr(msg, "mission_type", MISSION))
-
-
-def item_message(item: MissionItem, target_system: int, target_component: int):
-    """The MISSION_ITEM_INT that carries a stored item, verbatim (the inverse of item_from_message)."""
-    return mavlink.MAVLink_mission_item_int_message(
-        target_system, target_component, item.seq, item.frame, item.command, item.current, item.autocontinue,
-        item.param1, item.param2, item.param3, item.param4, item.x, item.y, item.z, item.mission_type)
 
 
 class MissionProtocol:
