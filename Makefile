@@ -19,6 +19,7 @@ run: $(STAMP)
 
 test: $(STAMP) chromium
 	$(BIN)/python -m ruff check .
+	$(BIN)/python -m ruff format --check .
 	$(BIN)/python -m pytest -n 2
 
 # The browser tests drive Debian's Chromium (Playwright's own browser download does not work here).
@@ -27,6 +28,7 @@ chromium:
 
 lint: $(STAMP)
 	$(BIN)/python -m ruff check .
+	$(BIN)/python -m ruff format --check .
 
 bench: $(STAMP)
 	$(BIN)/python bench/planner.py

@@ -287,8 +287,14 @@ class ChannelBase:
     def _clip(self, u: float) -> float:
         return self._u_min if u < self._u_min else (self._u_max if u > self._u_max else u)
 
-    def control(self, reference: float, measurement: float, reference_rate: float = 0.0,
-                reference_acceleration: float = 0.0, measured_rate: float | None = None) -> float:
+    def control(
+        self,
+        reference: float,
+        measurement: float,
+        reference_rate: float = 0.0,
+        reference_acceleration: float = 0.0,
+        measured_rate: float | None = None,
+    ) -> float:
         raise NotImplementedError
 
     def observe_applied(self, applied_control: float) -> None:

@@ -53,8 +53,9 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_false",
         help="never request OFFBOARD (answer setpoints only, e.g. to keep a lockstep vehicle paced)",
     )
-    p.add_argument("--signing-key", metavar="KEY",
-                   help="MAVLink 2 signing key, the vehicle's (64 hex digits, or a passphrase)")
+    p.add_argument(
+        "--signing-key", metavar="KEY", help="MAVLink 2 signing key, the vehicle's (64 hex digits, or a passphrase)"
+    )
     p.add_argument("--duration", type=float, metavar="SECONDS", help="exit after this many wall-clock seconds")
     p.add_argument("-v", "--verbose", action="store_true")
     return p
@@ -82,8 +83,9 @@ def main(argv: list[str] | None = None) -> int:
     from sitl_quad.cli import signing_key
 
     key = signing_key(args.signing_key) if args.signing_key is not None else None
-    node = OffboardNode(make_controller(args.controller, args.rate), args.connect, args.rate, args.engage,
-                        signing_key=key)
+    node = OffboardNode(
+        make_controller(args.controller, args.rate), args.connect, args.rate, args.engage, signing_key=key
+    )
     signal.signal(signal.SIGTERM, lambda *_: node.stop())
     signal.signal(signal.SIGINT, lambda *_: node.stop())
     print(

@@ -146,8 +146,9 @@ class LinearAdrcChannel(ChannelBase):
         self.z3 += self._l3 * innovation
         v1, v2, reference_acceleration = self._reference(reference, reference_rate, reference_acceleration)
         rate = self.z2 if measured_rate is None else measured_rate
-        return self._clip((reference_acceleration + self._kp * (v1 - self.z1) + self._kd * (v2 - rate) - self.z3)
-                          / self._b0)
+        return self._clip(
+            (reference_acceleration + self._kp * (v1 - self.z1) + self._kd * (v2 - rate) - self.z3) / self._b0
+        )
 
     def observe_applied(self, applied_control: float) -> None:
         """Predict z(k+1|k) = Phi z(k|k) + Gamma u(k) with the control actually applied."""

@@ -1,6 +1,6 @@
 """A minimal outer-loop controller for the lockstep benchmark: a PD law on position, through the same node.
 
-    .venv/bin/python bench/hover_offboard.py --connect udpout:127.0.0.1:14540 [--no-engage]
+.venv/bin/python bench/hover_offboard.py --connect udpout:127.0.0.1:14540 [--no-engage]
 """
 
 from __future__ import annotations
@@ -27,8 +27,11 @@ class PositionPd:
         pass
 
     def update(self, setpoint, estimate, dt):
-        acc = setpoint.acceleration + self.kp * (setpoint.position - estimate.position) \
+        acc = (
+            setpoint.acceleration
+            + self.kp * (setpoint.position - estimate.position)
             + self.kd * (setpoint.velocity - estimate.velocity)
+        )
         af = self.airframe
         return acceleration_to_attitude(acc, setpoint.yaw, af.mass, af.g, af.max_thrust_n)
 

@@ -45,8 +45,11 @@ def lockstep_full_loop(controller: list[str]) -> dict:
     vehicle = SitlProcess()
     vehicle.args = [sys.executable, "-m", "sitl_quad", "--port", str(vehicle.port), "--lockstep"]
     vehicle.start()
-    process = subprocess.Popen([sys.executable, *controller, "--connect", f"udpout:127.0.0.1:{vehicle.port}",
-                                "--no-engage"], cwd=REPO, stdout=subprocess.DEVNULL)
+    process = subprocess.Popen(
+        [sys.executable, *controller, "--connect", f"udpout:127.0.0.1:{vehicle.port}", "--no-engage"],
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+    )
     gcs = GroundStation(vehicle.port)
     try:
         gcs.connect(timeout=60)
@@ -94,9 +97,12 @@ def tick_jitter_at_speed_1() -> dict:
         lateness = json.loads(stats_path.read_text())["tick_lateness_ms"]
         intervals = np.diff(np.array(arrivals[50:]))  # the first second includes the peer's discovery
         deviation_ms = np.abs(intervals - 0.02) * 1000
-        return {"tick_lateness_ms": lateness, "ticks_received": len(intervals),
-                "arrival_deviation_p50_ms": float(np.percentile(deviation_ms, 50)),
-                "arrival_deviation_p99_ms": float(np.percentile(deviation_ms, 99))}
+        return {
+            "tick_lateness_ms": lateness,
+            "ticks_received": len(intervals),
+            "arrival_deviation_p50_ms": float(np.percentile(deviation_ms, 50)),
+            "arrival_deviation_p99_ms": float(np.percentile(deviation_ms, 99)),
+        }
     finally:
         peer.close()
         vehicle.cleanup()
@@ -115,17 +121,22 @@ def main() -> None:
     result["lockstep_minimal_controller"] = minimal
     result["lockstep_adrc_offboard"] = adrc
     result["speed_1_tick_jitter"] = jitter
-    result["targets"] = {"physics_real_time_factor": 40.0, "lockstep_real_time_factor": 20.0,
-                         "jitter_p99_ms": 2.0}
+    result["targets"] = {"physics_real_time_factor": 40.0, "lockstep_real_time_factor": 20.0, "jitter_p99_ms": 2.0}
     rows = [
         ("physics alone (RK4 1 kHz, wind, turbulence, D, noise)", f"{physics['real_time_factor']:.0f}x", ">= 40x"),
         ("vehicle onboard loop (PID 250 Hz + mixer + physics)", f"{loop['real_time_factor']:.0f}x", ""),
         ("lockstep, minimal pymavlink controller, 50 Hz", f"{minimal['real_time_factor']:.1f}x", ">= 20x"),
         ("lockstep, adrc_offboard (ADRC), 50 Hz", f"{adrc['real_time_factor']:.1f}x", ""),
-        ("--speed 1 outer-loop tick lateness p50 / p99",
-         f"{jitter['tick_lateness_ms']['p50']:.2f} / {jitter['tick_lateness_ms']['p99']:.2f} ms", "p99 <= 2 ms"),
-        ("--speed 1 state arrival at the peer, |interval - 20 ms| p50 / p99",
-         f"{jitter['arrival_deviation_p50_ms']:.2f} / {jitter['arrival_deviation_p99_ms']:.2f} ms", ""),
+        (
+            "--speed 1 outer-loop tick lateness p50 / p99",
+            f"{jitter['tick_lateness_ms']['p50']:.2f} / {jitter['tick_lateness_ms']['p99']:.2f} ms",
+            "p99 <= 2 ms",
+        ),
+        (
+            "--speed 1 state arrival at the peer, |interval - 20 ms| p50 / p99",
+            f"{jitter['arrival_deviation_p50_ms']:.2f} / {jitter['arrival_deviation_p99_ms']:.2f} ms",
+            "",
+        ),
     ]
     width = max(len(r[0]) for r in rows)
     print(f"{'case':{width}}  {'measured':>18}  target")

@@ -43,9 +43,9 @@ from sitl_quad.wind import WindConfig  # noqa: E402
 RESULTS = REPO / "bench" / "results"
 AIRFRAME = Airframe.table2()
 WINDY = dict(
-    wind=WindConfig(8.0, 270.0, gust_amplitude_m_s=4.0, gust_rise_time_s=0.1, gust_start_s=5.0,
-                    turbulence_w20_m_s=8.0),
-    disturbance=DisturbanceConfig(), sensor_noise=SensorNoise(),
+    wind=WindConfig(8.0, 270.0, gust_amplitude_m_s=4.0, gust_rise_time_s=0.1, gust_start_s=5.0, turbulence_w20_m_s=8.0),
+    disturbance=DisturbanceConfig(),
+    sensor_noise=SensorNoise(),
 )
 SIM_SECONDS = 20.0
 
@@ -61,15 +61,18 @@ PAPER = {
 def import_and_compile_seconds() -> dict:
     """Wall time of `import numba` and of importing the simulator + first step, in fresh processes:
     once with an empty numba cache (compile) and once more with the cache it left (load)."""
-    code = ("import time; t0 = time.perf_counter(); import numba; t1 = time.perf_counter(); "
-            "from sitl_quad.simulator import Simulator; Simulator().step(1); "
-            "print(t1 - t0, time.perf_counter() - t1)")
+    code = (
+        "import time; t0 = time.perf_counter(); import numba; t1 = time.perf_counter(); "
+        "from sitl_quad.simulator import Simulator; Simulator().step(1); "
+        "print(t1 - t0, time.perf_counter() - t1)"
+    )
     runs = {}
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
         for label in ("cold_compile", "cached"):
-            out = subprocess.run([sys.executable, "-c", code], env=env, cwd=REPO, capture_output=True, text=True,
-                                 check=True).stdout.split()
+            out = subprocess.run(
+                [sys.executable, "-c", code], env=env, cwd=REPO, capture_output=True, text=True, check=True
+            ).stdout.split()
             runs[label] = {"import_numba_s": float(out[0]), "simulator_ready_s": float(out[1])}
     return runs
 
@@ -78,8 +81,7 @@ def physics_alone(block: int) -> dict:
     """Simulated s per wall s for RK4 in blocks of `block` steps with wind, D terms and a measurement each."""
     best = math.inf
     for _ in range(3):
-        sim = Simulator(AIRFRAME, seed=1, position=(0.0, 0.0, -5.0), rotor_speed=AIRFRAME.hover_rotor_speed,
-                        **WINDY)
+        sim = Simulator(AIRFRAME, seed=1, position=(0.0, 0.0, -5.0), rotor_speed=AIRFRAME.hover_rotor_speed, **WINDY)
         sim.set_rotor_commands(np.full(4, AIRFRAME.hover_rotor_speed))
         ticks = round(SIM_SECONDS / (block * sim.dt))
         started = time.perf_counter()
@@ -96,8 +98,7 @@ def vehicle_loop() -> dict:
     best, saturated = math.inf, 0.0
     setpoint = TrajectorySetpoint(position=np.array([0.0, 0.0, -5.0]))
     for _ in range(3):
-        sim = Simulator(AIRFRAME, seed=1, position=(0.0, 0.0, -5.0), rotor_speed=AIRFRAME.hover_rotor_speed,
-                        **WINDY)
+        sim = Simulator(AIRFRAME, seed=1, position=(0.0, 0.0, -5.0), rotor_speed=AIRFRAME.hover_rotor_speed, **WINDY)
         attitude, position, mixer = PidAttitudeController(), PidPositionController(AIRFRAME), Mixer(AIRFRAME)
         started = time.perf_counter()
         target = None
@@ -109,8 +110,11 @@ def vehicle_loop() -> dict:
             sim.step(4)
         best = min(best, time.perf_counter() - started)
         saturated = mixer.saturated_steps / mixer.calls
-    return {"real_time_factor": SIM_SECONDS / best, "us_per_attitude_tick": best / (SIM_SECONDS * 250) * 1e6,
-            "motor_saturation_fraction": saturated}
+    return {
+        "real_time_factor": SIM_SECONDS / best,
+        "us_per_attitude_tick": best / (SIM_SECONDS * 250) * 1e6,
+        "motor_saturation_fraction": saturated,
+    }
 
 
 # ---------------------------------------------------------------- channel identification
@@ -128,8 +132,11 @@ def step_response(channel: str, size: float, seconds: float) -> tuple[np.ndarray
     for _ in range(round(seconds / sim.dt)):
         sim.step(1)
         state = sim.state
-        value = -state.position[2] - 100.0 if channel == "altitude (z up)" else \
-            euler_from_quat(state.quaternion)[["roll (phi)", "pitch (theta)", "yaw (psi)"].index(channel)]
+        value = (
+            -state.position[2] - 100.0
+            if channel == "altitude (z up)"
+            else euler_from_quat(state.quaternion)[["roll (phi)", "pitch (theta)", "yaw (psi)"].index(channel)]
+        )
         times.append(sim.t)
         outputs.append(value)
     return np.array(times), np.array(outputs) / size
@@ -180,39 +187,54 @@ def magnitude(numerator, denominator, omega: float) -> float:
 
 def channels() -> list[dict]:
     rows = []
-    expected_k = {"roll (phi)": AIRFRAME.arm_length / AIRFRAME.ixx, "pitch (theta)": AIRFRAME.arm_length / AIRFRAME.iyy,
-                  "yaw (psi)": AIRFRAME.arm_length / AIRFRAME.izz, "altitude (z up)": 1.0 / AIRFRAME.mass}
+    expected_k = {
+        "roll (phi)": AIRFRAME.arm_length / AIRFRAME.ixx,
+        "pitch (theta)": AIRFRAME.arm_length / AIRFRAME.iyy,
+        "yaw (psi)": AIRFRAME.arm_length / AIRFRAME.izz,
+        "altitude (z up)": 1.0 / AIRFRAME.mass,
+    }
     for channel, (numerator, denominator) in PAPER.items():
         seconds = 1.0 if channel == "altitude (z up)" else 0.5
         t, y = step_response(channel, 0.5 if channel == "altitude (z up)" else 0.05, seconds)
         physical = fit_lagged_double_integrator(t, y)
         paper_form = fit_paper_structure(t, y)
         c2 = denominator[0]
-        paper = {"b1": numerator[0] / c2 if len(numerator) == 2 else 0.0, "b0": numerator[-1] / c2,
-                 "pole": -denominator[1] / c2}
+        paper = {
+            "b1": numerator[0] / c2 if len(numerator) == 2 else 0.0,
+            "b0": numerator[-1] / c2,
+            "pole": -denominator[1] / c2,
+        }
         paper_pole_form = fit_paper_structure(t, y, poles=[-paper["pole"]])
         paper_step = paper_structure_step(t, paper["b1"], paper["b0"], -paper["pole"])
-        rows.append({
-            "channel": channel,
-            "expected_k_from_eq1": expected_k[channel],
-            "motor_time_constant_s": AIRFRAME.motor_time_constant,
-            "fit_k_over_s2_lag": physical,
-            "fit_paper_form": paper_form,
-            "fit_paper_form_with_paper_pole": paper_pole_form,
-            "paper": paper,
-            "response_at_end_per_newton": {"simulated": float(y[-1]), "paper_tf": float(paper_step[-1]),
-                                           "window_s": seconds},
-            "magnitude_at_rad_s": {
-                str(w): {"paper": magnitude(numerator, denominator, w),
-                         "simulated_fit": magnitude([physical["k"]], [physical["tau_s"], 1.0, 0.0, 0.0], w)}
-                for w in FREQUENCIES
-            },
-        })
+        rows.append(
+            {
+                "channel": channel,
+                "expected_k_from_eq1": expected_k[channel],
+                "motor_time_constant_s": AIRFRAME.motor_time_constant,
+                "fit_k_over_s2_lag": physical,
+                "fit_paper_form": paper_form,
+                "fit_paper_form_with_paper_pole": paper_pole_form,
+                "paper": paper,
+                "response_at_end_per_newton": {
+                    "simulated": float(y[-1]),
+                    "paper_tf": float(paper_step[-1]),
+                    "window_s": seconds,
+                },
+                "magnitude_at_rad_s": {
+                    str(w): {
+                        "paper": magnitude(numerator, denominator, w),
+                        "simulated_fit": magnitude([physical["k"]], [physical["tau_s"], 1.0, 0.0, 0.0], w),
+                    }
+                    for w in FREQUENCIES
+                },
+            }
+        )
     return rows
 
 
 def prose(rows: list[dict]) -> str:
     """What the figures say, written from the measured numbers."""
+
     def name(row: dict) -> str:
         return row["channel"].split()[0]
 
@@ -222,6 +244,7 @@ def prose(rows: list[dict]) -> str:
 
     k_error = max(abs(r["fit_k_over_s2_lag"]["k"] / r["expected_k_from_eq1"] - 1) for r in rows[:3])
     pinned = ", ".join(f"{name(r)} {r['fit_paper_form_with_paper_pole']['relative_rms_error']:.0%}" for r in rows)
+
     def free_pole(row: dict) -> str:  # 0.01 is the search grid's lower end: the pole would go lower still
         a = -row["fit_paper_form"]["pole"]
         return "<= 0.01" if a <= 0.0101 else f"{a:.2g}"
@@ -251,8 +274,11 @@ def main() -> None:
     RESULTS.mkdir(parents=True, exist_ok=True)
     load = os.getloadavg()
     compile_times = import_and_compile_seconds()
-    speed = {"physics_50hz_blocks": physics_alone(20), "physics_250hz_blocks": physics_alone(4),
-             "vehicle_loop": vehicle_loop()}
+    speed = {
+        "physics_50hz_blocks": physics_alone(20),
+        "physics_250hz_blocks": physics_alone(4),
+        "vehicle_loop": vehicle_loop(),
+    }
     channel_rows = channels()
     result = {
         "machine_load_average_1_5_15": load,
@@ -270,19 +296,27 @@ def main() -> None:
         print(f"  {label:24s} {run['import_numba_s']:10.2f} s {run['simulator_ready_s']:12.2f} s")
     print("\nspeed                                   x real time   us per unit")
     p50, p250, loop = speed["physics_50hz_blocks"], speed["physics_250hz_blocks"], speed["vehicle_loop"]
-    print(f"  physics, 20-step blocks + measure     {p50['real_time_factor']:8.1f}   "
-          f"{p50['us_per_rk4_step']:6.2f} per RK4 step")
-    print(f"  physics, 4-step blocks + measure      {p250['real_time_factor']:8.1f}   "
-          f"{p250['us_per_rk4_step']:6.2f} per RK4 step")
-    print(f"  vehicle loop (PID 250 Hz + mixer)     {loop['real_time_factor']:8.1f}   "
-          f"{loop['us_per_attitude_tick']:6.2f} per 4 ms tick")
+    print(
+        f"  physics, 20-step blocks + measure     {p50['real_time_factor']:8.1f}   "
+        f"{p50['us_per_rk4_step']:6.2f} per RK4 step"
+    )
+    print(
+        f"  physics, 4-step blocks + measure      {p250['real_time_factor']:8.1f}   "
+        f"{p250['us_per_rk4_step']:6.2f} per RK4 step"
+    )
+    print(
+        f"  vehicle loop (PID 250 Hz + mixer)     {loop['real_time_factor']:8.1f}   "
+        f"{loop['us_per_attitude_tick']:6.2f} per 4 ms tick"
+    )
     print("\nchannel          eq.1 k   fit k/(s^2(tau s+1))      fit (b1 s+b0)/(s(s+a))        paper Table 1")
     print("                           k       tau    rel.err    b1      b0      a    rel.err   b1      b0      a")
     for row in channel_rows:
         f, g, p = row["fit_k_over_s2_lag"], row["fit_paper_form"], row["paper"]
-        print(f"  {row['channel']:15s} {row['expected_k_from_eq1']:6.3f} {f['k']:7.3f} {f['tau_s']:7.4f} "
-              f"{f['relative_rms_error']:8.4f} {g['b1']:7.3f} {g['b0']:7.2f} {-g['pole']:6.1f} "
-              f"{g['relative_rms_error']:7.3f} {p['b1']:7.3f} {p['b0']:7.3f} {-p['pole']:6.1f}")
+        print(
+            f"  {row['channel']:15s} {row['expected_k_from_eq1']:6.3f} {f['k']:7.3f} {f['tau_s']:7.4f} "
+            f"{f['relative_rms_error']:8.4f} {g['b1']:7.3f} {g['b0']:7.2f} {-g['pole']:6.1f} "
+            f"{g['relative_rms_error']:7.3f} {p['b1']:7.3f} {p['b0']:7.3f} {-p['pole']:6.1f}"
+        )
     print("\n|G(jw)|         " + "".join(f"  w={w:<4g} sim    paper" for w in FREQUENCIES))
     for row in channel_rows:
         cells = [row["magnitude_at_rad_s"][str(w)] for w in FREQUENCIES]

@@ -23,27 +23,55 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--db", type=Path, default=Path("data/gcs.sqlite"), help="SQLite file")
     serve.add_argument("--token", default=None, help=f"API token for mutating endpoints (or ${TOKEN_ENV})")
     serve.add_argument("--vehicle-wait", type=float, default=5.0, help="seconds a mission waits for a vehicle")
-    serve.add_argument("--signing-key", default=None, metavar="KEY",
-                       help="MAVLink 2 signing key (64 hex digits, or a passphrase), as the vehicle's --signing-key")
-    report = commands.add_parser("report", help="draw a mission's report (PNG figures + index.html)",
-                                 description="The paper's Section VI from one recorded mission: route, flown "
-                                 "track, tracking error, altitude and yaw tracking, ESO estimates.")
+    serve.add_argument(
+        "--signing-key",
+        default=None,
+        metavar="KEY",
+        help="MAVLink 2 signing key (64 hex digits, or a passphrase), as the vehicle's --signing-key",
+    )
+    report = commands.add_parser(
+        "report",
+        help="draw a mission's report (PNG figures + index.html)",
+        description="The paper's Section VI from one recorded mission: route, flown "
+        "track, tracking error, altitude and yaw tracking, ESO estimates.",
+    )
     report.add_argument("mission_id", type=int, metavar="MISSION_ID")
     report.add_argument("--db", type=Path, default=Path("data/gcs.sqlite"), help="SQLite file of the service")
-    report.add_argument("--out", type=Path, default=None, metavar="DIR",
-                        help="folder for the report (default: reports/mission-ID beside the database)")
-    up = commands.add_parser("up", help="the main job: vehicle + offboard controller + service, supervised",
-                             description="Start sitl_quad, adrc_offboard and the service as supervised children "
-                             "(Ctrl-C or SIGTERM stops them all); the map page is at http://HOST:PORT/.")
+    report.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="folder for the report (default: reports/mission-ID beside the database)",
+    )
+    up = commands.add_parser(
+        "up",
+        help="the main job: vehicle + offboard controller + service, supervised",
+        description="Start sitl_quad, adrc_offboard and the service as supervised children "
+        "(Ctrl-C or SIGTERM stops them all); the map page is at http://HOST:PORT/.",
+    )
     pacing = up.add_mutually_exclusive_group()
-    pacing.add_argument("--lockstep", action="store_true", default=None,
-                        help="vehicle and controller in lockstep: deterministic, faster than real time (default)")
+    pacing.add_argument(
+        "--lockstep",
+        action="store_true",
+        default=None,
+        help="vehicle and controller in lockstep: deterministic, faster than real time (default)",
+    )
     pacing.add_argument("--speed", type=float, help="pace the vehicle at N times real time instead of lockstep")
     up.add_argument("--seed", type=int, default=0, help="the vehicle's wind, turbulence and noise seed")
-    up.add_argument("--wind", type=_wind, default=(0.0, 0.0), metavar="SPEED[,FROM_DEG]",
-                    help="steady wind in m/s, blowing from FROM_DEG (default calm)")
-    up.add_argument("--controller", choices=("adrc", "pid", "none"), default="adrc",
-                    help="outer loop: the ADRC process (default), the PID baseline, or none (the vehicle's own)")
+    up.add_argument(
+        "--wind",
+        type=_wind,
+        default=(0.0, 0.0),
+        metavar="SPEED[,FROM_DEG]",
+        help="steady wind in m/s, blowing from FROM_DEG (default calm)",
+    )
+    up.add_argument(
+        "--controller",
+        choices=("adrc", "pid", "none"),
+        default="adrc",
+        help="outer loop: the ADRC process (default), the PID baseline, or none (the vehicle's own)",
+    )
     up.add_argument("--host", default="127.0.0.1")
     up.add_argument("--port", type=int, default=8000, help="HTTP port of the service and map page")
     up.add_argument("--vehicle-port", type=int, default=14540, help="UDP port the vehicle listens on")
@@ -52,8 +80,12 @@ def build_parser() -> argparse.ArgumentParser:
     up.add_argument("--demo", action="store_true", help="fly the paper's reference scenario and print its report")
     up.add_argument("--demo-seed", type=int, default=1, help="which reference scenario the demo flies")
     up.add_argument("--exit-after-demo", action="store_true", help="stop the stack once the demo has flown")
-    up.add_argument("--signing-key", default=None, metavar="KEY",
-                    help="MAVLink 2 signing key shared by the vehicle, the offboard controller and the service")
+    up.add_argument(
+        "--signing-key",
+        default=None,
+        metavar="KEY",
+        help="MAVLink 2 signing key shared by the vehicle, the offboard controller and the service",
+    )
     return parser
 
 
@@ -99,11 +131,22 @@ def up(args: argparse.Namespace) -> int:
             print(f"buoy-gcs: --{name.replace('_', '-')} {getattr(args, name)} is not a port", file=sys.stderr)
             return 2
     options = UpOptions(
-        lockstep=args.speed is None, speed=args.speed or 1.0, seed=args.seed, wind_m_s=args.wind[0],
-        wind_from_deg=args.wind[1], controller=args.controller, host=args.host, port=args.port,
-        vehicle_port=args.vehicle_port, data_dir=args.data, demo=args.demo, demo_seed=args.demo_seed,
-        exit_after_demo=args.exit_after_demo, token=Settings.token_from_env(args.token),
-        signing_key=args.signing_key)
+        lockstep=args.speed is None,
+        speed=args.speed or 1.0,
+        seed=args.seed,
+        wind_m_s=args.wind[0],
+        wind_from_deg=args.wind[1],
+        controller=args.controller,
+        host=args.host,
+        port=args.port,
+        vehicle_port=args.vehicle_port,
+        data_dir=args.data,
+        demo=args.demo,
+        demo_seed=args.demo_seed,
+        exit_after_demo=args.exit_after_demo,
+        token=Settings.token_from_env(args.token),
+        signing_key=args.signing_key,
+    )
     return run_up(options, say=lambda text: print(text, flush=True))
 
 

@@ -53,8 +53,6 @@ async def _next(inbox: asyncio.Queue, timeout_s: float) -> Any | None:
     return None
 
 
-
-
 async def upload_mission(
     link: LinkManager, items: Sequence[MissionItem], step_timeout_s: float = 1.0, retries: int = 5
 ) -> None:

@@ -40,8 +40,15 @@ class SupervisorError(RuntimeError):
 
 
 class Supervisor:
-    def __init__(self, specs: list[ChildSpec], log_dir: Path, cwd: Path, say: Callable[[str], None] = print,
-                 max_restarts: int = 3, restart_window_s: float = 60.0) -> None:
+    def __init__(
+        self,
+        specs: list[ChildSpec],
+        log_dir: Path,
+        cwd: Path,
+        say: Callable[[str], None] = print,
+        max_restarts: int = 3,
+        restart_window_s: float = 60.0,
+    ) -> None:
         log_dir.mkdir(parents=True, exist_ok=True)
         self.children = [Child(spec, log_dir / f"{spec.name}.log") for spec in specs]
         self.cwd = cwd
@@ -66,16 +73,19 @@ class Supervisor:
         with open(child.log_path, "a") as log:
             log.write(f"\n--- {time.strftime('%Y-%m-%d %H:%M:%S')} starting: {' '.join(spec.argv)}\n")
             log.flush()
-            child.process = subprocess.Popen(spec.argv, cwd=self.cwd, stdout=log, stderr=subprocess.STDOUT,
-                                             stdin=subprocess.DEVNULL)
+            child.process = subprocess.Popen(
+                spec.argv, cwd=self.cwd, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL
+            )
         deadline = time.monotonic() + spec.start_timeout_s
         while spec.ready is not None and not spec.ready():
             if child.process.poll() is not None:
-                raise SupervisorError(f"{spec.name} exited with code {child.process.returncode} while starting; "
-                                      f"see {child.log_path}")
+                raise SupervisorError(
+                    f"{spec.name} exited with code {child.process.returncode} while starting; see {child.log_path}"
+                )
             if time.monotonic() > deadline or self.stopping:
-                raise SupervisorError(f"{spec.name} did not become ready in {spec.start_timeout_s:.0f} s; "
-                                      f"see {child.log_path}")
+                raise SupervisorError(
+                    f"{spec.name} did not become ready in {spec.start_timeout_s:.0f} s; see {child.log_path}"
+                )
             time.sleep(0.2)
 
     def poll(self) -> None:
@@ -87,8 +97,10 @@ class Supervisor:
             now = time.monotonic()
             child.restarts = [t for t in child.restarts if now - t < self.restart_window_s]
             if len(child.restarts) >= self.max_restarts:
-                raise SupervisorError(f"{child.spec.name} exited with code {code} {len(child.restarts) + 1} times "
-                                      f"in {self.restart_window_s:.0f} s; stopping. See {child.log_path}")
+                raise SupervisorError(
+                    f"{child.spec.name} exited with code {code} {len(child.restarts) + 1} times "
+                    f"in {self.restart_window_s:.0f} s; stopping. See {child.log_path}"
+                )
             child.restarts.append(now)
             self.say(f"{child.spec.name} exited with code {code}: restarting (log: {child.log_path})")
             self._start(child)

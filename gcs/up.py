@@ -43,22 +43,52 @@ class UpOptions:
 
 def stack(options: UpOptions) -> list[ChildSpec]:
     """The three children, in start order, with how to tell each is ready."""
-    vehicle_args = ["--port", str(options.vehicle_port), "--seed", str(options.seed),
-                    "--params", str(options.data_dir / "vehicle.params"),
-                    "--param", f"SIM_WIND_SPD={options.wind_m_s:g}",
-                    "--param", f"SIM_WIND_DIR={options.wind_from_deg:g}"]
+    vehicle_args = [
+        "--port",
+        str(options.vehicle_port),
+        "--seed",
+        str(options.seed),
+        "--params",
+        str(options.data_dir / "vehicle.params"),
+        "--param",
+        f"SIM_WIND_SPD={options.wind_m_s:g}",
+        "--param",
+        f"SIM_WIND_DIR={options.wind_from_deg:g}",
+    ]
     vehicle_args += ["--lockstep"] if options.lockstep else ["--speed", f"{options.speed:g}"]
     signing = ["--signing-key", options.signing_key] if options.signing_key else []
     vehicle_args += signing
     vehicle_log = options.data_dir / "logs" / "sitl_quad.log"
-    children = [ChildSpec("sitl_quad", python_module("sitl_quad", *vehicle_args),
-                          ready=lambda: _log_says(vehicle_log, "listening"))]
+    children = [
+        ChildSpec(
+            "sitl_quad", python_module("sitl_quad", *vehicle_args), ready=lambda: _log_says(vehicle_log, "listening")
+        )
+    ]
     if options.controller != "none":
-        children.append(ChildSpec("adrc_offboard", python_module(
-            "adrc_offboard", "--connect", f"udpout:127.0.0.1:{options.vehicle_port}",
-            "--controller", options.controller, *signing)))
-    gcs_args = ["serve", "--vehicle", f"udpout:127.0.0.1:{options.vehicle_port}", "--host", options.host,
-                "--port", str(options.port), "--db", str(options.data_dir / "gcs.sqlite")]
+        children.append(
+            ChildSpec(
+                "adrc_offboard",
+                python_module(
+                    "adrc_offboard",
+                    "--connect",
+                    f"udpout:127.0.0.1:{options.vehicle_port}",
+                    "--controller",
+                    options.controller,
+                    *signing,
+                ),
+            )
+        )
+    gcs_args = [
+        "serve",
+        "--vehicle",
+        f"udpout:127.0.0.1:{options.vehicle_port}",
+        "--host",
+        options.host,
+        "--port",
+        str(options.port),
+        "--db",
+        str(options.data_dir / "gcs.sqlite"),
+    ]
     if options.token:
         gcs_args += ["--token", options.token]
     gcs_args += signing
@@ -105,8 +135,9 @@ def reference_request(options: UpOptions) -> dict:
     lat, lon, _ = scenario.home
     return {
         "depot": {"lat": lat, "lon": lon},
-        "buoys": [{"id": f"B{i + 1}", "lat": float(a), "lon": float(b)}
-                  for i, (a, b) in enumerate(scenario.buoys_lat_lon)],
+        "buoys": [
+            {"id": f"B{i + 1}", "lat": float(a), "lon": float(b)} for i, (a, b) in enumerate(scenario.buoys_lat_lon)
+        ],
         "altitude_m": ALTITUDE_M,
         "speed_m_s": CRUISE_SPEED_M_S,
         "dwell_s": 1.0,
@@ -154,19 +185,27 @@ def demo_report(mission: dict, options: UpOptions) -> str:
     points = np.vstack([[0.0, 0.0], frame.project(np.array([[b["lat"], b["lon"]] for b in mission["buoys"]]))])
     optimum = plan_tour(points, method="exact").length
     lines = [f"mission {mission['id']}: {mission['status']}" + (f" ({mission['reason']})" if mission["reason"] else "")]
-    lines.append(f"  route      {mission['length_m']:.1f} m planned by {mission['method']}; exact optimum "
-                 f"{optimum:.1f} m ({100 * (mission['length_m'] / optimum - 1):+.2f} %); "
-                 f"{mission['improvement_pct']:.1f} % shorter than the input order")
+    lines.append(
+        f"  route      {mission['length_m']:.1f} m planned by {mission['method']}; exact optimum "
+        f"{optimum:.1f} m ({100 * (mission['length_m'] / optimum - 1):+.2f} %); "
+        f"{mission['improvement_pct']:.1f} % shorter than the input order"
+    )
     reached = [b for b in mission["buoy_results"] if b["reached"]]
     worst = max((b["closest_m"] for b in mission["buoy_results"] if b["closest_m"] is not None), default=math.nan)
-    lines.append(f"  buoys      {len(reached)}/{len(mission['buoy_results'])} reached; worst closest approach "
-                 f"{worst:.2f} m (acceptance {mission['acceptance_radius_m']:g} m)")
+    lines.append(
+        f"  buoys      {len(reached)}/{len(mission['buoy_results'])} reached; worst closest approach "
+        f"{worst:.2f} m (acceptance {mission['acceptance_radius_m']:g} m)"
+    )
     tracking = mission.get("tracking") or {}
     if tracking:
-        lines.append(f"  flight     {tracking.get('flight_time_s') or math.nan:.1f} s simulated; flown "
-                     f"{tracking['distance_flown_m']:.0f} m of {tracking['planned_length_m']:.0f} m planned")
-        lines.append(f"  tracking   cross-track RMS {tracking['rms_cross_track_m'] or math.nan:.3f} m, "
-                     f"max {tracking['max_cross_track_m'] or math.nan:.3f} m ({options.controller} controller)")
+        lines.append(
+            f"  flight     {tracking.get('flight_time_s') or math.nan:.1f} s simulated; flown "
+            f"{tracking['distance_flown_m']:.0f} m of {tracking['planned_length_m']:.0f} m planned"
+        )
+        lines.append(
+            f"  tracking   cross-track RMS {tracking['rms_cross_track_m'] or math.nan:.3f} m, "
+            f"max {tracking['max_cross_track_m'] or math.nan:.3f} m ({options.controller} controller)"
+        )
     lines.append(f"  report     python -m gcs report {mission['id']} --db {options.data_dir / 'gcs.sqlite'}")
     return "\n".join(lines)
 
@@ -186,8 +225,9 @@ def _get_json(url: str) -> dict:
 
 
 def _post_json(url: str, body: dict, headers: dict) -> dict:
-    request = urllib.request.Request(url, data=json.dumps(body).encode(), method="POST",
-                                     headers={"Content-Type": "application/json", **headers})
+    request = urllib.request.Request(
+        url, data=json.dumps(body).encode(), method="POST", headers={"Content-Type": "application/json", **headers}
+    )
     try:
         with urllib.request.urlopen(request, timeout=60) as response:
             return json.loads(response.read())

@@ -127,8 +127,7 @@ def shortest_rotation(v1: Vec3, v2: Vec3) -> Quat:
 
 
 @njit(cache=True)
-def attitude_rate_setpoint_kernel(gains: np.ndarray, q: np.ndarray, qd: np.ndarray,
-                                  feedforward: np.ndarray) -> Vec3:
+def attitude_rate_setpoint_kernel(gains: np.ndarray, q: np.ndarray, qd: np.ndarray, feedforward: np.ndarray) -> Vec3:
     """Body-rate setpoint (rad/s) from attitude q toward qd plus the feed-forward body rates, PX4's
     AttitudeControl::update."""
     q_now = (q[0], q[1], q[2], q[3])
@@ -152,13 +151,24 @@ def attitude_rate_setpoint_kernel(gains: np.ndarray, q: np.ndarray, qd: np.ndarr
     pitch = sign * qe[2] * gains[G_PITCH_P] + feedforward[1]
     yaw = sign * qe[3] * yaw_p + feedforward[2]
     roll_max, pitch_max, yaw_max = gains[G_ROLLRATE_MAX], gains[G_PITCHRATE_MAX], gains[G_YAWRATE_MAX]
-    return (min(max(roll, -roll_max), roll_max), min(max(pitch, -pitch_max), pitch_max),
-            min(max(yaw, -yaw_max), yaw_max))
+    return (
+        min(max(roll, -roll_max), roll_max),
+        min(max(pitch, -pitch_max), pitch_max),
+        min(max(yaw, -yaw_max), yaw_max),
+    )
 
 
 @njit(cache=True)
-def pid_attitude_torque(gains: np.ndarray, pid_state: np.ndarray, q: np.ndarray, rates: np.ndarray,
-                        qd: np.ndarray, feedforward: np.ndarray, dt: float, torque: np.ndarray) -> None:
+def pid_attitude_torque(
+    gains: np.ndarray,
+    pid_state: np.ndarray,
+    q: np.ndarray,
+    rates: np.ndarray,
+    qd: np.ndarray,
+    feedforward: np.ndarray,
+    dt: float,
+    torque: np.ndarray,
+) -> None:
     """One step of the cascade: writes the body torque [roll, pitch, yaw] (N m) toward qd from the measured
     attitude q and body rates into torque, and advances pid_state (S_* layout) by dt seconds."""
     rate_sp = attitude_rate_setpoint_kernel(gains, q, qd, feedforward)
@@ -211,7 +221,7 @@ class PidAttitudeController:
     @property
     def rate_setpoint(self) -> np.ndarray:
         """The body-rate setpoint (rad/s) of the last update."""
-        return self.kernel_state[S_RATE_SETPOINT:S_RATE_SETPOINT + 3].copy()
+        return self.kernel_state[S_RATE_SETPOINT : S_RATE_SETPOINT + 3].copy()
 
     @staticmethod
     def target_arrays(target: AttitudeTarget) -> tuple[np.ndarray, np.ndarray]:
@@ -219,8 +229,10 @@ class PidAttitudeController:
         qd = _floats(target.quaternion)
         feedforward = _NO_FEEDFORWARD if target.body_rates is None else _floats(target.body_rates)
         if qd.shape != (4,) or feedforward.shape != (3,):  # the kernels index without bounds checks
-            raise ModelParameterError(f"attitude target needs 4 quaternion components and 3 body rates, got "
-                                      f"{target.quaternion!r}, {target.body_rates!r}")
+            raise ModelParameterError(
+                f"attitude target needs 4 quaternion components and 3 body rates, got "
+                f"{target.quaternion!r}, {target.body_rates!r}"
+            )
         return qd, feedforward
 
     def attitude_rate_setpoint(self, target: AttitudeTarget, q) -> list[float]:
@@ -234,6 +246,14 @@ class PidAttitudeController:
             raise ModelParameterError(f"attitude update needs dt > 0, got {dt}")
         qd, feedforward = self.target_arrays(target)
         torque = np.empty(3)
-        pid_attitude_torque(self.kernel_gains, self.kernel_state, _floats(state.quaternion),
-                            _floats(state.angular_velocity), qd, feedforward, float(dt), torque)
+        pid_attitude_torque(
+            self.kernel_gains,
+            self.kernel_state,
+            _floats(state.quaternion),
+            _floats(state.angular_velocity),
+            qd,
+            feedforward,
+            float(dt),
+            torque,
+        )
         return torque

@@ -64,36 +64,88 @@ def signing_key(text: str) -> bytes:
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="sitl-quad", description="Software-in-the-loop quadrotor (paper eq. 1-3, Table 2) that speaks "
-        "MAVLink 2 over UDP like a PX4 autopilot.", epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+        prog="sitl-quad",
+        description="Software-in-the-loop quadrotor (paper eq. 1-3, Table 2) that speaks "
+        "MAVLink 2 over UDP like a PX4 autopilot.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     p.add_argument("--port", type=int, default=14540, help="UDP port to listen on (default 14540)")
-    p.add_argument("--out", type=parse_host_port, action="append", default=[], metavar="HOST:PORT",
-                   help="also push telemetry to this address, e.g. a listening QGroundControl (repeatable)")
+    p.add_argument(
+        "--out",
+        type=parse_host_port,
+        action="append",
+        default=[],
+        metavar="HOST:PORT",
+        help="also push telemetry to this address, e.g. a listening QGroundControl (repeatable)",
+    )
     pacing = p.add_mutually_exclusive_group()
-    pacing.add_argument("--speed", type=float, default=1.0, metavar="N",
-                        help="run simulated time N times faster than the wall clock (default 1)")
-    pacing.add_argument("--lockstep", action="store_true",
-                        help="wait at each outer-loop tick for the offboard controller's answer; "
-                        "run freely while none streams")
+    pacing.add_argument(
+        "--speed",
+        type=float,
+        default=1.0,
+        metavar="N",
+        help="run simulated time N times faster than the wall clock (default 1)",
+    )
+    pacing.add_argument(
+        "--lockstep",
+        action="store_true",
+        help="wait at each outer-loop tick for the offboard controller's answer; run freely while none streams",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of wind, turbulence, disturbance and noise")
-    p.add_argument("--home", type=parse_home, default=DEFAULT_HOME, metavar="LAT,LON[,ALT]",
-                   help=f"home (the depot) in degrees and metres AMSL (default {DEFAULT_HOME})")
-    p.add_argument("--params", type=Path, metavar="FILE",
-                   help="parameter file (QGC format) loaded at start and saved after every PARAM_SET")
-    p.add_argument("--param", type=parse_param, action="append", default=[], metavar="NAME=VALUE",
-                   help="set one parameter at start, after --params (repeatable)")
-    p.add_argument("--outer-rate", type=float, default=50.0, metavar="HZ",
-                   help="outer-loop (and lockstep tick) rate in Hz (default 50, PX4's position loop)")
-    p.add_argument("--log", type=Path, metavar="FILE",
-                   help="write a CSV flight log: true state, estimate, reference and commands per tick")
-    p.add_argument("--signing-key", type=signing_key, metavar="KEY",
-                   help="MAVLink 2 signing key (64 hex digits, or a passphrase): unsigned messages are refused")
-    p.add_argument("--duration", type=float, metavar="SECONDS",
-                   help="exit after this much simulated time (default: run until interrupted)")
-    p.add_argument("--stats", type=Path, metavar="FILE",
-                   help="at exit, write JSON counters: tick pacing, link drops by kind, mission transfers")
+    p.add_argument(
+        "--home",
+        type=parse_home,
+        default=DEFAULT_HOME,
+        metavar="LAT,LON[,ALT]",
+        help=f"home (the depot) in degrees and metres AMSL (default {DEFAULT_HOME})",
+    )
+    p.add_argument(
+        "--params",
+        type=Path,
+        metavar="FILE",
+        help="parameter file (QGC format) loaded at start and saved after every PARAM_SET",
+    )
+    p.add_argument(
+        "--param",
+        type=parse_param,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="set one parameter at start, after --params (repeatable)",
+    )
+    p.add_argument(
+        "--outer-rate",
+        type=float,
+        default=50.0,
+        metavar="HZ",
+        help="outer-loop (and lockstep tick) rate in Hz (default 50, PX4's position loop)",
+    )
+    p.add_argument(
+        "--log",
+        type=Path,
+        metavar="FILE",
+        help="write a CSV flight log: true state, estimate, reference and commands per tick",
+    )
+    p.add_argument(
+        "--signing-key",
+        type=signing_key,
+        metavar="KEY",
+        help="MAVLink 2 signing key (64 hex digits, or a passphrase): unsigned messages are refused",
+    )
+    p.add_argument(
+        "--duration",
+        type=float,
+        metavar="SECONDS",
+        help="exit after this much simulated time (default: run until interrupted)",
+    )
+    p.add_argument(
+        "--stats",
+        type=Path,
+        metavar="FILE",
+        help="at exit, write JSON counters: tick pacing, link drops by kind, mission transfers",
+    )
     p.add_argument("--list-params", action="store_true", help="print every parameter with its value and exit")
     p.add_argument("-v", "--verbose", action="store_true", help="log every peer and protocol event")
     return p
@@ -101,8 +153,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
-                        format="sitl-quad %(levelname)s %(name)s: %(message)s")
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose else logging.WARNING, format="sitl-quad %(levelname)s %(name)s: %(message)s"
+    )
     if not (math.isfinite(args.speed) and 0 < args.speed <= 1000):
         return _fail("--speed must be in (0, 1000]")
     rate = args.outer_rate
@@ -144,14 +197,20 @@ def main(argv: list[str] | None = None) -> int:
             table.save(tmp)
             tmp.replace(args.params)  # atomic: a crash never leaves half a parameter file
 
-    server = VehicleServer(vehicle, table, link, speed=args.speed, lockstep=args.lockstep,
-                           flight_log=args.log, on_params_changed=save_params)
+    server = VehicleServer(
+        vehicle,
+        table,
+        link,
+        speed=args.speed,
+        lockstep=args.lockstep,
+        flight_log=args.log,
+        on_params_changed=save_params,
+    )
     signal.signal(signal.SIGTERM, lambda *_: server.stop())
     signal.signal(signal.SIGINT, lambda *_: server.stop())
     host, port = link.address
     pacing = "lockstep" if args.lockstep else f"speed {args.speed:g}x"
-    print(f"sitl-quad: listening on udp {host}:{port} ({pacing}, seed {args.seed}, home {args.home})",
-          flush=True)
+    print(f"sitl-quad: listening on udp {host}:{port} ({pacing}, seed {args.seed}, home {args.home})", flush=True)
     server.run(args.duration)
     if args.stats is not None:
         args.stats.write_text(json.dumps(server.stats(), indent=2) + "\n")

@@ -35,12 +35,29 @@ def disturbance_samples_due(first: int, steps: int, steps_per_sample: int) -> in
 
 @njit(cache=True)
 def pid_inner_loop(
-    state: np.ndarray, omega_cmd: np.ndarray, params: np.ndarray,
-    wind_params: np.ndarray, turbulence: np.ndarray, turbulence_noise: np.ndarray,
-    disturbance: np.ndarray, disturbance_samples: np.ndarray, steps_per_sample: int, step_index: int,
-    dt: float, info: np.ndarray, sensor_noise: np.ndarray,
-    gains: np.ndarray, pid_state: np.ndarray, qd: np.ndarray, feedforward: np.ndarray, attitude_dt: float,
-    thrust_n: float, apply_torque: bool, attitude_steps: int, physics_steps: int, saturated: np.ndarray,
+    state: np.ndarray,
+    omega_cmd: np.ndarray,
+    params: np.ndarray,
+    wind_params: np.ndarray,
+    turbulence: np.ndarray,
+    turbulence_noise: np.ndarray,
+    disturbance: np.ndarray,
+    disturbance_samples: np.ndarray,
+    steps_per_sample: int,
+    step_index: int,
+    dt: float,
+    info: np.ndarray,
+    sensor_noise: np.ndarray,
+    gains: np.ndarray,
+    pid_state: np.ndarray,
+    qd: np.ndarray,
+    feedforward: np.ndarray,
+    attitude_dt: float,
+    thrust_n: float,
+    apply_torque: bool,
+    attitude_steps: int,
+    physics_steps: int,
+    saturated: np.ndarray,
 ) -> tuple[int, bool]:
     """Run attitude_steps attitude steps of physics_steps physics steps each, from step number step_index.
 
@@ -59,21 +76,35 @@ def pid_inner_loop(
     sample = 0
     for k in range(attitude_steps):
         add_sensor_noise(state, sensor_noise[k], measured)
-        pid_attitude_torque(gains, pid_state, measured[6:10], measured[10:13], qd, feedforward, attitude_dt,
-                            torque)
+        pid_attitude_torque(gains, pid_state, measured[6:10], measured[10:13], qd, feedforward, attitude_dt, torque)
         if not apply_torque:
             torque[:] = 0.0
-        if not (math.isfinite(thrust_n) and math.isfinite(torque[0]) and math.isfinite(torque[1])
-                and math.isfinite(torque[2])):
+        if not (
+            math.isfinite(thrust_n)
+            and math.isfinite(torque[0])
+            and math.isfinite(torque[1])
+            and math.isfinite(torque[2])
+        ):
             return k, on_ground
         saturated[k] = mix(thrust_n, torque[0], torque[1], torque[2], params, omega)
         for i in range(4):
             omega_cmd[i] = min(max(omega[i], lo), hi)
         first = step_index + k * physics_steps
         samples = disturbance_samples_due(first, physics_steps, steps_per_sample)
-        on_ground = advance(state, omega_cmd, params, wind_params, turbulence,
-                            turbulence_noise[k * physics_steps:(k + 1) * physics_steps], disturbance,
-                            disturbance_samples[sample:sample + samples], steps_per_sample, first, dt,
-                            physics_steps, info)
+        on_ground = advance(
+            state,
+            omega_cmd,
+            params,
+            wind_params,
+            turbulence,
+            turbulence_noise[k * physics_steps : (k + 1) * physics_steps],
+            disturbance,
+            disturbance_samples[sample : sample + samples],
+            steps_per_sample,
+            first,
+            dt,
+            physics_steps,
+            info,
+        )
         sample += samples
     return attitude_steps, on_ground

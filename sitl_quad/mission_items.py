@@ -60,6 +60,4 @@ class MissionItem:
     @property
     def has_position(self) -> bool:
         """Whether the item names a place (lat/lon 0,0 means "here" for takeoff/land/RTL, as in PX4)."""
-        return self.command in (NAV_WAYPOINT, NAV_LOITER_TIME, NAV_TAKEOFF, NAV_LAND) and (
-            self.x != 0 or self.y != 0
-        )
+        return self.command in (NAV_WAYPOINT, NAV_LOITER_TIME, NAV_TAKEOFF, NAV_LAND) and (self.x != 0 or self.y != 0)

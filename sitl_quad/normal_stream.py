@@ -22,10 +22,10 @@ class NormalStream:
     def take(self, rows: int) -> np.ndarray:
         """The next `rows` rows of unit normals, shape (rows, width)."""
         if self._next + rows > len(self._block):
-            rest = self._block[self._next:]
+            rest = self._block[self._next :]
             self._block = np.concatenate([rest, self.rng.standard_normal((max(BLOCK_ROWS, rows), self.width))])
             self._next = 0
-        out = self._block[self._next:self._next + rows]
+        out = self._block[self._next : self._next + rows]
         self._next += rows
         return out
 

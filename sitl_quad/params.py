@@ -124,9 +124,7 @@ class ParameterTable:
                 continue
             fields = line.split()
             if len(fields) not in (2, 5):
-                raise ParameterError(
-                    f"{path}:{number}: expected 'SYSID COMPID NAME VALUE TYPE' or 'NAME VALUE'"
-                )
+                raise ParameterError(f"{path}:{number}: expected 'SYSID COMPID NAME VALUE TYPE' or 'NAME VALUE'")
             name, raw = (fields[2], fields[3]) if len(fields) == 5 else (fields[0], fields[1])
             try:
                 value = float(raw)

@@ -104,7 +104,9 @@ class PidPositionController:
         vel_d = (g.mpc_xy_vel_d_acc, g.mpc_xy_vel_d_acc, g.mpc_z_vel_d_acc)
         errors = [vel_sp[i] - float(velocity[i]) for i in range(3)]
         acc_sp = [
-            _finite_or(float(setpoint.acceleration[i]), 0.0) + vel_p[i] * errors[i] + self.integral[i]
+            _finite_or(float(setpoint.acceleration[i]), 0.0)
+            + vel_p[i] * errors[i]
+            + self.integral[i]
             - vel_d[i] * self._acceleration[i]
             for i in range(3)
         ]
@@ -118,8 +120,7 @@ class PidPositionController:
         yaw = float(setpoint.yaw)
         if not math.isfinite(yaw):  # PX4: no yaw setpoint means keep the current heading
             yaw = euler_from_quat(estimate.quaternion)[2]
-        target = acceleration_to_attitude(acc_sp, yaw, af.mass, af.g, af.max_thrust_n,
-                                          math.radians(g.mpc_tiltmax_air))
+        target = acceleration_to_attitude(acc_sp, yaw, af.mass, af.g, af.max_thrust_n, math.radians(g.mpc_tiltmax_air))
         yaw_rate = _finite_or(float(setpoint.yaw_rate), 0.0)
         if yaw_rate != 0.0:
             target.body_rates = np.array([0.0, 0.0, yaw_rate])

@@ -87,8 +87,14 @@ def drag_acceleration(state: np.ndarray, params: np.ndarray, wind: np.ndarray) -
 
 
 @njit(cache=True)
-def derivative(state: np.ndarray, omega_cmd: np.ndarray, params: np.ndarray, wind: np.ndarray,
-               d_accel: np.ndarray, d_angular: np.ndarray) -> np.ndarray:
+def derivative(
+    state: np.ndarray,
+    omega_cmd: np.ndarray,
+    params: np.ndarray,
+    wind: np.ndarray,
+    d_accel: np.ndarray,
+    d_angular: np.ndarray,
+) -> np.ndarray:
     """d(state)/dt, eq. (1)-(3) plus drag and motor lag (see the module docstring)."""
     out = np.empty(17)
     q = state[6:10]
@@ -117,8 +123,15 @@ def derivative(state: np.ndarray, omega_cmd: np.ndarray, params: np.ndarray, win
 
 
 @njit(cache=True)
-def rk4_step(state: np.ndarray, omega_cmd: np.ndarray, params: np.ndarray, wind: np.ndarray,
-             d_accel: np.ndarray, d_angular: np.ndarray, dt: float) -> None:
+def rk4_step(
+    state: np.ndarray,
+    omega_cmd: np.ndarray,
+    params: np.ndarray,
+    wind: np.ndarray,
+    d_accel: np.ndarray,
+    d_angular: np.ndarray,
+    dt: float,
+) -> None:
     """One classic Runge-Kutta 4 step in place, then renormalise the quaternion."""
     k1 = derivative(state, omega_cmd, params, wind, d_accel, d_angular)
     k2 = derivative(state + 0.5 * dt * k1, omega_cmd, params, wind, d_accel, d_angular)
@@ -148,10 +161,21 @@ def ground_contact(state: np.ndarray) -> bool:
 
 
 @njit(cache=True)
-def advance(state: np.ndarray, omega_cmd: np.ndarray, params: np.ndarray, wind_params: np.ndarray,
-            turbulence: np.ndarray, turbulence_noise: np.ndarray, disturbance: np.ndarray,
-            disturbance_samples: np.ndarray, steps_per_sample: int, step_index: int, dt: float, steps: int,
-            info: np.ndarray) -> bool:
+def advance(
+    state: np.ndarray,
+    omega_cmd: np.ndarray,
+    params: np.ndarray,
+    wind_params: np.ndarray,
+    turbulence: np.ndarray,
+    turbulence_noise: np.ndarray,
+    disturbance: np.ndarray,
+    disturbance_samples: np.ndarray,
+    steps_per_sample: int,
+    step_index: int,
+    dt: float,
+    steps: int,
+    info: np.ndarray,
+) -> bool:
     """Run `steps` RK4 steps from step number step_index; returns whether the body ends on the ground.
 
     Per step: a new disturbance sample is taken from disturbance_samples whenever the step number is a

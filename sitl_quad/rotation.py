@@ -17,12 +17,14 @@ def quat_from_euler(roll: float, pitch: float, yaw: float) -> np.ndarray:
     cr, sr = math.cos(roll / 2), math.sin(roll / 2)
     cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
     cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-    return np.array([
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    ])
+    return np.array(
+        [
+            cr * cp * cy + sr * sp * sy,
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+        ]
+    )
 
 
 def euler_from_quat(q) -> tuple[float, float, float]:
@@ -37,12 +39,14 @@ def euler_from_quat(q) -> tuple[float, float, float]:
 def quat_multiply(a, b) -> np.ndarray:
     aw, ax, ay, az = a
     bw, bx, by, bz = b
-    return np.array([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ])
+    return np.array(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ]
+    )
 
 
 def quat_conjugate(q) -> np.ndarray:
@@ -55,11 +59,13 @@ def rotate(q, v) -> np.ndarray:
     vx, vy, vz = v
     # v' = v + 2w (r x v) + 2 r x (r x v), r = (x, y, z)
     cx, cy, cz = y * vz - z * vy, z * vx - x * vz, x * vy - y * vx
-    return np.array([
-        vx + 2 * (w * cx + y * cz - z * cy),
-        vy + 2 * (w * cy + z * cx - x * cz),
-        vz + 2 * (w * cz + x * cy - y * cx),
-    ])
+    return np.array(
+        [
+            vx + 2 * (w * cx + y * cz - z * cy),
+            vy + 2 * (w * cy + z * cx - x * cz),
+            vz + 2 * (w * cz + x * cy - y * cx),
+        ]
+    )
 
 
 def wrap_pi(angle: float) -> float:

@@ -95,8 +95,9 @@ class Sensors:
 
     def measure(self, state: VehicleState) -> VehicleState:
         """A noisy copy of state (the input is not modified)."""
-        truth = np.concatenate([state.position, state.velocity, state.quaternion, state.angular_velocity,
-                                state.rotor_speeds]).astype(np.float64, copy=False)
+        truth = np.concatenate(
+            [state.position, state.velocity, state.quaternion, state.angular_velocity, state.rotor_speeds]
+        ).astype(np.float64, copy=False)
         return self.measure_flat(truth, state.t)
 
     def measure_flat(self, truth: np.ndarray, t: float) -> VehicleState:
@@ -104,5 +105,11 @@ class Sensors:
         measured = np.array(truth, dtype=np.float64)
         if self.active:
             add_sensor_noise(truth, self.noise(1)[0], measured)
-        return VehicleState(t=t, position=measured[0:3], velocity=measured[3:6], quaternion=measured[6:10],
-                            angular_velocity=measured[10:13], rotor_speeds=measured[13:17])
+        return VehicleState(
+            t=t,
+            position=measured[0:3],
+            velocity=measured[3:6],
+            quaternion=measured[6:10],
+            angular_velocity=measured[10:13],
+            rotor_speeds=measured[13:17],
+        )

@@ -32,8 +32,16 @@ RESYNC_BEHIND_S = 0.5  # paced mode fell this far behind the wall clock: re-anch
 
 
 class VehicleServer:
-    def __init__(self, vehicle: Vehicle, params: ParameterTable, link: UdpLink, speed: float = 1.0,
-                 lockstep: bool = False, flight_log: Path | None = None, on_params_changed=None) -> None:
+    def __init__(
+        self,
+        vehicle: Vehicle,
+        params: ParameterTable,
+        link: UdpLink,
+        speed: float = 1.0,
+        lockstep: bool = False,
+        flight_log: Path | None = None,
+        on_params_changed=None,
+    ) -> None:
         self.vehicle = vehicle
         vehicle.wall_clock = time.monotonic  # protocol-facing timers also respect the wall clock
         self.params = params
@@ -54,11 +62,11 @@ class VehicleServer:
         home_id = mavlink.MAVLINK_MSG_ID_HOME_POSITION
         version_id = mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION
         self.commands.register(mavlink.MAV_CMD_REQUEST_MESSAGE, lambda p: self.telemetry.request_message(p[0]))
-        self.commands.register(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
-                               lambda p: self.telemetry.set_interval(p[0], p[1]))
+        self.commands.register(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, lambda p: self.telemetry.set_interval(p[0], p[1]))
         self.commands.register(mavlink.MAV_CMD_GET_HOME_POSITION, lambda p: self.telemetry.request_message(home_id))
-        self.commands.register(mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
-                               lambda p: self.telemetry.request_message(version_id))
+        self.commands.register(
+            mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, lambda p: self.telemetry.request_message(version_id)
+        )
         self.commands.register(mavlink.MAV_CMD_REQUEST_PROTOCOL_VERSION, lambda p: CommandResult.UNSUPPORTED)
         self.dispatch: dict = {}
         for capability in (self.parameters, self.commands, self.mission, self.offboard):
@@ -155,13 +163,51 @@ class VehicleServer:
 
     # ----- flight log (CSV: one row per outer tick)
     LOG_COLUMNS = (
-        "t", "mode", "armed", "source",
-        "x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw",
-        "x_est", "y_est", "z_est", "vx_est", "vy_est", "vz_est", "roll_est", "pitch_est", "yaw_est",
-        "x_ref", "y_ref", "z_ref", "vx_ref", "vy_ref", "vz_ref", "ax_ref", "ay_ref", "az_ref", "yaw_ref",
-        "qw_cmd", "qx_cmd", "qy_cmd", "qz_cmd", "thrust_cmd",
-        "wind_n", "wind_e", "wind_d", "ext_acc_n", "ext_acc_e", "ext_acc_d",
-        "mission_seq", "offboard_age",
+        "t",
+        "mode",
+        "armed",
+        "source",
+        "x",
+        "y",
+        "z",
+        "vx",
+        "vy",
+        "vz",
+        "roll",
+        "pitch",
+        "yaw",
+        "x_est",
+        "y_est",
+        "z_est",
+        "vx_est",
+        "vy_est",
+        "vz_est",
+        "roll_est",
+        "pitch_est",
+        "yaw_est",
+        "x_ref",
+        "y_ref",
+        "z_ref",
+        "vx_ref",
+        "vy_ref",
+        "vz_ref",
+        "ax_ref",
+        "ay_ref",
+        "az_ref",
+        "yaw_ref",
+        "qw_cmd",
+        "qx_cmd",
+        "qy_cmd",
+        "qz_cmd",
+        "thrust_cmd",
+        "wind_n",
+        "wind_e",
+        "wind_d",
+        "ext_acc_n",
+        "ext_acc_e",
+        "ext_acc_d",
+        "mission_seq",
+        "offboard_age",
     )
 
     def _open_log(self, path: Path) -> None:
@@ -185,6 +231,7 @@ class VehicleServer:
     def stats(self) -> dict:
         """Counters for --stats: ticks, pacing, link drops, mission transfers."""
         lateness_ms = sorted(x * 1000 for x in self.tick_lateness_s[50:])  # skip start-up
+
         def percentile(q: float) -> float | None:
             return lateness_ms[min(len(lateness_ms) - 1, int(q * len(lateness_ms)))] if lateness_ms else None
 

@@ -86,8 +86,13 @@ class Simulator:
         if self._on_ground:
             self._state[2] = 0.0
 
-    def reconfigure(self, airframe: Airframe | None = None, wind: WindConfig | None = None,
-                    disturbance: DisturbanceConfig | None = None, sensor_noise: SensorNoise | None = None) -> None:
+    def reconfigure(
+        self,
+        airframe: Airframe | None = None,
+        wind: WindConfig | None = None,
+        disturbance: DisturbanceConfig | None = None,
+        sensor_noise: SensorNoise | None = None,
+    ) -> None:
         """Swap configuration sections mid-run (a parameter change), keeping the state, the time and the
         random streams; a section given as None is left as it is. The turbulence state carries over, and the
         held disturbance sample stays until the next sample time of the new configuration."""
@@ -139,8 +144,9 @@ class Simulator:
     def set_state(self, state: VehicleState) -> None:
         """Overwrite the body's state (not the time, the commands or the random streams); for tests and
         scenario set-up. The quaternion is normalised."""
-        values = np.concatenate([state.position, state.velocity, state.quaternion, state.angular_velocity,
-                                 state.rotor_speeds]).astype(float)
+        values = np.concatenate(
+            [state.position, state.velocity, state.quaternion, state.angular_velocity, state.rotor_speeds]
+        ).astype(float)
         if values.shape != (STATE_SIZE,) or not np.all(np.isfinite(values)) or not np.any(values[6:10]):
             raise ModelParameterError("set_state needs finite 3-vectors, a non-zero quaternion and 4 rotor speeds")
         values[6:10] /= np.linalg.norm(values[6:10])
@@ -164,16 +170,36 @@ class Simulator:
         first = self._step_index - self._epoch  # the disturbances' own clock
         period = self._steps_per_sample
         samples = disturbance_samples_due(first, n, period)
-        self._on_ground = bool(advance(
-            self._state, self._omega_cmd, self._params, self.wind.params, self.wind.turbulence,
-            self.wind.noise(n), self._disturbance_now, self.disturbance.draw(samples), period, first,
-            self.dt, n, self._info,
-        ))
+        self._on_ground = bool(
+            advance(
+                self._state,
+                self._omega_cmd,
+                self._params,
+                self.wind.params,
+                self.wind.turbulence,
+                self.wind.noise(n),
+                self._disturbance_now,
+                self.disturbance.draw(samples),
+                period,
+                first,
+                self.dt,
+                n,
+                self._info,
+            )
+        )
         self._step_index += n
 
-    def run_pid_attitude_steps(self, controller: PidAttitudeController, mixer: Mixer, target: AttitudeTarget,
-                               thrust_n: float, attitude_steps: int, physics_steps: int, attitude_dt: float,
-                               apply_torque: bool = True) -> bool:
+    def run_pid_attitude_steps(
+        self,
+        controller: PidAttitudeController,
+        mixer: Mixer,
+        target: AttitudeTarget,
+        thrust_n: float,
+        attitude_steps: int,
+        physics_steps: int,
+        attitude_dt: float,
+        apply_torque: bool = True,
+    ) -> bool:
         """The attitude loop in one compiled call (sitl_quad.inner_loop): attitude_steps times measure(),
         controller.update(target, measured, attitude_dt), mixer.rotor_commands(thrust_n, torque) (zero torque
         unless apply_torque), set_rotor_commands and step(physics_steps). Same results as those calls, the
@@ -185,8 +211,10 @@ class Simulator:
         """
         counts_valid = all(isinstance(c, int | np.integer) for c in (attitude_steps, physics_steps))
         if not (counts_valid and attitude_steps >= 0 and physics_steps >= 1 and attitude_dt > 0):
-            raise ModelParameterError("attitude loop needs attitude_steps >= 0, physics_steps >= 1, dt > 0; "
-                                      f"got {attitude_steps}, {physics_steps}, {attitude_dt}")
+            raise ModelParameterError(
+                "attitude loop needs attitude_steps >= 0, physics_steps >= 1, dt > 0; "
+                f"got {attitude_steps}, {physics_steps}, {attitude_dt}"
+            )
         n = attitude_steps * physics_steps
         first = self._step_index - self._epoch  # the disturbances' own clock
         period = self._steps_per_sample
@@ -194,19 +222,39 @@ class Simulator:
         qd, feedforward = controller.target_arrays(target)
         saturated = np.zeros(attitude_steps, dtype=np.bool_)
         completed, on_ground = pid_inner_loop(
-            self._state, self._omega_cmd, self._params, self.wind.params, self.wind.turbulence,
-            self.wind.noise(n), self._disturbance_now, self.disturbance.draw(samples), period, first, self.dt,
-            self._info, self.sensors.noise(attitude_steps),
-            controller.kernel_gains, controller.kernel_state, qd, feedforward, float(attitude_dt),
-            float(thrust_n), bool(apply_torque), attitude_steps, physics_steps, saturated,
+            self._state,
+            self._omega_cmd,
+            self._params,
+            self.wind.params,
+            self.wind.turbulence,
+            self.wind.noise(n),
+            self._disturbance_now,
+            self.disturbance.draw(samples),
+            period,
+            first,
+            self.dt,
+            self._info,
+            self.sensors.noise(attitude_steps),
+            controller.kernel_gains,
+            controller.kernel_state,
+            qd,
+            feedforward,
+            float(attitude_dt),
+            float(thrust_n),
+            bool(apply_torque),
+            attitude_steps,
+            physics_steps,
+            saturated,
         )
         self._step_index += completed * physics_steps
         if completed > 0:
             self._on_ground = bool(on_ground)
         mixer.record(saturated[:completed])
         if completed < attitude_steps:
-            raise ModelParameterError(f"mixer input must be finite, got thrust {thrust_n} and the attitude "
-                                      f"controller's torque at attitude step {completed}")
+            raise ModelParameterError(
+                f"mixer input must be finite, got thrust {thrust_n} and the attitude "
+                f"controller's torque at attitude step {completed}"
+            )
         return bool(saturated.any())
 
     @property
@@ -225,8 +273,14 @@ class Simulator:
     @property
     def state(self) -> VehicleState:
         s = self._state
-        return VehicleState(t=self.t, position=s[0:3].copy(), velocity=s[3:6].copy(), quaternion=s[6:10].copy(),
-                            angular_velocity=s[10:13].copy(), rotor_speeds=s[13:17].copy())
+        return VehicleState(
+            t=self.t,
+            position=s[0:3].copy(),
+            velocity=s[3:6].copy(),
+            quaternion=s[6:10].copy(),
+            angular_velocity=s[10:13].copy(),
+            rotor_speeds=s[13:17].copy(),
+        )
 
     @property
     def euler(self) -> tuple[float, float, float]:

@@ -68,7 +68,7 @@ class OffboardStream:
     """The latest SET_ATTITUDE_TARGET from the offboard controller."""
 
     target: AttitudeTarget | None = None
-    received_step: int = -10**12  # the physics step it arrived at
+    received_step: int = -(10**12)  # the physics step it arrived at
     answered_ms: int = -1  # the state time_boot_ms it answers (lockstep)
     count: int = 0
 
@@ -89,8 +89,9 @@ class TickRecord:
 class Vehicle:
     """One simulated quadrotor with its onboard autopilot functions."""
 
-    def __init__(self, config: VehicleConfig, home: tuple[float, float, float], seed: int = 0,
-                 outer_rate_hz: float = 50.0) -> None:
+    def __init__(
+        self, config: VehicleConfig, home: tuple[float, float, float], seed: int = 0, outer_rate_hz: float = 50.0
+    ) -> None:
         self.config = config
         self.home = home
         self.frame = LocalFrame(*home)
@@ -129,8 +130,14 @@ class Vehicle:
     # ----- construction from config (also after parameter changes)
     def _make_simulator(self) -> Simulator:
         c = self.config
-        return Simulator(airframe=c.airframe, wind=c.wind, disturbance=c.disturbance,
-                         sensor_noise=c.sensor_noise, seed=self.seed, dt=1.0 / PHYSICS_RATE_HZ)
+        return Simulator(
+            airframe=c.airframe,
+            wind=c.wind,
+            disturbance=c.disturbance,
+            sensor_noise=c.sensor_noise,
+            seed=self.seed,
+            dt=1.0 / PHYSICS_RATE_HZ,
+        )
 
     def _make_attitude_controller(self):
         c = self.config
@@ -151,8 +158,12 @@ class Vehicle:
     def apply_config(self, changed: str) -> None:
         """Rebuild what depends on a config section after a parameter change."""
         if changed in ("wind", "disturbance", "sensor_noise", "airframe"):
-            self.sim.reconfigure(airframe=self.config.airframe, wind=self.config.wind,
-                                 disturbance=self.config.disturbance, sensor_noise=self.config.sensor_noise)
+            self.sim.reconfigure(
+                airframe=self.config.airframe,
+                wind=self.config.wind,
+                disturbance=self.config.disturbance,
+                sensor_noise=self.config.sensor_noise,
+            )
         if changed == "airframe":
             self.mixer = Mixer(self.config.airframe)
         if changed in ("airframe", "attitude_pid", "control"):
@@ -296,8 +307,9 @@ class Vehicle:
             if down > 0:
                 return CommandResult.DENIED  # below home: into the water
         self._enter(FlightMode.AUTO_LOITER)
-        self.navigator.hold(self.clock, self.estimate, position=(north, east, down),
-                            yaw=yaw if math.isfinite(yaw) else None)
+        self.navigator.hold(
+            self.clock, self.estimate, position=(north, east, down), yaw=yaw if math.isfinite(yaw) else None
+        )
         return CommandResult.ACCEPTED
 
     def set_current_item(self, seq: int) -> bool:
@@ -325,8 +337,7 @@ class Vehicle:
         if not self.armed or mode == FlightMode.OFFBOARD:
             return  # OFFBOARD: the navigator keeps flying whatever it flies; only the outer loop changes hands
         self._pending_start = None
-        if self.sim.on_ground and not self._was_airborne and mode in (FlightMode.AUTO_MISSION,
-                                                                       FlightMode.AUTO_TAKEOFF):
+        if self.sim.on_ground and not self._was_airborne and mode in (FlightMode.AUTO_MISSION, FlightMode.AUTO_TAKEOFF):
             self._prepare_takeoff(mode, first_seq, altitude)
             return
         self._start_activity(mode, first_seq, altitude)
@@ -400,8 +411,15 @@ class Vehicle:
         elif isinstance(self.attitude, PidAttitudeController):
             # the steps of the loop below in one compiled call ("idle": the PID runs, its torque unused)
             saturated = self.sim.run_pid_attitude_steps(
-                self.attitude, self.mixer, target, thrust_n, self.attitude_steps, self.physics_steps,
-                self.attitude_dt, apply_torque=source != "idle")
+                self.attitude,
+                self.mixer,
+                target,
+                thrust_n,
+                self.attitude_steps,
+                self.physics_steps,
+                self.attitude_dt,
+                apply_torque=source != "idle",
+            )
         else:
             for _ in range(self.attitude_steps):
                 measured = self.sim.measure()
@@ -415,8 +433,15 @@ class Vehicle:
         if self.armed:
             self.flight_time_s += self.outer_dt
         self._update_landed_state()
-        return TickRecord(t=self.t, truth=self.sim.state, estimate=est, setpoint=self.setpoint,
-                          target=target, source=source, disturbance=dict(self.sim.last_disturbance))
+        return TickRecord(
+            t=self.t,
+            truth=self.sim.state,
+            estimate=est,
+            setpoint=self.setpoint,
+            target=target,
+            source=source,
+            disturbance=dict(self.sim.last_disturbance),
+        )
 
     def _outer_loop(self, est: VehicleState) -> tuple[AttitudeTarget, str]:
         if not self.armed:

@@ -61,20 +61,50 @@ VEHICLE_PARAMETERS: list[ParamSpec] = [
     ParamSpec("RTL_RETURN_ALT", "navigator.rtl_altitude", REAL32, 1.0, 500.0, "return altitude, m"),
     ParamSpec("MIS_TAKEOFF_ALT", "navigator.takeoff_altitude", REAL32, 0.5, 500.0, "takeoff altitude, m"),
     # attitude PID (PX4 names)
-    *[ParamSpec(name.upper(), f"attitude_pid.{name}", REAL32, 0.0, 100.0, "attitude PID gain")
-      for name in ("mc_roll_p", "mc_pitch_p", "mc_yaw_p", "mc_rollrate_p", "mc_rollrate_i", "mc_rollrate_d",
-                   "mc_pitchrate_p", "mc_pitchrate_i", "mc_pitchrate_d", "mc_yawrate_p", "mc_yawrate_i",
-                   "mc_yawrate_d")],
+    *[
+        ParamSpec(name.upper(), f"attitude_pid.{name}", REAL32, 0.0, 100.0, "attitude PID gain")
+        for name in (
+            "mc_roll_p",
+            "mc_pitch_p",
+            "mc_yaw_p",
+            "mc_rollrate_p",
+            "mc_rollrate_i",
+            "mc_rollrate_d",
+            "mc_pitchrate_p",
+            "mc_pitchrate_i",
+            "mc_pitchrate_d",
+            "mc_yawrate_p",
+            "mc_yawrate_i",
+            "mc_yawrate_d",
+        )
+    ],
     # built-in position controller (PX4 names)
-    *[ParamSpec(name.upper(), f"position_pid.{name}", REAL32, 0.0, 100.0, "position PID gain")
-      for name in ("mpc_xy_p", "mpc_z_p", "mpc_xy_vel_p_acc", "mpc_xy_vel_i_acc", "mpc_xy_vel_d_acc",
-                   "mpc_z_vel_p_acc", "mpc_z_vel_i_acc", "mpc_z_vel_d_acc")],
+    *[
+        ParamSpec(name.upper(), f"position_pid.{name}", REAL32, 0.0, 100.0, "position PID gain")
+        for name in (
+            "mpc_xy_p",
+            "mpc_z_p",
+            "mpc_xy_vel_p_acc",
+            "mpc_xy_vel_i_acc",
+            "mpc_xy_vel_d_acc",
+            "mpc_z_vel_p_acc",
+            "mpc_z_vel_i_acc",
+            "mpc_z_vel_d_acc",
+        )
+    ],
     ParamSpec("MPC_XY_VEL_MAX", "position_pid.mpc_xy_vel_max", REAL32, 0.5, 40.0, "max horizontal speed, m/s"),
     ParamSpec("MPC_TILTMAX_AIR", "position_pid.mpc_tiltmax_air", REAL32, 5.0, 85.0, "max tilt, deg"),
     # failsafe and control
-    ParamSpec("OFFB_LOSS_T", "failsafe.offboard_loss_timeout_s", REAL32, 0.05, 60.0,
-              "offboard setpoints older than this (simulated s) trigger the failsafe"),
-    ParamSpec("OFFB_LOSS_ACT", "failsafe.offboard_loss_action", INT32, 0, 2,
-              "offboard loss action: 0 hold, 1 land, 2 return"),
+    ParamSpec(
+        "OFFB_LOSS_T",
+        "failsafe.offboard_loss_timeout_s",
+        REAL32,
+        0.05,
+        60.0,
+        "offboard setpoints older than this (simulated s) trigger the failsafe",
+    ),
+    ParamSpec(
+        "OFFB_LOSS_ACT", "failsafe.offboard_loss_action", INT32, 0, 2, "offboard loss action: 0 hold, 1 land, 2 return"
+    ),
     ParamSpec("MC_ATT_CTRL", "control.attitude_controller", INT32, 0, 1, "attitude loop: 0 PID, 1 ADRC"),
 ]

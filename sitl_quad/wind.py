@@ -52,8 +52,15 @@ class WindConfig:
     turbulence_w20_m_s: float = 0.0  # Dryden intensity set by the wind speed at 20 ft; 0 = no turbulence
 
     def __post_init__(self) -> None:
-        for name in ("speed_m_s", "direction_from_deg", "gust_amplitude_m_s", "gust_rise_time_s",
-                     "gust_start_s", "gust_direction_from_deg", "turbulence_w20_m_s"):
+        for name in (
+            "speed_m_s",
+            "direction_from_deg",
+            "gust_amplitude_m_s",
+            "gust_rise_time_s",
+            "gust_start_s",
+            "gust_direction_from_deg",
+            "turbulence_w20_m_s",
+        ):
             value = getattr(self, name)
             if not isinstance(value, int | float) or not math.isfinite(value):
                 raise ModelParameterError(f"wind parameter {name} must be a finite number, got {value!r}")
@@ -164,8 +171,16 @@ def mean_and_gust(params: np.ndarray, t: float, out: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def wind_velocity(params: np.ndarray, turbulence: np.ndarray, noise: np.ndarray, t: float, dt: float,
-                  altitude_m: float, airspeed_m_s: float, out: np.ndarray) -> None:
+def wind_velocity(
+    params: np.ndarray,
+    turbulence: np.ndarray,
+    noise: np.ndarray,
+    t: float,
+    dt: float,
+    altitude_m: float,
+    airspeed_m_s: float,
+    out: np.ndarray,
+) -> None:
     """Advance the turbulence state by dt with the given 5 unit normals and write the wind at t into out."""
     mean_and_gust(params, t, out)
     w20 = params[W_W20]
@@ -189,8 +204,15 @@ def wind_velocity(params: np.ndarray, turbulence: np.ndarray, noise: np.ndarray,
 
 
 @njit(cache=True)
-def _wind_series(params: np.ndarray, turbulence: np.ndarray, noise: np.ndarray, t0: float, dt: float,
-                 altitude_m: float, airspeed_m_s: float) -> np.ndarray:
+def _wind_series(
+    params: np.ndarray,
+    turbulence: np.ndarray,
+    noise: np.ndarray,
+    t0: float,
+    dt: float,
+    altitude_m: float,
+    airspeed_m_s: float,
+) -> np.ndarray:
     n = noise.shape[0]
     series = np.empty((n, 3))
     for k in range(n):
@@ -225,8 +247,11 @@ class WindModel:
     def noise(self, steps: int) -> np.ndarray:
         """Unit normals driving `steps` turbulence updates (zeros, and no draw, without turbulence)."""
         if self._normals is None:
-            self._normals = (NormalStream(self.rng, TURBULENCE_NOISE_PER_STEP) if self.turbulent
-                             else Zeros(TURBULENCE_NOISE_PER_STEP))
+            self._normals = (
+                NormalStream(self.rng, TURBULENCE_NOISE_PER_STEP)
+                if self.turbulent
+                else Zeros(TURBULENCE_NOISE_PER_STEP)
+            )
         return self._normals.take(steps)
 
     def velocity(self, t: float, altitude_m: float, airspeed_m_s: float) -> np.ndarray:

@@ -46,11 +46,9 @@ class PortTakenError(RuntimeError):
 class SitlProcess:
     """The vehicle as a child process on 127.0.0.1:port."""
 
-    def __init__(self, speed: float = 20.0, extra_args: tuple[str, ...] = (),
-                 port: int | None = None) -> None:
+    def __init__(self, speed: float = 20.0, extra_args: tuple[str, ...] = (), port: int | None = None) -> None:
         self.port = port or free_udp_port()
-        self.args = [sys.executable, "-m", "sitl_quad", "--port", str(self.port), "--speed", f"{speed:g}",
-                     *extra_args]
+        self.args = [sys.executable, "-m", "sitl_quad", "--port", str(self.port), "--speed", f"{speed:g}", *extra_args]
         self.stderr_path = Path(tempfile.mkstemp(prefix="sitl_quad_", suffix=".stderr")[1])
         self.process: subprocess.Popen | None = None
         self.returncode: int | None = None
@@ -68,8 +66,7 @@ class SitlProcess:
 
     def _start_once(self, timeout: float) -> SitlProcess:
         with open(self.stderr_path, "w") as stderr:
-            self.process = subprocess.Popen(self.args, cwd=REPO, stdout=subprocess.PIPE, stderr=stderr,
-                                            text=True)
+            self.process = subprocess.Popen(self.args, cwd=REPO, stdout=subprocess.PIPE, stderr=stderr, text=True)
         lines: queue.Queue[str] = queue.Queue()
         # A thread drains stdout for the whole run, so the vehicle can never block on a full pipe.
         threading.Thread(target=_pump, args=(self.process.stdout, lines), daemon=True).start()
@@ -122,8 +119,7 @@ class GroundStation:
     """A pymavlink GCS talking to the vehicle at udp 127.0.0.1:port (or through a relay on that port)."""
 
     def __init__(self, port: int, sysid: int = GCS_SYSID, compid: int = GCS_COMPID) -> None:
-        self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=sysid,
-                                               source_component=compid)
+        self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=sysid, source_component=compid)
         self.mav = self.conn.mav
 
     def close(self) -> None:
@@ -137,8 +133,7 @@ class GroundStation:
     def send_heartbeat(self) -> None:
         self.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
 
-    def recv(self, kinds: str | list[str], timeout: float = 5.0,
-             condition: Callable[[object], bool] | None = None):
+    def recv(self, kinds: str | list[str], timeout: float = 5.0, condition: Callable[[object], bool] | None = None):
         """The next message of one of `kinds` from the vehicle satisfying condition, or None after timeout."""
         deadline = time.monotonic() + timeout
         while (remaining := deadline - time.monotonic()) > 0:
@@ -159,16 +154,35 @@ class GroundStation:
                 return heartbeat
         raise TimeoutError("no HEARTBEAT from the vehicle")
 
-    def command(self, command: int, *params: float, timeout: float = 5.0, use_int: bool = False,
-                target_system: int = VEHICLE_SYSID):
+    def command(
+        self,
+        command: int,
+        *params: float,
+        timeout: float = 5.0,
+        use_int: bool = False,
+        target_system: int = VEHICLE_SYSID,
+    ):
         """Send COMMAND_LONG (or COMMAND_INT) and return its COMMAND_ACK, resent every second like MAVSDK."""
         p = [*params, *[math.nan] * (7 - len(params))]
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             if use_int:
                 x, y = (int(v) if math.isfinite(v) else 0 for v in p[4:6])
-                self.mav.command_int_send(target_system, VEHICLE_COMPID, mavlink.MAV_FRAME_GLOBAL, command,
-                                          0, 0, p[0], p[1], p[2], p[3], x, y, p[6])
+                self.mav.command_int_send(
+                    target_system,
+                    VEHICLE_COMPID,
+                    mavlink.MAV_FRAME_GLOBAL,
+                    command,
+                    0,
+                    0,
+                    p[0],
+                    p[1],
+                    p[2],
+                    p[3],
+                    x,
+                    y,
+                    p[6],
+                )
             else:
                 self.mav.command_long_send(target_system, VEHICLE_COMPID, command, 0, *p)
             ack = self.recv("COMMAND_ACK", timeout=1.0, condition=lambda m: m.command == command)
@@ -193,8 +207,7 @@ class GroundStation:
         return ack, answer
 
     def set_mode(self, main_mode: int, sub_mode: int = 0):
-        return self.command(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
-                            main_mode, sub_mode)
+        return self.command(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main_mode, sub_mode)
 
     def wait_heartbeat(self, condition: Callable[[object], bool], timeout: float = 10.0):
         return self.recv("HEARTBEAT", timeout=timeout, condition=condition)
@@ -205,8 +218,11 @@ class GroundStation:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             self.mav.param_request_read_send(VEHICLE_SYSID, VEHICLE_COMPID, (name or "").encode(), index)
-            value = self.recv("PARAM_VALUE", timeout=1.0, condition=lambda m: (
-                m.param_id == name if index < 0 else m.param_index == index))
+            value = self.recv(
+                "PARAM_VALUE",
+                timeout=1.0,
+                condition=lambda m: m.param_id == name if index < 0 else m.param_index == index,
+            )
             if value is not None:
                 return value
         return None
@@ -217,8 +233,13 @@ class GroundStation:
         return self.recv("PARAM_VALUE", timeout=timeout, condition=lambda m: m.param_id == name)
 
     # ----- mission protocol, GCS side
-    def upload_mission(self, items: list, mission_type: int = mavlink.MAV_MISSION_TYPE_MISSION,
-                       timeout: float = 20.0, stop_after: int | None = None):
+    def upload_mission(
+        self,
+        items: list,
+        mission_type: int = mavlink.MAV_MISSION_TYPE_MISSION,
+        timeout: float = 20.0,
+        stop_after: int | None = None,
+    ):
         """Upload MISSION_ITEM_INT messages; the vehicle's MISSION_ACK, or None on timeout.
 
         Retries the way MAVSDK does: MISSION_COUNT is resent until the first request arrives, and the item
@@ -231,8 +252,11 @@ class GroundStation:
         sent = 0
         self.mav.mission_count_send(VEHICLE_SYSID, VEHICLE_COMPID, len(items), mission_type)
         while time.monotonic() < deadline:
-            msg = self.recv(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"], timeout=0.4,
-                            condition=lambda m: m.mission_type == mission_type)
+            msg = self.recv(
+                ["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"],
+                timeout=0.4,
+                condition=lambda m: m.mission_type == mission_type,
+            )
             if stop_after is not None and sent >= stop_after:
                 return None
             if msg is None:  # lost on the way, in either direction: say the last thing again
@@ -253,15 +277,15 @@ class GroundStation:
     def send_item(self, item) -> None:
         self.mav.send(item)
 
-    def download_mission(self, mission_type: int = mavlink.MAV_MISSION_TYPE_MISSION,
-                         timeout: float = 20.0) -> list | None:
+    def download_mission(
+        self, mission_type: int = mavlink.MAV_MISSION_TYPE_MISSION, timeout: float = 20.0
+    ) -> list | None:
         """MISSION_REQUEST_LIST, then each item by MISSION_REQUEST_INT with retries, then MISSION_ACK."""
         deadline = time.monotonic() + timeout
         count = None
         while count is None and time.monotonic() < deadline:
             self.mav.mission_request_list_send(VEHICLE_SYSID, VEHICLE_COMPID, mission_type)
-            count = self.recv("MISSION_COUNT", timeout=0.5,
-                              condition=lambda m: m.mission_type == mission_type)
+            count = self.recv("MISSION_COUNT", timeout=0.5, condition=lambda m: m.mission_type == mission_type)
         if count is None:
             return None
         items = []
@@ -277,14 +301,31 @@ class GroundStation:
         return items
 
 
-def mission_item(seq: int, command: int, lat: float = 0.0, lon: float = 0.0, alt: float = 0.0,
-                 frame: int = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-                 params: tuple = (0.0, 0.0, 0.0, math.nan),
-                 mission_type: int = mavlink.MAV_MISSION_TYPE_MISSION):
+def mission_item(
+    seq: int,
+    command: int,
+    lat: float = 0.0,
+    lon: float = 0.0,
+    alt: float = 0.0,
+    frame: int = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+    params: tuple = (0.0, 0.0, 0.0, math.nan),
+    mission_type: int = mavlink.MAV_MISSION_TYPE_MISSION,
+):
     """One MISSION_ITEM_INT addressed to the vehicle; lat/lon in degrees."""
     return mavlink.MAVLink_mission_item_int_message(
-        VEHICLE_SYSID, VEHICLE_COMPID, seq, frame, command, int(seq == 0), 1, *params,
-        round(lat * 1e7), round(lon * 1e7), alt, mission_type)
+        VEHICLE_SYSID,
+        VEHICLE_COMPID,
+        seq,
+        frame,
+        command,
+        int(seq == 0),
+        1,
+        *params,
+        round(lat * 1e7),
+        round(lon * 1e7),
+        alt,
+        mission_type,
+    )
 
 
 def short_mission(home: tuple[float, float, float], leg_m: float = 30.0) -> list:
@@ -296,9 +337,9 @@ def short_mission(home: tuple[float, float, float], leg_m: float = 30.0) -> list
     north_east = frame.from_ned(leg_m, leg_m, 0.0)
     return [
         mission_item(0, mavlink.MAV_CMD_NAV_TAKEOFF, home[0], home[1], 5.0),
-        mission_item(1, mavlink.MAV_CMD_NAV_WAYPOINT, north[0], north[1], 5.0,
-                     params=(0.0, 2.0, 0.0, math.nan)),
-        mission_item(2, mavlink.MAV_CMD_NAV_WAYPOINT, north_east[0], north_east[1], 5.0,
-                     params=(0.0, 2.0, 0.0, math.nan)),
+        mission_item(1, mavlink.MAV_CMD_NAV_WAYPOINT, north[0], north[1], 5.0, params=(0.0, 2.0, 0.0, math.nan)),
+        mission_item(
+            2, mavlink.MAV_CMD_NAV_WAYPOINT, north_east[0], north_east[1], 5.0, params=(0.0, 2.0, 0.0, math.nan)
+        ),
         mission_item(3, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, frame=mavlink.MAV_FRAME_MISSION),
     ]

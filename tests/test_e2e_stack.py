@@ -56,8 +56,9 @@ class Child:
         with open(self.log_path, "a") as log:
             log.write(f"--- starting: {' '.join(self.args)}\n")
             log.flush()
-            self.process = subprocess.Popen(self.args, cwd=REPO, stdout=log, stderr=subprocess.STDOUT,
-                                            stdin=subprocess.DEVNULL)
+            self.process = subprocess.Popen(
+                self.args, cwd=REPO, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL
+            )
         deadline = time.monotonic() + START_TIMEOUT_S
         while not ready():
             assert self.process.poll() is None, f"{self.name} exited while starting:\n{self.log()[-3000:]}"
@@ -101,24 +102,40 @@ class Stack:
         self.vehicle = self.offboard = self.gcs = None
 
     def start_vehicle(self, *extra: str) -> Child:
-        child = Child("sitl_quad", ["sitl_quad", "--port", str(self.vehicle_port), "--lockstep", "--seed", "1",
-                                    *extra], self.dir)
+        child = Child(
+            "sitl_quad", ["sitl_quad", "--port", str(self.vehicle_port), "--lockstep", "--seed", "1", *extra], self.dir
+        )
         self.children.append(child)
         self.vehicle = child.start(lambda: "listening" in child.log().rpartition("--- starting")[2])
         return child
 
     def start_offboard(self, *extra: str) -> Child:
-        child = Child("adrc_offboard", ["adrc_offboard", "--connect", f"udpout:127.0.0.1:{self.vehicle_port}",
-                                        *extra], self.dir)
+        child = Child(
+            "adrc_offboard", ["adrc_offboard", "--connect", f"udpout:127.0.0.1:{self.vehicle_port}", *extra], self.dir
+        )
         self.children.append(child)
         self.offboard = child.start(lambda: "outer loop at" in child.log().rpartition("--- starting")[2])
         return child
 
     def start_gcs(self, vehicle_port: int | None = None, *extra: str) -> Child:
         port = vehicle_port or self.vehicle_port
-        child = Child("gcs", ["gcs", "serve", "--vehicle", f"udpout:127.0.0.1:{port}", "--port",
-                              str(self.http_port), "--db", str(self.dir / "gcs.sqlite"), "--vehicle-wait", "30",
-                              *extra], self.dir)
+        child = Child(
+            "gcs",
+            [
+                "gcs",
+                "serve",
+                "--vehicle",
+                f"udpout:127.0.0.1:{port}",
+                "--port",
+                str(self.http_port),
+                "--db",
+                str(self.dir / "gcs.sqlite"),
+                "--vehicle-wait",
+                "30",
+                *extra,
+            ],
+            self.dir,
+        )
         self.children.append(child)
         self.gcs = child.start(self._http_ready)
         return child
@@ -130,8 +147,11 @@ class Stack:
             return False
 
     def wait_connected(self, timeout_s: float = 30) -> dict:
-        return wait_until(lambda: (v := self.api.get("/vehicle").json())["connected"] and v, timeout_s,
-                          "the service never heard the vehicle")
+        return wait_until(
+            lambda: (v := self.api.get("/vehicle").json())["connected"] and v,
+            timeout_s,
+            "the service never heard the vehicle",
+        )
 
     def fly(self, request: dict) -> int:
         response = self.api.post("/missions", json=request)
@@ -225,8 +245,9 @@ def test_reference_scenario_flies_from_post_to_landed_at_the_depot_within_the_ad
     # the ADRC target on the full 3-D tracking error, over the samples recorded on the legs
     samples = stack.api.get(f"/missions/{mission_id}/telemetry").json()
     on_legs = [s for s in samples if s["cross_track_m"] is not None and s["ref_north"] is not None]
-    errors = [math.dist((s["north"], s["east"], s["down"]), (s["ref_north"], s["ref_east"], s["ref_down"]))
-              for s in on_legs]
+    errors = [
+        math.dist((s["north"], s["east"], s["down"]), (s["ref_north"], s["ref_east"], s["ref_down"])) for s in on_legs
+    ]
     assert len(on_legs) > 1000 and math.sqrt(np.mean(np.square(errors))) <= 0.25
     assert_landed_at_depot(stack, radius)
     # the vehicle flew all of it in simulated time, much faster than the wall clock (lockstep)
@@ -304,8 +325,12 @@ def test_gcs_restarted_mid_flight_reattaches_keeps_recording_and_completes(stack
 def test_gcs_restarted_while_the_vehicle_flies_nothing_fails_the_unfinished_missions(stack):
     storage = Storage(stack.dir / "gcs.sqlite")  # what a service killed mid-upload and mid-flight left behind
     request = near_buoys(2)
-    plan = make_plan((request["depot"]["lat"], request["depot"]["lon"]),
-                     [(b["lat"], b["lon"]) for b in request["buoys"]], ["A", "B"], "exact")
+    plan = make_plan(
+        (request["depot"]["lat"], request["depot"]["lon"]),
+        [(b["lat"], b["lon"]) for b in request["buoys"]],
+        ["A", "B"],
+        "exact",
+    )
     flight = {"altitude_m": 5.0, "speed_m_s": 10.0, "dwell_s": 1.0, "acceptance_radius_m": 2.0}
     left = [storage.create_mission(flight, plan.to_dict()) for _ in range(2)]
     storage.set_status(left[0], "uploading")
@@ -450,8 +475,9 @@ def test_hostile_datagrams_at_every_udp_port_change_nothing(stack):
             "gcs": udp_ports_of(stack.gcs.process.pid),
         }
         assert all(targets.values()), targets
-        sent = {name: sum(blast(port, 100_000, seed=i) for port in ports)
-                for i, (name, ports) in enumerate(targets.items())}
+        sent = {
+            name: sum(blast(port, 100_000, seed=i) for port in ports) for i, (name, ports) in enumerate(targets.items())
+        }
         assert all(count >= 100_000 for count in sent.values()), sent
         time.sleep(1.5)  # let every process work through what its socket buffer kept
 

@@ -109,9 +109,7 @@ class ScriptedVehicle(threading.Thread):
             self.send(self.mav.mission_count_encode(255, 190, len(self.stored), 0))
         elif kind == "MISSION_REQUEST_INT" and m.seq < len(self.stored):
             item = self.stored[m.seq]
-            self.send(
-                item_message(item, 255, 190)
-            )
+            self.send(item_message(item, 255, 190))
 
     def stop(self) -> None:
         self.running = False

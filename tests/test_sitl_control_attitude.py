@@ -75,7 +75,8 @@ def test_error_uses_the_shorter_way_round_and_body_rate_feed_forward():
     rate = controller.attitude_rate_setpoint(AttitudeTarget(quaternion=right, thrust=0.5), q)
     assert rate[2] > 0 and abs(rate[0]) < 1e-9 and abs(rate[1]) < 1e-9
     fed = controller.attitude_rate_setpoint(
-        AttitudeTarget(quaternion=q, thrust=0.5, body_rates=np.array([0.0, 0.0, 0.4])), q)
+        AttitudeTarget(quaternion=q, thrust=0.5, body_rates=np.array([0.0, 0.0, 0.4])), q
+    )
     assert fed[2] == pytest.approx(0.4)
 
 
@@ -83,5 +84,4 @@ def test_gains_are_validated():
     with pytest.raises(ModelParameterError):
         PidAttitudeGains(mc_roll_p=-1.0)
     with pytest.raises(ModelParameterError):
-        PidAttitudeController().update(AttitudeTarget(np.array([1.0, 0, 0, 0]), 0.5),
-                                       Simulator().state, 0.0)
+        PidAttitudeController().update(AttitudeTarget(np.array([1.0, 0, 0, 0]), 0.5), Simulator().state, 0.0)

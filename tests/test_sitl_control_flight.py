@@ -64,8 +64,12 @@ def straight_leg(start_time: float, speed: float = 10.0, accel: float = 2.5):
             x, v, a = 0.5 * accel * tau * tau, accel * tau, accel
         else:
             x, v, a = 0.5 * accel * ramp * ramp + speed * (tau - ramp), speed, 0.0
-        return TrajectorySetpoint(position=np.array([x, 0.0, -ALTITUDE]), velocity=np.array([v, 0.0, 0.0]),
-                                  acceleration=np.array([a, 0.0, 0.0]))
+        return TrajectorySetpoint(
+            position=np.array([x, 0.0, -ALTITUDE]),
+            velocity=np.array([v, 0.0, 0.0]),
+            acceleration=np.array([a, 0.0, 0.0]),
+        )
+
     return setpoint
 
 
@@ -114,9 +118,20 @@ def test_ten_metre_per_second_leg_in_still_air():
 
 def test_ten_metre_per_second_leg_through_crosswind_gust_turbulence_and_noise():
     sim = Simulator(
-        AIRFRAME, wind=WindConfig(6.0, 270.0, gust_amplitude_m_s=4.0, gust_rise_time_s=0.1, gust_start_s=12.0,
-                                  gust_hold_s=1.0, gust_direction_from_deg=270.0, turbulence_w20_m_s=6.0),
-        disturbance=DisturbanceConfig(), sensor_noise=SensorNoise(), seed=21,
+        AIRFRAME,
+        wind=WindConfig(
+            6.0,
+            270.0,
+            gust_amplitude_m_s=4.0,
+            gust_rise_time_s=0.1,
+            gust_start_s=12.0,
+            gust_hold_s=1.0,
+            gust_direction_from_deg=270.0,
+            turbulence_w20_m_s=6.0,
+        ),
+        disturbance=DisturbanceConfig(),
+        sensor_noise=SensorNoise(),
+        seed=21,
     )
     rows, leg = _fly_leg(sim)
     along = np.array([leg(t).position[0] for t in rows[:, 0]]) - rows[:, 1]

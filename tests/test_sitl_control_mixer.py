@@ -16,12 +16,15 @@ def wrench(omega):
     return np.array(rotor_wrench(np.asarray(omega, dtype=float), PARAMS))
 
 
-@pytest.mark.parametrize(("thrust", "torque"), [
-    (12.75, (0.0, 0.0, 0.0)),
-    (12.75, (0.5, -0.3, 0.05)),
-    (20.0, (-1.0, 1.0, -0.03)),
-    (5.0, (0.2, 0.2, 0.02)),
-])
+@pytest.mark.parametrize(
+    ("thrust", "torque"),
+    [
+        (12.75, (0.0, 0.0, 0.0)),
+        (12.75, (0.5, -0.3, 0.05)),
+        (20.0, (-1.0, 1.0, -0.03)),
+        (5.0, (0.2, 0.2, 0.02)),
+    ],
+)
 def test_mixer_inverts_eq3_when_within_limits(thrust, torque):
     mixer = Mixer(AIRFRAME)
     omega = mixer.rotor_commands(thrust, torque)

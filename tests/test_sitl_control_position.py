@@ -16,8 +16,11 @@ AIRFRAME = Airframe.table2()
 
 
 def at(position, velocity=(0.0, 0.0, 0.0), yaw: float = 0.0) -> VehicleState:
-    return VehicleState(position=np.array(position, dtype=float), velocity=np.array(velocity, dtype=float),
-                        quaternion=quat_from_euler(0.0, 0.0, yaw))
+    return VehicleState(
+        position=np.array(position, dtype=float),
+        velocity=np.array(velocity, dtype=float),
+        quaternion=quat_from_euler(0.0, 0.0, yaw),
+    )
 
 
 def tilt_deg(quaternion) -> float:
@@ -27,8 +30,9 @@ def tilt_deg(quaternion) -> float:
 
 def test_on_the_setpoint_it_asks_for_hover_thrust_level():
     controller = PidPositionController(AIRFRAME)
-    target = controller.update(TrajectorySetpoint(position=np.array([1.0, 2.0, -5.0]), yaw=0.4),
-                               at([1.0, 2.0, -5.0]), 0.02)
+    target = controller.update(
+        TrajectorySetpoint(position=np.array([1.0, 2.0, -5.0]), yaw=0.4), at([1.0, 2.0, -5.0]), 0.02
+    )
     assert target.thrust == pytest.approx(AIRFRAME.hover_thrust)
     roll, pitch, yaw = euler_from_quat(target.quaternion)
     assert abs(roll) < 1e-12 and abs(pitch) < 1e-12 and yaw == pytest.approx(0.4)
@@ -50,8 +54,12 @@ def test_far_setpoints_respect_velocity_acceleration_and_tilt_limits():
 
 def test_nan_position_means_velocity_control_and_nan_yaw_keeps_heading():
     controller = PidPositionController(AIRFRAME)
-    setpoint = TrajectorySetpoint(position=np.array([math.nan, 0.0, math.nan]), velocity=np.array([2.0, 0.0, 1.0]),
-                                  acceleration=np.array([math.nan, 0.0, 0.0]), yaw=math.nan)
+    setpoint = TrajectorySetpoint(
+        position=np.array([math.nan, 0.0, math.nan]),
+        velocity=np.array([2.0, 0.0, 1.0]),
+        acceleration=np.array([math.nan, 0.0, 0.0]),
+        yaw=math.nan,
+    )
     target = controller.update(setpoint, at([50.0, 0.0, -5.0], yaw=1.2), 0.02)
     np.testing.assert_allclose(controller.velocity_setpoint, [2.0, 0.0, 1.0])
     # heading kept: the body y axis stays perpendicular to the horizontal direction yaw 1.2 (the convention of

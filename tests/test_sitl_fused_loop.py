@@ -25,13 +25,20 @@ AIRFRAME = Airframe.table2()
 ATTITUDE_STEPS, PHYSICS_STEPS, ATTITUDE_DT = 5, 4, 0.004
 TOLERANCE = 1e-12
 # every random source on; a disturbance sample every 10 physics steps, so samples fall inside attitude steps
-WIND = WindConfig(speed_m_s=4.0, direction_from_deg=60.0, gust_amplitude_m_s=3.0, gust_start_s=0.3,
-                  turbulence_w20_m_s=2.0)
+WIND = WindConfig(
+    speed_m_s=4.0, direction_from_deg=60.0, gust_amplitude_m_s=3.0, gust_start_s=0.3, turbulence_w20_m_s=2.0
+)
 DISTURBANCE = DisturbanceConfig(0.2, 0.2, 0.2, 0.5, 0.5, 0.5, sample_time_s=0.01)
 
 
-def step_by_step(sim: Simulator, controller: PidAttitudeController, mixer: Mixer, target: AttitudeTarget,
-                 thrust_n: float, apply_torque: bool) -> bool:
+def step_by_step(
+    sim: Simulator,
+    controller: PidAttitudeController,
+    mixer: Mixer,
+    target: AttitudeTarget,
+    thrust_n: float,
+    apply_torque: bool,
+) -> bool:
     """What Vehicle.tick does for an attitude controller it cannot compile."""
     saturated = False
     for _ in range(ATTITUDE_STEPS):
@@ -46,9 +53,19 @@ def step_by_step(sim: Simulator, controller: PidAttitudeController, mixer: Mixer
 
 def snapshot(sim: Simulator, controller: PidAttitudeController) -> np.ndarray:
     s = sim.state
-    return np.concatenate([s.position, s.velocity, s.quaternion, s.angular_velocity, s.rotor_speeds,
-                           sim.rotor_commands, *sim.last_disturbance.values(), controller.kernel_state,
-                           sim.measure().position])  # the next measurement: the noise stream's position
+    return np.concatenate(
+        [
+            s.position,
+            s.velocity,
+            s.quaternion,
+            s.angular_velocity,
+            s.rotor_speeds,
+            sim.rotor_commands,
+            *sim.last_disturbance.values(),
+            controller.kernel_state,
+            sim.measure().position,
+        ]
+    )  # the next measurement: the noise stream's position
 
 
 def schedule() -> list[tuple[AttitudeTarget, float, bool]]:
@@ -71,17 +88,20 @@ def test_compiled_inner_loop_equals_stepping_from_python():
     fused, stepped = make(), make()
     saturated_ticks, ground_ticks = 0, 0
     for target, thrust_n, apply_torque in schedule():
-        a = fused[0].run_pid_attitude_steps(fused[1], fused[2], target, thrust_n, ATTITUDE_STEPS, PHYSICS_STEPS,
-                                            ATTITUDE_DT, apply_torque=apply_torque)
+        a = fused[0].run_pid_attitude_steps(
+            fused[1], fused[2], target, thrust_n, ATTITUDE_STEPS, PHYSICS_STEPS, ATTITUDE_DT, apply_torque=apply_torque
+        )
         b = step_by_step(*stepped, target, thrust_n, apply_torque)
         assert a == b
         saturated_ticks += a
         (sim_a, controller_a, mixer_a), (sim_b, controller_b, mixer_b) = fused, stepped
-        np.testing.assert_allclose(snapshot(sim_a, controller_a), snapshot(sim_b, controller_b),
-                                   rtol=0, atol=TOLERANCE)
+        np.testing.assert_allclose(snapshot(sim_a, controller_a), snapshot(sim_b, controller_b), rtol=0, atol=TOLERANCE)
         assert sim_a.step_index == sim_b.step_index and sim_a.on_ground == sim_b.on_ground
         assert (mixer_a.calls, mixer_a.saturated_steps, mixer_a.saturated) == (
-            mixer_b.calls, mixer_b.saturated_steps, mixer_b.saturated)
+            mixer_b.calls,
+            mixer_b.saturated_steps,
+            mixer_b.saturated,
+        )
         ground_ticks += sim_a.on_ground
     # the schedule did reach the cases it is for
     assert 0 < ground_ticks < len(schedule()) and saturated_ticks > 0
@@ -125,8 +145,7 @@ def test_vehicle_flies_the_same_with_the_compiled_loop_and_step_by_step():
         assert fused.saturated_ticks == stepped.saturated_ticks
     assert sources == {"off", "idle", "builtin"}
     assert -fused.sim.state.position[2] > 2.0  # it did fly
-    np.testing.assert_allclose(fused.attitude.kernel_state, stepped.attitude.pid.kernel_state, rtol=0,
-                               atol=TOLERANCE)
+    np.testing.assert_allclose(fused.attitude.kernel_state, stepped.attitude.pid.kernel_state, rtol=0, atol=TOLERANCE)
     assert (fused.mixer.calls, fused.mixer.saturated_steps) == (stepped.mixer.calls, stepped.mixer.saturated_steps)
 
 
@@ -150,7 +169,14 @@ def test_non_finite_thrust_bad_step_counts_and_malformed_targets_are_refused():
         with pytest.raises(ModelParameterError):
             sim.run_pid_attitude_steps(controller, mixer, level, 10.0, steps, physics, dt)
     with pytest.raises(ModelParameterError, match="body rates"):
-        sim.run_pid_attitude_steps(controller, mixer, AttitudeTarget(level.quaternion, 0.5, np.zeros(2)), 10.0,
-                                   ATTITUDE_STEPS, PHYSICS_STEPS, ATTITUDE_DT)
+        sim.run_pid_attitude_steps(
+            controller,
+            mixer,
+            AttitudeTarget(level.quaternion, 0.5, np.zeros(2)),
+            10.0,
+            ATTITUDE_STEPS,
+            PHYSICS_STEPS,
+            ATTITUDE_DT,
+        )
     with pytest.raises(ModelParameterError, match="quaternion"):
         controller.update(AttitudeTarget(np.ones(3), 0.5), sim.state, ATTITUDE_DT)

@@ -33,11 +33,10 @@ class MavProxy:
     """mavproxy.py as a child process: type commands, wait for lines it prints."""
 
     def __init__(self, port: int, state_dir: Path) -> None:
-        command = [sys.executable, str(MAVPROXY), f"--master=udpout:127.0.0.1:{port}",
-                   f"--state-basedir={state_dir}"]
+        command = [sys.executable, str(MAVPROXY), f"--master=udpout:127.0.0.1:{port}", f"--state-basedir={state_dir}"]
         self.process = subprocess.Popen(
-            command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-            cwd=state_dir)
+            command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=state_dir
+        )
         self.lines: queue.Queue[str] = queue.Queue()
         self.transcript: list[str] = []
         threading.Thread(target=self._pump, daemon=True).start()
@@ -99,8 +98,7 @@ def write_waypoints(path: Path) -> list[tuple]:
         (3, 0, relative, mavlink.MAV_CMD_NAV_WAYPOINT, 0, 2.0, 0, 0, round(lat2, 7), round(lon2, 7), 5.0, 1),
         (4, 0, mavlink.MAV_FRAME_MISSION, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, 0, 0, 0, 0, 0, 0, 0, 1),
     ]
-    lines = ["QGC WPL 110"] + ["\t".join(f"{v:.7f}" if isinstance(v, float) else str(v) for v in row)
-                               for row in rows]
+    lines = ["QGC WPL 110"] + ["\t".join(f"{v:.7f}" if isinstance(v, float) else str(v) for v in row) for row in rows]
     path.write_text("\n".join(lines) + "\n")
     return rows
 

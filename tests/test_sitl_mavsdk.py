@@ -21,8 +21,21 @@ from planner.scenario import DEFAULT_HOME
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.timeout(120)]
 
-FIELDS = ("seq", "frame", "command", "current", "autocontinue", "param1", "param2", "param3", "param4",
-          "x", "y", "z", "mission_type")
+FIELDS = (
+    "seq",
+    "frame",
+    "command",
+    "current",
+    "autocontinue",
+    "param1",
+    "param2",
+    "param3",
+    "param4",
+    "x",
+    "y",
+    "z",
+    "mission_type",
+)
 
 
 def wait_until(condition: Callable[[], bool], timeout: float, what: str) -> None:
@@ -101,8 +114,10 @@ def test_mavsdk_reads_parameters_flies_a_mission_and_sees_it_land(system):
             break
         time.sleep(0.05)
     else:
-        raise AssertionError(f"mission not finished with a landing: {progress}, seen {seen_current}, "
-                             f"armed {telemetry.armed()}, landed state {telemetry.landed_state()}")
+        raise AssertionError(
+            f"mission not finished with a landing: {progress}, seen {seen_current}, "
+            f"armed {telemetry.armed()}, landed state {telemetry.landed_state()}"
+        )
     assert was_in_air
     assert max_altitude > 4.0
     assert {1, 2, 3} <= seen_current  # followed item by item, not jumped to the end

@@ -26,8 +26,14 @@ def main_mode(heartbeat) -> int:
     return (heartbeat.custom_mode >> 16) & 0xFF
 
 
-def stream_attitude(station: GroundStation, roll: float, thrust: float, seconds: float, rate_hz: float,
-                    watcher: GroundStation | None = None) -> list:
+def stream_attitude(
+    station: GroundStation,
+    roll: float,
+    thrust: float,
+    seconds: float,
+    rate_hz: float,
+    watcher: GroundStation | None = None,
+) -> list:
     """Stream SET_ATTITUDE_TARGET; returns the ATTITUDE messages `watcher` received meanwhile, in order."""
     q = [float(c) for c in quat_from_euler(roll, 0.0, 0.0)]
     ignore_rates = 7
@@ -43,8 +49,9 @@ def stream_attitude(station: GroundStation, roll: float, thrust: float, seconds:
 
 def test_attitude_stream_is_obeyed_and_its_loss_lands_gently(start_sitl, tmp_path):
     log = tmp_path / "flight.csv"
-    vehicle = start_sitl(speed=2.0, extra_args=("--param", "OFFB_LOSS_ACT=1", "--param", "OFFB_LOSS_T=0.5",
-                                                "--log", str(log)))
+    vehicle = start_sitl(
+        speed=2.0, extra_args=("--param", "OFFB_LOSS_ACT=1", "--param", "OFFB_LOSS_T=0.5", "--log", str(log))
+    )
     gcs = GroundStation(vehicle.port)
     gcs.connect()
     offboard = GroundStation(vehicle.port, sysid=1, compid=mavlink.MAV_COMP_ID_ONBOARD_COMPUTER)
@@ -89,6 +96,7 @@ def test_attitude_stream_is_obeyed_and_its_loss_lands_gently(start_sitl, tmp_pat
     with open(log) as f:
         rows = list(csv.DictReader(f))
     switch = next(i for i, r in enumerate(rows) if i and rows[i - 1]["mode"] == "OFFBOARD" and r["mode"] != "OFFBOARD")
+
     # The log holds each setpoint's age at the end of its 20 ms tick; the failsafe looks at the start. The tick
     # that switched saw the setpoint older than OFFB_LOSS_T, by at most one tick; the tick before had it fresh.
     def age_at_tick_start(row: dict) -> float:
@@ -101,11 +109,20 @@ def _fly_lockstep_mission(tmp_path, tag: str, seed: int) -> list[list[str]]:
     """Vehicle + adrc_offboard in lockstep; a pymavlink GCS uploads a short mission, arms and starts it."""
     port = free_udp_port()
     log = tmp_path / f"{tag}.csv"
-    vehicle = subprocess.Popen([sys.executable, "-m", "sitl_quad", "--port", str(port), "--lockstep",
-                                "--seed", str(seed), "--log", str(log)], cwd=REPO,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    controller = subprocess.Popen([sys.executable, "-m", "adrc_offboard", "--connect", f"udpout:127.0.0.1:{port}"],
-                                  cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    vehicle = subprocess.Popen(
+        [sys.executable, "-m", "sitl_quad", "--port", str(port), "--lockstep", "--seed", str(seed), "--log", str(log)],
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    controller = subprocess.Popen(
+        [sys.executable, "-m", "adrc_offboard", "--connect", f"udpout:127.0.0.1:{port}"],
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     gcs = GroundStation(port)
     try:
         gcs.connect(timeout=60)
@@ -116,9 +133,25 @@ def _fly_lockstep_mission(tmp_path, tag: str, seed: int) -> list[list[str]]:
         items = []
         for seq, (command, north, east, alt) in enumerate([(22, 0, 0, 5), (16, 30, 20, 5), (21, 30, 20, 0)]):
             lat, lon, _ = FRAME.from_ned(north, east, 0.0)
-            items.append(mavlink.MAVLink_mission_item_int_message(
-                1, 1, seq, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, command, int(seq == 0), 1, 0.5, 1.0, 0,
-                math.nan, round(float(lat) * 1e7), round(float(lon) * 1e7), alt, 0))
+            items.append(
+                mavlink.MAVLink_mission_item_int_message(
+                    1,
+                    1,
+                    seq,
+                    mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                    command,
+                    int(seq == 0),
+                    1,
+                    0.5,
+                    1.0,
+                    0,
+                    math.nan,
+                    round(float(lat) * 1e7),
+                    round(float(lon) * 1e7),
+                    alt,
+                    0,
+                )
+            )
         assert gcs.upload_mission(items).type == mavlink.MAV_MISSION_ACCEPTED
         assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == mavlink.MAV_RESULT_ACCEPTED
         assert gcs.command(mavlink.MAV_CMD_MISSION_START, 0, 0).result == mavlink.MAV_RESULT_ACCEPTED
@@ -150,11 +183,14 @@ def test_adrc_offboard_flies_a_mission_in_lockstep_deterministically(tmp_path):
     col = {name: header.index(name) for name in header}
     flown = [r for r in first[1:] if r[col["source"]] == "offboard"]
     assert len(flown) > 500  # most of the flight under the offboard ADRC
-    errors = [math.dist([float(r[col[k]]) for k in ("x", "y", "z")],
-                        [float(r[col[k]]) for k in ("x_ref", "y_ref", "z_ref")]) for r in flown]
+    errors = [
+        math.dist([float(r[col[k]]) for k in ("x", "y", "z")], [float(r[col[k]]) for k in ("x_ref", "y_ref", "z_ref")])
+        for r in flown
+    ]
     airborne = [e for r, e in zip(flown, errors, strict=True) if float(r[col["z"]]) < -1.0]
     assert max(airborne) < 1.0
     second = _fly_lockstep_mission(tmp_path, "second", seed=7)
+
     # The same seed in lockstep gives the same flight, tick by tick from takeoff, although the ground
     # station's commands reached the vehicle at different ticks of the two runs.
     def flight(rows: list[list[str]]) -> list[list[str]]:

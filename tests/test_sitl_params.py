@@ -35,8 +35,13 @@ def test_defaults_come_from_the_config(table):
 def test_set_updates_the_config_and_refusals_change_nothing(table):
     assert table.set("SIM_WIND_SPD", 5.0) == 5.0
     assert table.config.wind.speed_m_s == 5.0
-    for name, bad in [("SIM_WIND_SPD", -1.0), ("SIM_WIND_SPD", float("nan")), ("OFFB_LOSS_ACT", 1.5),
-                      ("OFFB_LOSS_ACT", 7), ("NOPE", 1.0)]:
+    for name, bad in [
+        ("SIM_WIND_SPD", -1.0),
+        ("SIM_WIND_SPD", float("nan")),
+        ("OFFB_LOSS_ACT", 1.5),
+        ("OFFB_LOSS_ACT", 7),
+        ("NOPE", 1.0),
+    ]:
         with pytest.raises(ParameterError):
             table.set(name, bad)
     assert table.config.wind.speed_m_s == 5.0
@@ -58,26 +63,34 @@ def test_file_round_trip_and_all_or_nothing_load(table, tmp_path):
     assert fresh.get("MPC_XY_CRUISE") == 7.5  # the good first line was not applied either
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["--params", "{tmp}/garbage.params"], "garbage.params:1"),
-    (["--param", "SIM_MASS=-1"], "SIM_MASS"),
-    (["--param", "NOT_A_PARAM=1"], "unknown parameter"),
-    (["--home", "95,10"], "outside"),
-    (["--speed", "0"], "--speed"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--params", "{tmp}/garbage.params"], "garbage.params:1"),
+        (["--param", "SIM_MASS=-1"], "SIM_MASS"),
+        (["--param", "NOT_A_PARAM=1"], "unknown parameter"),
+        (["--home", "95,10"], "outside"),
+        (["--speed", "0"], "--speed"),
+    ],
+)
 def test_cli_rejects_bad_input_with_a_message(tmp_path, argv, message):
     (tmp_path / "garbage.params").write_text("this is not a parameter file\n")
     argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
-    result = subprocess.run([sys.executable, "-m", "sitl_quad", *argv, "--list-params"],
-                            capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-m", "sitl_quad", *argv, "--list-params"], capture_output=True, text=True, timeout=60
+    )
     assert result.returncode == 2
     assert message in result.stderr
     assert "Traceback" not in result.stderr
 
 
 def test_cli_lists_parameters():
-    result = subprocess.run([sys.executable, "-m", "sitl_quad", "--param", "SIM_WIND_SPD=4", "--list-params"],
-                            capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-m", "sitl_quad", "--param", "SIM_WIND_SPD=4", "--list-params"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert result.returncode == 0
     line = next(line for line in result.stdout.splitlines() if line.startswith("SIM_WIND_SPD"))
     assert line.split()[1] == "4"

@@ -25,11 +25,13 @@ def reference_derivative(state, omega_cmd, af: Airframe, wind, d_accel, d_angula
     """The same model written independently with matrices: eq. (1)-(3), drag, motor lag."""
     q = state[6:10] / np.linalg.norm(state[6:10])
     w, x, y, z = q
-    rotation = np.array([
-        [w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
-    ])
+    rotation = np.array(
+        [
+            [w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
+        ]
+    )
     omega_sq = state[13:17] ** 2
     u1 = af.kl * omega_sq.sum()
     u2 = af.kl * (omega_sq @ [1, 1, -1, -1])
@@ -45,12 +47,14 @@ def reference_derivative(state, omega_cmd, af: Airframe, wind, d_accel, d_angula
     torque = af.arm_length * np.array([u2, u3, u4])
     rates_dot = np.linalg.solve(inertia, torque - np.cross(rates, inertia @ rates)) + d_angular
     omega_quat = np.array([0.0, *rates])
-    q_dot = 0.5 * np.array([
-        w * omega_quat[0] - x * omega_quat[1] - y * omega_quat[2] - z * omega_quat[3],
-        w * omega_quat[1] + x * omega_quat[0] + y * omega_quat[3] - z * omega_quat[2],
-        w * omega_quat[2] - x * omega_quat[3] + y * omega_quat[0] + z * omega_quat[1],
-        w * omega_quat[3] + x * omega_quat[2] - y * omega_quat[1] + z * omega_quat[0],
-    ])
+    q_dot = 0.5 * np.array(
+        [
+            w * omega_quat[0] - x * omega_quat[1] - y * omega_quat[2] - z * omega_quat[3],
+            w * omega_quat[1] + x * omega_quat[0] + y * omega_quat[3] - z * omega_quat[2],
+            w * omega_quat[2] - x * omega_quat[3] + y * omega_quat[0] + z * omega_quat[1],
+            w * omega_quat[3] + x * omega_quat[2] - y * omega_quat[1] + z * omega_quat[0],
+        ]
+    )
     rotor_dot = (np.clip(omega_cmd, af.rotor_speed_min, af.rotor_speed_max) - state[13:17]) / af.motor_time_constant
     return np.concatenate([state[3:6], accel, q_dot, rates_dot, rotor_dot])
 
@@ -59,10 +63,15 @@ def test_numba_derivative_matches_numpy_reference():
     rng = np.random.default_rng(7)
     params = AIRFRAME.as_array()
     for _ in range(50):
-        state = np.concatenate([
-            rng.normal(0, 10, 3), rng.normal(0, 5, 3), quat_from_euler(*rng.uniform(-1.5, 1.5, 3)),
-            rng.normal(0, 3, 3), rng.uniform(0, 500, 4),
-        ])
+        state = np.concatenate(
+            [
+                rng.normal(0, 10, 3),
+                rng.normal(0, 5, 3),
+                quat_from_euler(*rng.uniform(-1.5, 1.5, 3)),
+                rng.normal(0, 3, 3),
+                rng.uniform(0, 500, 4),
+            ]
+        )
         omega_cmd = rng.uniform(-50, 600, 4)
         wind, d_accel, d_angular = rng.normal(0, 5, 3), rng.normal(0, 1, 3), rng.normal(0, 1, 3)
         fast = derivative(state, omega_cmd, params, wind, d_accel, d_angular)
@@ -104,11 +113,14 @@ def test_rotors_follow_commands_with_the_motor_lag_and_limits():
     np.testing.assert_allclose(sim.state.rotor_speeds, [400.0, 200.0, 300.0, AIRFRAME.rotor_speed_max])
 
 
-@pytest.mark.parametrize(("axis", "pattern", "inertia", "coefficient"), [
-    (0, (1, 1, -1, -1), AIRFRAME.ixx, AIRFRAME.kl),  # U2: rotors 1, 2 (left) faster -> +roll
-    (1, (1, -1, -1, 1), AIRFRAME.iyy, AIRFRAME.kl),  # U3: rotors 1, 4 (front) faster -> +pitch
-    (2, (1, -1, 1, -1), AIRFRAME.izz, AIRFRAME.kf),  # U4: rotors 1, 3 (CCW) faster -> +yaw
-])
+@pytest.mark.parametrize(
+    ("axis", "pattern", "inertia", "coefficient"),
+    [
+        (0, (1, 1, -1, -1), AIRFRAME.ixx, AIRFRAME.kl),  # U2: rotors 1, 2 (left) faster -> +roll
+        (1, (1, -1, -1, 1), AIRFRAME.iyy, AIRFRAME.kl),  # U3: rotors 1, 4 (front) faster -> +pitch
+        (2, (1, -1, 1, -1), AIRFRAME.izz, AIRFRAME.kf),  # U4: rotors 1, 3 (CCW) faster -> +yaw
+    ],
+)
 def test_moment_step_gives_eq1_angular_acceleration(axis, pattern, inertia, coefficient):
     hover = AIRFRAME.hover_rotor_speed
     speeds = np.sqrt(hover**2 + 5000.0 * np.array(pattern))
@@ -162,8 +174,13 @@ def test_ground_contact_rest_takeoff_and_landing():
 
 def test_landing_levels_a_tilted_body_and_keeps_yaw():
     sim = Simulator(AIRFRAME, position=(0.0, 0.0, -0.5))
-    sim.set_state(VehicleState(position=np.array([0.0, 0.0, -0.5]), quaternion=quat_from_euler(0.2, -0.1, -2.0),
-                               angular_velocity=np.array([0.5, 0.5, 0.0])))
+    sim.set_state(
+        VehicleState(
+            position=np.array([0.0, 0.0, -0.5]),
+            quaternion=quat_from_euler(0.2, -0.1, -2.0),
+            angular_velocity=np.array([0.5, 0.5, 0.0]),
+        )
+    )
     sim.step(1000)
     assert sim.on_ground
     roll, pitch, yaw = euler_from_quat(sim.state.quaternion)
@@ -173,9 +190,13 @@ def test_landing_levels_a_tilted_body_and_keeps_yaw():
 
 def _noisy_sim(seed: int) -> Simulator:
     return Simulator(
-        AIRFRAME, wind=WindConfig(6.0, 45.0, 3.0, 0.2, 0.3, turbulence_w20_m_s=8.0),
-        disturbance=DisturbanceConfig(sample_time_s=0.01), sensor_noise=SensorNoise(), seed=seed,
-        position=(0.0, 0.0, -5.0), rotor_speed=AIRFRAME.hover_rotor_speed,
+        AIRFRAME,
+        wind=WindConfig(6.0, 45.0, 3.0, 0.2, 0.3, turbulence_w20_m_s=8.0),
+        disturbance=DisturbanceConfig(sample_time_s=0.01),
+        sensor_noise=SensorNoise(),
+        seed=seed,
+        position=(0.0, 0.0, -5.0),
+        rotor_speed=AIRFRAME.hover_rotor_speed,
     )
 
 
@@ -242,8 +263,9 @@ def test_reconfigure_mid_flight_keeps_state_and_time():
 
 def test_disturbance_terms_do_not_lift_a_grounded_body():
     """The paper's variance-15 disturbances would push a resting vehicle around; the ground holds it."""
-    sim = Simulator(AIRFRAME, disturbance=DisturbanceConfig.paper(), seed=3,
-                    rotor_speed=0.9 * AIRFRAME.hover_rotor_speed)
+    sim = Simulator(
+        AIRFRAME, disturbance=DisturbanceConfig.paper(), seed=3, rotor_speed=0.9 * AIRFRAME.hover_rotor_speed
+    )
     for _ in range(200):
         sim.step(50)
         assert sim.on_ground and sim.state.position[2] == 0.0

@@ -12,9 +12,14 @@ from sitl_quad.rotation import quat_conjugate, quat_from_euler, quat_multiply
 from sitl_quad.sensors import SensorNoise, Sensors
 from sitl_quad.state import VehicleState
 
-TRUTH = VehicleState(t=1.0, position=np.array([1.0, 2.0, -3.0]), velocity=np.array([4.0, -1.0, 0.5]),
-                     quaternion=quat_from_euler(0.1, -0.2, 2.5), angular_velocity=np.array([0.3, 0.0, -0.1]),
-                     rotor_speeds=np.full(4, 330.0))
+TRUTH = VehicleState(
+    t=1.0,
+    position=np.array([1.0, 2.0, -3.0]),
+    velocity=np.array([4.0, -1.0, 0.5]),
+    quaternion=quat_from_euler(0.1, -0.2, 2.5),
+    angular_velocity=np.array([0.3, 0.0, -0.1]),
+    rotor_speeds=np.full(4, 330.0),
+)
 
 
 def test_measurements_have_the_configured_noise():

@@ -51,10 +51,25 @@ def test_dryden_correlation_time_follows_length_scale_over_airspeed():
 
 def test_one_minus_cosine_gust_shape():
     amplitude, rise, start, hold = 6.0, 0.4, 1.0, 0.5
-    model = WindModel(WindConfig(gust_amplitude_m_s=amplitude, gust_rise_time_s=rise, gust_start_s=start,
-                                 gust_hold_s=hold, gust_direction_from_deg=90.0))  # from the east, blows west
-    times = [0.0, 0.99, start + rise / 2, start + rise, start + rise + hold / 2, start + 2 * rise + hold - rise / 2,
-             start + 2 * rise + hold + 0.01, 5.0]
+    model = WindModel(
+        WindConfig(
+            gust_amplitude_m_s=amplitude,
+            gust_rise_time_s=rise,
+            gust_start_s=start,
+            gust_hold_s=hold,
+            gust_direction_from_deg=90.0,
+        )
+    )  # from the east, blows west
+    times = [
+        0.0,
+        0.99,
+        start + rise / 2,
+        start + rise,
+        start + rise + hold / 2,
+        start + 2 * rise + hold - rise / 2,
+        start + 2 * rise + hold + 0.01,
+        5.0,
+    ]
     east = [model.velocity(t, 5.0, 0.0)[1] for t in times]
     expected = [0.0, 0.0, -amplitude / 2, -amplitude, -amplitude, -amplitude / 2, 0.0, 0.0]
     np.testing.assert_allclose(east, expected, atol=1e-9)
@@ -65,10 +80,8 @@ def test_one_minus_cosine_gust_shape():
 
 
 def test_constant_wind_direction_is_where_it_comes_from():
-    np.testing.assert_allclose(WindModel(WindConfig(8.0, 270.0)).velocity(0.0, 5.0, 0.0), [0.0, 8.0, 0.0],
-                               atol=1e-12)
-    np.testing.assert_allclose(WindModel(WindConfig(8.0, 0.0)).velocity(0.0, 5.0, 0.0), [-8.0, 0.0, 0.0],
-                               atol=1e-12)
+    np.testing.assert_allclose(WindModel(WindConfig(8.0, 270.0)).velocity(0.0, 5.0, 0.0), [0.0, 8.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(WindModel(WindConfig(8.0, 0.0)).velocity(0.0, 5.0, 0.0), [-8.0, 0.0, 0.0], atol=1e-12)
 
 
 def test_wind_seed_reproducibility():
@@ -81,8 +94,9 @@ def test_wind_seed_reproducibility():
 
 
 def test_wind_pushes_a_hovering_body_downwind_and_is_reported():
-    sim = Simulator(AIRFRAME, wind=WindConfig(10.0, 270.0), position=(0.0, 0.0, -20.0),
-                    rotor_speed=AIRFRAME.hover_rotor_speed)
+    sim = Simulator(
+        AIRFRAME, wind=WindConfig(10.0, 270.0), position=(0.0, 0.0, -20.0), rotor_speed=AIRFRAME.hover_rotor_speed
+    )
     sim.step(100)
     report = sim.last_disturbance
     np.testing.assert_allclose(report["wind_ned"], [0.0, 10.0, 0.0], atol=1e-12)
@@ -95,9 +109,14 @@ def test_wind_pushes_a_hovering_body_downwind_and_is_reported():
 
 
 def test_external_acceleration_explains_the_motion_not_due_to_thrust_and_gravity():
-    sim = Simulator(AIRFRAME, wind=WindConfig(7.0, 120.0, turbulence_w20_m_s=6.0),
-                    disturbance=DisturbanceConfig(sample_time_s=0.2), seed=9, position=(0.0, 0.0, -30.0),
-                    rotor_speed=AIRFRAME.hover_rotor_speed)
+    sim = Simulator(
+        AIRFRAME,
+        wind=WindConfig(7.0, 120.0, turbulence_w20_m_s=6.0),
+        disturbance=DisturbanceConfig(sample_time_s=0.2),
+        seed=9,
+        position=(0.0, 0.0, -30.0),
+        rotor_speed=AIRFRAME.hover_rotor_speed,
+    )
     for _ in range(50):
         sim.step(37)
         before = sim.state
@@ -128,8 +147,9 @@ def test_gaussian_disturbance_is_zero_order_held_with_configured_variance():
 def test_disturbance_terms_act_as_accelerations_on_the_body():
     config = DisturbanceConfig(1.0, 1.0, 1.0, 1.0, 1.0, 1.0, sample_time_s=0.05)
     drag_free = AIRFRAME.replace(drag_linear_xy=0, drag_quadratic_xy=0, drag_linear_z=0, drag_quadratic_z=0)
-    sim = Simulator(drag_free, disturbance=config, seed=1, position=(0.0, 0.0, -100.0),
-                    rotor_speed=AIRFRAME.hover_rotor_speed)
+    sim = Simulator(
+        drag_free, disturbance=config, seed=1, position=(0.0, 0.0, -100.0), rotor_speed=AIRFRAME.hover_rotor_speed
+    )
     sim.step(1)
     report = sim.last_disturbance
     assert np.all(report["d_accel_ned"] != 0.0)

@@ -120,11 +120,14 @@ def test_param_set_within_limits_answers_the_new_value(gcs):
     assert gcs.read_param("OFFB_LOSS_T").param_value == pytest.approx(0.75)
 
 
-@pytest.mark.parametrize(("name", "raw", "param_type"), [
-    ("SIM_MASS", 1e6, REAL32),  # above its maximum
-    ("SIM_MASS", math.nan, REAL32),
-    ("MC_ATT_CTRL", int_bytewise(7), INT32),  # 0 PID, 1 ADRC: nothing else
-])
+@pytest.mark.parametrize(
+    ("name", "raw", "param_type"),
+    [
+        ("SIM_MASS", 1e6, REAL32),  # above its maximum
+        ("SIM_MASS", math.nan, REAL32),
+        ("MC_ATT_CTRL", int_bytewise(7), INT32),  # 0 PID, 1 ADRC: nothing else
+    ],
+)
 def test_param_set_refused_answers_the_old_value(gcs, name, raw, param_type):
     before = gcs.read_param(name)
     answer = gcs.set_param(name, raw, param_type)
@@ -160,21 +163,25 @@ def test_unknown_command_is_acked_unsupported(gcs, use_int):
 DENIED, UNSUPPORTED = mavlink.MAV_RESULT_DENIED, mavlink.MAV_RESULT_UNSUPPORTED
 
 
-@pytest.mark.parametrize(("command", "params", "expected"), [
-    (mavlink.MAV_CMD_NAV_TAKEOFF, (), DENIED),  # disarmed
-    (mavlink.MAV_CMD_NAV_LAND, (), ACCEPTED),  # a mode change: fine on the ground
-    (mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, (), ACCEPTED),
-    (mavlink.MAV_CMD_NAV_LOITER_UNLIM, (), ACCEPTED),
-    (mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, (99,), DENIED),  # no such item
-    (mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, (math.nan,), DENIED),
-    (mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (0.5,), DENIED),  # neither arm nor disarm
-    (mavlink.MAV_CMD_DO_SET_MODE, (0, 4, 3), DENIED),  # no custom-mode flag
-    (mavlink.MAV_CMD_DO_SET_MODE, (1, math.nan, 3), DENIED),
-    (mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, (1,), ACCEPTED),
-    (mavlink.MAV_CMD_REQUEST_PROTOCOL_VERSION, (1,), UNSUPPORTED),  # PROTOCOL_VERSION is deprecated
-    (mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, (65000, 1000), UNSUPPORTED),  # no such stream
-    (mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, (mavlink.MAVLINK_MSG_ID_ATTITUDE, math.nan), DENIED),
-], ids=lambda v: str(v))
+@pytest.mark.parametrize(
+    ("command", "params", "expected"),
+    [
+        (mavlink.MAV_CMD_NAV_TAKEOFF, (), DENIED),  # disarmed
+        (mavlink.MAV_CMD_NAV_LAND, (), ACCEPTED),  # a mode change: fine on the ground
+        (mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, (), ACCEPTED),
+        (mavlink.MAV_CMD_NAV_LOITER_UNLIM, (), ACCEPTED),
+        (mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, (99,), DENIED),  # no such item
+        (mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, (math.nan,), DENIED),
+        (mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (0.5,), DENIED),  # neither arm nor disarm
+        (mavlink.MAV_CMD_DO_SET_MODE, (0, 4, 3), DENIED),  # no custom-mode flag
+        (mavlink.MAV_CMD_DO_SET_MODE, (1, math.nan, 3), DENIED),
+        (mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, (1,), ACCEPTED),
+        (mavlink.MAV_CMD_REQUEST_PROTOCOL_VERSION, (1,), UNSUPPORTED),  # PROTOCOL_VERSION is deprecated
+        (mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, (65000, 1000), UNSUPPORTED),  # no such stream
+        (mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, (mavlink.MAVLINK_MSG_ID_ATTITUDE, math.nan), DENIED),
+    ],
+    ids=lambda v: str(v),
+)
 def test_each_command_is_acknowledged_with_its_result(gcs, command, params, expected):
     clear_mission(gcs)
     ack = gcs.command(command, *params)
@@ -227,23 +234,25 @@ def test_do_set_mode_refuses_what_it_cannot_fly(gcs):
 
 
 def test_set_mode_message_changes_the_mode_without_an_ack(gcs):
-    gcs.mav.set_mode_send(VEHICLE_SYSID, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
-                          FlightMode.POSCTL.custom_mode)
+    gcs.mav.set_mode_send(VEHICLE_SYSID, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, FlightMode.POSCTL.custom_mode)
     assert gcs.wait_heartbeat(is_mode(FlightMode.POSCTL)) is not None
-    gcs.mav.set_mode_send(VEHICLE_SYSID, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
-                          FlightMode.AUTO_LOITER.custom_mode)
+    gcs.mav.set_mode_send(VEHICLE_SYSID, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, FlightMode.AUTO_LOITER.custom_mode)
     assert gcs.wait_heartbeat(is_mode(FlightMode.AUTO_LOITER)) is not None
 
 
 def test_request_message_autopilot_version_has_the_capabilities_tools_need(gcs):
-    ack, version = gcs.request(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
-                               reply="AUTOPILOT_VERSION")
+    ack, version = gcs.request(
+        mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION, reply="AUTOPILOT_VERSION"
+    )
     assert ack is not None and ack.result == ACCEPTED
     assert version is not None
-    for bit in (mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT, mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT,
-                mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE,
-                mavlink.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET,
-                mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2):
+    for bit in (
+        mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT,
+        mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT,
+        mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE,
+        mavlink.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET,
+        mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2,
+    ):
         assert version.capabilities & bit, f"capability bit {bit} missing"
 
 
@@ -253,8 +262,9 @@ def test_home_position_on_request_is_the_home(gcs, how):
     off = gcs.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, mavlink.MAVLINK_MSG_ID_HOME_POSITION, -1)
     assert off.result == ACCEPTED
     if how == "REQUEST_MESSAGE":
-        ack, home = gcs.request(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_HOME_POSITION,
-                                reply="HOME_POSITION")
+        ack, home = gcs.request(
+            mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_HOME_POSITION, reply="HOME_POSITION"
+        )
     else:
         ack, home = gcs.request(mavlink.MAV_CMD_GET_HOME_POSITION, reply="HOME_POSITION")
     assert ack is not None and ack.result == ACCEPTED
@@ -324,16 +334,20 @@ def _with(item, **changes):
     return mavlink.MAVLink_mission_item_int_message(**fields)
 
 
-@pytest.mark.parametrize(("change", "expected"), [
-    ({"command": 31999}, mavlink.MAV_MISSION_UNSUPPORTED),
-    ({"frame": mavlink.MAV_FRAME_LOCAL_NED}, mavlink.MAV_MISSION_UNSUPPORTED_FRAME),
-    ({"z": math.nan}, mavlink.MAV_MISSION_INVALID_PARAM7),
-    ({"x": 950_000_000}, mavlink.MAV_MISSION_INVALID_PARAM5_X),  # latitude 95 degrees
-    ({"y": -1_850_000_000}, mavlink.MAV_MISSION_INVALID_PARAM6_Y),
-    ({"param1": -3.0}, mavlink.MAV_MISSION_INVALID_PARAM1),  # negative dwell
-    ({"param2": -1.0}, mavlink.MAV_MISSION_INVALID_PARAM2),  # negative acceptance radius
-    ({"seq": 5}, mavlink.MAV_MISSION_INVALID_SEQUENCE),
-], ids=["command", "frame", "nan-altitude", "latitude", "longitude", "dwell", "radius", "sequence"])
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        ({"command": 31999}, mavlink.MAV_MISSION_UNSUPPORTED),
+        ({"frame": mavlink.MAV_FRAME_LOCAL_NED}, mavlink.MAV_MISSION_UNSUPPORTED_FRAME),
+        ({"z": math.nan}, mavlink.MAV_MISSION_INVALID_PARAM7),
+        ({"x": 950_000_000}, mavlink.MAV_MISSION_INVALID_PARAM5_X),  # latitude 95 degrees
+        ({"y": -1_850_000_000}, mavlink.MAV_MISSION_INVALID_PARAM6_Y),
+        ({"param1": -3.0}, mavlink.MAV_MISSION_INVALID_PARAM1),  # negative dwell
+        ({"param2": -1.0}, mavlink.MAV_MISSION_INVALID_PARAM2),  # negative acceptance radius
+        ({"seq": 5}, mavlink.MAV_MISSION_INVALID_SEQUENCE),
+    ],
+    ids=["command", "frame", "nan-altitude", "latitude", "longitude", "dwell", "radius", "sequence"],
+)
 def test_invalid_item_refuses_the_upload_with_its_reason_and_keeps_the_old_mission(gcs, change, expected):
     good = short_mission(DEFAULT_HOME)
     assert gcs.upload_mission(good).type == mavlink.MAV_MISSION_ACCEPTED
@@ -363,8 +377,9 @@ def test_mission_count_beyond_capacity_is_refused_no_space(gcs):
     assert ack is not None and ack.type == mavlink.MAV_MISSION_NO_SPACE
 
 
-@pytest.mark.parametrize("mission_type", [mavlink.MAV_MISSION_TYPE_FENCE, mavlink.MAV_MISSION_TYPE_RALLY],
-                         ids=["fence", "rally"])
+@pytest.mark.parametrize(
+    "mission_type", [mavlink.MAV_MISSION_TYPE_FENCE, mavlink.MAV_MISSION_TYPE_RALLY], ids=["fence", "rally"]
+)
 def test_fence_and_rally_are_answered_never_silent(gcs, mission_type):
     assert gcs.download_mission(mission_type=mission_type) == []
     point = mission_item(0, mavlink.MAV_CMD_NAV_RALLY_POINT, *DEFAULT_HOME, mission_type=mission_type)
@@ -386,8 +401,7 @@ def longer_mission(n_waypoints: int = 8) -> list:
     for k in range(n_waypoints):
         lat, lon, _ = frame.from_ned(20.0 * (k // 2 + 1), 20.0 * (k % 2), 0.0)
         items.append(mission_item(k + 1, mavlink.MAV_CMD_NAV_WAYPOINT, lat, lon, 5.0 + k))
-    items.append(mission_item(n_waypoints + 1, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
-                              frame=mavlink.MAV_FRAME_MISSION))
+    items.append(mission_item(n_waypoints + 1, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, frame=mavlink.MAV_FRAME_MISSION))
     return items
 
 
@@ -404,8 +418,7 @@ def test_mission_upload_succeeds_through_a_link_dropping_20_percent_each_way(sta
         gcs.close()
     assert relay.to_vehicle.dropped > 0 and relay.to_client.dropped > 0  # the link really was lossy
     assert downloaded is not None
-    assert [(i.seq, i.command, i.x, i.y, i.z) for i in downloaded] == [
-        (i.seq, i.command, i.x, i.y, i.z) for i in items]
+    assert [(i.seq, i.command, i.x, i.y, i.z) for i in downloaded] == [(i.seq, i.command, i.x, i.y, i.z) for i in items]
 
 
 @pytest.mark.slow  # waits out the vehicle's 5 s transfer timeout
@@ -503,8 +516,9 @@ def test_wrong_target_is_ignored_and_counted(gcs):
     # have been seen, and neither may have armed the vehicle or been acknowledged.
     marker = gcs.command(31998)
     assert marker is not None
-    late = gcs.conn.recv_match(type="COMMAND_ACK", blocking=False,
-                               condition=f"COMMAND_ACK.command=={mavlink.MAV_CMD_COMPONENT_ARM_DISARM}")
+    late = gcs.conn.recv_match(
+        type="COMMAND_ACK", blocking=False, condition=f"COMMAND_ACK.command=={mavlink.MAV_CMD_COMPONENT_ARM_DISARM}"
+    )
     assert late is None
     assert not armed(gcs.recv("HEARTBEAT", timeout=5))
     after = sys_status(gcs)
@@ -518,8 +532,7 @@ def test_unknown_message_id_is_counted_and_ignored(gcs):
     before = sys_status(gcs)
     # A well-formed MAVLink 2 frame whose id (60001) is in no dialect the vehicle knows.
     payload = b"\x01\x02\x03\x04"
-    header = struct.pack("<BBBBBBBHB", 0xFD, len(payload), 0, 0, 0, GCS_SYSID, 1, 60001 & 0xFFFF,
-                         60001 >> 16)
+    header = struct.pack("<BBBBBBBHB", 0xFD, len(payload), 0, 0, 0, GCS_SYSID, 1, 60001 & 0xFFFF, 60001 >> 16)
     frame = header + payload + b"\x00\x00"  # the CRC cannot be checked without the message's CRC_EXTRA
     for _ in range(20):
         gcs.conn.write(frame)
@@ -529,4 +542,3 @@ def test_unknown_message_id_is_counted_and_ignored(gcs):
     while after.errors_comm <= before.errors_comm and time.monotonic() < deadline:
         after = sys_status(gcs)
     assert after.errors_comm > before.errors_comm
-

@@ -26,8 +26,16 @@ FRAME = LocalFrame(*HOME)
 
 def item(seq: int, command: int, north: float = 0.0, east: float = 0.0, alt: float = 5.0, **params) -> MissionItem:
     lat, lon, _ = FRAME.from_ned(north, east, 0.0)
-    return MissionItem(seq=seq, frame=FRAME_GLOBAL_RELATIVE_ALT_INT, command=command, current=int(seq == 0),
-                       x=round(float(lat) * 1e7), y=round(float(lon) * 1e7), z=alt, **params)
+    return MissionItem(
+        seq=seq,
+        frame=FRAME_GLOBAL_RELATIVE_ALT_INT,
+        command=command,
+        current=int(seq == 0),
+        x=round(float(lat) * 1e7),
+        y=round(float(lon) * 1e7),
+        z=alt,
+        **params,
+    )
 
 
 def short_mission() -> list[MissionItem]:
@@ -113,10 +121,13 @@ def _feed_offboard_from_builtin(vehicle: Vehicle) -> None:
     vehicle.set_offboard_target(target, vehicle.time_boot_ms)
 
 
-@pytest.mark.parametrize(("action", "expected_mode"), [
-    (FailsafeAction.HOLD, FlightMode.AUTO_LOITER),
-    (FailsafeAction.LAND, FlightMode.AUTO_LAND),
-])
+@pytest.mark.parametrize(
+    ("action", "expected_mode"),
+    [
+        (FailsafeAction.HOLD, FlightMode.AUTO_LOITER),
+        (FailsafeAction.LAND, FlightMode.AUTO_LAND),
+    ],
+)
 def test_offboard_loss_triggers_the_failsafe_within_the_timeout(action, expected_mode):
     config = VehicleConfig(failsafe=FailsafeConfig(offboard_loss_timeout_s=0.5, offboard_loss_action=action))
     vehicle = Vehicle(config, home=HOME, seed=5)

@@ -18,8 +18,15 @@ from playwright.sync_api import expect, sync_playwright
 pytestmark = [pytest.mark.browser, pytest.mark.integration, pytest.mark.slow]
 
 CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-        "--disable-component-update", "--disable-sync", "--no-first-run"]
+ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
 ARTIFACTS = Path(__file__).resolve().parent.parent / "test-artifacts"
 
 
@@ -44,12 +51,24 @@ def stack(tmp_path):
     """The vehicle (lockstep) and `python -m gcs serve` on free ports; yields the page's URL."""
     udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
     logs = open(tmp_path / "stack.log", "w")  # noqa: SIM115 - closed below
-    vehicle = subprocess.Popen([sys.executable, "-m", "sitl_quad", "--port", str(udp), "--lockstep"],
-                               stdout=logs, stderr=subprocess.STDOUT)
+    vehicle = subprocess.Popen(
+        [sys.executable, "-m", "sitl_quad", "--port", str(udp), "--lockstep"], stdout=logs, stderr=subprocess.STDOUT
+    )
     gcs = subprocess.Popen(
-        [sys.executable, "-m", "gcs", "serve", "--vehicle", f"udpout:127.0.0.1:{udp}", "--port", str(http),
-         "--db", str(tmp_path / "gcs.sqlite")],
-        stdout=logs, stderr=subprocess.STDOUT,
+        [
+            sys.executable,
+            "-m",
+            "gcs",
+            "serve",
+            "--vehicle",
+            f"udpout:127.0.0.1:{udp}",
+            "--port",
+            str(http),
+            "--db",
+            str(tmp_path / "gcs.sqlite"),
+        ],
+        stdout=logs,
+        stderr=subprocess.STDOUT,
     )
     url = f"http://127.0.0.1:{http}"
     deadline = time.monotonic() + 30

@@ -55,5 +55,19 @@ def parse_datagram(parser: mavlink.MAVLink, data: bytes) -> list:
 def item_message(item, target_system: int, target_component: int):
     """The MISSION_ITEM_INT that carries a stored `sitl_quad.mission_items.MissionItem`, verbatim."""
     return mavlink.MAVLink_mission_item_int_message(
-        target_system, target_component, item.seq, item.frame, item.command, item.current, item.autocontinue,
-        item.param1, item.param2, item.param3, item.param4, item.x, item.y, item.z, item.mission_type)
+        target_system,
+        target_component,
+        item.seq,
+        item.frame,
+        item.command,
+        item.current,
+        item.autocontinue,
+        item.param1,
+        item.param2,
+        item.param3,
+        item.param4,
+        item.x,
+        item.y,
+        item.z,
+        item.mission_type,
+    )

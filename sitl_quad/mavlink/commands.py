@@ -70,7 +70,8 @@ class Commands:
                 log.info("command %d refused: %s", msg.command, exc)
                 result = CommandResult.DENIED
         ack = mavlink.MAVLink_command_ack_message(
-            msg.command, int(result), 0, 0, msg.get_srcSystem(), msg.get_srcComponent())
+            msg.command, int(result), 0, 0, msg.get_srcSystem(), msg.get_srcComponent()
+        )
         self.send(ack, peer)
 
     # ----- handlers

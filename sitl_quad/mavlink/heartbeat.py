@@ -16,7 +16,8 @@ def heartbeat_message(vehicle: Vehicle):
     base_mode |= mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
     status = mavlink.MAV_STATE_ACTIVE if vehicle.armed else mavlink.MAV_STATE_STANDBY
     return mavlink.MAVLink_heartbeat_message(
-        mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, base_mode, vehicle.mode.custom_mode, status, 3)
+        mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, base_mode, vehicle.mode.custom_mode, status, 3
+    )
 
 
 class Heartbeat:

@@ -78,9 +78,20 @@ def item_from_message(msg) -> MissionItem:
         y = round(msg.y * 1e7) if math.isfinite(msg.y) else 2**31 - 1
         frame = msg.frame
     return MissionItem(
-        seq=msg.seq, frame=frame, command=msg.command, current=msg.current, autocontinue=msg.autocontinue,
-        param1=msg.param1, param2=msg.param2, param3=msg.param3, param4=msg.param4, x=x, y=y, z=msg.z,
-        mission_type=getattr(msg, "mission_type", MISSION))
+        seq=msg.seq,
+        frame=frame,
+        command=msg.command,
+        current=msg.current,
+        autocontinue=msg.autocontinue,
+        param1=msg.param1,
+        param2=msg.param2,
+        param3=msg.param3,
+        param4=msg.param4,
+        x=x,
+        y=y,
+        z=msg.z,
+        mission_type=getattr(msg, "mission_type", MISSION),
+    )
 
 
 class MissionProtocol:
@@ -133,8 +144,9 @@ class MissionProtocol:
             self._ack(peer, msg, mavlink.MAV_MISSION_ACCEPTED)
             return
         now = time.monotonic()
-        self.upload = Upload(peer=peer, sysid=msg.get_srcSystem(), compid=msg.get_srcComponent(),
-                             count=msg.count, last_progress=now)
+        self.upload = Upload(
+            peer=peer, sysid=msg.get_srcSystem(), compid=msg.get_srcComponent(), count=msg.count, last_progress=now
+        )
         self._request_next(now)
 
     def _request_next(self, now: float) -> None:
@@ -204,8 +216,10 @@ class MissionProtocol:
     # ----- download
     def on_request_list(self, peer, msg) -> None:
         count = len(self.vehicle.mission) if msg.mission_type == MISSION else 0  # no fence or rally points
-        self.send(mavlink.MAVLink_mission_count_message(
-            msg.get_srcSystem(), msg.get_srcComponent(), count, msg.mission_type), peer)
+        self.send(
+            mavlink.MAVLink_mission_count_message(msg.get_srcSystem(), msg.get_srcComponent(), count, msg.mission_type),
+            peer,
+        )
 
     def on_request(self, peer, msg) -> None:
         mission = self.vehicle.mission if msg.mission_type == MISSION else []
@@ -218,9 +232,22 @@ class MissionProtocol:
             reply = item_message(item, sysid, compid)
         else:
             reply = mavlink.MAVLink_mission_item_message(
-                sysid, compid, item.seq, item.frame, item.command, item.current, item.autocontinue,
-                item.param1, item.param2, item.param3, item.param4, item.lat, item.lon, item.z,
-                item.mission_type)
+                sysid,
+                compid,
+                item.seq,
+                item.frame,
+                item.command,
+                item.current,
+                item.autocontinue,
+                item.param1,
+                item.param2,
+                item.param3,
+                item.param4,
+                item.lat,
+                item.lon,
+                item.z,
+                item.mission_type,
+            )
         self.send(reply, peer)
 
     # ----- clear, set current

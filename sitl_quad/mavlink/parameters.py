@@ -35,8 +35,7 @@ class Parameters:
     def value_message(self, index: int):
         spec = self.table.spec(index)
         raw = encode_value(self.table.get(spec.name), spec.type)
-        return mavlink.MAVLink_param_value_message(
-            spec.name.encode(), raw, spec.type, len(self.table), index)
+        return mavlink.MAVLink_param_value_message(spec.name.encode(), raw, spec.type, len(self.table), index)
 
     def request_list(self, peer, msg) -> None:
         self._pending = [(p, i) for p, i in self._pending if p is not peer]
@@ -75,7 +74,6 @@ class Parameters:
             log.info("PARAM_SET refused: %s", exc)  # answered below with the unchanged value
         self.send(self.value_message(self.table.index(name)))  # to everyone: all GCSs learn the change
 
-
     def refuse_ftp(self, peer, msg) -> None:
         payload = bytes(msg.payload)
         seq, session, opcode = int.from_bytes(payload[0:2], "little"), payload[2], payload[3]
@@ -85,8 +83,12 @@ class Parameters:
         # offset (u32); then the data, here the one-byte error code.
         header = ((seq + 1) % 65536).to_bytes(2, "little") + bytes([session, FTP_NAK, 1, opcode, 0, 0])
         reply = header + bytes(4) + bytes([FTP_ERR_UNKNOWN_COMMAND])
-        self.send(mavlink.MAVLink_file_transfer_protocol_message(
-            0, msg.get_srcSystem(), msg.get_srcComponent(), list(reply.ljust(251, b"\0"))), peer)
+        self.send(
+            mavlink.MAVLink_file_transfer_protocol_message(
+                0, msg.get_srcSystem(), msg.get_srcComponent(), list(reply.ljust(251, b"\0"))
+            ),
+            peer,
+        )
 
 
 def _name(param_id) -> str:

@@ -116,8 +116,11 @@ class Telemetry:
         if onboard:
             # Heartbeat and landed state with every tick's state let the offboard controller act on mode,
             # arming and takeoff in step with simulated time (what keeps a lockstep flight repeatable).
-            state = [heartbeat_message(self.vehicle), self.extended_sys_state(),
-                     *(self.builders[name]() for name in ONBOARD_STREAMS)]
+            state = [
+                heartbeat_message(self.vehicle),
+                self.extended_sys_state(),
+                *(self.builders[name]() for name in ONBOARD_STREAMS),
+            ]
             self.link.send_batch(state + for_everyone, onboard)
         if ground:
             self.link.send_batch(for_ground + for_everyone, ground)
@@ -150,21 +153,29 @@ class Telemetry:
     def local_position_ned(self):
         est = self.vehicle.estimate
         return mavlink.MAVLink_local_position_ned_message(
-            self.vehicle.time_boot_ms, *map(float, est.position), *map(float, est.velocity))
+            self.vehicle.time_boot_ms, *map(float, est.position), *map(float, est.velocity)
+        )
 
     def attitude_quaternion(self):
         est = self.vehicle.estimate
         w, x, y, z = map(float, est.quaternion)
         p, q, r = map(float, est.angular_velocity)
         return mavlink.MAVLink_attitude_quaternion_message(
-            self.vehicle.time_boot_ms, w, x, y, z, p, q, r, [0.0, 0.0, 0.0, 0.0])
+            self.vehicle.time_boot_ms, w, x, y, z, p, q, r, [0.0, 0.0, 0.0, 0.0]
+        )
 
     def position_target_local_ned(self):
         sp = self.vehicle.setpoint
         return mavlink.MAVLink_position_target_local_ned_message(
-            self.vehicle.time_boot_ms, mavlink.MAV_FRAME_LOCAL_NED, 0,
-            *map(float, sp.position), *map(float, sp.velocity), *map(float, sp.acceleration),
-            float(sp.yaw), float(sp.yaw_rate))
+            self.vehicle.time_boot_ms,
+            mavlink.MAV_FRAME_LOCAL_NED,
+            0,
+            *map(float, sp.position),
+            *map(float, sp.velocity),
+            *map(float, sp.acceleration),
+            float(sp.yaw),
+            float(sp.yaw_rate),
+        )
 
     def attitude(self):
         est = self.vehicle.estimate
@@ -188,9 +199,16 @@ class Telemetry:
         _, _, yaw = euler_from_quat(v.estimate.quaternion)
         heading_cdeg = round(math.degrees(yaw) % 360 * 100) % 36000
         return mavlink.MAVLink_global_position_int_message(
-            v.time_boot_ms, round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
+            v.time_boot_ms,
+            round(lat * 1e7),
+            round(lon * 1e7),
+            round(alt * 1000),
             round(-v.estimate.position[2] * 1000),
-            _cm(vn), _cm(ve), _cm(vd), heading_cdeg)
+            _cm(vn),
+            _cm(ve),
+            _cm(vd),
+            heading_cdeg,
+        )
 
     def gps_raw_int(self):
         v = self.vehicle
@@ -199,8 +217,17 @@ class Telemetry:
         speed = math.hypot(vn, ve)
         cog = round(math.degrees(math.atan2(ve, vn)) % 360 * 100) % 36000 if speed > 0.2 else 65535
         return mavlink.MAVLink_gps_raw_int_message(
-            int(v.t * 1e6), 3, round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
-            80, 120, round(speed * 100), cog, 14)
+            int(v.t * 1e6),
+            3,
+            round(lat * 1e7),
+            round(lon * 1e7),
+            round(alt * 1000),
+            80,
+            120,
+            round(speed * 100),
+            cog,
+            14,
+        )
 
     def vfr_hud(self):
         v = self.vehicle
@@ -208,12 +235,18 @@ class Telemetry:
         _, _, yaw = euler_from_quat(v.estimate.quaternion)
         ground_speed = math.hypot(vn, ve)
         return mavlink.MAVLink_vfr_hud_message(
-            ground_speed, ground_speed, round(math.degrees(yaw) % 360) % 360,
-            round(100 * v.target.thrust), float(-v.estimate.position[2] + v.home[2]), -vd)
+            ground_speed,
+            ground_speed,
+            round(math.degrees(yaw) % 360) % 360,
+            round(100 * v.target.thrust),
+            float(-v.estimate.position[2] + v.home[2]),
+            -vd,
+        )
 
     def extended_sys_state(self):
         return mavlink.MAVLink_extended_sys_state_message(
-            mavlink.MAV_VTOL_STATE_UNDEFINED, int(self.vehicle.landed_state))
+            mavlink.MAV_VTOL_STATE_UNDEFINED, int(self.vehicle.landed_state)
+        )
 
     def battery_fraction(self) -> float:
         v = self.vehicle
@@ -227,18 +260,36 @@ class Telemetry:
         received = max(1, stats.messages + dropped) if stats else 1
         drop_rate = min(10000, int(10000 * dropped / received))  # centi-percent
         return mavlink.MAVLink_sys_status_message(
-            SENSORS, SENSORS, HEALTH, 250, voltage_mv, 800 if self.vehicle.armed else 50,
-            round(fraction * 100), drop_rate, min(65535, dropped),
-            min(65535, stats.malformed if stats else 0), min(65535, stats.unknown if stats else 0),
-            min(65535, stats.wrong_target if stats else 0), min(65535, stats.unsigned_rejected if stats else 0))
+            SENSORS,
+            SENSORS,
+            HEALTH,
+            250,
+            voltage_mv,
+            800 if self.vehicle.armed else 50,
+            round(fraction * 100),
+            drop_rate,
+            min(65535, dropped),
+            min(65535, stats.malformed if stats else 0),
+            min(65535, stats.unknown if stats else 0),
+            min(65535, stats.wrong_target if stats else 0),
+            min(65535, stats.unsigned_rejected if stats else 0),
+        )
 
     def battery_status(self):
         fraction = self.battery_fraction()
         cell_mv = int((CELL_EMPTY_V + (CELL_FULL_V - CELL_EMPTY_V) * fraction) * 1000)
         voltages = [cell_mv] * CELLS + [65535] * (10 - CELLS)
         return mavlink.MAVLink_battery_status_message(
-            0, mavlink.MAV_BATTERY_FUNCTION_ALL, mavlink.MAV_BATTERY_TYPE_LIPO, 32767, voltages,
-            800 if self.vehicle.armed else 50, int(5000 * (1 - fraction)), -1, round(fraction * 100))
+            0,
+            mavlink.MAV_BATTERY_FUNCTION_ALL,
+            mavlink.MAV_BATTERY_TYPE_LIPO,
+            32767,
+            voltages,
+            800 if self.vehicle.armed else 50,
+            int(5000 * (1 - fraction)),
+            -1,
+            round(fraction * 100),
+        )
 
     def mission_current(self):
         v = self.vehicle
@@ -257,13 +308,23 @@ class Telemetry:
     def home_position(self):
         lat, lon, alt = self.vehicle.home
         return mavlink.MAVLink_home_position_message(
-            round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
-            0.0, 0.0, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, int(self.vehicle.t * 1e6))
+            round(lat * 1e7),
+            round(lon * 1e7),
+            round(alt * 1000),
+            0.0,
+            0.0,
+            0.0,
+            [1.0, 0.0, 0.0, 0.0],
+            0.0,
+            0.0,
+            0.0,
+            int(self.vehicle.t * 1e6),
+        )
 
     def autopilot_version(self):
         return mavlink.MAVLink_autopilot_version_message(
-            CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0x26AC, 0x0011,
-            0x4255_4F59_5349_544C)  # uid: "BUOYSITL"
+            CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0x26AC, 0x0011, 0x4255_4F59_5349_544C
+        )  # uid: "BUOYSITL"
 
 
 def _cm(metres_per_second: float) -> int:
