@@ -46,7 +46,7 @@ class Settings:
     telemetry_period_s: float = 0.1  # recorded sample spacing in the vehicle's simulated time (10 Hz)
     live_rate_hz: float = 20.0  # WebSocket push rate to each client
     mission_timeout_margin_s: float = 120.0  # simulated seconds allowed beyond the planned flight time
-    web_dir: Path = Path(__file__).resolve().parent.parent / "web"
+    web_dir: Path = Path(__file__).resolve().parent / "web"  # package data: ships in the wheel
     signing_key: str | None = None  # MAVLink 2 signing: 64 hex digits or a passphrase (sitl_quad's format)
 
     @property
