@@ -1,13 +1,13 @@
 """ADRC against PID on the paper's buoy-inspection mission: a paired Monte Carlo over seeds, flown in lockstep.
 
-    .venv/bin/python bench/control.py                 # 30 seeds, 2 workers: table + bench/results/control.json
-    .venv/bin/python bench/control.py --seeds 5 --paper-seeds 0 --no-figures   # a quick look
+    .venv/bin/python -m bench.control                 # 30 seeds, 2 workers: table + bench/results/control.json
+    .venv/bin/python -m bench.control --seeds 5 --paper-seeds 0 --no-figures   # a quick look
 
 Scenario (the paper's Section VI, made concrete; every number below is in control.json's "scenario"):
 - Mission: `planner.scenario.reference_scenario()` (13 buoys, depot at home), optimal order
   (`plan_tour(method="exact")` through gcs.planning.make_plan), flown as the GCS would upload it
   (gcs.planning.mission_items: takeoff, DO_CHANGE_SPEED 10 m/s, one NAV_WAYPOINT per buoy at 5 m with a
-  1 s inspection dwell and a 2 m acceptance radius, RTL), in-process lockstep (adrc_offboard.offline).
+  1 s inspection dwell and a 2 m acceptance radius, RTL), in-process lockstep (sitl_quad.lockstep_harness).
 - Wind: 5 m/s mean crosswind perpendicular to the route's longest leg (blowing from its right-hand side).
 - Gust: 1-cosine, 4 m/s along the crosswind, rise 1 s, starting when the navigator's reference is halfway
   along the longest leg (computed from the reference's own timeline, see `gust_start_time`). Like every
@@ -76,20 +76,18 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-from adrc_offboard.offline import HarnessError, LockstepHarness
 from adrc_offboard.outer_loop import AdrcOuterGains, AdrcOuterLoop, PidOuterGains, PidOuterLoop, matched_gains
 from gcs.planning import FIRST_BUOY_SEQ, FlightParams, make_plan, mission_items
 from planner.scenario import ALTITUDE_M, CRUISE_SPEED_M_S, reference_scenario
 from sitl_quad.config import AttitudeControllerKind, ControlConfig, VehicleConfig
 from sitl_quad.disturbances import DisturbanceConfig
-from sitl_quad.mission_items import FRAME_GLOBAL_RELATIVE_ALT_INT, NAV_LOITER_TIME, NAV_TAKEOFF, MissionItem
+from sitl_quad.lockstep_harness import HarnessError, LockstepHarness
 from sitl_quad.navigator import Navigator, NavigatorConfig
-from sitl_quad.rotation import euler_from_quat, quat_from_euler
-from sitl_quad.state import TrajectorySetpoint, VehicleState
 from sitl_quad.vehicle import Vehicle
 from sitl_quad.wind import FEET, WindConfig
+from uavcore.mission import MavCmd, MavFrame, MissionItem
+from uavcore.rotation import euler_from_quat, quat_from_euler
+from uavcore.state import TrajectorySetpoint, VehicleState
 
 RESULTS = Path(__file__).resolve().parent / "results"
 CONTROLLERS = ("adrc", "pid", "px4")
@@ -447,12 +445,18 @@ def hover_mission(home) -> list[MissionItem]:
     lat, lon = round(home[0] * 1e7), round(home[1] * 1e7)
     return [
         MissionItem(
-            seq=0, frame=FRAME_GLOBAL_RELATIVE_ALT_INT, command=NAV_TAKEOFF, current=1, x=lat, y=lon, z=ALTITUDE_M
+            seq=0,
+            frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
+            command=MavCmd.NAV_TAKEOFF,
+            current=1,
+            x=lat,
+            y=lon,
+            z=ALTITUDE_M,
         ),
         MissionItem(
             seq=1,
-            frame=FRAME_GLOBAL_RELATIVE_ALT_INT,
-            command=NAV_LOITER_TIME,
+            frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
+            command=MavCmd.NAV_LOITER_TIME,
             param1=3600.0,
             param2=0.0,
             param3=0.0,
@@ -941,7 +945,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     figures = draw_figures(SCENARIO, series, traces, args.out.parent) if args.figures else []
     result = {
-        "command": "python bench/control.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "command": "python -m bench.control " + " ".join(argv if argv is not None else sys.argv[1:]),
         "elapsed_s": elapsed,
         "workers": args.workers,
         "cpu_count": os.cpu_count(),

@@ -1,19 +1,14 @@
 """A minimal outer-loop controller for the lockstep benchmark: a PD law on position, through the same node.
 
-.venv/bin/python bench/hover_offboard.py --connect udpout:127.0.0.1:14540 [--no-engage]
+.venv/bin/python -m bench.hover_offboard --connect udpout:127.0.0.1:14540 [--no-engage]
 """
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
 from adrc_offboard.cli import build_parser
 from adrc_offboard.node import OffboardNode
 from sitl_quad.airframe import Airframe
-from sitl_quad.rotation import acceleration_to_attitude
+from uavcore.rotation import acceleration_to_attitude
 
 
 class PositionPd:

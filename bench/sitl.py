@@ -1,6 +1,6 @@
 """How fast the vehicle runs: physics alone, the full lockstep loop over UDP, and tick jitter at --speed 1.
 
-    .venv/bin/python bench/sitl.py          # prints a table, writes bench/results/sitl.json
+    .venv/bin/python -m bench.sitl          # prints a table, writes bench/results/sitl.json
 
 Rows:
 - physics alone (RK4 at 1 kHz with wind, Dryden turbulence, the paper's D terms and sensor noise), and the
@@ -24,20 +24,15 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.sitl_physics import physics_alone, vehicle_loop
+from tests.sitl_process import GroundStation, SitlProcess
+from uavcore.mavlink import mavlink
+
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "bench"))
-sys.path.append(str(REPO / "tests"))  # after: sitl_physics rewrites sys.path[0]
-
-from sitl_physics import physics_alone, vehicle_loop  # noqa: E402
-from sitl_process import GroundStation, SitlProcess  # noqa: E402
-
-from sitl_quad.mavlink import mavlink  # noqa: E402
-
 RESULTS = REPO / "bench" / "results"
 LOCKSTEP_SIM_S = 60.0
 JITTER_SIM_S = 12.0
-HOVER_CONTROLLER = "bench/hover_offboard.py"
+HOVER_CONTROLLER = ("-m", "bench.hover_offboard")
 
 
 def lockstep_full_loop(controller: list[str]) -> dict:
@@ -113,7 +108,7 @@ def main() -> None:
     result = {"machine_load_average_1_5_15": list(os.getloadavg())}
     physics = physics_alone(20)
     loop = vehicle_loop()
-    minimal = lockstep_full_loop([HOVER_CONTROLLER])
+    minimal = lockstep_full_loop(list(HOVER_CONTROLLER))
     adrc = lockstep_full_loop(["-m", "adrc_offboard"])
     jitter = tick_jitter_at_speed_1()
     result["physics_alone"] = physics

@@ -1,6 +1,6 @@
 """SITL physics benchmark: speed of the simulated quadrotor, and its channels against the paper's Table 1.
 
-    .venv/bin/python bench/sitl_physics.py       # prints the tables, writes bench/results/sitl_physics.json
+    .venv/bin/python -m bench.sitl_physics       # prints the tables, writes bench/results/sitl_physics.json
 
 Speed (simulated seconds per wall-clock second, best of 3; the machine is shared, so the load average is
 recorded next to the figures):
@@ -24,22 +24,20 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
+from sitl_quad.airframe import Airframe
+from sitl_quad.attitude_pid import PidAttitudeController
+from sitl_quad.disturbances import DisturbanceConfig
+from sitl_quad.position_control import PidPositionController
+from sitl_quad.rotors import Mixer
+from sitl_quad.sensors import SensorNoise
+from sitl_quad.simulator import Simulator
+from sitl_quad.wind import WindConfig
+from uavcore.rotation import euler_from_quat
+from uavcore.state import TrajectorySetpoint
+
 REPO = Path(__file__).resolve().parents[1]
-sys.path[0] = str(REPO)
-
-import numpy as np  # noqa: E402
-
-from sitl_quad.airframe import Airframe  # noqa: E402
-from sitl_quad.attitude_pid import PidAttitudeController  # noqa: E402
-from sitl_quad.disturbances import DisturbanceConfig  # noqa: E402
-from sitl_quad.position_control import PidPositionController  # noqa: E402
-from sitl_quad.rotation import euler_from_quat  # noqa: E402
-from sitl_quad.rotors import Mixer  # noqa: E402
-from sitl_quad.sensors import SensorNoise  # noqa: E402
-from sitl_quad.simulator import Simulator  # noqa: E402
-from sitl_quad.state import TrajectorySetpoint  # noqa: E402
-from sitl_quad.wind import WindConfig  # noqa: E402
-
 RESULTS = REPO / "bench" / "results"
 AIRFRAME = Airframe.table2()
 WINDY = dict(

@@ -1,14 +1,14 @@
 """Tune the ADRC and PID outer loops by the same method and effort, to one shared closed-loop bandwidth.
 
-    .venv/bin/python bench/tune_control.py                  # table + bench/results/control_tuning.json
-    .venv/bin/python bench/tune_control.py --write-gains    # also rewrite adrc_offboard/gains/outer_*.json
+    .venv/bin/python -m bench.tune_control                  # table + bench/results/control_tuning.json
+    .venv/bin/python -m bench.tune_control --write-gains    # also rewrite adrc_offboard/gains/outer_*.json
 
 Method (rerunnable, deterministic):
 1. Flight: a short, representative piece of the benchmark mission (bench/control.py): the reference route's
    longest leg and the leg after it (with the turn between them), translated to start at home, flown at
    10 m/s and 5 m in the benchmark's air (5 m/s crosswind perpendicular to that leg, the 4 m/s 1-cosine gust
    halfway along it, Dryden sigma 1 m/s, D terms and sensor noise), ending with a landing at the last point.
-   Both controllers fly it on the same seeds in the in-process lockstep harness (adrc_offboard.offline),
+   Both controllers fly it on the same seeds in the in-process lockstep harness (sitl_quad.lockstep_harness),
    with their own inner loop (ADRC + ADRC, PID + PID) as in the benchmark.
 2. Grid, same size for both: horizontal bandwidth omega_c in OMEGA_C (vertical = VERTICAL_RATIO x
    horizontal, as in the shipped gains) times one second parameter per controller, the one its method
@@ -37,16 +37,13 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the repository before bench/ (bench/planner.py)
-
-from control import FIRST_BUOY_SEQ, RESULTS, Scenario, build_scenario, fly, gust_start_time
-
 from adrc_offboard.adrc import AdrcParameterError
 from adrc_offboard.gains import load_gains, make_channel
 from adrc_offboard.outer_loop import matched_gains
+from bench.control import FIRST_BUOY_SEQ, RESULTS, Scenario, build_scenario, fly, gust_start_time
 from sitl_quad.config import VehicleConfig
-from sitl_quad.mission_items import FRAME_GLOBAL_RELATIVE_ALT_INT, NAV_LAND, NAV_WAYPOINT, MissionItem
 from sitl_quad.vehicle import Vehicle
+from uavcore.mission import MavCmd, MavFrame, MissionItem
 
 GAINS_DIR = Path(__file__).resolve().parent.parent / "adrc_offboard" / "gains"
 OMEGA_C = (1.0, 1.5, 2.0, 2.5, 3.0)
@@ -73,8 +70,8 @@ def short_scenario(base: Scenario) -> Scenario:
         items.append(
             MissionItem(
                 seq=len(items),
-                frame=FRAME_GLOBAL_RELATIVE_ALT_INT,
-                command=NAV_WAYPOINT,
+                frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
+                command=MavCmd.NAV_WAYPOINT,
                 param1=base.items[FIRST_BUOY_SEQ].param1,
                 param2=base.items[FIRST_BUOY_SEQ].param2,
                 param3=0.0,
@@ -85,7 +82,9 @@ def short_scenario(base: Scenario) -> Scenario:
         )
     last = items[-1]
     items.append(
-        MissionItem(seq=len(items), frame=FRAME_GLOBAL_RELATIVE_ALT_INT, command=NAV_LAND, x=last.x, y=last.y, z=0.0)
+        MissionItem(
+            seq=len(items), frame=MavFrame.GLOBAL_RELATIVE_ALT_INT, command=MavCmd.NAV_LAND, x=last.x, y=last.y, z=0.0
+        )
     )
     gust = gust_start_time(items, base.home, 1)
     return replace(
@@ -232,7 +231,7 @@ def main(argv: list[str] | None = None) -> int:
         )
     written = write_gains(chosen) if args.write_gains else []
     result = {
-        "command": "python bench/tune_control.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "command": "python -m bench.tune_control " + " ".join(argv if argv is not None else sys.argv[1:]),
         "elapsed_s": elapsed,
         "method": __doc__,
         "flight": {

@@ -1,6 +1,6 @@
 """GCS benchmark: mission creation latency, read latency under concurrency, WebSocket fan-out.
 
-    .venv/bin/python bench/gcs.py [--vehicle-speed N]   # prints a table, writes bench/results/gcs.json
+    .venv/bin/python -m bench.gcs_bench [--vehicle-speed N]   # prints a table, writes bench/results/gcs.json
 
 Runs the real stack on free loopback ports: the vehicle (`python -m sitl_quad --speed N`, default 1: real
 time, the telemetry rate a GCS sees in the field; faster speeds multiply the MAVLink traffic the service
@@ -26,21 +26,18 @@ import time
 from datetime import datetime
 from pathlib import Path
 
-# This script is bench/gcs.py: Python puts bench/ first on sys.path, where "gcs" would be this file.
-REPO = Path(__file__).resolve().parents[1]
-sys.path[0] = str(REPO)
+import httpx
+import numpy as np
+import websockets
 
-import httpx  # noqa: E402
-import numpy as np  # noqa: E402
-import websockets  # noqa: E402
-
-from planner.geodesy import LocalFrame  # noqa: E402
-from planner.scenario import (  # noqa: E402
+from planner.scenario import (
     DEFAULT_HOME,
     random_area_points,
     reference_scenario,
 )
+from uavcore.geodesy import LocalFrame
 
+REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "bench" / "results" / "gcs.json"
 TERMINAL = {"completed", "failed", "aborted"}
 
