@@ -9,7 +9,7 @@ from planner.distances import closed_tour_length
 from planner.errors import InputError
 from planner.tsplib import parse_tour, parse_tsp, tsplib_distance_matrix
 
-TSPLIB = Path(__file__).resolve().parents[1].parent / "shared" / "tsplib"
+TSPLIB = Path(__file__).resolve().parent / "data" / "tsplib"  # TSPLIB95 instances, see its README.md
 
 
 def optima() -> dict[str, int]:
