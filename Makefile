@@ -31,9 +31,9 @@ lint: $(STAMP)
 	$(BIN)/python -m ruff format --check .
 
 bench: $(STAMP)
-	$(BIN)/python bench/planner.py
-	$(BIN)/python bench/sitl.py
-	$(BIN)/python bench/gcs.py
+	$(BIN)/python -m bench.planner_bench
+	$(BIN)/python -m bench.sitl
+	$(BIN)/python -m bench.gcs_bench
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache

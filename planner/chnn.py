@@ -38,7 +38,7 @@ Two parameter sets are offered:
   with step control (a step that would raise E is refused and Δt halved; accepted steps grow Δt up to 0.3):
   the early phase, with every neuron half on, is stiff (the E3 curvature is C m^2), the late phase is slow.
   These are conditions on the corners only, not a proof of convergence from every start: 300 steps end on a
-  valid tour in nearly every run on the 13-buoy set (bench/planner.py measures the rate).
+  valid tour in nearly every run on the 13-buoy set (bench/planner_bench.py measures the rate).
   Valid end states are what Algorithm 2 needs: an invalid child is wasted work.
 """
 

@@ -8,7 +8,7 @@ CHNN", line 11) over a window of up to ``window`` consecutive buoys with the win
 whole tour with the depot clamped when the mission is that small). Two operators are added because the CHNN
 alone is a weak optimiser: order crossover (OX) with another member, and an iterated local search chain
 (segment-local double-bridge kicks). Every child is repaired with 2-opt + Or-opt before it competes: that
-memetic repair is where most of the quality comes from (bench/planner.py measures the CHNN's share).
+memetic repair is where most of the quality comes from (bench/planner_bench.py measures the CHNN's share).
 
 Seeded and reproducible for a given seed and generation count; anytime: it stops at the time limit or after
 a number of generations without a shorter tour (``stall_generations``, more for more nodes), and returns the

@@ -10,12 +10,12 @@ import pytest
 
 from planner.distances import closed_tour_length, euclidean_matrix
 from planner.exact import held_karp
-from planner.geodesy import LocalFrame
 from planner.scenario import reference_scenario
 from planner.tsplib import parse_tsp
+from uavcore.geodesy import LocalFrame
 
 REPO = Path(__file__).resolve().parents[1]
-TSPLIB = REPO.parent / "shared" / "tsplib"
+TSPLIB = REPO / "tests" / "data" / "tsplib"
 
 
 def run(*args: str) -> subprocess.CompletedProcess:

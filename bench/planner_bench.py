@@ -1,7 +1,7 @@
 """Planner benchmark: CHNN-GA against the exact optimum and LKH-3, side by side in one run.
 
-    .venv/bin/python bench/planner.py            # prints the table, writes bench/results/planner.json
-                                                 # and bench/results/planner_narrative.png
+    .venv/bin/python -m bench.planner_bench      # from the repository root: prints the table, writes
+                                                 # bench/results/planner.json and bench/results/planner_narrative.png
 
 Cases (targets from issue 2):
 - 100 seeded 13-buoy missions (planner.scenario): CHNN-GA optimal on 100 %, median time <= 100 ms
@@ -10,11 +10,12 @@ Cases (targets from issue 2):
 - the CHNN alone on the 13-buoy set: validity rate and mean gap (the paper: it sticks in local minima)
 - ablations: the same memetic GA without the CHNN, and the CHNN's share of accepted children
 LKH-3 runs through elkai (benchmark-only dependency) on integer distances: centimetres for metric missions,
-TSPLIB's own integers for TSPLIB. The TSPLIB files and optima are read from ../shared/tsplib.
+TSPLIB's own integers for TSPLIB. The TSPLIB files and optima are tests/data/tsplib (TSPLIB95, see its README.md).
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -23,23 +24,19 @@ import tempfile
 import time
 from pathlib import Path
 
-# This script is bench/planner.py: Python puts bench/ first on sys.path, where "planner" would be this file.
-# Put the repository root there instead so that "planner" is the package.
+import elkai
+import numpy as np
+
+from planner import plan_tour
+from planner.chnn_ga import GAParameters
+from planner.distances import closed_tour_length, euclidean_matrix
+from planner.exact import held_karp
+from planner.local_search import warm_up
+from planner.scenario import random_area_points, reference_scenario
+from planner.tsplib import parse_tsp
+
 REPO = Path(__file__).resolve().parents[1]
-sys.path[0] = str(REPO)
-
-import elkai  # noqa: E402
-import numpy as np  # noqa: E402
-
-from planner import plan_tour  # noqa: E402
-from planner.chnn_ga import GAParameters  # noqa: E402
-from planner.distances import closed_tour_length, euclidean_matrix  # noqa: E402
-from planner.exact import held_karp  # noqa: E402
-from planner.local_search import warm_up  # noqa: E402
-from planner.scenario import random_area_points, reference_scenario  # noqa: E402
-from planner.tsplib import parse_tsp  # noqa: E402
-
-TSPLIB = REPO.parent / "shared" / "tsplib"
+TSPLIB = REPO / "tests" / "data" / "tsplib"
 RESULTS = REPO / "bench" / "results"
 N_SMALL = 100
 SEEDS = 5
@@ -275,6 +272,12 @@ def narrative_figure(path: Path) -> dict:
 
 
 def main() -> None:
+    # No options: --help prints the docstring above; the run itself is the whole benchmark (a few minutes).
+    argparse.ArgumentParser(
+        prog="python -m bench.planner_bench",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    ).parse_args()
     RESULTS.mkdir(parents=True, exist_ok=True)
     compile_s = cold_compile_seconds()
     started = time.perf_counter()
