@@ -134,6 +134,153 @@ def _initial_population(
     return [t if t is not None else rng.permutation(n).astype(np.int64) for t in tours], info
 
 
+def _population_size(n: int, ga: GAParameters) -> int:
+    """Individuals in the population: halved past 150 nodes so that each ILS chain gets more of the time."""
+    return ga.population if n <= 150 else max(2, ga.population // 2)
+
+
+def _stall_limit(n: int, ga: GAParameters) -> int:
+    """Generations without a shorter tour after which the search stops (more for more nodes)."""
+    return max(ga.stall_generations, int(ga.stall_per_node * n))
+
+
+@dataclass(frozen=True)
+class _Run:
+    """What every step of one run reads and none changes: the instance, the settings, the clock and the rng."""
+
+    dist: np.ndarray
+    neighbours: np.ndarray  # candidate lists for 2-opt / Or-opt
+    ga: GAParameters
+    params: chnn.CHNNParameters
+    rng: np.random.Generator
+    ils_kicks: int
+    started: float  # time.perf_counter() at the call
+    time_limit_s: float
+
+    def elapsed_s(self) -> float:
+        return time.perf_counter() - self.started
+
+    def out_of_time(self) -> bool:
+        return self.elapsed_s() >= self.time_limit_s
+
+    def repair(self, tour: np.ndarray) -> float:
+        """2-opt + Or-opt on the tour in place (the memetic repair); its new length."""
+        return local_search(tour, self.dist, self.neighbours)
+
+
+@dataclass
+class _Population:
+    """The tours, their lengths, and the best tour seen so far (what Algorithm 2, lines 17-18, returns)."""
+
+    tours: list[np.ndarray]
+    lengths: np.ndarray
+    best_tour: np.ndarray
+    best_length: float
+
+    @classmethod
+    def repaired(cls, tours: list[np.ndarray], run: _Run) -> _Population:
+        """The population after every tour has been repaired in place by local search."""
+        lengths = np.array([run.repair(tour) for tour in tours])
+        best = int(np.argmin(lengths))
+        return cls(tours, lengths, tours[best].copy(), float(lengths[best]))
+
+    def accept(self, k: int, child: np.ndarray, length: float) -> bool:
+        """Algorithm 2, lines 9-14: the child replaces parent k only if it is shorter; every child here is a
+        valid tour by construction (an invalid CHNN state never becomes a child)."""
+        if length < self.lengths[k] - 1e-9:
+            self.tours[k], self.lengths[k] = child, length
+            return True
+        return False  # line 13: keep the previous generation's tour
+
+    def update_best(self) -> bool:
+        """Remember the shortest tour of this generation if it beats the best so far; whether it did."""
+        if float(self.lengths.min()) < self.best_length - 1e-9:
+            best = int(np.argmin(self.lengths))
+            self.best_tour, self.best_length = self.tours[best].copy(), float(self.lengths[best])
+            return True
+        return False
+
+    def summary(self, generation: int, run: _Run) -> dict:
+        """The history entry's common part: best and mean length after this generation, time so far."""
+        return {
+            "generation": generation,
+            "best_length": self.best_length,
+            "mean_length": float(self.lengths.mean()),
+            "elapsed_s": run.elapsed_s(),
+        }
+
+
+def _choose_operators(size: int, run: _Run) -> list[str]:
+    """Which operator makes each parent's child: "chnn" (share p_chnn), "crossover" (p_crossover) or "ils"
+    (the rest, and the CHNN's share too when the CHNN is switched off)."""
+    ga = run.ga
+    kinds = []
+    for draw in run.rng.random(size):
+        if draw < ga.p_chnn:
+            kinds.append("chnn" if ga.use_chnn else "ils")
+        elif draw < ga.p_chnn + ga.p_crossover:
+            kinds.append("crossover")
+        else:
+            kinds.append("ils")
+    return kinds
+
+
+def _chnn_mutations(
+    population: _Population, kinds: list[str], run: _Run
+) -> tuple[dict[int, np.ndarray | None], list[float]]:
+    """The CHNN children of this generation, made in one batch (Algorithm 2, lines 3-7, from the input of line
+    11): parent index -> child tour, or None where the network ended invalid; and the first network's energy."""
+    chosen = [k for k, kind in enumerate(kinds) if kind == "chnn"]
+    if not chosen:
+        return {}, []
+    made, energy = _chnn_children([population.tours[k] for k in chosen], run.dist, run.ga, run.params, run.rng)
+    return dict(zip(chosen, made, strict=True)), energy.tolist()
+
+
+def _crossover_child(k: int, population: _Population, run: _Run) -> tuple[np.ndarray, float]:
+    """Order crossover of parent k with another member drawn at random (the best tour when k is alone),
+    repaired."""
+    others = np.delete(np.arange(len(population.tours)), k)
+    mate = population.tours[int(run.rng.choice(others))] if len(others) else population.best_tour
+    child = _order_crossover(population.tours[k], mate, run.rng)
+    return child, run.repair(child)
+
+
+def _ils_child(k: int, population: _Population, run: _Run) -> tuple[np.ndarray, float]:
+    """An iterated local search chain (double-bridge kicks + repair) started from parent k."""
+    child = population.tours[k].copy()
+    seed = int(run.rng.integers(2**31))
+    return child, iterated_local_search(child, run.dist, run.neighbours, run.ils_kicks, run.ga.ils_segment, seed)
+
+
+def _next_generation(population: _Population, run: _Run) -> dict:
+    """One pass of Algorithm 2's loop body (lines 3-15): a child per parent, which replaces its parent only if
+    it is shorter. Returns the generation's counts for the history."""
+    kinds = _choose_operators(len(population.tours), run)
+    chnn_children, energy = _chnn_mutations(population, kinds, run)
+    accepted = {"chnn": 0, "crossover": 0, "ils": 0}
+    for k, kind in enumerate(kinds):
+        if run.out_of_time():
+            break  # anytime: the rest of this generation keeps its parents
+        if kind == "chnn":
+            child = chnn_children[k]
+            if child is None:
+                continue  # invalid network state: Algorithm 2 keeps the parent (line 13)
+            length = run.repair(child)
+        elif kind == "crossover":
+            child, length = _crossover_child(k, population, run)
+        else:
+            child, length = _ils_child(k, population, run)
+        if population.accept(k, child, length):
+            accepted[kind] += 1
+    return {
+        "chnn_children": len(chnn_children),
+        "chnn_valid": sum(child is not None for child in chnn_children.values()),
+        "accepted": accepted,
+        "energy": energy,
+    }
+
+
 def chnn_ga(
     dist: np.ndarray,
     seed: int = 0,
@@ -141,83 +288,57 @@ def chnn_ga(
     ga: GAParameters | None = None,
     params: chnn.CHNNParameters = chnn.VALID_TOURS,
 ) -> GAResult:
-    """Best closed tour found by the memetic CHNN-GA within the time limit (node 0 first)."""
+    """Best closed tour found by the memetic CHNN-GA within the time limit (node 0 first).
+
+    Algorithm 2 of the paper ("Constructing a Reliable and Feasible Path", Section V-C of *Maritime Buoyage
+    Inspection System Based on an Unmanned Aerial Vehicle and Active Disturbance Rejection Control*), and the
+    step here that does each line:
+
+         1: initialise the weights A, B, C, D and u0                      params (chnn.VALID_TOURS)
+         2: while k_ga do                                                 the loop below (stall / time limit)
+         3:   calculate d_xy                                              chnn.normalised, per window
+         4:   while k_chnn do                                             chnn.run_chnn ...
+         5:     calculate the energy E by Algorithm 1                     ... eq. (14)-(16)
+         6:   end while
+         7:   calculate the current transposition matrix                  chnn.decode (_initial_population,
+         8:   calculate the fitness sum d_xy of the current path            _chnn_mutations), then repair
+         9:   if the current path is shorter than the parent and valid    _Population.accept
+        10:     replace the previous generation's solution
+        11:     calculate the input of the next CHNN                      the parent's tour seeds the mutation
+        12:   else
+        13:     keep the previous generation's solution
+        14:     the input of the CHNN remains unchanged
+        15:   end if
+        16: end while
+        17: obtain the optimal generation                                 _Population.update_best
+        18: obtain the feasible and reliable inspection trajectory        GAResult
+
+    Added to the paper's loop (see the module docstring): crossover and ILS children beside the CHNN's
+    (_choose_operators), and 2-opt + Or-opt repair of every child before line 9.
+    """
     ga = ga or GAParameters()
     started = time.perf_counter()
     n = len(dist)
     dist = np.ascontiguousarray(dist, dtype=float)
     if n <= 3:
-        order = list(range(n))
-        return GAResult(order, float(tour_length(np.arange(n), dist)), [])
-    rng = np.random.default_rng(seed)
-    size = ga.population if n <= 150 else max(2, ga.population // 2)
-    neighbours = neighbour_lists(dist, ga.neighbours)
-    kicks = ga.ils_kicks or max(30, n)
-
-    population, info = _initial_population(dist, size, ga, params, rng)
-    lengths = np.array([local_search(t, dist, neighbours) for t in population])
-    best = int(np.argmin(lengths))
-    best_tour, best_length = population[best].copy(), float(lengths[best])
-    history = [
-        {
-            "generation": 0,
-            "best_length": best_length,
-            "mean_length": float(lengths.mean()),
-            "elapsed_s": time.perf_counter() - started,
-            **info,
-        }
-    ]
-    stall = 0
-    generation = 0
-    stall_limit = max(ga.stall_generations, int(ga.stall_per_node * n))
-    while stall < stall_limit and time.perf_counter() - started < time_limit_s:
-        generation += 1
-        operator = rng.random(size)
-        use_chnn = ga.use_chnn & (operator < ga.p_chnn)
-        use_cx = (operator >= ga.p_chnn) & (operator < ga.p_chnn + ga.p_crossover)
-        chnn_idx = np.flatnonzero(use_chnn)
-        children: list[np.ndarray | None] = [None] * size
-        energy_trace: list[float] = []
-        if len(chnn_idx):
-            made, trace = _chnn_children([population[k] for k in chnn_idx], dist, ga, params, rng)
-            for k, child in zip(chnn_idx, made, strict=True):
-                children[k] = child
-            energy_trace = trace.tolist()
-        accepted = {"chnn": 0, "crossover": 0, "ils": 0}
-        for k in range(size):
-            if time.perf_counter() - started >= time_limit_s:
-                break  # anytime: the rest of this generation keeps its parents
-            if use_chnn[k]:
-                kind, child = "chnn", children[k]
-                if child is None:
-                    continue  # invalid network state: Algorithm 2 keeps the parent (line 13)
-                length = local_search(child, dist, neighbours)
-            elif use_cx[k]:
-                kind = "crossover"
-                other = population[int(rng.choice(np.delete(np.arange(size), k)))] if size > 1 else best_tour
-                child = _order_crossover(population[k], other, rng)
-                length = local_search(child, dist, neighbours)
-            else:
-                kind, child = "ils", population[k].copy()
-                length = iterated_local_search(child, dist, neighbours, kicks, ga.ils_segment, int(rng.integers(2**31)))
-            if length < lengths[k] - 1e-9:  # Algorithm 2, line 9: shorter (and valid, by construction)
-                population[k], lengths[k] = child, length
-                accepted[kind] += 1
-        improved = float(lengths.min()) < best_length - 1e-9
-        if improved:
-            best = int(np.argmin(lengths))
-            best_tour, best_length = population[best].copy(), float(lengths[best])
-        stall = 0 if improved else stall + 1
-        history.append(
-            {
-                "generation": generation,
-                "best_length": best_length,
-                "mean_length": float(lengths.mean()),
-                "elapsed_s": time.perf_counter() - started,
-                "chnn_children": len(chnn_idx),
-                "chnn_valid": sum(children[k] is not None for k in chnn_idx),
-                "accepted": accepted,
-                "energy": energy_trace,
-            }
-        )
-    return GAResult(_rotate_to_depot(best_tour), float(tour_length(best_tour, dist)), history)
+        return GAResult(list(range(n)), float(tour_length(np.arange(n), dist)), [])
+    run = _Run(
+        dist=dist,
+        neighbours=neighbour_lists(dist, ga.neighbours),
+        ga=ga,
+        params=params,
+        rng=np.random.default_rng(seed),
+        ils_kicks=ga.ils_kicks or max(30, n),
+        started=started,
+        time_limit_s=time_limit_s,
+    )
+    tours, initial_info = _initial_population(dist, _population_size(n, ga), ga, params, run.rng)
+    population = _Population.repaired(tours, run)
+    history = [{**population.summary(0, run), **initial_info}]
+    stall, stall_limit = 0, _stall_limit(n, ga)
+    while stall < stall_limit and not run.out_of_time():
+        counts = _next_generation(population, run)
+        stall = 0 if population.update_best() else stall + 1
+        history.append({**population.summary(len(history), run), **counts})
+    best = population.best_tour
+    return GAResult(_rotate_to_depot(best), float(tour_length(best, dist)), history)
