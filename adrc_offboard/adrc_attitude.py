@@ -1,6 +1,6 @@
 """The inner loop with ADRC: roll, pitch and yaw channels turning an attitude target into body torques.
 
-Implements `sitl_quad.attitude_control.AttitudeController`. Each body axis is a second-order channel
+Implements `uavcore.control.AttitudeController`. Each body axis is a second-order channel
   theta_i'' = f_i + b0_i tau_i,   b0_i = 1 / I_i
 (the paper's eq. 1 and 4 with the gyroscopic coupling and wind moments lumped into f_i). The control here is
 the torque tau_i in N m, so b0 = 1/I; the paper's U2..U4 are rotor forces with tau = L U, which would make
@@ -39,7 +39,7 @@ import numpy as np
 
 from adrc_offboard.adrc import AdrcParameterError
 from adrc_offboard.gains import Channel, channel_parameters, load_gains, make_channel
-from sitl_quad.state import AttitudeTarget, VehicleState
+from uavcore.state import AttitudeTarget, VehicleState
 
 AXES = ("roll", "pitch", "yaw")
 

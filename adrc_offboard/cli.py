@@ -64,7 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
 def make_controller(kind: str, rate_hz: float):
     """The outer loop for the default airframe (paper Table 2)."""
     from adrc_offboard.outer_loop import AdrcOuterLoop, PidOuterLoop
-    from sitl_quad.airframe import Airframe
+    from uavcore.airframe import Airframe
 
     airframe = Airframe.table2()
     cls = AdrcOuterLoop if kind == "adrc" else PidOuterLoop
@@ -80,9 +80,9 @@ def main(argv: list[str] | None = None) -> int:
         print("adrc-offboard: error: --rate must be between 10 and 250 Hz", file=sys.stderr)
         return 2
     from adrc_offboard.node import OffboardNode
-    from sitl_quad.cli import signing_key
+    from uavcore.mavlink import parse_signing_key
 
-    key = signing_key(args.signing_key) if args.signing_key is not None else None
+    key = parse_signing_key(args.signing_key) if args.signing_key is not None else None
     node = OffboardNode(
         make_controller(args.controller, args.rate), args.connect, args.rate, args.engage, signing_key=key
     )

@@ -19,14 +19,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sitl_quad.mavlink import mavlink  # pymavlink's MAVLink 2 dialect, configured in one place
-from sitl_quad.mavlink.codec import Encoder, new_parser, parse_datagram
-from sitl_quad.state import TrajectorySetpoint, VehicleState
+from uavcore.mavlink import (
+    AUTOPILOT_COMPID,
+    ONBOARD_COMPUTER_COMPID,
+    VEHICLE_SYSID,
+    Encoder,
+    mavlink,
+    new_parser,
+    parse_datagram,
+)
+from uavcore.modes import Px4AutoSubMode, Px4MainMode, px4_main_sub
+from uavcore.state import TrajectorySetpoint, VehicleState
 
 log = logging.getLogger(__name__)
 
-OFFBOARD_MAIN_MODE = 6
-AUTO_MAIN_MODE, MISSION_SUB_MODE, TAKEOFF_SUB_MODE = 4, 4, 2
 ENGAGE_RETRY_TICKS = 25  # outer-loop ticks between DO_SET_MODE attempts (0.5 s at 50 Hz)
 HEARTBEAT_S = 1.0
 ESO_PUBLISH_EVERY = 5  # ticks (10 Hz at 50 Hz)
@@ -46,11 +52,11 @@ class VehicleView:
 
     @property
     def in_offboard(self) -> bool:
-        return self.main_mode == OFFBOARD_MAIN_MODE
+        return self.main_mode == Px4MainMode.OFFBOARD
 
     @property
     def flying_mission(self) -> bool:
-        return self.main_mode == AUTO_MAIN_MODE and self.sub_mode in (MISSION_SUB_MODE, TAKEOFF_SUB_MODE)
+        return self.main_mode == Px4MainMode.AUTO and self.sub_mode in (Px4AutoSubMode.MISSION, Px4AutoSubMode.TAKEOFF)
 
 
 def state_from_messages(local, attitude) -> VehicleState:
@@ -79,7 +85,7 @@ STATE_MESSAGES = ("LOCAL_POSITION_NED", "ATTITUDE_QUATERNION", "POSITION_TARGET_
 class OffboardProtocol:
     """The node's side of the MAVLink conversation without its socket: `handle(msg)` takes one message from the
     vehicle and returns the messages to send back, in order. The in-process lockstep harness
-    (adrc_offboard.offline) drives the same object, so both fly by exactly the same decisions."""
+    (sitl_quad.lockstep_harness) drives the same object, so both fly by exactly the same decisions."""
 
     def __init__(self, controller, outer_rate_hz: float = 50.0, engage: bool = True) -> None:
         self.controller = controller
@@ -96,7 +102,7 @@ class OffboardProtocol:
         if kind == "HEARTBEAT":
             v.last_heartbeat = time.monotonic()
             v.armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
-            v.main_mode, v.sub_mode = (msg.custom_mode >> 16) & 0xFF, (msg.custom_mode >> 24) & 0xFF
+            v.main_mode, v.sub_mode = px4_main_sub(msg.custom_mode)
         elif kind == "EXTENDED_SYS_STATE":
             v.landed_state = msg.landed_state
         elif kind in STATE_MESSAGES:
@@ -134,7 +140,17 @@ class OffboardProtocol:
             base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_SAFETY_ARMED
             out.append(
                 mavlink.MAVLink_command_long_message(
-                    1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, base, OFFBOARD_MAIN_MODE, 0, 0, 0, 0, 0
+                    VEHICLE_SYSID,
+                    AUTOPILOT_COMPID,
+                    mavlink.MAV_CMD_DO_SET_MODE,
+                    0,
+                    base,
+                    Px4MainMode.OFFBOARD,
+                    0,
+                    0,
+                    0,
+                    0,
+                    0,
                 )
             )
         if not (v.armed and v.in_offboard and v.landed_state != mavlink.MAV_LANDED_STATE_ON_GROUND):
@@ -178,7 +194,7 @@ class OffboardNode:
         outer_rate_hz: float = 50.0,
         engage: bool = True,
         sysid: int = 1,
-        compid: int = 191,
+        compid: int = ONBOARD_COMPUTER_COMPID,
         signing_key: bytes | None = None,
     ) -> None:
         self.protocol = OffboardProtocol(controller, outer_rate_hz, engage)
@@ -227,7 +243,9 @@ class OffboardNode:
             out.extend(
                 m
                 for m in msgs
-                if m.get_srcSystem() == 1 and m.get_srcComponent() == 1 and not isinstance(m, mavlink.MAVLink_bad_data)
+                if m.get_srcSystem() == VEHICLE_SYSID
+                and m.get_srcComponent() == AUTOPILOT_COMPID
+                and not isinstance(m, mavlink.MAVLink_bad_data)
             )
 
     # ----- the loop

@@ -3,7 +3,7 @@
 Both controllers have the same structure so the comparison is fair: per NED axis, a second-order channel
 turns the position setpoint (with its velocity and acceleration as feed-forward) and the measured position
 into a desired acceleration; the vector is limited (`AccelerationLimits`: horizontal norm, climb, sink) and
-mapped by `sitl_quad.rotation.acceleration_to_attitude` (tilt and thrust limits) to a quaternion and a
+mapped by `uavcore.rotation.acceleration_to_attitude` (tilt and thrust limits) to a quaternion and a
 normalised thrust. Both run at the same rate and see the same measurements (position and velocity).
 
 - `AdrcOuterLoop`: one ADRC channel per axis with b0 = 1 (the control is acceleration). The navigator's
@@ -29,33 +29,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 from adrc_offboard.adrc import AdrcParameterError, bandwidth_parameters
 from adrc_offboard.gains import Channel, ChannelParameters, channel_parameters, load_gains, make_channel
-from sitl_quad.rotation import acceleration_to_attitude
-from sitl_quad.state import AttitudeTarget, TrajectorySetpoint, VehicleState
+from uavcore.rotation import acceleration_to_attitude
+from uavcore.state import AttitudeTarget, TrajectorySetpoint, VehicleState
 
 AXES = ("x", "y", "z")
-
-
-class OuterLoopController(Protocol):
-    """Runs at the outer-loop rate (50 Hz by default)."""
-
-    def reset(self) -> None:
-        """Forget observer and integrator states."""
-
-    def update(self, setpoint: TrajectorySetpoint, estimate: VehicleState, dt: float) -> AttitudeTarget:
-        """Attitude target (quaternion + normalised thrust) for this step."""
-        ...
-
-    def disturbance_estimates(self) -> dict[str, float]:
-        """Each channel's ESO z3 (m/s^2, NED); empty for controllers without an observer."""
-        ...
-
-    def telemetry(self) -> dict[str, float]:
-        """Extra internals worth logging (optional content)."""
-        ...
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ from gcs.settings import Settings
 from gcs.storage import Storage
 from gcs.validation import RequestInvalidError
 from planner.errors import PlannerError
-from sitl_quad.cli import signing_key  # the vehicle's key format (64 hex digits or a passphrase), one parser
+from uavcore.mavlink import parse_signing_key
 
 
 def _unprocessable(errors: list[tuple[tuple, str]], types: list[str] | None = None) -> JSONResponse:
@@ -65,7 +65,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         storage = Storage(settings.db_path)
-        key = None if settings.signing_key is None else signing_key(settings.signing_key)
+        key = None if settings.signing_key is None else parse_signing_key(settings.signing_key)
         link = LinkManager(settings.vehicle_url, settings.heartbeat_timeout_s, signing_key=key)
         service = MissionService(settings, storage, link)
         app.state.service = service

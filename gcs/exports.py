@@ -12,7 +12,7 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-from sitl_quad.mission_items import FRAME_MISSION, NAV_WAYPOINT, MissionItem
+from uavcore.mission import MavCmd, MavFrame, MissionItem
 
 FIRMWARE_PX4 = 12
 VEHICLE_QUADROTOR = 2
@@ -33,7 +33,7 @@ def track_geojson(samples: Sequence[dict[str, Any]], properties: dict[str, Any])
 
 
 def _has_position(item: MissionItem) -> bool:
-    return item.frame != FRAME_MISSION
+    return item.frame != MavFrame.MISSION
 
 
 def _params(item: MissionItem) -> list[float]:
@@ -80,7 +80,7 @@ def qgc_plan(
 
 def _item_from_params(seq: int, frame: int, command: int, params: Sequence[float], autocontinue: int) -> MissionItem:
     p1, p2, p3, p4, lat, lon, alt = (math.nan if p is None else float(p) for p in params)
-    positioned = frame != FRAME_MISSION
+    positioned = frame != MavFrame.MISSION
     return MissionItem(
         seq=seq,
         frame=frame,
@@ -121,7 +121,7 @@ def _number(value: float) -> str:
 def waypoints_text(items: Sequence[MissionItem], home: tuple[float, float, float]) -> str:
     """QGC WPL 110: line 0 is home (MAVProxy sends it as item 0), then the mission items."""
     lines = ["QGC WPL 110"]
-    home_line = [0, 1, 0, NAV_WAYPOINT, 0.0, 0.0, 0.0, 0.0, home[0], home[1], home[2], 1]
+    home_line = [0, 1, 0, MavCmd.NAV_WAYPOINT, 0.0, 0.0, 0.0, 0.0, home[0], home[1], home[2], 1]
     lines.append("\t".join(_format(home_line)))
     for item in items:
         p1, p2, p3, p4, lat, lon, alt = _params(item)

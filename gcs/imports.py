@@ -13,8 +13,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from planner.errors import InputError
-from planner.geodesy import check_lat_lon
+from uavcore.geodesy import CoordinateError, check_lat_lon
 
 
 class BuoyFileError(ValueError):
@@ -40,7 +39,7 @@ def _checked(lat: Any, lon: Any, ident: Any, where: str) -> ImportedBuoy:
         raise BuoyFileError(f"{where}: coordinates must be numbers, got ({lat!r}, {lon!r})") from None
     try:
         check_lat_lon(lat_f, lon_f, where)
-    except InputError as error:
+    except CoordinateError as error:
         raise BuoyFileError(str(error)) from None
     return ImportedBuoy(lat_f, lon_f, None if ident in (None, "") else str(ident)[:64])
 

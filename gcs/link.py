@@ -19,43 +19,33 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
-import os
 import socket
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-os.environ["MAVLINK20"] = "1"  # before any pymavlink import: speak MAVLink 2
-from pymavlink.dialects.v20 import common as mavlink
+from uavcore.mavlink import (
+    AUTOPILOT_COMPID,
+    GCS_COMPID,
+    GCS_SYSID,
+    VEHICLE_SYSID,
+    Encoder,
+    mavlink,
+    new_parser,
+    parse_datagram,
+    statustext,
+)
+from uavcore.modes import px4_mode_name
 
-GCS_SYSID, GCS_COMPID = 255, 190
-VEHICLE_SYSID, AUTOPILOT_COMPID = 1, 1
 RECEIVE_BUFFER_BYTES = 4 << 20
 # At 20 % datagram loss each way a command's round trip fails 36 % of the time: 3 tries (MAVSDK's) leave a 5 %
 # chance per command of giving up on a healthy vehicle, 6 tries 0.2 %.
 COMMAND_TRIES = 6
 REBOOT_BACKSTEP_MS = 1000  # time_boot_ms falling by more than this means the vehicle restarted
 STATUS_TEXTS_KEPT = 10
-SIGNING_EPOCH_S = 1420070400  # MAVLink signing timestamps count 10 us units from 2015-01-01 00:00 UTC
 ON_GROUND = mavlink.MAV_LANDED_STATE_ON_GROUND
 ARMED_FLAG = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
-
-# PX4 custom_mode = (sub << 24) | (main << 16); names for display only
-PX4_MODES = {
-    (1, 0): "MANUAL",
-    (2, 0): "ALTCTL",
-    (3, 0): "POSCTL",
-    (4, 1): "AUTO.READY",
-    (4, 2): "AUTO.TAKEOFF",
-    (4, 3): "AUTO.LOITER",
-    (4, 4): "AUTO.MISSION",
-    (4, 5): "AUTO.RTL",
-    (4, 6): "AUTO.LAND",
-    (5, 0): "ACRO",
-    (6, 0): "OFFBOARD",
-    (7, 0): "STABILIZED",
-}
 
 
 class LinkError(RuntimeError):
@@ -64,25 +54,6 @@ class LinkError(RuntimeError):
 
 class CommandTimeoutError(LinkError):
     pass
-
-
-def px4_mode_name(custom_mode: int) -> str:
-    main, sub = (custom_mode >> 16) & 0xFF, (custom_mode >> 24) & 0xFF
-    return PX4_MODES.get((main, sub), f"main {main} sub {sub}")
-
-
-def result_name(enum: str, value: int) -> str:
-    """MAV_RESULT / MAV_MISSION_RESULT number -> its name, for messages people read."""
-    entry = mavlink.enums.get(enum, {}).get(value)
-    return entry.name if entry is not None else f"{enum} {value}"
-
-
-def statustext(message: Any) -> str:
-    """A STATUSTEXT's text (pymavlink gives str or bytes, NUL-padded)."""
-    text = message.text
-    if isinstance(text, bytes):
-        text = text.decode("utf-8", "replace")
-    return text.rstrip("\x00").strip()
 
 
 def parse_udpout(url: str) -> tuple[str, int]:
@@ -169,15 +140,10 @@ class LinkManager:
         self.address = parse_udpout(url)
         self.heartbeat_timeout_s = heartbeat_timeout_s
         self.status = VehicleStatus()
-        self.encoder = mavlink.MAVLink(None, srcSystem=GCS_SYSID, srcComponent=GCS_COMPID)
-        self._parser = mavlink.MAVLink(None, srcSystem=GCS_SYSID, srcComponent=GCS_COMPID)
-        self._parser.robust_parsing = True
+        self._encoder = Encoder(GCS_SYSID, GCS_COMPID, signing_key)
+        self.encoder = self._encoder.mav  # builds messages: link.encoder.command_long_encode(...)
+        self._parser = new_parser(GCS_SYSID, GCS_COMPID, signing_key)
         self.signing_key = signing_key
-        if signing_key is not None:
-            # what pymavlink's setup_signing(key, sign_outgoing=True) does on a connection, on the bare codec
-            self.encoder.signing.secret_key = signing_key
-            self.encoder.signing.sign_outgoing = True
-            self._parser.signing.secret_key = signing_key  # and no allow_unsigned_callback: unsigned is refused
         self._transport: asyncio.DatagramTransport | None = None
         self._tasks: list[asyncio.Task] = []
         self._queues: list[tuple[frozenset[str], asyncio.Queue]] = []
@@ -221,12 +187,7 @@ class LinkManager:
     def send(self, message: Any) -> None:
         if self._transport is None:
             raise LinkError("the link is not started")
-        if self.signing_key is not None:
-            # a timestamp never behind the wall clock, so a restarted service is not taken for a replay
-            wall = int((time.time() - SIGNING_EPOCH_S) * 100_000)
-            self.encoder.signing.timestamp = max(self.encoder.signing.timestamp + 1, wall)
-        self._transport.sendto(message.pack(self.encoder))
-        self.encoder.seq = (self.encoder.seq + 1) % 256
+        self._transport.sendto(self._encoder.pack(message))
 
     async def _heartbeat_loop(self) -> None:
         while True:
@@ -293,8 +254,8 @@ class LinkManager:
 
     def _datagram(self, data: bytes) -> None:
         try:
-            messages = self._parser.parse_buffer(data) or []
-        except mavlink.MAVError:
+            messages = parse_datagram(self._parser, data)
+        except Exception:  # pymavlink raises a zoo of errors on hostile input; none may escape
             return
         for message in messages:
             if message.get_type() == "BAD_DATA" or message.get_srcSystem() != VEHICLE_SYSID:

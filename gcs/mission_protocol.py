@@ -13,9 +13,17 @@ import asyncio
 from collections.abc import Sequence
 from typing import Any
 
-from gcs.link import AUTOPILOT_COMPID, GCS_SYSID, VEHICLE_SYSID, LinkManager, mavlink, result_name
-from sitl_quad.mavlink.codec import item_message
-from sitl_quad.mission_items import MissionItem
+from gcs.link import LinkManager
+from uavcore.mavlink import (
+    AUTOPILOT_COMPID,
+    GCS_SYSID,
+    VEHICLE_SYSID,
+    item_from_message,
+    item_message,
+    mavlink,
+    result_name,
+)
+from uavcore.mission import MissionItem
 
 MISSION = mavlink.MAV_MISSION_TYPE_MISSION
 
@@ -130,22 +138,7 @@ async def download_mission(link: LinkManager, step_timeout_s: float = 1.0, retri
                 step_timeout_s,
                 retries,
             )
-            items.append(
-                MissionItem(
-                    seq=message.seq,
-                    frame=message.frame,
-                    command=message.command,
-                    current=message.current,
-                    autocontinue=message.autocontinue,
-                    param1=message.param1,
-                    param2=message.param2,
-                    param3=message.param3,
-                    param4=message.param4,
-                    x=message.x,
-                    y=message.y,
-                    z=message.z,
-                )
-            )
+            items.append(item_from_message(message))
         link.send(
             link.encoder.mission_ack_encode(VEHICLE_SYSID, AUTOPILOT_COMPID, mavlink.MAV_MISSION_ACCEPTED, MISSION)
         )

@@ -39,9 +39,6 @@ from gcs.link import (
     CommandTimeoutError,
     LinkManager,
     mavlink,
-    px4_mode_name,
-    result_name,
-    statustext,
 )
 from gcs.mission_protocol import MissionTransferError, download_mission, upload_mission
 from gcs.planning import FIRST_BUOY_SEQ, FlightParams, Plan, buoy_of_seq, leg_of_seq, make_plan, mission_items
@@ -49,6 +46,8 @@ from gcs.schemas import MissionRequest, PlanRequest
 from gcs.settings import Settings
 from gcs.storage import UNFINISHED, MissionRecord, Storage
 from gcs.validation import validate_request, validate_route_length
+from uavcore.mavlink import result_name, statustext
+from uavcore.modes import px4_mode_name
 
 log = logging.getLogger(__name__)
 

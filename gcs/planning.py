@@ -1,7 +1,7 @@
 """From a validated request to a plan (route) and to the mission items the vehicle flies. No I/O.
 
 The depot is node 0 of the planner's instance and the origin of the local frame; buoys are projected onto the
-depot's tangent plane (planner.geodesy) so the planner works in metres.
+depot's tangent plane (uavcore.geodesy) so the planner works in metres.
 """
 
 from __future__ import annotations
@@ -13,21 +13,12 @@ import numpy as np
 
 from planner import plan_tour
 from planner.distances import closed_tour_length, euclidean_matrix
-from planner.geodesy import LocalFrame
-from sitl_quad.mission_items import (
-    DO_CHANGE_SPEED,
-    FRAME_GLOBAL_RELATIVE_ALT_INT,
-    FRAME_MISSION,
-    NAV_LAND,
-    NAV_RETURN_TO_LAUNCH,
-    NAV_TAKEOFF,
-    NAV_WAYPOINT,
-    MissionItem,
-)
+from uavcore.geodesy import LocalFrame
+from uavcore.mission import MavCmd, MavFrame, MissionItem
 
 # Mission layout: item 0 takeoff, item 1 speed, items 2..n+1 the buoys in visiting order, then the return.
 FIRST_BUOY_SEQ = 2
-SPEED_TYPE_GROUND = 1.0  # DO_CHANGE_SPEED param1
+SPEED_TYPE_GROUND = 1.0  # MavCmd.DO_CHANGE_SPEED param1
 HOME_TOLERANCE_M = 1.0  # a depot this close to the vehicle's home returns with RTL, else waypoint + land
 
 
@@ -118,16 +109,16 @@ def mission_items(plan: Plan, flight: FlightParams, home: tuple[float, float] | 
     """The mission: takeoff at the depot, cruise speed, one waypoint per buoy, then home and land.
 
     Waypoints carry param1 = dwell (hold time) and param2 = acceptance radius, as MAV_CMD_NAV_WAYPOINT defines.
-    The return is NAV_RETURN_TO_LAUNCH when the depot is the vehicle's home; otherwise a waypoint at the depot
-    and NAV_LAND there, so the vehicle comes back to the depot and not to wherever it booted.
+    The return is MavCmd.NAV_RETURN_TO_LAUNCH when the depot is the vehicle's home; otherwise a waypoint at the depot
+    and MavCmd.NAV_LAND there, so the vehicle comes back to the depot and not to wherever it booted.
     """
     depot_lat, depot_lon = plan.depot
     alt = float(flight.altitude_m)
     items = [
         MissionItem(
             seq=0,
-            frame=FRAME_GLOBAL_RELATIVE_ALT_INT,
-            command=NAV_TAKEOFF,
+            frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
+            command=MavCmd.NAV_TAKEOFF,
             current=1,
             x=_deg_e7(depot_lat),
             y=_deg_e7(depot_lon),
@@ -135,8 +126,8 @@ def mission_items(plan: Plan, flight: FlightParams, home: tuple[float, float] | 
         ),
         MissionItem(
             seq=1,
-            frame=FRAME_MISSION,
-            command=DO_CHANGE_SPEED,
+            frame=MavFrame.MISSION,
+            command=MavCmd.DO_CHANGE_SPEED,
             param1=SPEED_TYPE_GROUND,
             param2=float(flight.speed_m_s),
             param3=-1.0,
@@ -147,8 +138,8 @@ def mission_items(plan: Plan, flight: FlightParams, home: tuple[float, float] | 
         items.append(
             MissionItem(
                 seq=len(items),
-                frame=FRAME_GLOBAL_RELATIVE_ALT_INT,
-                command=NAV_WAYPOINT,
+                frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
+                command=MavCmd.NAV_WAYPOINT,
                 param1=float(flight.dwell_s),
                 param2=float(flight.acceptance_radius_m),
                 param3=0.0,
@@ -159,13 +150,15 @@ def mission_items(plan: Plan, flight: FlightParams, home: tuple[float, float] | 
         )
     depot_is_home = home is None or _distance_m(plan.frame, home) <= HOME_TOLERANCE_M
     if depot_is_home:
-        items.append(MissionItem(seq=len(items), frame=FRAME_GLOBAL_RELATIVE_ALT_INT, command=NAV_RETURN_TO_LAUNCH))
+        items.append(
+            MissionItem(seq=len(items), frame=MavFrame.GLOBAL_RELATIVE_ALT_INT, command=MavCmd.NAV_RETURN_TO_LAUNCH)
+        )
     else:
         items.append(
             MissionItem(
                 seq=len(items),
-                frame=FRAME_GLOBAL_RELATIVE_ALT_INT,
-                command=NAV_WAYPOINT,
+                frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
+                command=MavCmd.NAV_WAYPOINT,
                 param1=0.0,
                 param2=float(flight.acceptance_radius_m),
                 param3=0.0,
@@ -177,8 +170,8 @@ def mission_items(plan: Plan, flight: FlightParams, home: tuple[float, float] | 
         items.append(
             MissionItem(
                 seq=len(items),
-                frame=FRAME_GLOBAL_RELATIVE_ALT_INT,
-                command=NAV_LAND,
+                frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
+                command=MavCmd.NAV_LAND,
                 x=_deg_e7(depot_lat),
                 y=_deg_e7(depot_lon),
                 z=0.0,

@@ -10,7 +10,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from planner.scenario import DEFAULT_HOME
+from uavcore.geodesy import DEFAULT_HOME
 
 TOKEN_ENV = "BUOY_GCS_TOKEN"
 

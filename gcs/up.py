@@ -178,7 +178,7 @@ def fly_demo(base: str, options: UpOptions, supervisor: Supervisor, say) -> dict
 def demo_report(mission: dict, options: UpOptions) -> str:
     """The paper's Section VI in figures from our own run."""
     from planner import plan_tour
-    from planner.geodesy import LocalFrame
+    from uavcore.geodesy import LocalFrame
 
     depot = mission["depot"]
     frame = LocalFrame(depot["lat"], depot["lon"])

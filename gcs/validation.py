@@ -12,7 +12,7 @@ import numpy as np
 from gcs.schemas import PlanRequest
 from gcs.settings import Limits
 from planner.distances import euclidean_matrix
-from planner.geodesy import LocalFrame
+from uavcore.geodesy import LocalFrame
 
 Location = tuple[str | int, ...]
 

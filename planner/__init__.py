@@ -1,7 +1,7 @@
 """Route planner: CHNN-GA (paper Section V) with Held-Karp as the exact oracle. Pure computation.
 
 ``from planner import plan_tour, PlanResult`` is the public API. It is loaded on first use (PEP 562), so
-importing a light module such as planner.geodesy or planner.errors does not pull in numba and the solvers.
+importing a light module such as uavcore.geodesy or planner.errors does not pull in numba and the solvers.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """`python -m planner FILE` / `buoy-plan FILE`: plan a route from GeoJSON, CSV of lat,lon or TSPLIB `.tsp`.
 
-GeoJSON and CSV positions are projected to the local tangent plane at the depot (planner.geodesy) and the
+GeoJSON and CSV positions are projected to the local tangent plane at the depot (uavcore.geodesy) and the
 length is in metres. A TSPLIB file is planned on TSPLIB's own integer distances, so its length compares
 exactly with the published optima. Exit status: 0 planned, 2 bad input or options, 1 could not write output.
 """
@@ -16,9 +16,9 @@ import numpy as np
 
 from planner.errors import InputError, PlannerError
 from planner.formats import parse_csv, parse_depot_option, parse_geojson
-from planner.geodesy import LocalFrame
 from planner.methods import METHODS
 from planner.tsplib import parse_tsp
+from uavcore.geodesy import LocalFrame
 
 EXIT_INPUT = 2
 EXIT_OUTPUT = 1

@@ -17,7 +17,15 @@ import math
 import numpy as np
 
 from planner.errors import InputError
-from planner.geodesy import check_lat_lon
+from uavcore.geodesy import CoordinateError, check_lat_lon
+
+
+def _check_lat_lon(lat: float, lon: float, where: str) -> None:
+    """uavcore's coordinate check, raising the planner's InputError (what its callers catch)."""
+    try:
+        check_lat_lon(lat, lon, where)
+    except CoordinateError as error:
+        raise InputError(str(error)) from None
 
 
 def _number(value, where: str) -> float:
@@ -37,7 +45,7 @@ def _assemble(points: list[tuple[float, float]], roles: list[str], depot) -> np.
         if depot_rows:
             raise InputError("the file marks a depot and a depot was also given; give only one")
         lat, lon = depot
-        check_lat_lon(lat, lon, "depot")
+        _check_lat_lon(lat, lon, "depot")
         ordered = [(lat, lon), *points]
     else:
         if len(depot_rows) > 1:
@@ -70,7 +78,7 @@ def parse_geojson(text: str, depot: tuple[float, float] | None = None) -> np.nda
             raise InputError(f"feature {i}: a Point needs [lon, lat] coordinates")
         lon = _number(coords[0], f"feature {i} longitude")
         lat = _number(coords[1], f"feature {i} latitude")
-        check_lat_lon(lat, lon, f"feature {i}")
+        _check_lat_lon(lat, lon, f"feature {i}")
         points.append((lat, lon))
         props = feature.get("properties") or {}
         roles.append(str(props.get("role", "")).lower() if isinstance(props, dict) else "")
@@ -107,7 +115,7 @@ def parse_csv(text: str, depot: tuple[float, float] | None = None) -> np.ndarray
             raise InputError(f"CSV row {number}: expected lat,lon, got {row}")
         lat = _number(row[lat_col].strip(), f"CSV row {number} latitude")
         lon = _number(row[lon_col].strip(), f"CSV row {number} longitude")
-        check_lat_lon(lat, lon, f"CSV row {number}")
+        _check_lat_lon(lat, lon, f"CSV row {number}")
         points.append((lat, lon))
         roles.append(row[role_col].strip().lower() if role_col is not None and role_col < len(row) else "")
     return _assemble(points, roles, depot)
@@ -119,5 +127,5 @@ def parse_depot_option(text: str) -> tuple[float, float]:
     if len(parts) != 2:
         raise InputError(f"--depot expects LAT,LON, got {text!r}")
     lat, lon = _number(parts[0].strip(), "depot latitude"), _number(parts[1].strip(), "depot longitude")
-    check_lat_lon(lat, lon, "depot")
+    _check_lat_lon(lat, lon, "depot")
     return lat, lon

@@ -11,15 +11,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.geodesy import LocalFrame
+from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 
 AREA_SIZE_M = (1200.0, 700.0)  # east x north extent of the area
 DEPOT_IN_AREA_M = (269.0, 293.0)
 ALTITUDE_M = 5.0
 CRUISE_SPEED_M_S = 10.0
 N_BUOYS = 13
-# Default home: the depot, on a pier in the approaches to Dalian harbour (the paper's authors' port).
-DEFAULT_HOME = (38.9210, 121.6630, 0.0)
 
 
 @dataclass(frozen=True)

@@ -24,9 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from sitl_quad.airframe import ModelParameterError
 from sitl_quad.quaternion_kernels import Quat, Vec3, quat_inverse, quat_product, rotate_vector
-from sitl_quad.state import AttitudeTarget, VehicleState
+from uavcore.airframe import ModelParameterError
+from uavcore.state import AttitudeTarget, VehicleState
 
 
 @dataclass(frozen=True)
@@ -204,7 +204,7 @@ def _floats(values) -> np.ndarray:
 
 
 class PidAttitudeController:
-    """Implements sitl_quad.attitude_control.AttitudeController with PX4's cascade (see module docstring).
+    """Implements uavcore.control.AttitudeController with PX4's cascade (see module docstring).
 
     ``kernel_gains`` and ``kernel_state`` are the arrays the kernels read and advance; the compiled inner
     loop works on them directly, so both paths share one controller state.

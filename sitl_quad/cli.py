@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import logging
 import math
@@ -11,7 +10,8 @@ import signal
 import sys
 from pathlib import Path
 
-from planner.scenario import DEFAULT_HOME
+from uavcore.geodesy import DEFAULT_HOME
+from uavcore.mavlink import parse_signing_key
 
 EPILOG = """\
 examples:
@@ -49,17 +49,6 @@ def parse_param(text: str) -> tuple[str, float]:
         return name.strip(), float(value)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}") from None
-
-
-def signing_key(text: str) -> bytes:
-    """A 64-hex-digit key as is; anything else is a passphrase hashed with SHA-256, as MAVProxy does."""
-    try:
-        key = bytes.fromhex(text)
-        if len(key) == 32:
-            return key
-    except ValueError:
-        pass
-    return hashlib.sha256(text.encode()).digest()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -130,7 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--signing-key",
-        type=signing_key,
+        type=parse_signing_key,
         metavar="KEY",
         help="MAVLink 2 signing key (64 hex digits, or a passphrase): unsigned messages are refused",
     )
@@ -164,6 +153,7 @@ def main(argv: list[str] | None = None) -> int:
     if not 0 <= args.port < 65536:
         return _fail(f"--port {args.port} is not a UDP port")
     # Imports after argument checks so that --help is instant.
+    from sitl_quad.attitude_loops import attitude_loops
     from sitl_quad.config import VehicleConfig
     from sitl_quad.mavlink.link import UdpLink
     from sitl_quad.params import ParameterError, ParameterTable
@@ -185,7 +175,9 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{spec.name:16} {table.get(spec.name):<14.6g} {spec.description}")
         return 0
     warm_up(config, args.home, args.outer_rate)
-    vehicle = Vehicle(config, home=args.home, seed=args.seed, outer_rate_hz=args.outer_rate)
+    vehicle = Vehicle(
+        config, home=args.home, seed=args.seed, outer_rate_hz=args.outer_rate, attitude_loops=attitude_loops()
+    )
     try:
         link = UdpLink(args.host, args.port, args.out, signing_key=args.signing_key)
     except OSError as exc:
@@ -225,9 +217,12 @@ def warm_up(config, home: tuple[float, float, float], outer_rate_hz: float) -> N
     """
     import copy
 
+    from sitl_quad.attitude_loops import attitude_loops
     from sitl_quad.vehicle import Vehicle
 
-    scratch = Vehicle(copy.deepcopy(config), home=home, seed=0, outer_rate_hz=outer_rate_hz)
+    scratch = Vehicle(
+        copy.deepcopy(config), home=home, seed=0, outer_rate_hz=outer_rate_hz, attitude_loops=attitude_loops()
+    )
     scratch.arm()
     scratch.takeoff(2.0)
     for _ in range(round(2.0 * outer_rate_hz)):  # spool-up, then climbing under the onboard loops

@@ -9,13 +9,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import IntEnum
 
-from sitl_quad.airframe import Airframe
 from sitl_quad.attitude_pid import PidAttitudeGains
 from sitl_quad.disturbances import DisturbanceConfig
 from sitl_quad.navigator import NavigatorConfig
 from sitl_quad.position_control import PidPositionGains
 from sitl_quad.sensors import SensorNoise
 from sitl_quad.wind import WindConfig
+from uavcore.airframe import Airframe
 
 
 class FailsafeAction(IntEnum):

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sitl_quad.airframe import ModelParameterError
 from sitl_quad.normal_stream import NormalStream, Zeros
+from uavcore.airframe import ModelParameterError
 
 CHANNELS = ("x", "y", "z", "roll", "pitch", "yaw")
 

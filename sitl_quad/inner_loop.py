@@ -19,11 +19,11 @@ import math
 import numpy as np
 from numba import njit
 
-from sitl_quad.airframe import P_OMEGA_MAX, P_OMEGA_MIN
 from sitl_quad.attitude_pid import pid_attitude_torque
 from sitl_quad.rigid_body import STATE_SIZE, advance
 from sitl_quad.rotors import mix
 from sitl_quad.sensors import add_sensor_noise
+from uavcore.airframe import P_OMEGA_MAX, P_OMEGA_MIN
 
 
 @njit(cache=True)

@@ -25,10 +25,6 @@ from typing import Literal
 
 import numpy as np
 
-from planner.geodesy import LocalFrame
-from sitl_quad import mission_items as mi
-from sitl_quad.rotation import euler_from_quat
-from sitl_quad.state import TrajectorySetpoint, VehicleState
 from sitl_quad.trajectory import (
     MotionLimits,
     NavigationError,
@@ -37,6 +33,10 @@ from sitl_quad.trajectory import (
     Vector3,
     bearing,
 )
+from uavcore.geodesy import LocalFrame
+from uavcore.mission import MavCmd, MavFrame, MissionItem
+from uavcore.rotation import euler_from_quat
+from uavcore.state import TrajectorySetpoint, VehicleState
 
 __all__ = ["NavEvent", "NavigationError", "Navigator", "NavigatorConfig"]
 
@@ -47,9 +47,10 @@ STALE_REFERENCE_S = 0.5
 # A reference (or vehicle) slower than this is at rest; faster, a new activity first brakes it to rest.
 AT_REST_M_S = 0.05
 
-NAV_COMMANDS = frozenset({mi.NAV_WAYPOINT, mi.NAV_LOITER_TIME, mi.NAV_TAKEOFF, mi.NAV_LAND, mi.NAV_RETURN_TO_LAUNCH})
-LANDING_COMMANDS = frozenset({mi.NAV_LAND, mi.NAV_RETURN_TO_LAUNCH})
-AMSL_FRAMES = frozenset({mi.FRAME_GLOBAL, mi.FRAME_GLOBAL_INT})
+NAV_COMMANDS = frozenset(
+    {MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME, MavCmd.NAV_TAKEOFF, MavCmd.NAV_LAND, MavCmd.NAV_RETURN_TO_LAUNCH}
+)
+AMSL_FRAMES = frozenset({MavFrame.GLOBAL, MavFrame.GLOBAL_INT})
 
 # DO_CHANGE_SPEED param1 (speed type) and param2 special values, as in MAVLink/PX4
 SPEED_TYPE_CLIMB = 2
@@ -125,7 +126,7 @@ class Navigator:
         self.mission_state: MissionState = "no_mission"
         self.activity: Activity = "idle"
         self.is_landing = False
-        self._items: list[mi.MissionItem] = []
+        self._items: list[MissionItem] = []
         self._targets: list[tuple[tuple[float, float] | None, float | None]] = []
         self._events: list[NavEvent] = []
         self._trajectory: Trajectory | None = None
@@ -141,7 +142,7 @@ class Navigator:
 
     # ---- mission storage -------------------------------------------------------------------------------
 
-    def set_mission(self, items: list[mi.MissionItem]) -> None:
+    def set_mission(self, items: list[MissionItem]) -> None:
         """Replace the stored mission (already validated by the mission protocol).
 
         An active mission stops sequencing: the vehicle finishes the current leg and holds at its end.
@@ -156,11 +157,11 @@ class Navigator:
             self._goal = None
             self._phase = "done"
 
-    def _item_target(self, item: mi.MissionItem) -> tuple[tuple[float, float] | None, float | None]:
+    def _item_target(self, item: MissionItem) -> tuple[tuple[float, float] | None, float | None]:
         """(north, east) of the item or None for "here"; its down coordinate or None for "keep altitude"."""
-        if item.command not in NAV_COMMANDS or item.command == mi.NAV_RETURN_TO_LAUNCH:
+        if item.command not in NAV_COMMANDS or item.command == MavCmd.NAV_RETURN_TO_LAUNCH:
             return None, None
-        if item.frame not in mi.SUPPORTED_FRAMES:
+        if item.frame not in frozenset(MavFrame):
             raise NavigationError(f"mission item {item.seq}: frame {item.frame} is not supported")
         horizontal = None
         if item.has_position:
@@ -168,7 +169,7 @@ class Navigator:
             # z = -5 (the ellipsoid's curvature would otherwise put it 8 cm lower)
             north, east, _ = self.frame.to_ned(item.lat, item.lon, self.frame.alt0)
             horizontal = (float(north), float(east))
-        if item.command == mi.NAV_LAND:
+        if item.command == MavCmd.NAV_LAND:
             return horizontal, GROUND_DOWN_M
         if not math.isfinite(item.z):
             return horizontal, None
@@ -261,14 +262,14 @@ class Navigator:
         for item, (horizontal, down) in zip(self._items, self._targets, strict=True):
             corners: list[Vector3] = []
             north, east = horizontal if horizontal is not None else (here[0], here[1])
-            if item.command == mi.NAV_TAKEOFF:
+            if item.command == MavCmd.NAV_TAKEOFF:
                 climb = self._takeoff_down(down)
                 corners = [(here[0], here[1], climb), (north, east, climb)]
-            elif item.command in (mi.NAV_WAYPOINT, mi.NAV_LOITER_TIME):
+            elif item.command in (MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME):
                 corners = [(north, east, here[2] if down is None else down)]
-            elif item.command == mi.NAV_LAND:
+            elif item.command == MavCmd.NAV_LAND:
                 corners = [(north, east, here[2]), (north, east, GROUND_DOWN_M)]
-            elif item.command == mi.NAV_RETURN_TO_LAUNCH:
+            elif item.command == MavCmd.NAV_RETURN_TO_LAUNCH:
                 cruise = min(here[2], -self.config.rtl_altitude)
                 corners = [(here[0], here[1], cruise), (0.0, 0.0, cruise), (0.0, 0.0, GROUND_DOWN_M)]
             for corner in corners:
@@ -344,8 +345,8 @@ class Navigator:
         self._goal = goal
         self._phase = "enroute" if goal is not None else "done"
 
-    def _run_do_item(self, item: mi.MissionItem) -> None:
-        if item.command != mi.DO_CHANGE_SPEED:
+    def _run_do_item(self, item: MissionItem) -> None:
+        if item.command != MavCmd.DO_CHANGE_SPEED:
             return  # other DO_ commands have nothing to do in this vehicle
         speed = item.param2
         if speed == SPEED_RESET_TO_DEFAULT:
@@ -407,28 +408,28 @@ class Navigator:
         """The item's altitude when it gives one above home, else the configured takeoff altitude."""
         return down if down is not None and down < GROUND_DOWN_M else -self.config.takeoff_altitude
 
-    def _plan_item(self, trajectory: Trajectory, item: mi.MissionItem) -> _Goal:
+    def _plan_item(self, trajectory: Trajectory, item: MissionItem) -> _Goal:
         horizontal, down = self._targets[self.current_seq]
         here = trajectory.end_position
         north, east = horizontal if horizontal is not None else (here[0], here[1])
-        if item.command == mi.NAV_TAKEOFF:
+        if item.command == MavCmd.NAV_TAKEOFF:
             altitude = self._takeoff_down(down)
             trajectory.line_to((here[0], here[1], altitude), self._limits(mission=True))
             target = (north, east, altitude)
             self._fly_to(trajectory, target, None, mission=True)
             return _Goal(target, self.config.acceptance_radius)
-        if item.command == mi.NAV_RETURN_TO_LAUNCH:
+        if item.command == MavCmd.NAV_RETURN_TO_LAUNCH:
             return self._plan_return(trajectory, mission=True)
-        if item.command == mi.NAV_LAND:
+        if item.command == MavCmd.NAV_LAND:
             trajectory_yaw = _yaw_param(item.param4)
             self._fly_to(trajectory, (north, east, here[2]), trajectory_yaw, mission=True)
             return self._plan_landing(trajectory, mission=True)
         # NAV_WAYPOINT and NAV_LOITER_TIME
         target = (north, east, here[2] if down is None else down)
-        yaw = _yaw_param(item.param4) if item.command == mi.NAV_WAYPOINT else None
+        yaw = _yaw_param(item.param4) if item.command == MavCmd.NAV_WAYPOINT else None
         self._fly_to(trajectory, target, yaw, mission=True)
         radius = self.config.acceptance_radius
-        if item.command == mi.NAV_WAYPOINT and math.isfinite(item.param2) and item.param2 > 0:
+        if item.command == MavCmd.NAV_WAYPOINT and math.isfinite(item.param2) and item.param2 > 0:
             radius = item.param2
         dwell = item.param1 if math.isfinite(item.param1) and item.param1 > 0 else 0.0
         return _Goal(target, radius, dwell=dwell)

@@ -2,7 +2,7 @@
 
 As PX4's PositionControl (mc_pos_control): velocity setpoint = feed-forward + P * position error, limited
 (horizontal norm, climb, descent); acceleration = feed-forward + P * velocity error + integral - D * measured
-acceleration, limited (horizontal norm, up, down); then sitl_quad.rotation.acceleration_to_attitude turns it
+acceleration, limited (horizontal norm, up, down); then uavcore.rotation.acceleration_to_attitude turns it
 into an AttitudeTarget (tilt limit, thrust normalised to the airframe's maximum). A NaN position component
 means "no position control on that axis" (velocity control, e.g. a constant-rate descent); NaN velocity or
 acceleration feed-forward counts as 0, a NaN yaw keeps the current heading. The velocity integrator is
@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sitl_quad.airframe import Airframe, ModelParameterError
-from sitl_quad.rotation import acceleration_to_attitude, euler_from_quat
-from sitl_quad.state import AttitudeTarget, TrajectorySetpoint, VehicleState
+from uavcore.airframe import Airframe, ModelParameterError
+from uavcore.rotation import acceleration_to_attitude, euler_from_quat
+from uavcore.state import AttitudeTarget, TrajectorySetpoint, VehicleState
 
 
 @dataclass(frozen=True)

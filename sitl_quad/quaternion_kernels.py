@@ -1,4 +1,4 @@
-"""Quaternion products for numba kernels: sitl_quad.rotation's formulas on tuples of floats.
+"""Quaternion products for numba kernels: uavcore.rotation's formulas on tuples of floats.
 
 The attitude PID and the sensor noise run inside the vehicle's compiled 250 Hz loop, where rotation's numpy
 helpers cannot be called. Same conventions: (w, x, y, z), body FRD -> world NED.

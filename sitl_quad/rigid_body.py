@@ -28,7 +28,9 @@ import math
 import numpy as np
 from numba import njit
 
-from sitl_quad.airframe import (
+from sitl_quad.rotors import rotor_wrench
+from sitl_quad.wind import mean_and_gust, wind_velocity
+from uavcore.airframe import (
     P_DRAG_LIN_XY,
     P_DRAG_LIN_Z,
     P_DRAG_QUAD_XY,
@@ -42,8 +44,6 @@ from sitl_quad.airframe import (
     P_OMEGA_MAX,
     P_OMEGA_MIN,
 )
-from sitl_quad.rotors import rotor_wrench
-from sitl_quad.wind import mean_and_gust, wind_velocity
 
 STATE_SIZE = 17
 POS, VEL, QUAT, RATES, ROTORS = slice(0, 3), slice(3, 6), slice(6, 10), slice(10, 13), slice(13, 17)

@@ -22,7 +22,7 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-from sitl_quad.airframe import P_ARM, P_KF, P_KL, P_OMEGA_MAX, P_OMEGA_MIN, Airframe, ModelParameterError
+from uavcore.airframe import P_ARM, P_KF, P_KL, P_OMEGA_MAX, P_OMEGA_MIN, Airframe, ModelParameterError
 
 
 @njit(cache=True)

@@ -19,10 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from sitl_quad.airframe import ModelParameterError
 from sitl_quad.normal_stream import NormalStream, Zeros
 from sitl_quad.quaternion_kernels import quat_product
-from sitl_quad.state import VehicleState
+from uavcore.airframe import ModelParameterError
+from uavcore.state import VehicleState
 
 NOISE_PER_MEASUREMENT = 12  # position, velocity, attitude rotation vector, gyro: 3 each
 

@@ -13,7 +13,6 @@ import logging
 import time
 from pathlib import Path
 
-from sitl_quad.mavlink import mavlink
 from sitl_quad.mavlink.commands import Commands
 from sitl_quad.mavlink.heartbeat import Heartbeat, heartbeat_message
 from sitl_quad.mavlink.link import UdpLink
@@ -22,8 +21,9 @@ from sitl_quad.mavlink.offboard import Offboard
 from sitl_quad.mavlink.parameters import Parameters
 from sitl_quad.mavlink.telemetry import Telemetry
 from sitl_quad.params import ParameterTable
-from sitl_quad.rotation import euler_from_quat
 from sitl_quad.vehicle import CommandResult, TickRecord, Vehicle, VehicleEvent
+from uavcore.mavlink import mavlink
+from uavcore.rotation import euler_from_quat
 
 log = logging.getLogger(__name__)
 

@@ -13,16 +13,16 @@ import math
 
 import numpy as np
 
-from sitl_quad.airframe import Airframe, ModelParameterError
 from sitl_quad.attitude_pid import PidAttitudeController
 from sitl_quad.disturbances import DisturbanceConfig, GaussianDisturbance
 from sitl_quad.inner_loop import disturbance_samples_due, pid_inner_loop
 from sitl_quad.rigid_body import INFO_SIZE, STATE_SIZE, advance
-from sitl_quad.rotation import euler_from_quat, quat_from_euler
 from sitl_quad.rotors import Mixer
 from sitl_quad.sensors import SensorNoise, Sensors
-from sitl_quad.state import AttitudeTarget, VehicleState
 from sitl_quad.wind import WindConfig, WindModel
+from uavcore.airframe import Airframe, ModelParameterError
+from uavcore.rotation import euler_from_quat, quat_from_euler
+from uavcore.state import AttitudeTarget, VehicleState
 
 
 class Simulator:

@@ -8,7 +8,7 @@ plain floats: the vehicle samples the reference at 50 Hz and must run many times
 The one-dimensional motion along a piece is a `Profile1D`: a chain of constant-jerk spans, so position is a
 cubic in time. A rest-to-rest leg is the classic seven-span jerk-limited S-curve (jerk +J, 0, -J, cruise, -J,
 0, +J); with an infinite jerk limit the same code gives a trapezoidal velocity profile. Frames are NED metres
-(z down) and yaw is atan2(east, north) in [-pi, pi), as in sitl_quad.state.
+(z down) and yaw is atan2(east, north) in [-pi, pi), as in uavcore.state.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from bisect import bisect_right
 from dataclasses import dataclass
 from typing import NamedTuple, Protocol
 
-from sitl_quad.rotation import wrap_pi
+from uavcore.rotation import wrap_pi
 
 Vector3 = tuple[float, float, float]
 ZERO3: Vector3 = (0.0, 0.0, 0.0)

@@ -11,20 +11,24 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from enum import IntEnum
 
 import numpy as np
 
-from planner.geodesy import LocalFrame
+from sitl_quad.attitude_pid import PidAttitudeController
 from sitl_quad.config import AttitudeControllerKind, FailsafeAction, VehicleConfig
-from sitl_quad.mission_items import MissionItem
-from sitl_quad.modes import FlightMode
 from sitl_quad.navigator import Navigator
-from sitl_quad.rotation import euler_from_quat
 from sitl_quad.rotors import Mixer
 from sitl_quad.simulator import Simulator
-from sitl_quad.state import AttitudeTarget, TrajectorySetpoint, VehicleState
+from uavcore.airframe import ModelParameterError
+from uavcore.control import AttitudeController
+from uavcore.geodesy import LocalFrame
+from uavcore.mission import MissionItem
+from uavcore.modes import FlightMode
+from uavcore.rotation import euler_from_quat
+from uavcore.state import AttitudeTarget, TrajectorySetpoint, VehicleState
 
 ATTITUDE_RATE_HZ = 250
 PHYSICS_RATE_HZ = 1000
@@ -33,6 +37,13 @@ TOUCHDOWN_CONFIRM_S = 1.0  # on the ground this long while landing -> landed, di
 SPOOLUP_S = 1.0  # from a takeoff or mission command on the ground to the climb (PX4's COM_SPOOLUP_TIME)
 PREFLIGHT_DISARM_S = 10.0  # armed on the ground without taking off this long -> disarm (COM_DISARM_PRFLT)
 FORCE_DISARM_MAGIC = 21196  # COMPONENT_ARM_DISARM param2 that disarms even in the air
+
+# Builds an attitude loop for a configuration at a loop rate (Hz); see sitl_quad.attitude_loops.
+AttitudeLoopFactory = Callable[[VehicleConfig, float], AttitudeController]
+
+
+def builtin_pid_loop(config: VehicleConfig, rate_hz: float) -> AttitudeController:
+    return PidAttitudeController(config.attitude_pid)
 
 
 class CommandResult(IntEnum):
@@ -90,9 +101,17 @@ class Vehicle:
     """One simulated quadrotor with its onboard autopilot functions."""
 
     def __init__(
-        self, config: VehicleConfig, home: tuple[float, float, float], seed: int = 0, outer_rate_hz: float = 50.0
+        self,
+        config: VehicleConfig,
+        home: tuple[float, float, float],
+        seed: int = 0,
+        outer_rate_hz: float = 50.0,
+        attitude_loops: Mapping[AttitudeControllerKind, AttitudeLoopFactory] | None = None,
     ) -> None:
+        """attitude_loops: the inner loops MC_ATT_CTRL may select (`sitl_quad.attitude_loops.attitude_loops()`
+        gives all); without it the vehicle flies only its built-in PID."""
         self.config = config
+        self.attitude_loops = dict(attitude_loops or {AttitudeControllerKind.PID: builtin_pid_loop})
         self.home = home
         self.frame = LocalFrame(*home)
         self.seed = seed
@@ -139,16 +158,14 @@ class Vehicle:
             dt=1.0 / PHYSICS_RATE_HZ,
         )
 
-    def _make_attitude_controller(self):
-        c = self.config
-        if c.control.attitude_controller == AttitudeControllerKind.ADRC:
-            from adrc_offboard.adrc_attitude import AdrcAttitudeController
-
-            af = c.airframe
-            return AdrcAttitudeController(af.ixx, af.iyy, af.izz, rate_hz=1.0 / self.attitude_dt)
-        from sitl_quad.attitude_pid import PidAttitudeController
-
-        return PidAttitudeController(c.attitude_pid)
+    def _make_attitude_controller(self) -> AttitudeController:
+        kind = AttitudeControllerKind(self.config.control.attitude_controller)
+        factory = self.attitude_loops.get(kind)
+        if factory is None:
+            raise ModelParameterError(
+                f"MC_ATT_CTRL={int(kind)} ({kind.name}): this vehicle was built without that loop"
+            )
+        return factory(self.config, 1.0 / self.attitude_dt)
 
     def _make_position_controller(self):
         from sitl_quad.position_control import PidPositionController
@@ -402,8 +419,6 @@ class Vehicle:
         target, source = self._outer_loop(est)
         self.target, self.source = target, source
         saturated = False
-        from sitl_quad.attitude_pid import PidAttitudeController
-
         thrust_n = target.thrust * self.config.airframe.max_thrust_n
         if source == "off":  # rotors commanded to 0 all tick: the physics steps in one batch, same result
             self.sim.set_rotor_commands(np.zeros(4))

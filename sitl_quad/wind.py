@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from sitl_quad.airframe import ModelParameterError
 from sitl_quad.normal_stream import NormalStream, Zeros
+from uavcore.airframe import ModelParameterError
 
 FEET = 0.3048
 MIN_TURBULENCE_AIRSPEED = 1.0  # m/s

@@ -330,7 +330,7 @@ def mission_item(
 
 def short_mission(home: tuple[float, float, float], leg_m: float = 30.0) -> list:
     """Takeoff to 5 m, two waypoints leg_m apart (north, then east), return to launch: seconds at 20x."""
-    from planner.geodesy import LocalFrame
+    from uavcore.geodesy import LocalFrame
 
     frame = LocalFrame(*home)
     north = frame.from_ned(leg_m, 0.0, 0.0)

@@ -9,8 +9,8 @@ import pytest
 
 from adrc_offboard.adrc import AdrcParameterError
 from adrc_offboard.adrc_attitude import AdrcAttitudeController, AdrcAttitudeGains
-from sitl_quad.rotation import euler_from_quat, quat_from_euler, quat_multiply, wrap_pi
-from sitl_quad.state import AttitudeTarget, VehicleState
+from uavcore.rotation import euler_from_quat, quat_from_euler, quat_multiply, wrap_pi
+from uavcore.state import AttitudeTarget, VehicleState
 
 INERTIA = np.array([0.085, 0.083, 0.151])  # Table 2
 

@@ -13,15 +13,13 @@ import pytest
 from sitl_process import REPO, GroundStation, free_udp_port
 
 from adrc_offboard.cli import make_controller
-from adrc_offboard.offline import LockstepHarness
-from planner.geodesy import LocalFrame
-from planner.scenario import DEFAULT_HOME
 from sitl_quad.config import VehicleConfig
-from sitl_quad.mavlink import mavlink
-from sitl_quad.mavlink.codec import item_message
-from sitl_quad.mission_items import FRAME_GLOBAL_RELATIVE_ALT_INT, NAV_LAND, NAV_TAKEOFF, NAV_WAYPOINT, MissionItem
+from sitl_quad.lockstep_harness import LockstepHarness
 from sitl_quad.server import VehicleServer
 from sitl_quad.vehicle import Vehicle
+from uavcore.geodesy import DEFAULT_HOME, LocalFrame
+from uavcore.mavlink import item_message, mavlink
+from uavcore.mission import MavCmd, MavFrame, MissionItem
 
 pytestmark = pytest.mark.integration
 
@@ -33,13 +31,13 @@ def short_mission() -> list[MissionItem]:
     """Takeoff to 5 m, one 36 m leg with a 0.5 s dwell, land there."""
     items = []
     for seq, (command, north, east, alt) in enumerate(
-        [(NAV_TAKEOFF, 0, 0, 5), (NAV_WAYPOINT, 30, 20, 5), (NAV_LAND, 30, 20, 0)]
+        [(MavCmd.NAV_TAKEOFF, 0, 0, 5), (MavCmd.NAV_WAYPOINT, 30, 20, 5), (MavCmd.NAV_LAND, 30, 20, 0)]
     ):
         lat, lon, _ = FRAME.from_ned(north, east, 0.0)
         items.append(
             MissionItem(
                 seq=seq,
-                frame=FRAME_GLOBAL_RELATIVE_ALT_INT,
+                frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
                 command=command,
                 current=int(seq == 0),
                 param1=0.5,

@@ -18,7 +18,7 @@ from adrc_offboard.outer_loop import (
     matched_gains,
     pid_gains_for_bandwidth,
 )
-from sitl_quad.state import TrajectorySetpoint, VehicleState
+from uavcore.state import TrajectorySetpoint, VehicleState
 
 MASS, G = 1.3, 9.81
 MAX_THRUST = 2.2 * MASS * G
@@ -182,9 +182,9 @@ def test_refuses_bad_construction() -> None:
 
 def test_closed_loop_on_the_simulator_hover_and_a_10_m_s_leg() -> None:
     # AdrcOuterLoop (50 Hz) + AdrcAttitudeController (250 Hz) + the Mixer on the SITL physics (1 kHz)
-    from sitl_quad.airframe import Airframe
     from sitl_quad.rotors import Mixer
     from sitl_quad.simulator import Simulator
+    from uavcore.airframe import Airframe
 
     airframe = Airframe.table2()
     hover_speed = math.sqrt(airframe.mass * airframe.g / (4 * airframe.kl))

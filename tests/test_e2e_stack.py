@@ -33,7 +33,8 @@ from gcs.missions import REATTACHED, RESTART_NOT_FLYING
 from gcs.planning import make_plan
 from gcs.storage import Storage
 from gcs.up import UpOptions, reference_request
-from planner.scenario import DEFAULT_HOME, reference_scenario
+from planner.scenario import reference_scenario
+from uavcore.geodesy import DEFAULT_HOME
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -503,13 +504,13 @@ def test_hostile_datagrams_at_every_udp_port_change_nothing(stack):
 
 # ----- signing
 def test_signed_vehicle_refuses_an_unkeyed_peer_while_the_keyed_gcs_flies(stack):
-    from sitl_quad.cli import signing_key
+    from uavcore.mavlink import parse_signing_key
 
     stack.start_vehicle("--signing-key", SIGNING_PASSPHRASE)
     stack.start_gcs(None, "--signing-key", SIGNING_PASSPHRASE)  # no offboard controller: the built-in loop flies
     stack.wait_connected()
     keyed = GroundStation(stack.vehicle_port, sysid=250)
-    keyed.conn.setup_signing(signing_key(SIGNING_PASSPHRASE), sign_outgoing=True)
+    keyed.conn.setup_signing(parse_signing_key(SIGNING_PASSPHRASE), sign_outgoing=True)
     intruder = GroundStation(stack.vehicle_port, sysid=251)
     try:
         keyed.connect()

@@ -14,7 +14,8 @@ from gcs.app import create_app
 from gcs.exports import read_qgc_plan, read_waypoints
 from gcs.settings import Limits, Settings
 from planner import plan_tour
-from planner.scenario import DEFAULT_HOME, reference_scenario
+from planner.scenario import reference_scenario
+from uavcore.geodesy import DEFAULT_HOME
 
 SCENARIO = reference_scenario(1)
 BUOYS = [{"lat": lat, "lon": lon} for lat, lon in SCENARIO.buoys_lat_lon]

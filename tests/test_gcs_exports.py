@@ -8,7 +8,7 @@ import pytest
 from gcs import exports
 from gcs.planning import FlightParams, make_plan, mission_items
 from planner.scenario import reference_scenario
-from sitl_quad.mission_items import DO_CHANGE_SPEED, NAV_RETURN_TO_LAUNCH, NAV_TAKEOFF, NAV_WAYPOINT
+from uavcore.mission import MavCmd
 
 HOME = (38.9210, 121.6630, 0.0)
 FLIGHT = FlightParams(altitude_m=5.0, speed_m_s=10.0, dwell_s=1.5, acceptance_radius_m=2.0)
@@ -37,9 +37,9 @@ def same_item(a, b) -> bool:
 
 
 def test_mission_layout(items):
-    assert [i.command for i in items[:2]] == [NAV_TAKEOFF, DO_CHANGE_SPEED]
-    assert [i.command for i in items[2:-1]] == [NAV_WAYPOINT] * 13
-    assert items[-1].command == NAV_RETURN_TO_LAUNCH
+    assert [i.command for i in items[:2]] == [MavCmd.NAV_TAKEOFF, MavCmd.DO_CHANGE_SPEED]
+    assert [i.command for i in items[2:-1]] == [MavCmd.NAV_WAYPOINT] * 13
+    assert items[-1].command == MavCmd.NAV_RETURN_TO_LAUNCH
     assert [i.seq for i in items] == list(range(len(items)))
     assert all(i.param1 == 1.5 and i.param2 == 2.0 and i.z == 5.0 for i in items[2:-1])
     assert items[1].param2 == 10.0

@@ -15,8 +15,8 @@ from fastapi.testclient import TestClient
 from gcs.app import create_app
 from gcs.settings import Settings
 from planner import plan_tour
-from planner.geodesy import LocalFrame
 from planner.scenario import reference_scenario
+from uavcore.geodesy import LocalFrame
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 

@@ -21,11 +21,11 @@ from gcs.app import create_app
 from gcs.link import CommandTimeoutError, LinkManager
 from gcs.mission_protocol import MissionRejectedError, MissionTimeoutError, download_mission, upload_mission
 from gcs.settings import Settings
-from sitl_quad.mavlink.codec import item_message
-from sitl_quad.mission_items import NAV_WAYPOINT, MissionItem
+from uavcore.mavlink import item_message
+from uavcore.mission import MavCmd, MissionItem
 
 ITEMS = [
-    MissionItem(seq=i, frame=6, command=NAV_WAYPOINT, param1=1.0, x=389210000 + i, y=1216630000, z=5.0)
+    MissionItem(seq=i, frame=6, command=MavCmd.NAV_WAYPOINT, param1=1.0, x=389210000 + i, y=1216630000, z=5.0)
     for i in range(4)
 ]
 

@@ -20,7 +20,7 @@ from gcs.planning import FIRST_BUOY_SEQ, FlightParams, leg_of_seq, make_plan
 from gcs.report import FIGURES, cached_report, report_series, summary_rows, write_report
 from gcs.settings import Settings
 from gcs.storage import Storage
-from planner.scenario import DEFAULT_HOME
+from uavcore.geodesy import DEFAULT_HOME
 
 OFFSET_M = 0.3  # the synthetic vehicle flies this far to the left of every leg
 LAG_M = 0.5  # and this far behind its reference point

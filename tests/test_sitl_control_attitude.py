@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from sitl_quad.airframe import Airframe, ModelParameterError
-from sitl_quad.attitude_control import AttitudeController
 from sitl_quad.attitude_pid import PidAttitudeController, PidAttitudeGains
-from sitl_quad.rotation import euler_from_quat, quat_from_euler, quat_multiply
 from sitl_quad.rotors import Mixer
 from sitl_quad.simulator import Simulator
-from sitl_quad.state import AttitudeTarget
+from uavcore.airframe import Airframe, ModelParameterError
+from uavcore.control import AttitudeController
+from uavcore.rotation import euler_from_quat, quat_from_euler, quat_multiply
+from uavcore.state import AttitudeTarget
 
 AIRFRAME = Airframe.table2()
 

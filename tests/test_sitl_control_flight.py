@@ -9,16 +9,16 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from sitl_quad.airframe import Airframe
 from sitl_quad.attitude_pid import PidAttitudeController
 from sitl_quad.disturbances import DisturbanceConfig
 from sitl_quad.position_control import PidPositionController
-from sitl_quad.rotation import euler_from_quat
 from sitl_quad.rotors import Mixer
 from sitl_quad.sensors import SensorNoise
 from sitl_quad.simulator import Simulator
-from sitl_quad.state import TrajectorySetpoint
 from sitl_quad.wind import WindConfig
+from uavcore.airframe import Airframe
+from uavcore.rotation import euler_from_quat
+from uavcore.state import TrajectorySetpoint
 
 AIRFRAME = Airframe.table2()
 ALTITUDE = 5.0

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sitl_quad.airframe import Airframe, ModelParameterError
 from sitl_quad.rotors import Mixer, rotor_wrench
+from uavcore.airframe import Airframe, ModelParameterError
 
 AIRFRAME = Airframe.table2()
 PARAMS = AIRFRAME.as_array()

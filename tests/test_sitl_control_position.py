@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from sitl_quad.airframe import Airframe, ModelParameterError
 from sitl_quad.position_control import PidPositionController, PidPositionGains
-from sitl_quad.rotation import euler_from_quat, quat_from_euler, rotate
-from sitl_quad.state import TrajectorySetpoint, VehicleState
+from uavcore.airframe import Airframe, ModelParameterError
+from uavcore.rotation import euler_from_quat, quat_from_euler, rotate
+from uavcore.state import TrajectorySetpoint, VehicleState
 
 AIRFRAME = Airframe.table2()
 

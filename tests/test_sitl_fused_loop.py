@@ -9,17 +9,17 @@ import numpy as np
 import pytest
 from test_sitl_vehicle import HOME, short_mission
 
-from sitl_quad.airframe import Airframe, ModelParameterError
 from sitl_quad.attitude_pid import PidAttitudeController
 from sitl_quad.config import VehicleConfig
 from sitl_quad.disturbances import DisturbanceConfig
-from sitl_quad.rotation import quat_from_euler
 from sitl_quad.rotors import Mixer
 from sitl_quad.sensors import SensorNoise, Sensors
 from sitl_quad.simulator import Simulator
-from sitl_quad.state import AttitudeTarget
 from sitl_quad.vehicle import Vehicle
 from sitl_quad.wind import WindConfig
+from uavcore.airframe import Airframe, ModelParameterError
+from uavcore.rotation import quat_from_euler
+from uavcore.state import AttitudeTarget
 
 AIRFRAME = Airframe.table2()
 ATTITUDE_STEPS, PHYSICS_STEPS, ATTITUDE_DT = 5, 4, 0.004

@@ -8,7 +8,7 @@ import time
 import pytest
 from sitl_process import GroundStation, free_udp_port
 
-from sitl_quad.mavlink import mavlink
+from uavcore.mavlink import mavlink
 
 pytestmark = pytest.mark.integration
 

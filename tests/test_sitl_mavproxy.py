@@ -20,9 +20,8 @@ from pathlib import Path
 import pytest
 from sitl_process import GroundStation, mavlink
 
-from planner.geodesy import LocalFrame
-from planner.scenario import DEFAULT_HOME
 from sitl_quad.vehicle_params import VEHICLE_PARAMETERS
+from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.timeout(90)]
 

@@ -17,7 +17,7 @@ from mavsdk.plugins.telemetry import LandedState, Telemetry
 from sitl_process import short_mission
 from udp_relay import LossyUdpRelay
 
-from planner.scenario import DEFAULT_HOME
+from uavcore.geodesy import DEFAULT_HOME
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.timeout(120)]
 

@@ -15,15 +15,15 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from planner.geodesy import LocalFrame
 from planner.scenario import reference_scenario
-from sitl_quad import mission_items as mi
 from sitl_quad.navigator import NavEvent, NavigationError, Navigator, NavigatorConfig
-from sitl_quad.rotation import quat_from_euler, wrap_pi
-from sitl_quad.state import TrajectorySetpoint, VehicleState
+from uavcore.geodesy import LocalFrame
+from uavcore.mission import MavCmd, MavFrame, MissionItem
+from uavcore.rotation import quat_from_euler, wrap_pi
+from uavcore.state import TrajectorySetpoint, VehicleState
 
 DT = 0.02  # the outer-loop period
-REL = mi.FRAME_GLOBAL_RELATIVE_ALT_INT
+REL = MavFrame.GLOBAL_RELATIVE_ALT_INT
 HOME = (38.9210, 121.6630, 0.0)
 CONFIG = dict(
     cruise_speed=10.0,
@@ -117,17 +117,17 @@ def item(
     frame: int = REL,
     here: bool = False,
     **params: float,
-) -> mi.MissionItem:
+) -> MissionItem:
     """A mission item at local (north, east) metres from HOME, or with lat/lon 0,0 when `here`."""
     x = y = 0
     if not here:
         lat, lon, _ = LocalFrame(*HOME).from_ned(north, east, 0.0)
         x, y = round(lat * 1e7), round(lon * 1e7)
-    return mi.MissionItem(seq=seq, frame=frame, command=command, x=x, y=y, z=alt, **params)
+    return MissionItem(seq=seq, frame=frame, command=command, x=x, y=y, z=alt, **params)
 
 
-def renumber(items: list[mi.MissionItem]) -> list[mi.MissionItem]:
-    return [mi.MissionItem(**{**vars(it), "seq": i}) for i, it in enumerate(items)]
+def renumber(items: list[MissionItem]) -> list[MissionItem]:
+    return [MissionItem(**{**vars(it), "seq": i}) for i, it in enumerate(items)]
 
 
 def navigator(home=HOME, **overrides: float) -> Navigator:
@@ -141,7 +141,7 @@ def horizontal_speed(velocity: np.ndarray) -> np.ndarray:
 # ---- the 13-buoy reference mission -------------------------------------------------------------------------
 
 
-def reference_mission() -> tuple[list[mi.MissionItem], list[tuple[float, float]]]:
+def reference_mission() -> tuple[list[MissionItem], list[tuple[float, float]]]:
     """TAKEOFF, DO_CHANGE_SPEED 10, one WAYPOINT per buoy (dwell 1 s, acceptance 2 m, 5 m), RTL.
 
     The buoys of reference_scenario(1) are visited in nearest-neighbour order from the depot (the route
@@ -157,20 +157,27 @@ def reference_mission() -> tuple[list[mi.MissionItem], list[tuple[float, float]]
         left.remove(nearest)
         here = scenario.buoys_local[nearest]
     items = [
-        mi.MissionItem(0, REL, mi.NAV_TAKEOFF, z=5.0),
-        mi.MissionItem(1, mi.FRAME_MISSION, mi.DO_CHANGE_SPEED, param1=1.0, param2=10.0, param3=-1.0),
+        MissionItem(0, REL, MavCmd.NAV_TAKEOFF, z=5.0),
+        MissionItem(1, MavFrame.MISSION, MavCmd.DO_CHANGE_SPEED, param1=1.0, param2=10.0, param3=-1.0),
     ]
     north_east = []
     for k in order:
         lat, lon = scenario.buoys_lat_lon[k]
         items.append(
-            mi.MissionItem(
-                len(items), REL, mi.NAV_WAYPOINT, param1=1.0, param2=2.0, x=round(lat * 1e7), y=round(lon * 1e7), z=5.0
+            MissionItem(
+                len(items),
+                REL,
+                MavCmd.NAV_WAYPOINT,
+                param1=1.0,
+                param2=2.0,
+                x=round(lat * 1e7),
+                y=round(lon * 1e7),
+                z=5.0,
             )
         )
         east, north = scenario.buoys_local[k]
         north_east.append((float(north), float(east)))
-    items.append(mi.MissionItem(len(items), REL, mi.NAV_RETURN_TO_LAUNCH))
+    items.append(MissionItem(len(items), REL, MavCmd.NAV_RETURN_TO_LAUNCH))
     return items, north_east
 
 
@@ -329,13 +336,13 @@ def test_planned_path_visits_home_every_buoy_and_home() -> None:
 # ---- speed changes, acceptance -----------------------------------------------------------------------------
 
 
-def two_leg_mission(speed_change: float) -> list[mi.MissionItem]:
+def two_leg_mission(speed_change: float) -> list[MissionItem]:
     return renumber(
         [
-            item(0, mi.NAV_TAKEOFF, here=True, alt=5.0),
-            item(0, mi.NAV_WAYPOINT, 200.0, 0.0, param1=0.0),
-            item(0, mi.DO_CHANGE_SPEED, param1=1.0, param2=speed_change, frame=mi.FRAME_MISSION, here=True),
-            item(0, mi.NAV_WAYPOINT, 200.0, 200.0, param1=0.0),
+            item(0, MavCmd.NAV_TAKEOFF, here=True, alt=5.0),
+            item(0, MavCmd.NAV_WAYPOINT, 200.0, 0.0, param1=0.0),
+            item(0, MavCmd.DO_CHANGE_SPEED, param1=1.0, param2=speed_change, frame=MavFrame.MISSION, here=True),
+            item(0, MavCmd.NAV_WAYPOINT, 200.0, 200.0, param1=0.0),
         ]
     )
 
@@ -365,7 +372,7 @@ def test_do_change_speed_minus_one_or_nan_keeps_the_speed(no_change: float) -> N
 
 def hover_then_waypoint(radius: float = 2.0) -> tuple[Navigator, VehicleState]:
     nav = navigator()
-    nav.set_mission([item(0, mi.NAV_WAYPOINT, 60.0, 0.0, param1=0.0, param2=radius)])
+    nav.set_mission([item(0, MavCmd.NAV_WAYPOINT, 60.0, 0.0, param1=0.0, param2=radius)])
     state = state_at((0.0, 0.0, -5.0))
     nav.start_mission(0.0, state)
     return nav, state
@@ -476,9 +483,9 @@ def test_nav_land_descends_at_land_speed_at_its_position_and_completes() -> None
     nav.set_mission(
         renumber(
             [
-                item(0, mi.NAV_TAKEOFF, here=True),
-                item(0, mi.NAV_WAYPOINT, 30.0, 0.0, param1=0.0),
-                item(0, mi.NAV_LAND, 30.0, 40.0, alt=0.0),
+                item(0, MavCmd.NAV_TAKEOFF, here=True),
+                item(0, MavCmd.NAV_WAYPOINT, 30.0, 0.0, param1=0.0),
+                item(0, MavCmd.NAV_LAND, 30.0, 40.0, alt=0.0),
             ]
         )
     )
@@ -497,7 +504,12 @@ def test_nav_land_descends_at_land_speed_at_its_position_and_completes() -> None
 def test_land_item_without_position_lands_here() -> None:
     nav = navigator()
     nav.set_mission(
-        renumber([item(0, mi.NAV_WAYPOINT, 20.0, 20.0, alt=4.0, param1=0.0), item(0, mi.NAV_LAND, here=True, alt=0.0)])
+        renumber(
+            [
+                item(0, MavCmd.NAV_WAYPOINT, 20.0, 20.0, alt=4.0, param1=0.0),
+                item(0, MavCmd.NAV_LAND, here=True, alt=0.0),
+            ]
+        )
     )
     state = state_at((0.0, 0.0, -4.0))
     nav.start_mission(0.0, state)
@@ -523,7 +535,9 @@ def test_start_land_brakes_then_descends_here() -> None:
 
 def test_mission_without_landing_holds_at_the_last_waypoint() -> None:
     nav = navigator()
-    nav.set_mission(renumber([item(0, mi.NAV_TAKEOFF, here=True), item(0, mi.NAV_WAYPOINT, 0.0, 50.0, param1=2.0)]))
+    nav.set_mission(
+        renumber([item(0, MavCmd.NAV_TAKEOFF, here=True), item(0, MavCmd.NAV_WAYPOINT, 0.0, 50.0, param1=2.0)])
+    )
     state = state_at((0.0, 0.0, 0.0))
     nav.start_mission(0.0, state)
     flight, t, state = fly(nav, 0.0, state, 100.0, until=lambda n: n.mission_state == "complete")
@@ -552,7 +566,7 @@ def test_takeoff_climbs_vertically_then_holds() -> None:
 
 def test_takeoff_item_with_a_position_climbs_first_then_flies_there() -> None:
     nav = navigator()
-    nav.set_mission([item(0, mi.NAV_TAKEOFF, 40.0, 0.0, alt=6.0)])
+    nav.set_mission([item(0, MavCmd.NAV_TAKEOFF, 40.0, 0.0, alt=6.0)])
     state = state_at((0.0, 0.0, 0.0))
     nav.start_mission(0.0, state)
     flight, _, _ = fly(nav, 0.0, state, 60.0, until=lambda n: n.mission_state == "complete")
@@ -565,7 +579,7 @@ def test_takeoff_item_with_a_position_climbs_first_then_flies_there() -> None:
 
 def test_waypoint_yaw_parameter_sets_the_heading_in_degrees() -> None:
     nav = navigator()
-    nav.set_mission([item(0, mi.NAV_WAYPOINT, 30.0, 0.0, param1=0.0, param4=90.0)])
+    nav.set_mission([item(0, MavCmd.NAV_WAYPOINT, 30.0, 0.0, param1=0.0, param4=90.0)])
     state = state_at((0.0, 0.0, -5.0))
     nav.start_mission(0.0, state)
     flight, _, _ = fly(nav, 0.0, state, 30.0)
@@ -582,12 +596,12 @@ def test_yaw_wraps_across_plus_minus_pi_the_short_way() -> None:
             [
                 item(
                     0,
-                    mi.NAV_WAYPOINT,
+                    MavCmd.NAV_WAYPOINT,
                     -30.0 * math.cos(math.radians(20)),
                     -30.0 * math.sin(math.radians(20)),
                     param1=0.0,
                 ),
-                item(0, mi.NAV_WAYPOINT, -60.0 * math.cos(math.radians(20)), 0.0, param1=0.0),
+                item(0, MavCmd.NAV_WAYPOINT, -60.0 * math.cos(math.radians(20)), 0.0, param1=0.0),
             ]
         )
     )
@@ -608,12 +622,12 @@ def test_amsl_frames_subtract_home_altitude() -> None:
     lat, lon, _ = frame.from_ned(50.0, -30.0, 0.0)
     x, y = round(lat * 1e7), round(lon * 1e7)
     north, east, _ = frame.to_ned(x * 1e-7, y * 1e-7, home[2])
-    for amsl_frame in (mi.FRAME_GLOBAL, mi.FRAME_GLOBAL_INT):
+    for amsl_frame in (MavFrame.GLOBAL, MavFrame.GLOBAL_INT):
         nav = navigator(home=home)
-        nav.set_mission([mi.MissionItem(0, amsl_frame, mi.NAV_WAYPOINT, param1=0.0, x=x, y=y, z=25.0)])
+        nav.set_mission([MissionItem(0, amsl_frame, MavCmd.NAV_WAYPOINT, param1=0.0, x=x, y=y, z=25.0)])
         assert nav.planned_path()[-1] == pytest.approx((north, east, -5.0), abs=1e-9)
         relative = navigator(home=home)
-        relative.set_mission([mi.MissionItem(0, REL, mi.NAV_WAYPOINT, param1=0.0, x=x, y=y, z=5.0)])
+        relative.set_mission([MissionItem(0, REL, MavCmd.NAV_WAYPOINT, param1=0.0, x=x, y=y, z=5.0)])
         assert relative.planned_path()[-1] == pytest.approx(nav.planned_path()[-1], abs=1e-9)
         state = state_at((50.0, -30.0, -20.0))
         nav.start_mission(0.0, state)
@@ -656,7 +670,7 @@ def test_resume_from_a_mid_mission_seq_keeps_earlier_speed_changes() -> None:
 
 def test_mission_from_the_ground_at_a_waypoint_climbs_before_the_leg() -> None:
     nav = navigator()
-    nav.set_mission([item(0, mi.NAV_WAYPOINT, 40.0, 0.0, param1=0.0)])
+    nav.set_mission([item(0, MavCmd.NAV_WAYPOINT, 40.0, 0.0, param1=0.0)])
     state = state_at((0.0, 0.0, 0.0))
     nav.start_mission(0.0, state)
     flight, _, _ = fly(nav, 0.0, state, 60.0, until=lambda n: n.mission_state == "complete")
@@ -690,7 +704,7 @@ def test_bad_requests_raise_navigation_errors() -> None:
     with pytest.raises(NavigationError, match="altitude"):
         nav.start_takeoff(0.0, state, -3.0)
     with pytest.raises(NavigationError, match="frame 7"):
-        nav.set_mission([mi.MissionItem(0, 7, mi.NAV_WAYPOINT, x=1, y=1, z=5.0)])
+        nav.set_mission([MissionItem(0, 7, MavCmd.NAV_WAYPOINT, x=1, y=1, z=5.0)])
 
 
 def test_mission_state_and_current_item_bookkeeping() -> None:
@@ -707,7 +721,12 @@ def test_mission_state_and_current_item_bookkeeping() -> None:
 def test_loiter_time_holds_at_its_position_for_its_time() -> None:
     nav = navigator()
     nav.set_mission(
-        renumber([item(0, mi.NAV_LOITER_TIME, 0.0, 30.0, param1=3.0), item(0, mi.NAV_WAYPOINT, 0.0, 60.0, param1=0.0)])
+        renumber(
+            [
+                item(0, MavCmd.NAV_LOITER_TIME, 0.0, 30.0, param1=3.0),
+                item(0, MavCmd.NAV_WAYPOINT, 0.0, 60.0, param1=0.0),
+            ]
+        )
     )
     state = state_at((0.0, 0.0, -5.0))
     nav.start_mission(0.0, state)
@@ -733,7 +752,7 @@ def test_hold_at_a_given_point_and_yaw() -> None:
 
 def test_a_completed_mission_starts_again_from_the_first_item() -> None:
     nav = navigator()
-    nav.set_mission([item(0, mi.NAV_WAYPOINT, 10.0, 0.0, param1=0.0)])
+    nav.set_mission([item(0, MavCmd.NAV_WAYPOINT, 10.0, 0.0, param1=0.0)])
     state = state_at((0.0, 0.0, -5.0))
     nav.start_mission(0.0, state)
     _, t, state = fly(nav, 0.0, state, 30.0, until=lambda n: n.mission_state == "complete")

@@ -13,8 +13,8 @@ import pytest
 from sitl_process import REPO, GroundStation, free_udp_port
 from test_sitl_vehicle import FRAME
 
-from sitl_quad.mavlink import mavlink
-from sitl_quad.rotation import quat_from_euler
+from uavcore.mavlink import mavlink
+from uavcore.rotation import quat_from_euler
 
 pytestmark = pytest.mark.integration
 

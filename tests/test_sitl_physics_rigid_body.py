@@ -8,14 +8,14 @@ import math
 import numpy as np
 import pytest
 
-from sitl_quad.airframe import Airframe, ModelParameterError
 from sitl_quad.disturbances import DisturbanceConfig
 from sitl_quad.rigid_body import derivative
-from sitl_quad.rotation import euler_from_quat, quat_from_euler
 from sitl_quad.sensors import SensorNoise
 from sitl_quad.simulator import Simulator
-from sitl_quad.state import VehicleState
 from sitl_quad.wind import WindConfig
+from uavcore.airframe import Airframe, ModelParameterError
+from uavcore.rotation import euler_from_quat, quat_from_euler
+from uavcore.state import VehicleState
 
 AIRFRAME = Airframe.table2()
 NO_DRAG = AIRFRAME.replace(drag_linear_xy=0.0, drag_quadratic_xy=0.0, drag_linear_z=0.0, drag_quadratic_z=0.0)

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from sitl_quad.airframe import ModelParameterError
-from sitl_quad.rotation import quat_conjugate, quat_from_euler, quat_multiply
 from sitl_quad.sensors import SensorNoise, Sensors
-from sitl_quad.state import VehicleState
+from uavcore.airframe import ModelParameterError
+from uavcore.rotation import quat_conjugate, quat_from_euler, quat_multiply
+from uavcore.state import VehicleState
 
 TRUTH = VehicleState(
     t=1.0,

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from sitl_quad.airframe import Airframe, ModelParameterError
 from sitl_quad.disturbances import DisturbanceConfig, GaussianDisturbance
 from sitl_quad.simulator import Simulator
 from sitl_quad.wind import FEET, WindConfig, WindModel
+from uavcore.airframe import Airframe, ModelParameterError
 
 AIRFRAME = Airframe.table2()
 

@@ -25,8 +25,8 @@ from sitl_process import (
 )
 from udp_relay import LossyUdpRelay
 
-from planner.scenario import DEFAULT_HOME
-from sitl_quad.modes import FlightMode
+from uavcore.geodesy import DEFAULT_HOME
+from uavcore.modes import FlightMode
 
 pytestmark = [pytest.mark.integration, pytest.mark.timeout(60)]
 
@@ -394,7 +394,7 @@ def test_fence_and_rally_are_answered_never_silent(gcs, mission_type):
 
 def longer_mission(n_waypoints: int = 8) -> list:
     """Takeoff, n waypoints on a 20 m grid, RTL: enough items for a lossy link to lose some."""
-    from planner.geodesy import LocalFrame
+    from uavcore.geodesy import LocalFrame
 
     frame = LocalFrame(*DEFAULT_HOME)
     items = [mission_item(0, mavlink.MAV_CMD_NAV_TAKEOFF, DEFAULT_HOME[0], DEFAULT_HOME[1], 5.0)]

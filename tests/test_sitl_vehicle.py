@@ -7,18 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from planner.geodesy import LocalFrame
 from sitl_quad.config import FailsafeAction, FailsafeConfig, VehicleConfig
-from sitl_quad.mission_items import (
-    FRAME_GLOBAL_RELATIVE_ALT_INT,
-    FRAME_MISSION,
-    NAV_LAND,
-    NAV_TAKEOFF,
-    NAV_WAYPOINT,
-    MissionItem,
-)
-from sitl_quad.modes import FlightMode
 from sitl_quad.vehicle import PREFLIGHT_DISARM_S, CommandResult, LandedState, Vehicle
+from uavcore.geodesy import LocalFrame
+from uavcore.mission import MavCmd, MavFrame, MissionItem
+from uavcore.modes import FlightMode
 
 HOME = (38.9210, 121.6630, 0.0)
 FRAME = LocalFrame(*HOME)
@@ -28,7 +21,7 @@ def item(seq: int, command: int, north: float = 0.0, east: float = 0.0, alt: flo
     lat, lon, _ = FRAME.from_ned(north, east, 0.0)
     return MissionItem(
         seq=seq,
-        frame=FRAME_GLOBAL_RELATIVE_ALT_INT,
+        frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
         command=command,
         current=int(seq == 0),
         x=round(float(lat) * 1e7),
@@ -40,9 +33,9 @@ def item(seq: int, command: int, north: float = 0.0, east: float = 0.0, alt: flo
 
 def short_mission() -> list[MissionItem]:
     return [
-        item(0, NAV_TAKEOFF, 0, 0),
-        item(1, NAV_WAYPOINT, 20.0, 10.0, param1=0.5, param2=1.0),
-        item(2, NAV_LAND, 20.0, 10.0, alt=0.0),
+        item(0, MavCmd.NAV_TAKEOFF, 0, 0),
+        item(1, MavCmd.NAV_WAYPOINT, 20.0, 10.0, param1=0.5, param2=1.0),
+        item(2, MavCmd.NAV_LAND, 20.0, 10.0, alt=0.0),
     ]
 
 
@@ -181,7 +174,7 @@ def test_same_seed_same_flight():
 
 
 def test_mission_frame_item_without_position_is_not_a_place():
-    rtl = MissionItem(seq=0, frame=FRAME_MISSION, command=20)
+    rtl = MissionItem(seq=0, frame=MavFrame.MISSION, command=20)
     assert not rtl.has_position
 
 
@@ -204,7 +197,7 @@ def test_change_speed_sets_the_cruise_speed_of_later_legs(vehicle):
     assert vehicle.change_speed(4.0) == CommandResult.ACCEPTED
     assert vehicle.change_speed(-1.0) == CommandResult.DENIED
     assert vehicle.change_speed(float("nan")) == CommandResult.DENIED
-    vehicle.set_mission([item(0, NAV_TAKEOFF), item(1, NAV_WAYPOINT, 80.0, 0.0, param1=0.0, param2=1.0)])
+    vehicle.set_mission([item(0, MavCmd.NAV_TAKEOFF), item(1, MavCmd.NAV_WAYPOINT, 80.0, 0.0, param1=0.0, param2=1.0)])
     vehicle.arm()
     vehicle.start_mission()
     fastest = 0.0

@@ -16,7 +16,7 @@ from gcs.routes.deps import get_service
 from gcs.schemas import MissionOut, MissionRequest, MissionSummary, TelemetrySample
 from gcs.security import require_token
 from gcs.views import mission_out, mission_summary
-from sitl_quad.mission_items import MissionItem
+from uavcore.mission import MissionItem
 
 router = APIRouter(tags=["missions"])
 Service = Annotated[MissionService, Depends(get_service)]

@@ -10,9 +10,9 @@ import logging
 import math
 from collections.abc import Callable
 
-from sitl_quad.mavlink import mavlink
-from sitl_quad.modes import FlightMode
 from sitl_quad.vehicle import FORCE_DISARM_MAGIC, CommandResult, Vehicle
+from uavcore.mavlink import mavlink
+from uavcore.modes import FlightMode
 
 log = logging.getLogger(__name__)
 

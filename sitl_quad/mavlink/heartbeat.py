@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from sitl_quad.mavlink import mavlink
 from sitl_quad.vehicle import Vehicle
+from uavcore.mavlink import mavlink
 
 HEARTBEAT_PERIOD_S = 1.0
 

@@ -14,8 +14,7 @@ import socket
 import time
 from dataclasses import dataclass, field
 
-from sitl_quad.mavlink import mavlink
-from sitl_quad.mavlink.codec import Encoder, new_parser, parse_datagram
+from uavcore.mavlink import Encoder, mavlink, new_parser, parse_datagram
 
 log = logging.getLogger(__name__)
 

@@ -16,10 +16,9 @@ import math
 import time
 from dataclasses import dataclass, field
 
-from sitl_quad.mavlink import mavlink
-from sitl_quad.mavlink.codec import item_message
-from sitl_quad.mission_items import FRAME_MISSION, SUPPORTED_COMMANDS, SUPPORTED_FRAMES, MissionItem
 from sitl_quad.vehicle import Vehicle
+from uavcore.mavlink import item_from_message, item_message, mavlink
+from uavcore.mission import MavCmd, MavFrame, MissionItem
 
 log = logging.getLogger(__name__)
 
@@ -45,12 +44,12 @@ def validate_item(item: MissionItem, expected_seq: int) -> int:
     """MAV_MISSION_RESULT for one item: ACCEPTED or the first reason it cannot be flown."""
     if item.seq != expected_seq:
         return mavlink.MAV_MISSION_INVALID_SEQUENCE
-    if item.command not in SUPPORTED_COMMANDS:
+    if item.command not in frozenset(MavCmd):
         return mavlink.MAV_MISSION_UNSUPPORTED
-    if item.frame not in SUPPORTED_FRAMES:
+    if item.frame not in frozenset(MavFrame):
         return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
     positional = item.command != mavlink.MAV_CMD_DO_CHANGE_SPEED
-    if positional and item.frame == FRAME_MISSION and item.command != mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+    if positional and item.frame == MavFrame.MISSION and item.command != mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH:
         return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
     if positional:
         if not -900_000_000 <= item.x <= 900_000_000:
@@ -67,31 +66,6 @@ def validate_item(item: MissionItem, expected_seq: int) -> int:
     if item.command == mavlink.MAV_CMD_DO_CHANGE_SPEED and math.isfinite(item.param2) and item.param2 > 50:
         return mavlink.MAV_MISSION_INVALID_PARAM2
     return mavlink.MAV_MISSION_ACCEPTED
-
-
-def item_from_message(msg) -> MissionItem:
-    """MISSION_ITEM_INT verbatim, or a legacy float MISSION_ITEM converted to the _INT form."""
-    if msg.get_type() == "MISSION_ITEM_INT":
-        x, y, frame = msg.x, msg.y, msg.frame
-    else:
-        x = round(msg.x * 1e7) if math.isfinite(msg.x) else 2**31 - 1
-        y = round(msg.y * 1e7) if math.isfinite(msg.y) else 2**31 - 1
-        frame = msg.frame
-    return MissionItem(
-        seq=msg.seq,
-        frame=frame,
-        command=msg.command,
-        current=msg.current,
-        autocontinue=msg.autocontinue,
-        param1=msg.param1,
-        param2=msg.param2,
-        param3=msg.param3,
-        param4=msg.param4,
-        x=x,
-        y=y,
-        z=msg.z,
-        mission_type=getattr(msg, "mission_type", MISSION),
-    )
 
 
 class MissionProtocol:

@@ -12,9 +12,9 @@ import time
 
 import numpy as np
 
-from sitl_quad.mavlink import mavlink
-from sitl_quad.state import AttitudeTarget
 from sitl_quad.vehicle import Vehicle
+from uavcore.mavlink import mavlink
+from uavcore.state import AttitudeTarget
 
 # No setpoint this long (wall clock): lockstep stops waiting for the peer. Generous, because a loaded machine
 # can stall a process for a second, and a lockstep tick taken without the answer breaks repeatability.

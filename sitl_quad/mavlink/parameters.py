@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import logging
 
-from sitl_quad.mavlink import mavlink
 from sitl_quad.params import ParameterError, ParameterTable, decode_value, encode_value
+from uavcore.mavlink import mavlink
 
 log = logging.getLogger(__name__)
 LIST_BURST = 25  # PARAM_VALUEs sent per loop pass while streaming the list: gentle on slow links

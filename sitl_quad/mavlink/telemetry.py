@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import math
 
-from sitl_quad.mavlink import mavlink
 from sitl_quad.mavlink.heartbeat import heartbeat_message
-from sitl_quad.modes import FlightMode
-from sitl_quad.rotation import euler_from_quat
 from sitl_quad.vehicle import CommandResult, Vehicle
+from uavcore.mavlink import mavlink
+from uavcore.modes import FlightMode
+from uavcore.rotation import euler_from_quat
 
 # MAV_PROTOCOL_CAPABILITY bits MAVSDK and QGC look for (mavlink-conformance.md)
 CAPABILITIES = (

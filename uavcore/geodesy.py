@@ -14,17 +14,22 @@ from dataclasses import dataclass
 import numpy as np
 import pymap3d
 
-from planner.errors import InputError
+# Default home: the depot, on a pier in the approaches to Dalian harbour (the paper's authors' port).
+DEFAULT_HOME = (38.9210, 121.6630, 0.0)  # lat deg, lon deg, alt m AMSL
+
+
+class CoordinateError(ValueError):
+    """A latitude/longitude that is not a place on the ellipsoid (the message names the point)."""
 
 
 def check_lat_lon(lat: float, lon: float, where: str = "point") -> None:
-    """Raise InputError unless lat/lon are finite and in range."""
+    """Raise CoordinateError unless lat/lon are finite and in range."""
     if not (math.isfinite(lat) and math.isfinite(lon)):
-        raise InputError(f"{where}: latitude and longitude must be finite numbers, got ({lat}, {lon})")
+        raise CoordinateError(f"{where}: latitude and longitude must be finite numbers, got ({lat}, {lon})")
     if not -90.0 <= lat <= 90.0:
-        raise InputError(f"{where}: latitude {lat} is outside [-90, 90]")
+        raise CoordinateError(f"{where}: latitude {lat} is outside [-90, 90]")
     if not -180.0 <= lon <= 180.0:
-        raise InputError(f"{where}: longitude {lon} is outside [-180, 180]")
+        raise CoordinateError(f"{where}: longitude {lon} is outside [-180, 180]")
 
 
 @dataclass(frozen=True)

@@ -30,16 +30,14 @@ from collections.abc import Callable
 from types import SimpleNamespace
 
 from adrc_offboard.node import OffboardProtocol
-from adrc_offboard.outer_loop import OuterLoopController
-from sitl_quad.mavlink import mavlink
-from sitl_quad.mavlink.codec import item_message
 from sitl_quad.mavlink.commands import Commands
 from sitl_quad.mavlink.heartbeat import heartbeat_message
-from sitl_quad.mavlink.mission import item_from_message
 from sitl_quad.mavlink.offboard import Offboard
 from sitl_quad.mavlink.telemetry import ONBOARD_STREAMS, Telemetry
-from sitl_quad.mission_items import MissionItem
 from sitl_quad.vehicle import CommandResult, TickRecord, Vehicle
+from uavcore.control import OuterLoopController
+from uavcore.mavlink import item_from_message, item_message, mavlink
+from uavcore.mission import MissionItem
 
 VEHICLE_IDS = (1, 1)
 OFFBOARD_IDS = (1, 191)  # MAV_COMP_ID_ONBOARD_COMPUTER, as adrc_offboard

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from sitl_quad.state import AttitudeTarget
+from uavcore.state import AttitudeTarget
 
 
 def quat_from_euler(roll: float, pitch: float, yaw: float) -> np.ndarray:

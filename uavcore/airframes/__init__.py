@@ -1,0 +1,1 @@
+"""Airframe parameter files (JSON) shipped with the package; loaded by uavcore.airframe."""
