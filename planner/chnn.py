@@ -100,7 +100,6 @@ VALID_TOURS = CHNNParameters(
     adaptive_step=True,
     dt_max=0.3,
 )
-PRESETS = {p.name: p for p in (VALID_TOURS, HOPFIELD_TANK)}
 
 
 @dataclass
