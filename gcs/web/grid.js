@@ -18,7 +18,9 @@ export function metricGridLayer(L, origin, spacing = 100) {
       const nw = map.unproject(nwPixel, coords.z);
       const se = map.unproject(nwPixel.add(size), coords.z);
       const metresPerPixel = ((nw.lat - se.lat) * METRES_PER_DEGREE_LAT) / size.y;
-      const step = metresPerPixel * 8 > spacing ? spacing * Math.pow(10, Math.ceil(Math.log10((metresPerPixel * 8) / spacing))) : spacing;
+      // zoomed out, lines at least 8 px apart: the spacing times the next power of ten that achieves it
+      const minStep = metresPerPixel * 8;
+      const step = minStep > spacing ? spacing * Math.pow(10, Math.ceil(Math.log10(minStep / spacing))) : spacing;
       const toPixel = (lat, lon) => map.project(L.latLng(lat, lon), coords.z).subtract(nwPixel);
       ctx.lineWidth = 1;
       const northFrom = Math.floor(((se.lat - origin.lat) * METRES_PER_DEGREE_LAT) / step);

@@ -1,0 +1,98 @@
+// The one place the page talks to the gcs service: every REST call, the file links and the /ws live stream.
+// Errors come back as ApiError whose message is plain text (the page shows it with textContent).
+
+export class ApiError extends Error {}
+
+// FastAPI answers errors as {detail: "text"} or, for validation, {detail: [{loc, msg}, ...]}.
+function errorMessage(response, data, text) {
+  const detail = data && data.detail;
+  if (Array.isArray(detail)) return detail.map((e) => `${e.loc.slice(1).join(".")}: ${e.msg}`).join("\n");
+  if (typeof detail === "string") return detail;
+  return text || response.statusText;
+}
+
+function parseJson(text) {
+  try {
+    return JSON.parse(text);
+  } catch {
+    return null; // e.g. a proxy's plain-text error page
+  }
+}
+
+export class GcsApi {
+  // token: () => the bearer token typed into the page ("" when the service needs none)
+  constructor(token) {
+    this.token = token;
+  }
+
+  async request(method, path, body, contentType = "application/json") {
+    const headers = {};
+    const token = this.token();
+    if (token) headers.Authorization = `Bearer ${token}`;
+    if (body !== undefined) headers["Content-Type"] = contentType;
+    const payload = body === undefined || contentType !== "application/json" ? body : JSON.stringify(body);
+    let response;
+    try {
+      response = await fetch(path, { method, headers, body: payload });
+    } catch (error) {
+      throw new ApiError(`the service is unreachable (${error.message})`); // fetch rejects only on network errors
+    }
+    const text = await response.text();
+    const data = text ? parseJson(text) : null;
+    if (!response.ok) throw new ApiError(`${response.status}: ${errorMessage(response, data, text)}`);
+    return data;
+  }
+
+  openApi() {
+    return this.request("GET", "/openapi.json");
+  }
+
+  vehicle() {
+    return this.request("GET", "/vehicle");
+  }
+
+  plan(flightRequest) {
+    return this.request("POST", "/plans", flightRequest);
+  }
+
+  createMission(flightRequest) {
+    return this.request("POST", "/missions", { ...flightRequest, start: true });
+  }
+
+  mission(id) {
+    return this.request("GET", `/missions/${encodeURIComponent(id)}`);
+  }
+
+  abortMission(id) {
+    return this.request("POST", `/missions/${encodeURIComponent(id)}/abort`);
+  }
+
+  missions(limit = 50) {
+    return this.request("GET", `/missions?limit=${limit}`);
+  }
+
+  telemetry(id) {
+    return this.request("GET", `/missions/${encodeURIComponent(id)}/telemetry`);
+  }
+
+  // file: a File from <input type=file>, GeoJSON or CSV (told apart by its name, as the service does)
+  async importBuoys(file) {
+    const type = file.name.toLowerCase().endsWith(".csv") ? "text/csv" : "application/geo+json";
+    return this.request("POST", `/imports?filename=${encodeURIComponent(file.name)}`, await file.text(), type);
+  }
+
+  // name: track.geojson, plan, waypoints or report
+  missionFileUrl(id, name) {
+    return `/missions/${encodeURIComponent(id)}/${name}`;
+  }
+
+  // Calls onMessage with every decoded /ws message; reconnects a second after the stream closes.
+  openLiveStream(onMessage) {
+    const connect = () => {
+      const ws = new WebSocket(`${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/ws`);
+      ws.onmessage = (event) => onMessage(JSON.parse(event.data));
+      ws.onclose = () => setTimeout(connect, 1000);
+    };
+    connect();
+  }
+}
