@@ -20,6 +20,7 @@ run: $(STAMP)
 test: $(STAMP) chromium
 	$(BIN)/python -m ruff check .
 	$(BIN)/python -m ruff format --check .
+	$(BIN)/lint-imports
 	$(BIN)/python -m pytest -n 2
 
 # The browser tests drive Debian's Chromium (Playwright's own browser download does not work here).
@@ -29,6 +30,7 @@ chromium:
 lint: $(STAMP)
 	$(BIN)/python -m ruff check .
 	$(BIN)/python -m ruff format --check .
+	$(BIN)/lint-imports
 
 bench: $(STAMP)
 	$(BIN)/python -m bench.planner_bench
