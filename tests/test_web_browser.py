@@ -5,6 +5,7 @@ Place four buoys by clicking the map, plan (the route and its length appear), fl
 Screenshots go to test-artifacts/.
 """
 
+import json
 import socket
 import subprocess
 import sys
@@ -28,6 +29,18 @@ ARGS = [
     "--no-first-run",
 ]
 ARTIFACTS = Path(__file__).resolve().parent.parent / "test-artifacts"
+HOSTILE = "<img src=x onerror=window.injected=1>"
+STATUS_PROBE = """async () => {
+    const { MissionStatus } = await import("/web/status.js");
+    let unknown = null;
+    try { MissionStatus.no_such_status; } catch (error) { unknown = error.message; }
+    return { flying: MissionStatus.flying, unknown };
+}"""
+
+
+def csv_file(text: str) -> dict:
+    """A file for <input type=file> (Playwright's set_input_files payload)."""
+    return {"name": "buoys.csv", "mimeType": "text/csv", "buffer": text.encode()}
 
 
 def free_port(kind: int) -> int:
@@ -97,6 +110,9 @@ def test_place_plan_and_fly_in_the_browser(stack):
         page.on("pageerror", lambda error: errors.append(str(error)))
         page.goto(stack)
         expect(page.get_by_test_id("link-status")).to_contain_text("disarmed", timeout=10_000)
+        # the mission states come from the service's OpenAPI enum; a name it does not define throws
+        statuses = page.evaluate(STATUS_PROBE)
+        assert statuses == {"flying": "flying", "unknown": "unknown MissionStatus.no_such_status"}
 
         box = page.locator("#map").bounding_box()
         centre_x, centre_y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
@@ -121,6 +137,7 @@ def test_place_plan_and_fly_in_the_browser(stack):
         # the flown track (solid polyline) lies over the route, the history lists the mission with its files
         assert page.locator(".leaflet-overlay-pane path:not([stroke-dasharray])").count() >= 1
         expect(page.locator(".buoy-icon.visited")).to_have_count(4)
+        expect(page.locator("#figures")).to_contain_text("buoys reached 4 / 4")
         expect(page.locator("#history-rows tr")).to_have_count(1, timeout=5_000)
         expect(page.locator("#history-rows")).to_contain_text("completed")
         expect(page.locator("#history-rows a", has_text=".waypoints")).to_have_count(1)
@@ -129,5 +146,16 @@ def test_place_plan_and_fly_in_the_browser(stack):
         page.set_viewport_size({"width": 390, "height": 844})  # a phone: the panel stacks over the map
         page.screenshot(path=str(ARTIFACTS / "web_narrow.png"), full_page=True)
         assert page.locator("#map").bounding_box()["width"] <= 390
+
+        # text from a file (a buoy's name, the service's error quoting it) is shown as text, never as markup
+        with urllib.request.urlopen(f"{stack}/vehicle", timeout=5) as answer:
+            depot = json.load(answer)["depot"]
+        lat, lon = depot["lat"], depot["lon"]
+        page.locator("#import").set_input_files(csv_file(f"lat,lon,id\n{lat},{lon},{HOSTILE}\n"))
+        expect(page.get_by_title(HOSTILE)).to_have_count(1)
+        page.locator("#import").set_input_files(csv_file(f"lat,lon\n{HOSTILE},{lon}\n"))
+        expect(page.locator("#message")).to_contain_text(HOSTILE)
+        assert page.locator("#panel img, .leaflet-marker-pane img").count() == 0
+        assert page.evaluate("window.injected") is None
         browser.close()
     assert errors == []
