@@ -11,10 +11,10 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import FileResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
-from gcs.imports import BuoyFileError
+from gcs.buoy_files import BuoyFileError
 from gcs.link import LinkManager
 from gcs.missions import MissionConflictError, MissionNotFoundError, MissionService
-from gcs.routes import imports, live, missions, plans, vehicle
+from gcs.routes import buoy_files, live, missions, plans, vehicle
 from gcs.settings import Settings
 from gcs.storage import Storage
 from gcs.validation import RequestInvalidError
@@ -84,7 +84,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     _install_error_handlers(app)
-    for module in (plans, missions, imports, vehicle, live):
+    for module in (plans, missions, buoy_files, vehicle, live):
         app.include_router(module.router)
 
     index = settings.web_dir / "index.html"

@@ -10,7 +10,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from gcs.imports import BuoyFileError, buoys_from_geojson
+from gcs.buoy_files import BuoyFileError, buoys_from_geojson
 
 MAX_BUOYS = 500
 MissionStatus = Literal["planned", "uploading", "uploaded", "flying", "completed", "aborted", "failed"]

@@ -185,17 +185,6 @@ class Storage:
             ).fetchall()
         return [int(row["id"]) for row in rows]
 
-    def fail_unfinished(self, reason: str) -> list[int]:
-        """Missions left mid-flight by a previous run of the service end as failed (never stuck 'flying')."""
-        with self._lock:
-            rows = self._db.execute(
-                f"SELECT id FROM missions WHERE status IN ({', '.join('?' * len(UNFINISHED))})", UNFINISHED
-            ).fetchall()
-        ids = [int(row["id"]) for row in rows]
-        for mission_id in ids:
-            self.set_status(mission_id, "failed", reason)
-        return ids
-
     def _record(self, row: sqlite3.Row, events: list[dict[str, Any]]) -> MissionRecord:
         return MissionRecord(
             id=int(row["id"]),

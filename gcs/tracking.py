@@ -58,12 +58,8 @@ def _leg_errors(route: np.ndarray, track: Sequence[TrackPoint]) -> list[np.ndarr
     return errors
 
 
-def leg_figures(route: np.ndarray, track: Sequence[TrackPoint]) -> list[dict]:
-    """RMS and max cross-track error per leg, over the airborne samples flying that leg."""
-    return [_leg_summary(leg, e) for leg, e in enumerate(_leg_errors(route, track))]
-
-
 def _leg_summary(leg: int, errors: np.ndarray) -> dict:
+    """RMS and max cross-track error of one leg, over the airborne samples flying that leg."""
     return {"leg": leg, "samples": len(errors), "rms_cross_track_m": _rms(errors), "max_cross_track_m": _max(errors)}
 
 

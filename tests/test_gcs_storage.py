@@ -85,15 +85,16 @@ def test_invalid_status_is_refused_by_the_schema(tmp_path):
     assert record.status == "planned" and len(record.events) == 1
 
 
-def test_unfinished_missions_fail_at_start_up(tmp_path):
+def test_unfinished_missions_are_the_ones_left_mid_flight_oldest_first(tmp_path):
     storage = Storage(tmp_path / "gcs.sqlite")
     flying = storage.create_mission(FLIGHT, PLAN)
     storage.set_status(flying, "flying")
     done = storage.create_mission(FLIGHT, PLAN)
     storage.set_status(done, "completed")
-    assert storage.fail_unfinished("service restarted") == [flying]
-    assert storage.get_mission(flying).reason == "service restarted"
-    assert storage.get_mission(done).status == "completed"
+    uploading = storage.create_mission(FLIGHT, PLAN)
+    storage.set_status(uploading, "uploading")
+    storage.create_mission(FLIGHT, PLAN)  # planned: never started, so not unfinished
+    assert storage.unfinished_missions() == [flying, uploading]
 
 
 def test_database_from_a_newer_service_is_refused(tmp_path):

@@ -19,7 +19,7 @@ def test_distance_to_segment_perpendicular_and_beyond_ends():
 def test_leg_rms_and_max_of_a_constant_offset_and_a_mixed_leg():
     out = [TrackPoint(t, float(t), 2.0, True, 0) for t in range(0, 100, 10)]  # 2 m north of leg 0
     back = [TrackPoint(100 + t, 100.0 - t, s, True, 1) for t, s in ((10, 3.0), (20, -4.0))]
-    legs = tracking.leg_figures(ROUTE, out + back)
+    legs = tracking.tracking_figures(ROUTE, 200.0, out + back)["legs"]
     assert legs[0]["samples"] == 10
     assert legs[0]["rms_cross_track_m"] == pytest.approx(2.0)
     assert legs[0]["max_cross_track_m"] == pytest.approx(2.0)
@@ -29,7 +29,7 @@ def test_leg_rms_and_max_of_a_constant_offset_and_a_mixed_leg():
 
 def test_samples_on_the_ground_or_without_a_leg_are_not_counted():
     track = [TrackPoint(0, 0, 50.0, False, 0), TrackPoint(1, 0, 50.0, True, None), TrackPoint(2, 10, 1.0, True, 0)]
-    legs = tracking.leg_figures(ROUTE, track)
+    legs = tracking.tracking_figures(ROUTE, 200.0, track)["legs"]
     assert legs[0]["samples"] == 1 and legs[0]["max_cross_track_m"] == pytest.approx(1.0)
     assert legs[1]["samples"] == 0 and legs[1]["rms_cross_track_m"] is None
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Depends, Query, Request
 
-from gcs.imports import BuoyFileError, buoys_from_file
+from gcs.buoy_files import BuoyFileError, buoys_from_file
 from gcs.schemas import ImportOut
 from gcs.security import require_token
 
