@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from adrc_offboard.cli import build_parser
 from adrc_offboard.node import OffboardNode
-from sitl_quad.airframe import Airframe
+from uavcore.airframe import Airframe
 from uavcore.rotation import acceleration_to_attitude
 
 

@@ -26,7 +26,6 @@ from pathlib import Path
 
 import numpy as np
 
-from sitl_quad.airframe import Airframe
 from sitl_quad.attitude_pid import PidAttitudeController
 from sitl_quad.disturbances import DisturbanceConfig
 from sitl_quad.position_control import PidPositionController
@@ -34,6 +33,7 @@ from sitl_quad.rotors import Mixer
 from sitl_quad.sensors import SensorNoise
 from sitl_quad.simulator import Simulator
 from sitl_quad.wind import WindConfig
+from uavcore.airframe import Airframe
 from uavcore.rotation import euler_from_quat
 from uavcore.state import TrajectorySetpoint
 

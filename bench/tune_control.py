@@ -4,7 +4,7 @@
     .venv/bin/python -m bench.tune_control --write-gains    # also rewrite adrc_offboard/gains/outer_*.json
 
 Method (rerunnable, deterministic):
-1. Flight: a short, representative piece of the benchmark mission (bench/control.py): the reference route's
+1. Flight: a short, representative piece of the benchmark mission (bench/control/): the reference route's
    longest leg and the leg after it (with the turn between them), translated to start at home, flown at
    10 m/s and 5 m in the benchmark's air (5 m/s crosswind perpendicular to that leg, the 4 m/s 1-cosine gust
    halfway along it, Dryden sigma 1 m/s, D terms and sensor noise), ending with a landing at the last point.
@@ -40,9 +40,11 @@ import numpy as np
 from adrc_offboard.adrc import AdrcParameterError
 from adrc_offboard.gains import load_gains, make_channel
 from adrc_offboard.outer_loop import matched_gains
-from bench.control import FIRST_BUOY_SEQ, RESULTS, Scenario, build_scenario, fly, gust_start_time
-from sitl_quad.config import VehicleConfig
-from sitl_quad.vehicle import Vehicle
+from bench.control import RESULTS
+from bench.control.flight import fly
+from bench.control.scenario import Scenario, build_scenario, gust_start_time
+from gcs.planning import FIRST_BUOY_SEQ
+from uavcore.geodesy import LocalFrame
 from uavcore.mission import MavCmd, MavFrame, MissionItem
 
 GAINS_DIR = Path(__file__).resolve().parent.parent / "adrc_offboard" / "gains"
@@ -62,7 +64,7 @@ def short_scenario(base: Scenario) -> Scenario:
     waypoints = np.asarray(base.waypoints_ne)
     legs = np.diff(waypoints, axis=0)[base.longest_leg - 1 : base.longest_leg - 1 + LEGS]
     points = np.vstack([[0.0, 0.0], np.cumsum(legs, axis=0)])
-    frame = Vehicle(VehicleConfig(), base.home).frame
+    frame = LocalFrame(*base.home)
     takeoff, speed = base.items[0], base.items[1]
     items = [takeoff, speed]
     for north, east in points[1:]:

@@ -1,0 +1,171 @@
+"""What the benchmark measures on one flight's per-tick series (flight.FlightRecorder's columns).
+
+Times t_k are outer-loop ticks; the truth at t_k is compared with the reference POSITION_TARGET published for
+t_k, i.e. the same instant; "tracking phase" = mission items from the first buoy leg to the end of the return,
+vehicle above 1 m:
+- rms_error_m / max_error_m: 3-D position error, truth vs reference;
+- cross_track_rms_m / cross_track_max_m: horizontal distance to the planned leg (straight segment between
+  consecutive waypoints, takeoff point first) while flying to each buoy;
+- gust_peak_m: largest 3-D error within 10 s of the gust onset; gust_recovery_s: time from the onset until
+  the error is back under 0.2 m for good within that window (10 s = not recovered);
+- altitude_rms_m: vertical error;
+- yaw_turn_rms_deg / yaw_turn_max_deg: yaw error during the on-the-spot turns at the buoys (reference yaw
+  rate non-zero, and 1.5 s after), the paper's Figure 11;
+- eso_lateral_rel_error (ADRC only): RMS over the tracking phase of |z3_xy - a_ext,xy| / RMS |a_ext,xy|,
+  where a_ext is the simulator's true external acceleration (drag + D terms, `external_accel_ned`) at the
+  instant the ESO's output is an estimate for (the sample after its latest measurement);
+  eso_lateral_rel_error_best_lag is the same at the best time shift (0-0.5 s), a diagnostic of how much
+  is observer lag;
+- thrust_step_rms / attitude_step_rms_deg: RMS change of the normalised thrust and of the commanded attitude
+  between consecutive ticks (control effort and chatter);
+- saturated_fraction: share of tracking-phase ticks in which the mixer had to clip a rotor command.
+The step experiment (flight.step_response) is measured by `step_metrics`: overshoot %, 10-90 % rise time and
+0.1 m settling time.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from bench.control.scenario import OUTER_RATE_HZ, STEP_M, Scenario
+from gcs.planning import FIRST_BUOY_SEQ
+from uavcore.rotation import wrap_pi
+
+GUST_WINDOW_S = 10.0
+RECOVERED_M = 0.2
+TRACKING_MIN_ALTITUDE_M = 1.0
+TURN_TAIL_S = 1.5
+ESO_MAX_LAG_TICKS = 25
+STEP_SETTLED_M = 0.1
+
+METRICS = (
+    "rms_error_m",
+    "max_error_m",
+    "cross_track_rms_m",
+    "cross_track_max_m",
+    "gust_peak_m",
+    "gust_recovery_s",
+    "altitude_rms_m",
+    "yaw_turn_rms_deg",
+    "yaw_turn_max_deg",
+    "eso_lateral_rel_error",
+    "eso_lateral_rel_error_best_lag",
+    "thrust_step_rms",
+    "attitude_step_rms_deg",
+    "saturated_fraction",
+)
+STEP_METRICS = ("overshoot_pct", "rise_time_s", "settling_time_s")
+TARGETS = {"rms_error_m": 0.25, "gust_peak_m": 0.6, "eso_lateral_rel_error": 0.25}  # the issue's, for ADRC
+
+
+def _max(values: np.ndarray) -> float:
+    """Largest value; NaN for a flight that never reached the phase (e.g. crashed before it)."""
+    return float(values.max()) if values.size else math.nan
+
+
+def _rms(values: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(values)))) if values.size else math.nan
+
+
+def flight_metrics(s: dict[str, np.ndarray], scenario: Scenario, n_items: int) -> dict:
+    """The metrics above for one mission flight; `s` is FlightRecorder.series(), n_items the mission's length."""
+    dt = 1.0 / OUTER_RATE_HZ
+    # the truth at the start of tick k (= end of tick k-1) against the reference computed for that instant
+    truth = np.column_stack([s["x"], s["y"], s["z"]])[:-1]
+    ref = np.column_stack([s["x_ref"], s["y_ref"], s["z_ref"]])[1:]
+    seq = s["seq"][1:]
+    t_since_takeoff = s["t"][1:] - s["t"][0]  # tick 0 starts at takeoff: its end is t[0] = takeoff + dt
+    error = np.linalg.norm(truth - ref, axis=1)
+    tracking = (seq >= FIRST_BUOY_SEQ) & (seq <= n_items - 1) & (-truth[:, 2] > TRACKING_MIN_ALTITUDE_M)
+    out: dict = {"flight_s": float(s["t"][-1] - s["t"][0] + dt)}
+    out["rms_error_m"] = _rms(error[tracking])
+    out["max_error_m"] = _max(error[tracking])
+    out["altitude_rms_m"] = _rms((truth[:, 2] - ref[:, 2])[tracking])
+    # cross-track against the planned legs
+    waypoints = np.asarray(scenario.waypoints_ne)
+    cross = []
+    for leg in range(1, len(waypoints)):
+        on_leg = tracking & (seq == FIRST_BUOY_SEQ - 1 + leg)
+        a, b = waypoints[leg - 1], waypoints[leg]
+        p = truth[on_leg, :2]
+        direction = b - a
+        u = np.clip(((p - a) @ direction) / float(direction @ direction), 0.0, 1.0)
+        cross.append(np.linalg.norm(p - (a + np.outer(u, direction)), axis=1))
+    cross_track = np.concatenate(cross) if cross else np.zeros(0)
+    out["cross_track_rms_m"] = _rms(cross_track)
+    out["cross_track_max_m"] = _max(cross_track)
+    # the gust
+    t_gust = scenario.wind.gust_start_s
+    window = (t_since_takeoff >= t_gust) & (t_since_takeoff <= t_gust + GUST_WINDOW_S)
+    out["gust_peak_m"] = _max(error[window])
+    above = np.flatnonzero(window & (error > RECOVERED_M))
+    out["gust_recovery_s"] = (
+        math.nan
+        if not window.any()
+        else 0.0
+        if above.size == 0
+        else float(min(t_since_takeoff[above[-1]] + dt - t_gust, GUST_WINDOW_S))
+    )
+    out["gust_leg_seq_at_onset"] = int(seq[np.argmax(t_since_takeoff >= t_gust)]) if window.any() else -1
+    # yaw at the turns
+    turning = np.abs(s["yaw_rate_ref"][1:]) > 1e-3
+    tail = round(TURN_TAIL_S / dt)
+    turns = np.convolve(turning.astype(float), np.ones(tail + 1), mode="full")[: turning.size] > 0
+    yaw_error = np.degrees(np.abs(wrap_pi(s["yaw"][:-1] - s["yaw_ref"][1:])))
+    airborne = -truth[:, 2] > TRACKING_MIN_ALTITUDE_M
+    out["yaw_turn_rms_deg"] = _rms(yaw_error[turns & airborne])
+    out["yaw_turn_max_deg"] = _max(yaw_error[turns & airborne])
+    # control effort and saturation over the tracking phase
+    thrust_step = np.diff(s["thrust"])
+    q = np.column_stack([s["qw"], s["qx"], s["qy"], s["qz"]])
+    dots = np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=1)), 0.0, 1.0)
+    attitude_step = np.degrees(2.0 * np.arccos(dots))
+    out["thrust_step_rms"] = _rms(thrust_step[tracking])
+    out["attitude_step_rms_deg"] = _rms(attitude_step[tracking])
+    out["saturated_fraction"] = float(np.mean(s["saturated"][1:][tracking] > 0)) if tracking.any() else math.nan
+    # the ESO's z3 against the true external acceleration
+    if np.all(np.isnan(s["z3_x"])):
+        out["eso_lateral_rel_error"] = out["eso_lateral_rel_error_best_lag"] = math.nan
+    else:
+        out.update(eso_errors(s, tracking))
+    return out
+
+
+def eso_errors(s: dict[str, np.ndarray], tracking: np.ndarray) -> dict:
+    """z3 read after tick k has just stepped the ESO with the measurement taken at t_(k-1) (the state stamped
+    t_k); the discrete ESO's output after that step is its estimate for the next sample, t_k, whose true
+    external acceleration is the one reported at the end of tick k-1: compare z3[k] with ext[k - 1 - lag]
+    (lag 0 is the ESO's own claim; the best lag shows how much of the error is observer delay)."""
+    z3 = np.column_stack([s["z3_x"], s["z3_y"]])
+    ext = np.column_stack([s["ext_x"], s["ext_y"]])
+    mask = np.concatenate([[False], tracking]) & (s["offboard"] > 0)  # tracking is indexed from tick 1
+    if mask.sum() <= 1 + ESO_MAX_LAG_TICKS:
+        return {
+            "eso_lateral_rel_error": math.nan,
+            "eso_lateral_rel_error_best_lag": math.nan,
+            "eso_best_lag_s": math.nan,
+        }
+    results = []
+    for lag in range(ESO_MAX_LAG_TICKS + 1):
+        shift = 1 + lag
+        k = np.flatnonzero(mask[shift:]) + shift
+        diff = z3[k] - ext[k - shift]
+        results.append(_rms(np.linalg.norm(diff, axis=1)) / _rms(np.linalg.norm(ext[k - shift], axis=1)))
+    return {
+        "eso_lateral_rel_error": results[0],
+        "eso_lateral_rel_error_best_lag": min(results),
+        "eso_best_lag_s": results.index(min(results)) / OUTER_RATE_HZ,
+    }
+
+
+def step_metrics(t: np.ndarray, east: np.ndarray) -> dict:
+    """Overshoot (% of STEP_M), 10-90 % rise time and settling time (last instant outside STEP_M +- 0.1 m) of
+    the east position `east` at times `t` after the step."""
+    outside = np.flatnonzero(np.abs(east - STEP_M) > STEP_SETTLED_M)
+    return {
+        "overshoot_pct": float(max(east.max() - STEP_M, 0.0) / STEP_M * 100.0),
+        "rise_time_s": float(t[np.argmax(east >= 0.9 * STEP_M)] - t[np.argmax(east >= 0.1 * STEP_M)]),
+        "settling_time_s": float(t[outside[-1]]) if outside.size else 0.0,
+    }
