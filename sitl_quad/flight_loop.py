@@ -1,0 +1,165 @@
+"""The tick's control path: the outer loop's attitude target, the 250 Hz attitude loop, the 1 kHz physics.
+
+`FlightLoop` owns the simulated body (Simulator), the mixer and the two loops of the cascade: the built-in
+PX4-style position loop and the attitude loop MC_ATT_CTRL selects among the injected factories. Each outer
+tick (50 Hz by default) the vehicle asks it for the tick's attitude target (`outer_target`) and then to fly
+that target for one outer period (`fly`): `attitude_steps` attitude updates, each holding its rotor commands
+for `physics_steps` RK4 steps. Modes, arming and failsafes are the vehicle's business, not this module's.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+
+import numpy as np
+
+from sitl_quad.attitude_pid import PidAttitudeController
+from sitl_quad.config import AttitudeControllerKind, VehicleConfig
+from sitl_quad.position_control import PidPositionController
+from sitl_quad.rotors import Mixer
+from sitl_quad.simulator import Simulator
+from uavcore.airframe import ModelParameterError
+from uavcore.control import AttitudeController
+from uavcore.rotation import euler_from_quat
+from uavcore.state import AttitudeTarget, TrajectorySetpoint, VehicleState
+
+ATTITUDE_RATE_HZ = 250
+PHYSICS_RATE_HZ = 1000
+IDLE_THROTTLE = 0.05  # armed on the ground: rotors spin at idle, as PX4 does
+
+# Builds an attitude loop for a configuration at a loop rate (Hz); see sitl_quad.attitude_loops.
+AttitudeLoopFactory = Callable[[VehicleConfig, float], AttitudeController]
+
+
+def builtin_pid_loop(config: VehicleConfig, rate_hz: float) -> AttitudeController:
+    return PidAttitudeController(config.attitude_pid)
+
+
+def motors_off_target() -> AttitudeTarget:
+    """Level and zero thrust: what a disarmed vehicle "flies"."""
+    return AttitudeTarget(quaternion=np.array([1.0, 0, 0, 0]), thrust=0.0)
+
+
+def level_quaternion(est: VehicleState) -> np.ndarray:
+    """Level attitude at the estimate's heading."""
+    _, _, yaw = euler_from_quat(est.quaternion)
+    return np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
+
+
+class FlightLoop:
+    """Physics, mixer, position loop and attitude loop at their rates; see the module docstring."""
+
+    def __init__(
+        self,
+        config: VehicleConfig,
+        seed: int,
+        outer_rate_hz: float,
+        attitude_loops: Mapping[AttitudeControllerKind, AttitudeLoopFactory] | None,
+    ) -> None:
+        self.config = config  # the vehicle's own (shared) config tree, sections replaced by parameter changes
+        self.attitude_loops = dict(attitude_loops or {AttitudeControllerKind.PID: builtin_pid_loop})
+        self.seed = seed
+        self.outer_dt = 1.0 / outer_rate_hz
+        self.attitude_steps = max(1, round(ATTITUDE_RATE_HZ / outer_rate_hz))
+        self.attitude_dt = self.outer_dt / self.attitude_steps
+        self.physics_steps = max(1, round(self.attitude_dt * PHYSICS_RATE_HZ))
+        self.sim = self._make_simulator()
+        self.mixer = Mixer(config.airframe)
+        self.attitude = self._make_attitude_controller()
+        self.position = self._make_position_controller()
+
+    # ----- construction from config (also after parameter changes)
+    def _make_simulator(self) -> Simulator:
+        c = self.config
+        return Simulator(
+            airframe=c.airframe,
+            wind=c.wind,
+            disturbance=c.disturbance,
+            sensor_noise=c.sensor_noise,
+            seed=self.seed,
+            dt=1.0 / PHYSICS_RATE_HZ,
+        )
+
+    def _make_attitude_controller(self) -> AttitudeController:
+        kind = AttitudeControllerKind(self.config.control.attitude_controller)
+        factory = self.attitude_loops.get(kind)
+        if factory is None:
+            raise ModelParameterError(
+                f"MC_ATT_CTRL={int(kind)} ({kind.name}): this vehicle was built without that loop"
+            )
+        return factory(self.config, 1.0 / self.attitude_dt)
+
+    def _make_position_controller(self) -> PidPositionController:
+        return PidPositionController(self.config.airframe, self.config.position_pid)
+
+    def apply_config(self, changed: str) -> None:
+        """Rebuild the parts that depend on config section `changed`."""
+        if changed in ("wind", "disturbance", "sensor_noise", "airframe"):
+            self.sim.reconfigure(
+                airframe=self.config.airframe,
+                wind=self.config.wind,
+                disturbance=self.config.disturbance,
+                sensor_noise=self.config.sensor_noise,
+            )
+        if changed == "airframe":
+            self.mixer = Mixer(self.config.airframe)
+        if changed in ("airframe", "attitude_pid", "control"):
+            self.attitude = self._make_attitude_controller()
+        if changed in ("airframe", "position_pid"):
+            self.position = self._make_position_controller()
+
+    def reset_controllers(self) -> None:
+        self.attitude.reset()
+        self.position.reset()
+
+    # ----- one outer tick
+    def outer_target(
+        self,
+        est: VehicleState,
+        setpoint: TrajectorySetpoint,
+        offboard_target: AttitudeTarget | None,
+        *,
+        armed: bool,
+        idling: bool,
+    ) -> tuple[AttitudeTarget, str]:
+        """The tick's attitude target and who set it: "off" (disarmed), "idle" (armed on the ground before
+        the climb: level at idle throttle), "offboard" (the offboard controller's target, None when not in
+        OFFBOARD) or "builtin" (the position loop toward the setpoint)."""
+        if not armed:
+            return motors_off_target(), "off"
+        if idling:
+            return AttitudeTarget(quaternion=level_quaternion(est), thrust=IDLE_THROTTLE), "idle"
+        if offboard_target is not None:
+            return offboard_target, "offboard"
+        return self.position.update(setpoint, est, self.outer_dt), "builtin"
+
+    def fly(self, target: AttitudeTarget, source: str) -> bool:
+        """One outer period of attitude loop and physics toward `target`; whether the mixer saturated."""
+        saturated = False
+        thrust_n = target.thrust * self.config.airframe.max_thrust_n
+        if source == "off":  # rotors commanded to 0 all tick: the physics steps in one batch, same result
+            self.sim.set_rotor_commands(np.zeros(4))
+            self.sim.step(self.attitude_steps * self.physics_steps)
+        elif isinstance(self.attitude, PidAttitudeController):
+            # the steps of the loop below in one compiled call ("idle": the PID runs, its torque unused)
+            saturated = self.sim.run_pid_attitude_steps(
+                self.attitude,
+                self.mixer,
+                target,
+                thrust_n,
+                self.attitude_steps,
+                self.physics_steps,
+                self.attitude_dt,
+                apply_torque=source != "idle",
+            )
+        else:
+            for _ in range(self.attitude_steps):
+                measured = self.sim.measure()
+                torque = self.attitude.update(target, measured, self.attitude_dt)
+                if source == "idle":
+                    torque = np.zeros(3)
+                self.sim.set_rotor_commands(self.mixer.rotor_commands(thrust_n, torque))
+                saturated = saturated or self.mixer.saturated
+                self.sim.step(self.physics_steps)
+        return saturated
