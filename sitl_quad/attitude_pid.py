@@ -92,7 +92,7 @@ G_DTERM_CUTOFF = _INDEX["mc_dterm_cutoff"]
 
 # The controller's state, one flat float array: rate integrators [0:3] (N m), the previous measured rates
 # [3:6] and a flag [6] telling they are set (the D term needs two measurements), the low-passed rate
-# derivative [7:10], the last rate setpoint [10:13] (reported, not fed back).
+# derivative [7:10], the last rate setpoint [10:13] (not fed back: there to inspect the attitude stage).
 S_INTEGRAL = 0
 S_PREVIOUS_RATES = 3
 S_HAS_PREVIOUS = 6
@@ -218,11 +218,6 @@ class PidAttitudeController:
     def reset(self) -> None:
         self.kernel_state[:] = 0.0
 
-    @property
-    def rate_setpoint(self) -> np.ndarray:
-        """The body-rate setpoint (rad/s) of the last update."""
-        return self.kernel_state[S_RATE_SETPOINT : S_RATE_SETPOINT + 3].copy()
-
     @staticmethod
     def target_arrays(target: AttitudeTarget) -> tuple[np.ndarray, np.ndarray]:
         """The target's quaternion and feed-forward body rates (zeros when it has none) as kernel inputs."""
@@ -234,11 +229,6 @@ class PidAttitudeController:
                 f"{target.quaternion!r}, {target.body_rates!r}"
             )
         return qd, feedforward
-
-    def attitude_rate_setpoint(self, target: AttitudeTarget, q) -> list[float]:
-        """Body-rate setpoint (rad/s) from the attitude error, PX4's AttitudeControl::update."""
-        qd, feedforward = self.target_arrays(target)
-        return list(attitude_rate_setpoint_kernel(self.kernel_gains, _floats(q), qd, feedforward))
 
     def update(self, target: AttitudeTarget, state: VehicleState, dt: float) -> np.ndarray:
         """Body torque [roll, pitch, yaw] (N m) toward target from the measured state, after dt seconds."""

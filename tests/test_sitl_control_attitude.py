@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from sitl_quad.attitude_pid import PidAttitudeController, PidAttitudeGains
+from sitl_quad.attitude_pid import PidAttitudeController, PidAttitudeGains, attitude_rate_setpoint_kernel
 from sitl_quad.rotors import Mixer
 from sitl_quad.simulator import Simulator
 from uavcore.airframe import Airframe, ModelParameterError
@@ -62,21 +62,24 @@ def test_integrator_removes_a_constant_torque_disturbance():
     assert np.all(np.abs(angles[times > 4.0, :2]) < 0.1)
 
 
+def rate_setpoint(target_quaternion, q, feedforward=(0.0, 0.0, 0.0)) -> tuple[float, float, float]:
+    """The attitude stage's body-rate setpoint (rad/s) with the default gains: the kernel the loop runs."""
+    gains = PidAttitudeGains().as_array()
+    return attitude_rate_setpoint_kernel(
+        gains, *(np.asarray(v, dtype=float) for v in (q, target_quaternion, feedforward))
+    )
+
+
 def test_error_uses_the_shorter_way_round_and_body_rate_feed_forward():
-    controller = PidAttitudeController()
-    level = AttitudeTarget(quaternion=np.array([1.0, 0.0, 0.0, 0.0]), thrust=0.5)
-    # the same attitude with the quaternion's sign flipped needs no correction
-    flipped = AttitudeTarget(quaternion=-quat_from_euler(0.0, 0.0, 0.0), thrust=0.5)
     q = np.array([1.0, 0.0, 0.0, 0.0])
-    assert np.allclose(controller.attitude_rate_setpoint(flipped, q), 0.0)
-    assert np.allclose(controller.attitude_rate_setpoint(level, q), 0.0)
+    # the same attitude with the quaternion's sign flipped needs no correction
+    assert np.allclose(rate_setpoint(-quat_from_euler(0.0, 0.0, 0.0), q), 0.0)
+    assert np.allclose(rate_setpoint(q, q), 0.0)
     # 10 deg yaw to the right -> positive yaw rate; feed-forward adds on top
     right = quat_multiply(q, quat_from_euler(0.0, 0.0, math.radians(10.0)))
-    rate = controller.attitude_rate_setpoint(AttitudeTarget(quaternion=right, thrust=0.5), q)
+    rate = rate_setpoint(right, q)
     assert rate[2] > 0 and abs(rate[0]) < 1e-9 and abs(rate[1]) < 1e-9
-    fed = controller.attitude_rate_setpoint(
-        AttitudeTarget(quaternion=q, thrust=0.5, body_rates=np.array([0.0, 0.0, 0.4])), q
-    )
+    fed = rate_setpoint(q, q, feedforward=(0.0, 0.0, 0.4))
     assert fed[2] == pytest.approx(0.4)
 
 
