@@ -255,29 +255,6 @@ class Navigator:
         events, self._events = self._events, []
         return events
 
-    def planned_path(self) -> list[Vector3]:
-        """The mission's corner points in NED metres, from home on the ground, as the legs will fly them."""
-        here: Vector3 = (0.0, 0.0, GROUND_DOWN_M)
-        path = [here]
-        for item, (horizontal, down) in zip(self._items, self._targets, strict=True):
-            corners: list[Vector3] = []
-            north, east = horizontal if horizontal is not None else (here[0], here[1])
-            if item.command == MavCmd.NAV_TAKEOFF:
-                climb = self._takeoff_down(down)
-                corners = [(here[0], here[1], climb), (north, east, climb)]
-            elif item.command in (MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME):
-                corners = [(north, east, here[2] if down is None else down)]
-            elif item.command == MavCmd.NAV_LAND:
-                corners = [(north, east, here[2]), (north, east, GROUND_DOWN_M)]
-            elif item.command == MavCmd.NAV_RETURN_TO_LAUNCH:
-                cruise = min(here[2], -self.config.rtl_altitude)
-                corners = [(here[0], here[1], cruise), (0.0, 0.0, cruise), (0.0, 0.0, GROUND_DOWN_M)]
-            for corner in corners:
-                if corner != path[-1]:
-                    path.append(corner)
-            here = path[-1]
-        return path
-
     # ---- sequencing ---------------------------------------------------------------------------------------
 
     def _sequence(self, t: float, state: VehicleState) -> None:

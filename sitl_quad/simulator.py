@@ -21,7 +21,7 @@ from sitl_quad.rotors import Mixer
 from sitl_quad.sensors import SensorNoise, Sensors
 from sitl_quad.wind import WindConfig, WindModel
 from uavcore.airframe import Airframe, ModelParameterError
-from uavcore.rotation import euler_from_quat, quat_from_euler
+from uavcore.rotation import quat_from_euler
 from uavcore.state import AttitudeTarget, VehicleState
 
 
@@ -281,11 +281,6 @@ class Simulator:
             angular_velocity=s[10:13].copy(),
             rotor_speeds=s[13:17].copy(),
         )
-
-    @property
-    def euler(self) -> tuple[float, float, float]:
-        """True (roll, pitch, yaw), rad, for reports."""
-        return euler_from_quat(self._state[6:10])
 
     def measure(self) -> VehicleState:
         """The state as the sensors see it (SensorNoise added; the truth when there is none)."""
