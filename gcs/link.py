@@ -1,51 +1,93 @@
-"""The MAVLink link manager: the one owner of the GCS's connection to the vehicle (asyncio, UDP).
+"""The vehicle link: the one owner of the ground station's MAVLink connection to a vehicle (asyncio).
 
 Why pymavlink and not MAVSDK: the service is one Python process on one asyncio loop, and pymavlink is only a
-message codec, so it needs no gRPC `mavsdk_server` beside it, and it gives full access to every message the
-vehicle and the offboard controller publish (DEBUG_VECT, NAMED_VALUE_FLOAT, POSITION_TARGET_LOCAL_NED), which
-MAVSDK's plugins do not expose. The socket is a non-blocking asyncio datagram endpoint; pymavlink only packs
-and parses bytes.
+message codec (`uavcore.mavlink`), so it needs no gRPC `mavsdk_server` beside it and sees every message the
+vehicle and its companions publish (DEBUG_VECT, NAMED_VALUE_FLOAT, POSITION_TARGET_LOCAL_NED).
 
-What it does: sends the GCS heartbeat at 1 Hz (sysid 255, compid 190, type GCS); keeps `status`, the latest
-vehicle state; detects link loss (no heartbeat for `heartbeat_timeout_s`, wall clock) and vehicle restarts
-(`time_boot_ms` going backwards), and reconnects by itself since every datagram it sends makes it the
-vehicle's peer again; sends COMMAND_LONG with acknowledgement and retries; hands chosen messages to
-subscribers (the mission protocol, the recorder) through queues and listeners. With a signing key it signs
-every message it sends (MAVLink 2 message signing) and accepts only signed messages, as a keyed vehicle does.
+What it does, as QGroundControl and MAVSDK do:
+- connects by a connection string (`gcs.connection`: udpin, udpout, tcp, serial) and sends the GCS heartbeat at
+  1 Hz (sysid 255, compid 190, type GCS);
+- discovers the vehicle: the first autopilot heartbeat names its system and component id, autopilot flavour
+  (`gcs.autopilots`: PX4 or ArduPilot Copter) and vehicle type; other ground stations, cameras, gimbals and
+  companions on the link are not taken for it (a companion's estimates on the same system are still read);
+  once the vehicle is silent past the timeout, an autopilot with another system id is a different vehicle;
+- detects a new boot for certain by the vehicle's boot instant (SYSTEM_TIME: unix time minus time since boot,
+  constant through one boot) as well as by `time_boot_ms` going back;
+- asks for the streams it needs with SET_MESSAGE_INTERVAL (and REQUEST_DATA_STREAM for ArduPilot), and never
+  assumes one datagram is one vehicle tick or that messages come at any particular rate;
+- offers typed actions (`arm`, `start_mission`, `return_to_launch`, `upload_mission`, `download_mission`) that
+  raise typed errors, as MAVSDK's Action and MissionRaw plugins do, so callers hold no MAVLink numbers;
+- hands chosen messages to subscribers through queues and listeners. With a signing key it signs every message
+  and accepts only signed ones (`uavcore.mavlink`).
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import math
-import socket
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from gcs.autopilots import CUSTOM_MODE_ENABLED, Autopilot, Px4, autopilot_for
+from gcs.connection import ConnectionStringError, Transport, open_transport, parse_connection
+from gcs.mission_protocol import download_items, upload_items
 from uavcore.mavlink import (
-    AUTOPILOT_COMPID,
+    AUTOPILOT_COMPID,  # noqa: F401  (read by gcs.missions until it asks link.target)
     GCS_COMPID,
     GCS_SYSID,
-    VEHICLE_SYSID,
     Encoder,
     mavlink,
     new_parser,
     parse_datagram,
+    result_name,
     statustext,
 )
-from uavcore.modes import px4_mode_name
+from uavcore.mission import MavCmd, MissionItem
 
-RECEIVE_BUFFER_BYTES = 4 << 20
+log = logging.getLogger(__name__)
+
 # At 20 % datagram loss each way a command's round trip fails 36 % of the time: 3 tries (MAVSDK's) leave a 5 %
 # chance per command of giving up on a healthy vehicle, 6 tries 0.2 %.
 COMMAND_TRIES = 6
 REBOOT_BACKSTEP_MS = 1000  # time_boot_ms falling by more than this means the vehicle restarted
+BOOT_INSTANT_TOLERANCE_S = 2.0  # a boot instant (SYSTEM_TIME) moving by more than this is a new boot
 STATUS_TEXTS_KEPT = 10
+ARM_CONFIRM_S = 3.0
+TAKEOFF_TIMEOUT_S = 60.0
 ON_GROUND = mavlink.MAV_LANDED_STATE_ON_GROUND
 ARMED_FLAG = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+
+# Heartbeats from these are never taken for the vehicle, whatever their autopilot field says.
+NOT_A_VEHICLE = frozenset(
+    {
+        mavlink.MAV_TYPE_GCS,
+        mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
+        mavlink.MAV_TYPE_GIMBAL,
+        mavlink.MAV_TYPE_CAMERA,
+        mavlink.MAV_TYPE_ADSB,
+        mavlink.MAV_TYPE_ANTENNA_TRACKER,
+        mavlink.MAV_TYPE_CHARGING_STATION,
+        mavlink.MAV_TYPE_SERVO,
+        mavlink.MAV_TYPE_FLARM,
+        mavlink.MAV_TYPE_ODID,
+    }
+)
+
+# What the service reads, and how often (Hz).
+STREAMS = {
+    "GLOBAL_POSITION_INT": 10.0,
+    "LOCAL_POSITION_NED": 10.0,
+    "ATTITUDE": 10.0,
+    "POSITION_TARGET_LOCAL_NED": 10.0,
+    "EXTENDED_SYS_STATE": 2.0,
+    "MISSION_CURRENT": 2.0,
+    "SYS_STATUS": 1.0,
+    "SYSTEM_TIME": 1.0,
+}
 
 
 class LinkError(RuntimeError):
@@ -56,28 +98,54 @@ class CommandTimeoutError(LinkError):
     pass
 
 
-def parse_udpout(url: str) -> tuple[str, int]:
-    """`udpout:HOST:PORT` (or `udpout://HOST:PORT`) -> (host, port); the only form the service speaks."""
-    scheme, _, rest = url.partition(":")
-    rest = rest.removeprefix("//")
-    host, _, port = rest.rpartition(":")
-    if scheme != "udpout" or not host or not port.isdigit() or not 0 < int(port) < 65536:
-        raise ValueError(f"vehicle connection {url!r}: expected udpout:HOST:PORT, e.g. udpout:127.0.0.1:14540")
-    return host, int(port)
+class CommandDeniedError(LinkError):
+    """The vehicle answered a command with something other than ACCEPTED (`result` is the MAV_RESULT)."""
+
+    def __init__(self, what: str, result: int) -> None:
+        self.result = result
+        super().__init__(f"the vehicle refused to {what} ({result_name('MAV_RESULT', result)})")
+
+
+@dataclass(frozen=True)
+class VehicleIdentity:
+    """Who the link is talking to, from the vehicle's heartbeat."""
+
+    sysid: int
+    compid: int
+    autopilot: int  # MAV_AUTOPILOT
+    vehicle_type: int  # MAV_TYPE
+
+    @property
+    def autopilot_name(self) -> str:
+        entry = mavlink.enums["MAV_AUTOPILOT"].get(self.autopilot)
+        return entry.name.removeprefix("MAV_AUTOPILOT_") if entry is not None else str(self.autopilot)
+
+    @property
+    def type_name(self) -> str:
+        entry = mavlink.enums["MAV_TYPE"].get(self.vehicle_type)
+        return entry.name.removeprefix("MAV_TYPE_") if entry is not None else str(self.vehicle_type)
 
 
 @dataclass
 class VehicleStatus:
-    """The latest state the vehicle reported. Positions NED metres from home; angles radians."""
+    """The latest state the vehicle reported. Positions NED metres from home; angles radians; mission sequence
+    numbers in the planned numbering (the flavour's own home item is hidden)."""
 
     connected: bool = False
     last_heartbeat: float | None = None  # time.monotonic()
-    reboots: int = 0
+    sysid: int | None = None
+    compid: int | None = None
+    autopilot: str | None = None
+    vehicle_type: str | None = None
+    reboots: int = 0  # new boots of the same vehicle seen
+    incarnation: int = 0  # rises with every new boot or new vehicle: what a mission in flight must not outlive
     armed: bool = False
     base_mode: int = 0
     custom_mode: int = 0
+    mode: str | None = None
     landed_state: int | None = None
     time_boot_ms: int | None = None
+    boot_instant_s: float | None = None  # unix time of the vehicle's boot, from SYSTEM_TIME
     lat: float | None = None
     lon: float | None = None
     alt_m: float | None = None  # above home
@@ -98,12 +166,8 @@ class VehicleStatus:
     mission_total: int | None = None
     mission_state: int | None = None
     home: tuple[float, float, float] | None = None
-    estimates: dict[str, Any] = field(default_factory=dict)  # the offboard controller's ESO outputs by name
+    estimates: dict[str, Any] = field(default_factory=dict)  # a companion controller's ESO outputs by name
     status_texts: list[str] = field(default_factory=list)  # the vehicle's latest STATUSTEXTs, oldest first
-
-    @property
-    def mode(self) -> str:
-        return px4_mode_name(self.custom_mode)
 
     def as_dict(self) -> dict[str, Any]:
         age = None if self.last_heartbeat is None else time.monotonic() - self.last_heartbeat
@@ -119,47 +183,56 @@ def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
-class _Protocol(asyncio.DatagramProtocol):
-    def __init__(self, link: LinkManager) -> None:
-        self.link = link
-
-    def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
-        self.link._datagram(data)
-
-    def error_received(self, exc: Exception) -> None:
-        # ICMP port unreachable while no vehicle listens: expected, the heartbeat watchdog reports it
-        pass
+def parse_udpout(url: str) -> tuple[str, int]:
+    """Kept until gcs.cli validates with gcs.connection.parse_connection: any connection string, checked."""
+    connection = parse_connection(url)
+    return connection.host, connection.port
 
 
 class LinkManager:
-    """Owns the UDP socket to the vehicle. Create, `await start()`, use, `await stop()`."""
+    """Owns the connection to one vehicle. Create, `await start()`, use, `await stop()`."""
 
     def __init__(
-        self, url: str = "udpout:127.0.0.1:14540", heartbeat_timeout_s: float = 3.0, signing_key: bytes | None = None
+        self, url: str = "udpout://127.0.0.1:14540", heartbeat_timeout_s: float = 3.0, signing_key: bytes | None = None
     ) -> None:
-        self.address = parse_udpout(url)
+        self.connection = parse_connection(url)
         self.heartbeat_timeout_s = heartbeat_timeout_s
         self.status = VehicleStatus()
+        self.vehicle: VehicleIdentity | None = None
+        self.autopilot: Autopilot = Px4()
         self._encoder = Encoder(GCS_SYSID, GCS_COMPID, signing_key)
         self.encoder = self._encoder.mav  # builds messages: link.encoder.command_long_encode(...)
         self._parser = new_parser(GCS_SYSID, GCS_COMPID, signing_key)
         self.signing_key = signing_key
-        self._transport: asyncio.DatagramTransport | None = None
+        self._transport: Transport | None = None
         self._tasks: list[asyncio.Task] = []
         self._queues: list[tuple[frozenset[str], asyncio.Queue]] = []
         self._listeners: list[Callable[[Any], None]] = []
-        self._datagram_ends: list[Callable[[], None]] = []
+        self._chunk_ends: list[Callable[[], None]] = []
         self._connected_event = asyncio.Event()
+        self._command_lock = asyncio.Lock()
         self.messages_received = 0
+
+    @property
+    def target(self) -> tuple[int, int]:
+        """(system id, component id) commands go to: the discovered vehicle, or 1/1 until one is heard."""
+        if self.vehicle is None:
+            return 1, 1
+        return self.vehicle.sysid, self.vehicle.compid
 
     # ----- lifecycle
     async def start(self) -> None:
-        loop = asyncio.get_running_loop()
         self._connected_event = asyncio.Event()
-        self._transport, _ = await loop.create_datagram_endpoint(lambda: _Protocol(self), remote_addr=self.address)
-        sock = self._transport.get_extra_info("socket")
-        # a vehicle in lockstep sends bursts faster than real time: a larger buffer rides out a busy loop
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
+        self._command_lock = asyncio.Lock()
+        self._transport = open_transport(self.connection)
+        try:
+            await self._transport.open(self._received)
+        except OSError as error:
+            self._transport = None
+            raise LinkError(f"cannot open {self.connection}: {error.strerror or error}") from error
+        except ConnectionStringError as error:
+            self._transport = None
+            raise LinkError(str(error)) from error
         self._tasks = [asyncio.create_task(self._heartbeat_loop(), name="gcs-heartbeat")]
 
     async def stop(self) -> None:
@@ -170,7 +243,7 @@ class LinkManager:
                 await task
         self._tasks = []
         if self._transport is not None:
-            self._transport.close()
+            await self._transport.close()
             self._transport = None
 
     async def wait_connected(self, timeout_s: float) -> bool:
@@ -187,7 +260,7 @@ class LinkManager:
     def send(self, message: Any) -> None:
         if self._transport is None:
             raise LinkError("the link is not started")
-        self._transport.sendto(self._encoder.pack(message))
+        self._transport.send(self._encoder.pack(message))
 
     async def _heartbeat_loop(self) -> None:
         while True:
@@ -209,20 +282,96 @@ class LinkManager:
         self, command: int, params: Iterable[float] = (), tries: int = COMMAND_TRIES, timeout_s: float = 0.7
     ) -> int:
         """Send COMMAND_LONG to the autopilot and return the MAV_RESULT of its COMMAND_ACK; retries `tries`
-        times `timeout_s` apart (wall clock, as MAVSDK) and raises CommandTimeoutError if no ack arrives."""
+        times `timeout_s` apart (wall clock, as MAVSDK) and raises CommandTimeoutError if no ack arrives.
+        One command at a time: acknowledgements name only the command, not which request they answer."""
         values = [*params, *[math.nan] * 7][:7]
-        with self.subscribe({"COMMAND_ACK"}) as acks:
-            for attempt in range(tries):
-                self.send(self.encoder.command_long_encode(VEHICLE_SYSID, AUTOPILOT_COMPID, command, attempt, *values))
-                deadline = time.monotonic() + timeout_s
-                while (remaining := deadline - time.monotonic()) > 0:
-                    try:
-                        ack = await asyncio.wait_for(acks.get(), remaining)
-                    except TimeoutError:
-                        break
-                    if ack.command == command and ack.result != mavlink.MAV_RESULT_IN_PROGRESS:
-                        return int(ack.result)
-        raise CommandTimeoutError(f"no COMMAND_ACK for command {command} after {tries} tries")
+        async with self._command_lock:
+            with self.subscribe({"COMMAND_ACK"}) as acks:
+                for attempt in range(tries):
+                    self.send(self.encoder.command_long_encode(*self.target, command, attempt, *values))
+                    deadline = time.monotonic() + timeout_s
+                    while (remaining := deadline - time.monotonic()) > 0:
+                        try:
+                            ack = await asyncio.wait_for(acks.get(), remaining)
+                        except TimeoutError:
+                            break
+                        if ack.command == command and ack.result != mavlink.MAV_RESULT_IN_PROGRESS:
+                            return int(ack.result)
+        name = mavlink.enums["MAV_CMD"].get(command)
+        raise CommandTimeoutError(
+            f"no COMMAND_ACK for {name.name if name else command} after {tries} tries ({self.connection})"
+        )
+
+    async def _command(self, what: str, command: int, params: Iterable[float] = ()) -> None:
+        result = await self.command_long(command, params)
+        if result != mavlink.MAV_RESULT_ACCEPTED:
+            raise CommandDeniedError(what, result)
+
+    # ----- actions (MAVSDK's Action plugin, per autopilot flavour)
+    async def set_mode(self, purpose: str) -> None:
+        """Switch to the flavour's mode for "mission", "return", "land", "hold" or "guided"."""
+        custom_mode = self.autopilot.custom_mode(purpose)
+        base = CUSTOM_MODE_ENABLED | (ARMED_FLAG if self.status.armed else 0)
+        if isinstance(self.autopilot, Px4):  # PX4 reads main and sub mode as separate params
+            params = [base, (custom_mode >> 16) & 0xFF, (custom_mode >> 24) & 0xFF]
+        else:
+            params = [base, custom_mode]
+        await self._command(f"switch to {self.autopilot.mode_name(custom_mode)}", mavlink.MAV_CMD_DO_SET_MODE, params)
+
+    async def arm(self) -> None:
+        """Arm the motors. A retried ARM answered "already armed" (TEMPORARILY_REJECTED) is success once the
+        heartbeat shows the vehicle armed."""
+        if self.autopilot.takes_off_before_mission:
+            await self.set_mode("guided")  # ArduPilot arms for a mission in GUIDED, then takes off there
+        result = await self.command_long(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, [1])
+        if result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED:
+            deadline = time.monotonic() + ARM_CONFIRM_S
+            while time.monotonic() < deadline and not self.status.armed:
+                await asyncio.sleep(0.1)
+            if self.status.armed:
+                return
+        if result != mavlink.MAV_RESULT_ACCEPTED:
+            raise CommandDeniedError("arm", result)
+
+    async def disarm(self) -> None:
+        await self._command("disarm", mavlink.MAV_CMD_COMPONENT_ARM_DISARM, [0])
+
+    async def takeoff(self, altitude_m: float) -> None:
+        await self._command(
+            "take off", mavlink.MAV_CMD_NAV_TAKEOFF, [0, 0, 0, math.nan, math.nan, math.nan, altitude_m]
+        )
+
+    async def start_mission(self, items: Sequence[MissionItem]) -> None:
+        """Fly the uploaded mission (`items` as planned: its takeoff altitude and length are used)."""
+        if self.autopilot.takes_off_before_mission:
+            takeoff = next((i for i in items if i.command == MavCmd.NAV_TAKEOFF), None)
+            altitude = takeoff.z if takeoff is not None else 5.0
+            await self.takeoff(altitude)
+            deadline = time.monotonic() + TAKEOFF_TIMEOUT_S
+            while (self.status.alt_m or 0.0) < 0.9 * altitude:
+                if time.monotonic() > deadline:
+                    raise LinkError(f"the vehicle did not climb to {altitude:g} m within {TAKEOFF_TIMEOUT_S:g} s")
+                await asyncio.sleep(0.1)
+            await self.set_mode("mission")
+            last = len(items) - 1 + self.autopilot.mission_offset
+            await self._command(
+                "start the mission", mavlink.MAV_CMD_MISSION_START, [self.autopilot.mission_offset, last]
+            )
+            return
+        try:
+            await self.set_mode("mission")
+        except CommandDeniedError:
+            await self._command("start the mission", mavlink.MAV_CMD_MISSION_START, [0, len(items) - 1])
+
+    async def return_to_launch(self) -> None:
+        await self._command("return to launch", mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+
+    # ----- missions (MAVSDK's MissionRaw plugin)
+    async def upload_mission(self, items: Sequence[MissionItem], home: tuple[float, float, float]) -> None:
+        await upload_items(self, self.autopilot.items_for_vehicle(items, home))
+
+    async def download_mission(self) -> list[MissionItem]:
+        return self.autopilot.items_from_vehicle(await download_items(self))
 
     # ----- receiving
     @contextlib.contextmanager
@@ -235,44 +384,80 @@ class LinkManager:
         finally:
             self._queues.remove(entry)
 
-    def add_listener(self, listener: Callable[[Any], None], end_of_datagram: Callable[[], None] | None = None) -> None:
+    def add_listener(self, listener: Callable[[Any], None], end_of_chunk: Callable[[], None] | None = None) -> None:
         """Call listener(message) for every message from the vehicle's system, after `status` is updated, and
-        end_of_datagram() once every message of a datagram is in `status`. The vehicle sends what one tick
-        produced as one datagram, so only then do position, reference and attitude in `status` belong to the
-        same instant (reading them on the first message of a tick pairs it with the previous tick's rest)."""
+        end_of_chunk() after each received datagram or stream chunk (a point where `status` is consistent)."""
         self._listeners.append(listener)
-        if end_of_datagram is not None:
-            self._datagram_ends.append(end_of_datagram)
+        if end_of_chunk is not None:
+            self._chunk_ends.append(end_of_chunk)
 
-    def remove_listener(
-        self, listener: Callable[[Any], None], end_of_datagram: Callable[[], None] | None = None
-    ) -> None:
+    def remove_listener(self, listener: Callable[[Any], None], end_of_chunk: Callable[[], None] | None = None) -> None:
         with contextlib.suppress(ValueError):
             self._listeners.remove(listener)
         with contextlib.suppress(ValueError):
-            self._datagram_ends.remove(end_of_datagram)
+            self._chunk_ends.remove(end_of_chunk)
 
-    def _datagram(self, data: bytes) -> None:
+    def _received(self, data: bytes, source: object) -> None:
         try:
-            messages = parse_datagram(self._parser, data)
+            if self._transport is not None and self._transport.datagrams:
+                messages = parse_datagram(self._parser, data)
+            else:
+                messages = self._parser.parse_buffer(data) or []
         except Exception:  # pymavlink raises a zoo of errors on hostile input; none may escape
             return
         for message in messages:
-            if message.get_type() == "BAD_DATA" or message.get_srcSystem() != VEHICLE_SYSID:
+            if message.get_type() == "BAD_DATA":
+                continue
+            if message.get_type() == "HEARTBEAT" and self._discover(message, source):
+                pass
+            if self.vehicle is None or message.get_srcSystem() != self.vehicle.sysid:
                 continue
             self.messages_received += 1
             self._update(message)
-            if message.get_srcComponent() == AUTOPILOT_COMPID:
+            if message.get_srcComponent() == self.vehicle.compid:
                 for names, queue in self._queues:
                     if message.get_type() in names:
                         queue.put_nowait(message)
             for listener in list(self._listeners):
                 listener(message)
-        for end in list(self._datagram_ends):
+        for end in list(self._chunk_ends):
             end()
 
+    def _discover(self, m: Any, source: object) -> bool:
+        """Adopt the sender of an autopilot heartbeat as the vehicle if there is none (or the one there was has
+        gone silent). True when the heartbeat is the vehicle's."""
+        if m.autopilot == mavlink.MAV_AUTOPILOT_INVALID or m.type in NOT_A_VEHICLE:
+            return False
+        identity = VehicleIdentity(m.get_srcSystem(), m.get_srcComponent(), m.autopilot, m.type)
+        current = self.vehicle
+        if current is not None and (current.sysid, current.compid) == (identity.sysid, identity.compid):
+            self._reply_to(source)
+            return True
+        if current is not None and self.status.connected:
+            return False  # another vehicle on the link while ours is alive: not ours (a fleet is not flown here)
+        self.vehicle, self.autopilot = identity, autopilot_for(identity.autopilot)
+        previous = self.status
+        self.status = VehicleStatus(
+            sysid=identity.sysid,
+            compid=identity.compid,
+            autopilot=identity.autopilot_name,
+            vehicle_type=identity.type_name,
+            reboots=previous.reboots if current == identity else 0,
+            incarnation=previous.incarnation + (current is not None),
+        )
+        self._reply_to(source)
+        if current is not None:
+            log.warning("vehicle changed: %s -> %s", current, identity)
+        return True
+
+    def _reply_to(self, source: object) -> None:
+        reply_to = getattr(self._transport, "reply_to", None)
+        if reply_to is not None:
+            reply_to(source)
+
     def _update(self, m: Any) -> None:
-        """Fold one message into `status`. Offboard-controller messages only add their estimates."""
+        """Fold one message into `status`. Companion messages (another component of the system) only add their
+        estimates."""
         kind, s = m.get_type(), self.status
         if kind == "DEBUG_VECT":
             s.estimates[m.name] = [_finite(m.x), _finite(m.y), _finite(m.z)]
@@ -280,23 +465,30 @@ class LinkManager:
         if kind == "NAMED_VALUE_FLOAT":
             s.estimates[m.name] = _finite(m.value)
             return
-        if m.get_srcComponent() != AUTOPILOT_COMPID:
+        if m.get_srcComponent() != self.vehicle.compid:
             return
         if kind == "HEARTBEAT":
             s.last_heartbeat = time.monotonic()
             s.base_mode, s.custom_mode = m.base_mode, m.custom_mode
+            s.mode = self.autopilot.mode_name(m.custom_mode)
             s.armed = bool(m.base_mode & ARMED_FLAG)
             if not s.connected:
                 s.connected = True
                 self._connected_event.set()
-                self._request_home()
+                self._on_connected()
             return
         boot_ms = getattr(m, "time_boot_ms", None)
         if boot_ms is not None:
             if s.time_boot_ms is not None and boot_ms < s.time_boot_ms - REBOOT_BACKSTEP_MS:
                 self._rebooted()
             s.time_boot_ms = boot_ms
-        if kind == "GLOBAL_POSITION_INT":
+        if kind == "SYSTEM_TIME":
+            if m.time_unix_usec > 0:
+                instant = m.time_unix_usec / 1e6 - m.time_boot_ms / 1e3
+                if s.boot_instant_s is not None and abs(instant - s.boot_instant_s) > BOOT_INSTANT_TOLERANCE_S:
+                    self._rebooted()
+                self.status.boot_instant_s = instant
+        elif kind == "GLOBAL_POSITION_INT":
             s.lat, s.lon, s.alt_m = m.lat * 1e-7, m.lon * 1e-7, m.relative_alt / 1000.0
         elif kind == "LOCAL_POSITION_NED":
             s.north, s.east, s.down, s.vn, s.ve, s.vd = m.x, m.y, m.z, m.vx, m.vy, m.vz
@@ -308,7 +500,8 @@ class LinkManager:
         elif kind == "EXTENDED_SYS_STATE":
             s.landed_state = m.landed_state
         elif kind == "MISSION_CURRENT":
-            s.mission_seq, s.mission_total = m.seq, m.total
+            s.mission_seq = self.autopilot.planned_seq(m.seq)
+            s.mission_total = m.total - self.autopilot.mission_offset
             s.mission_state = m.mission_state
         elif kind == "HOME_POSITION":
             s.home = (m.latitude * 1e-7, m.longitude * 1e-7, m.altitude / 1000.0)
@@ -318,19 +511,32 @@ class LinkManager:
     def _rebooted(self) -> None:
         s = self.status
         s.reboots += 1
+        s.incarnation += 1
         s.mission_seq = s.mission_total = s.mission_state = None
         s.home = None
-        self._request_home()
+        s.boot_instant_s = None
+        self._on_connected()
 
-    def _request_home(self) -> None:
+    def _on_connected(self) -> None:
+        """A vehicle (or a new boot of it) is here: ask for home and for the streams the service reads."""
         # REQUEST_MESSAGE(HOME_POSITION); its ack is not awaited: HOME_POSITION itself is the answer
         self.send(
             self.encoder.command_long_encode(
-                VEHICLE_SYSID,
-                AUTOPILOT_COMPID,
-                mavlink.MAV_CMD_REQUEST_MESSAGE,
-                0,
-                mavlink.MAVLINK_MSG_ID_HOME_POSITION,
-                *[math.nan] * 6,
+                *self.target, mavlink.MAV_CMD_REQUEST_MESSAGE, 0, mavlink.MAVLINK_MSG_ID_HOME_POSITION, *[math.nan] * 6
             )
         )
+        self._tasks = [t for t in self._tasks if not t.done()]
+        self._tasks.append(asyncio.create_task(self._request_streams(), name="gcs-streams"))
+
+    async def _request_streams(self) -> None:
+        """SET_MESSAGE_INTERVAL for each stream; ArduPilot also gets REQUEST_DATA_STREAM (its classic way)."""
+        refused = False
+        for name, rate_hz in STREAMS.items():
+            msg_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
+            try:
+                result = await self.command_long(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, [msg_id, 1e6 / rate_hz], tries=2)
+            except CommandTimeoutError:
+                result = None
+            refused = refused or result != mavlink.MAV_RESULT_ACCEPTED
+        if refused and self.autopilot.streams_by_data_stream_request:
+            self.send(self.encoder.request_data_stream_encode(*self.target, mavlink.MAV_DATA_STREAM_ALL, 10, 1))

@@ -11,19 +11,19 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from gcs.link import LinkManager
 from uavcore.mavlink import (
-    AUTOPILOT_COMPID,
     GCS_SYSID,
-    VEHICLE_SYSID,
     item_from_message,
     item_message,
     mavlink,
     result_name,
 )
 from uavcore.mission import MissionItem
+
+if TYPE_CHECKING:
+    from gcs.link import LinkManager
 
 MISSION = mavlink.MAV_MISSION_TYPE_MISSION
 
@@ -61,13 +61,13 @@ async def _next(inbox: asyncio.Queue, timeout_s: float) -> Any | None:
     return None
 
 
-async def upload_mission(
+async def upload_items(
     link: LinkManager, items: Sequence[MissionItem], step_timeout_s: float = 1.0, retries: int = 5
 ) -> None:
     """Upload items (seq 0..n-1); returns when the vehicle acknowledges with MAV_MISSION_ACCEPTED."""
     if not items:
         raise ValueError("an upload needs at least one mission item")
-    count = link.encoder.mission_count_encode(VEHICLE_SYSID, AUTOPILOT_COMPID, len(items), MISSION)
+    count = link.encoder.mission_count_encode(*link.target, len(items), MISSION)
     with link.subscribe({"MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"}) as inbox:
         last_sent, step, tries_left, highest_sent = count, "after MISSION_COUNT", retries, -1
         link.send(count)
@@ -90,7 +90,7 @@ async def upload_mission(
             seq = message.seq
             if not 0 <= seq < len(items):
                 raise MissionTransferError(f"mission upload: the vehicle asked for item {seq} of {len(items)}")
-            last_sent = item_message(items[seq], VEHICLE_SYSID, AUTOPILOT_COMPID)
+            last_sent = item_message(items[seq], *link.target)
             step, tries_left = f"after item {seq}", retries
             highest_sent = max(highest_sent, seq)
             link.send(last_sent)
@@ -115,13 +115,13 @@ async def _exchange(
     raise MissionTimeoutError(f"mission download: no {what} ({retries} retries)")
 
 
-async def download_mission(link: LinkManager, step_timeout_s: float = 1.0, retries: int = 5) -> list[MissionItem]:
+async def download_items(link: LinkManager, step_timeout_s: float = 1.0, retries: int = 5) -> list[MissionItem]:
     """The mission stored on the vehicle, item by item, acknowledged at the end."""
     with link.subscribe({"MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ACK"}) as inbox:
         count = await _exchange(
             link,
             inbox,
-            link.encoder.mission_request_list_encode(VEHICLE_SYSID, AUTOPILOT_COMPID, MISSION),
+            link.encoder.mission_request_list_encode(*link.target, MISSION),
             lambda m: m.get_type() == "MISSION_COUNT",
             "MISSION_COUNT",
             step_timeout_s,
@@ -132,14 +132,16 @@ async def download_mission(link: LinkManager, step_timeout_s: float = 1.0, retri
             message = await _exchange(
                 link,
                 inbox,
-                link.encoder.mission_request_int_encode(VEHICLE_SYSID, AUTOPILOT_COMPID, seq, MISSION),
+                link.encoder.mission_request_int_encode(*link.target, seq, MISSION),
                 lambda m, seq=seq: m.get_type() == "MISSION_ITEM_INT" and m.seq == seq,
                 f"MISSION_ITEM_INT {seq}",
                 step_timeout_s,
                 retries,
             )
             items.append(item_from_message(message))
-        link.send(
-            link.encoder.mission_ack_encode(VEHICLE_SYSID, AUTOPILOT_COMPID, mavlink.MAV_MISSION_ACCEPTED, MISSION)
-        )
+        link.send(link.encoder.mission_ack_encode(*link.target, mavlink.MAV_MISSION_ACCEPTED, MISSION))
     return items
+
+
+# Until gcs.missions calls the link's typed methods (link.upload_mission / link.download_mission).
+upload_mission, download_mission = upload_items, download_items
