@@ -157,5 +157,10 @@ def test_place_plan_and_fly_in_the_browser(stack):
         expect(page.locator("#message")).to_contain_text(HOSTILE)
         assert page.locator("#panel img, .leaflet-marker-pane img").count() == 0
         assert page.evaluate("window.injected") is None
+
+        # "show" in the history draws the stored mission again in place of the imported buoy
+        page.locator("#history-rows button", has_text="show").click()
+        expect(page.locator(".buoy-icon.visited")).to_have_count(4)
+        expect(page.locator(".buoy-icon")).to_have_count(4)
         browser.close()
     assert errors == []
