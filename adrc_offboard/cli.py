@@ -41,6 +41,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--controller", choices=("adrc", "pid"), default="adrc", help="outer-loop law (default adrc)")
     p.add_argument(
+        "--sysid",
+        type=int,
+        choices=range(1, 256),
+        metavar="N",
+        help="the vehicle's system id (default: follow the first autopilot heard)",
+    )
+    p.add_argument(
         "--rate",
         type=float,
         default=50.0,
@@ -84,7 +91,12 @@ def main(argv: list[str] | None = None) -> int:
 
     key = parse_signing_key(args.signing_key) if args.signing_key is not None else None
     node = OffboardNode(
-        make_controller(args.controller, args.rate), args.connect, args.rate, args.engage, signing_key=key
+        make_controller(args.controller, args.rate),
+        args.connect,
+        args.rate,
+        args.engage,
+        sysid=args.sysid,
+        signing_key=key,
     )
     signal.signal(signal.SIGTERM, lambda *_: node.stop())
     signal.signal(signal.SIGINT, lambda *_: node.stop())

@@ -42,6 +42,7 @@ ESO_PUBLISH_EVERY = 5  # ticks (10 Hz at 50 Hz)
 class VehicleView:
     """What the node knows about the vehicle, from its messages."""
 
+    sysid: int = VEHICLE_SYSID  # the vehicle's system id (the node follows the first autopilot it hears)
     armed: bool = False
     main_mode: int = 0
     sub_mode: int = 0
@@ -80,6 +81,10 @@ def setpoint_from_message(target) -> TrajectorySetpoint:
 
 
 STATE_MESSAGES = ("LOCAL_POSITION_NED", "ATTITUDE_QUATERNION", "POSITION_TARGET_LOCAL_NED")
+
+
+def _autopilot_heartbeat(msg) -> bool:
+    return msg.get_type() == "HEARTBEAT" and msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID
 
 
 class OffboardProtocol:
@@ -140,7 +145,7 @@ class OffboardProtocol:
             base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_SAFETY_ARMED
             out.append(
                 mavlink.MAVLink_command_long_message(
-                    VEHICLE_SYSID,
+                    v.sysid,
                     AUTOPILOT_COMPID,
                     mavlink.MAV_CMD_DO_SET_MODE,
                     0,
@@ -193,11 +198,16 @@ class OffboardNode:
         vehicle_address: tuple[str, int],
         outer_rate_hz: float = 50.0,
         engage: bool = True,
-        sysid: int = 1,
+        sysid: int | None = None,
         compid: int = ONBOARD_COMPUTER_COMPID,
         signing_key: bytes | None = None,
     ) -> None:
+        """sysid: the vehicle's system id, which the node shares as its companion computer; None follows the
+        first autopilot heartbeat heard."""
         self.protocol = OffboardProtocol(controller, outer_rate_hz, engage)
+        self.follow_sysid = sysid is None
+        sysid = VEHICLE_SYSID if sysid is None else sysid
+        self.protocol.vehicle.sysid = sysid
         self.vehicle_address = vehicle_address
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
@@ -240,13 +250,20 @@ class OffboardNode:
                 msgs = parse_datagram(self.parser, data)
             except Exception:  # hostile or broken datagram: ignore it
                 continue
-            out.extend(
-                m
-                for m in msgs
-                if m.get_srcSystem() == VEHICLE_SYSID
-                and m.get_srcComponent() == AUTOPILOT_COMPID
-                and not isinstance(m, mavlink.MAVLink_bad_data)
-            )
+            for m in msgs:
+                if isinstance(m, mavlink.MAVLink_bad_data) or m.get_srcComponent() != AUTOPILOT_COMPID:
+                    continue
+                if self.follow_sysid and _autopilot_heartbeat(m):
+                    self._follow(m.get_srcSystem())
+                if m.get_srcSystem() == self.vehicle.sysid:
+                    out.append(m)
+
+    def _follow(self, sysid: int) -> None:
+        """Become the companion of the vehicle with this system id (one vehicle per node)."""
+        log.info("following vehicle system %d", sysid)
+        self.follow_sysid = False
+        self.vehicle.sysid = sysid
+        self.encoder.mav.srcSystem = sysid
 
     # ----- the loop
     def run(self, duration_s: float | None = None) -> None:

@@ -62,6 +62,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     p.add_argument("--port", type=int, default=14540, help="UDP port to listen on (default 14540)")
     p.add_argument(
+        "--sysid",
+        type=int,
+        default=1,
+        choices=range(1, 256),
+        metavar="N",
+        help="MAVLink system id of the vehicle, 1-255 (default 1; PX4's MAV_SYS_ID)",
+    )
+    p.add_argument(
         "--out",
         type=parse_host_port,
         action="append",
@@ -179,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
         config, home=args.home, seed=args.seed, outer_rate_hz=args.outer_rate, attitude_loops=attitude_loops()
     )
     try:
-        link = UdpLink(args.host, args.port, args.out, signing_key=args.signing_key)
+        link = UdpLink(args.host, args.port, args.out, sysid=args.sysid, signing_key=args.signing_key)
     except OSError as exc:
         return _fail(f"cannot listen on udp {args.host}:{args.port}: {exc.strerror}")
 

@@ -9,6 +9,7 @@ the checkout, so only the wheel's copy of our packages can be imported.
 from __future__ import annotations
 
 import os
+import shutil
 import socket
 import subprocess
 import sys
@@ -40,8 +41,16 @@ def _get(url: str) -> tuple[int, str, bytes]:
 def installed(tmp_path_factory) -> Path:
     """A fresh venv with the repository's wheel installed; returns its python."""
     root = tmp_path_factory.mktemp("wheel")
+    # build from a copy: setuptools writes build/ and *.egg-info beside the sources it builds
+    source = root / "source"
+    shutil.copytree(
+        REPO,
+        source,
+        ignore=shutil.ignore_patterns(".venv*", ".git", "build", "data", "test-artifacts", "__pycache__", "*.egg-info"),
+    )
+    shutil.copytree(REPO / "tests" / "data", source / "tests" / "data")
     build = subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "-w", str(root / "dist"), str(REPO)],
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "-w", str(root / "dist"), str(source)],
         capture_output=True,
         text=True,
         timeout=600,

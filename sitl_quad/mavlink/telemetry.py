@@ -8,6 +8,7 @@ State messages report the vehicle's *estimate* (what a real autopilot knows), ne
 from __future__ import annotations
 
 import math
+import time
 
 from sitl_quad.mavlink.heartbeat import heartbeat_message
 from sitl_quad.vehicle import CommandResult, Vehicle
@@ -64,6 +65,7 @@ DEFAULT_RATES_HZ = {
     "BATTERY_STATUS": 1.0,
     "MISSION_CURRENT": 1.0,
     "HOME_POSITION": 0.5,
+    "SYSTEM_TIME": 1.0,
 }
 
 BATTERY_ENDURANCE_S = 25 * 60  # hover endurance used for the simple battery model
@@ -93,7 +95,12 @@ class Telemetry:
             "MISSION_CURRENT": self.mission_current,
             "HOME_POSITION": self.home_position,
             "AUTOPILOT_VERSION": self.autopilot_version,
+            "SYSTEM_TIME": self.system_time,
         }
+        # The vehicle's own unix clock runs on simulated time from the wall-clock instant it booted (as PX4 SITL
+        # in lockstep): unix time minus time since boot is then this boot's constant instant, which a ground
+        # station compares to recognise a new boot even when a fast lockstep clock has overtaken the old one.
+        self.boot_unix_us = int(time.time() * 1e6)
         self.link_stats = link.stats  # drop counters go into SYS_STATUS
         self._geodetic_cache: tuple[float, tuple[float, float, float]] = (-1.0, (0.0, 0.0, 0.0))
 
@@ -320,6 +327,10 @@ class Telemetry:
             0.0,
             int(self.vehicle.t * 1e6),
         )
+
+    def system_time(self):
+        boot_ms = self.vehicle.time_boot_ms
+        return mavlink.MAVLink_system_time_message(self.boot_unix_us + boot_ms * 1000, boot_ms)
 
     def autopilot_version(self):
         return mavlink.MAVLink_autopilot_version_message(
