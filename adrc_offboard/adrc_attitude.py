@@ -39,6 +39,7 @@ import numpy as np
 
 from adrc_offboard.adrc import AdrcParameterError
 from adrc_offboard.gains import Channel, channel_parameters, load_gains, make_channel
+from uavcore.airframe import Airframe
 from uavcore.state import AttitudeTarget, VehicleState
 
 AXES = ("roll", "pitch", "yaw")
@@ -100,22 +101,25 @@ class AdrcAttitudeController:
         self._theta = [0.0, 0.0, 0.0]
         if not (math.isfinite(actuator_time_constant) and actuator_time_constant >= 0):
             raise AdrcParameterError(f"actuator_time_constant must be >= 0, got {actuator_time_constant}")
+        self.actuator_time_constant = actuator_time_constant  # s; 0: the torque is applied as commanded
         # fraction of the way a first-order actuator moves toward its command in one step
         self._actuator_step = 1.0 - math.exp(-self.h / actuator_time_constant) if actuator_time_constant else 1.0
         self._actuator = [0.0, 0.0, 0.0]
 
     @classmethod
     def for_airframe(
-        cls, airframe: Any, gains: AdrcAttitudeGains | None = None, rate_hz: float = 250.0
+        cls, airframe: Airframe, gains: AdrcAttitudeGains | None = None, rate_hz: float = 250.0
     ) -> AdrcAttitudeController:
-        """From any object with inertias (kg m^2) as .Ix, .Iy, .Iz or .ixx, .iyy, .izz, and optionally the
-        rotors' .motor_time_constant (s), which the observers then model."""
-        if all(hasattr(airframe, name) for name in ("Ix", "Iy", "Iz")):
-            inertias = (airframe.Ix, airframe.Iy, airframe.Iz)
-        else:
-            inertias = (airframe.ixx, airframe.iyy, airframe.izz)
-        lag = float(getattr(airframe, "motor_time_constant", 0.0))
-        return cls(*(float(i) for i in inertias), gains=gains, rate_hz=rate_hz, actuator_time_constant=lag)
+        """The inner loop for an airframe: its inertias give b0, and its motor lag is the actuator the observers
+        model (the vehicle builds its ADRC attitude loop only this way)."""
+        return cls(
+            airframe.ixx,
+            airframe.iyy,
+            airframe.izz,
+            gains=gains,
+            rate_hz=rate_hz,
+            actuator_time_constant=airframe.motor_time_constant,
+        )
 
     def reset(self) -> None:
         for channel in self.channels:

@@ -15,8 +15,8 @@ from uavcore.control import AttitudeController
 
 
 def adrc_attitude_loop(config: VehicleConfig, rate_hz: float) -> AttitudeController:
-    af = config.airframe
-    return AdrcAttitudeController(af.ixx, af.iyy, af.izz, rate_hz=rate_hz)
+    """The paper's ADRC attitude loop for the configured airframe, its observers modelling the motor lag."""
+    return AdrcAttitudeController.for_airframe(config.airframe, rate_hz=rate_hz)
 
 
 def attitude_loops() -> dict[AttitudeControllerKind, AttitudeLoopFactory]:

@@ -9,6 +9,7 @@ import pytest
 
 from adrc_offboard.adrc import AdrcParameterError
 from adrc_offboard.adrc_attitude import AdrcAttitudeController, AdrcAttitudeGains
+from uavcore.airframe import Airframe
 from uavcore.rotation import euler_from_quat, quat_from_euler, quat_multiply, wrap_pi
 from uavcore.state import AttitudeTarget, VehicleState
 
@@ -142,16 +143,10 @@ def test_reset_forgets_the_observers_and_the_bookkeeping() -> None:
     assert np.allclose(controller.update(target, state, 0.004), fresh.update(target, state, 0.004))
 
 
-def test_for_airframe_accepts_either_inertia_naming_and_refuses_bad_values() -> None:
-    class Paper:
-        Ix, Iy, Iz = INERTIA
-
-    class Simulator:
-        ixx, iyy, izz = INERTIA
-        motor_time_constant = 0.02
-
-    for airframe in (Paper(), Simulator()):
-        assert isinstance(AdrcAttitudeController.for_airframe(airframe), AdrcAttitudeController)
+def test_for_airframe_takes_inertias_and_motor_lag_and_bad_values_are_refused() -> None:
+    airframe = Airframe.table2()
+    controller = AdrcAttitudeController.for_airframe(airframe)
+    assert controller.actuator_time_constant == airframe.motor_time_constant == 0.02
     with pytest.raises(AdrcParameterError):
         AdrcAttitudeController(0.0, 0.083, 0.151)
     with pytest.raises(AdrcParameterError):
