@@ -72,6 +72,7 @@ class ArmingState:
         self.landed_state = LandedState.ON_GROUND
         self.was_airborne = False  # has flown since arming (a touchdown is then a landing)
         self.pending_climb: PendingClimb | None = None
+        self.spooled_up = False  # a climb's spool-up has run since arming (OFFBOARD may then leave the ground)
         # Wall clock for the pre-flight disarm timer (the server passes time.monotonic): a ground station's
         # command retries run on the wall clock, so at lockstep speeds 10 s of simulated time can pass between
         # its ARM and a MISSION_START that had to be resent. None: simulated time only (tests, benchmarks).
@@ -90,6 +91,7 @@ class ArmingState:
         self._armed_at = t
         self._armed_at_wall = self.wall_clock() if self.wall_clock is not None else 0.0
         self.was_airborne = False
+        self.spooled_up = False
         self.landed_state = LandedState.ON_GROUND
 
     def disarm(self) -> None:
@@ -105,6 +107,7 @@ class ArmingState:
         if pending is None or clock + 1e-9 < pending.climb_at:
             return None
         self.pending_climb = None
+        self.spooled_up = True
         return pending
 
     def idling(self, on_ground: bool, navigator: Navigator) -> bool:

@@ -26,6 +26,17 @@ class FailsafeAction(IntEnum):
     RETURN = 2
 
 
+class GeofenceAction(IntEnum):
+    """What the vehicle does when it breaches its geofence (GF_ACTION, PX4's numbers and names)."""
+
+    NONE = 0
+    WARNING = 1  # a critical STATUSTEXT only
+    HOLD = 2  # hold (AUTO.LOITER) where it is
+    RETURN = 3  # return to launch (AUTO.RTL)
+    TERMINATE = 4  # flight termination: not simulated (PX4 also keeps it behind a circuit breaker)
+    LAND = 5  # land where it is (AUTO.LAND)
+
+
 class AttitudeControllerKind(IntEnum):
     """Which inner loop flies the attitude (MC_ATT_CTRL)."""
 
@@ -37,6 +48,11 @@ class AttitudeControllerKind(IntEnum):
 class FailsafeConfig:
     offboard_loss_timeout_s: float = 0.5  # OFFB_LOSS_T, simulated seconds
     offboard_loss_action: int = FailsafeAction.HOLD  # OFFB_LOSS_ACT
+    geofence_action: int = GeofenceAction.HOLD  # GF_ACTION
+
+    def __post_init__(self) -> None:
+        if self.geofence_action == GeofenceAction.TERMINATE:
+            raise ValueError("GF_ACTION 4 (flight termination) is not simulated: use 0, 1, 2, 3 or 5")
 
 
 @dataclass(frozen=True)

@@ -1,16 +1,24 @@
-"""The offboard setpoint stream and what happens when it stops (OFFB_LOSS_T, OFFB_LOSS_ACT).
+"""Failsafes: the offboard setpoint stream and its loss (OFFB_LOSS_T, OFFB_LOSS_ACT); the geofence (GF_ACTION).
 
-The offboard controller's SET_ATTITUDE_TARGETs fly the vehicle only in OFFBOARD and only while fresh: no
-new target for `offboard_loss_timeout_s` of simulated time and the vehicle leaves OFFBOARD for the mode
-OFFB_LOSS_ACT names, as PX4's commander does. Ages are counted in integer physics steps, so a lockstep
-flight decides the loss at the same tick whatever the wall clock did.
+Offboard setpoints (attitude + thrust from the offboard controller; body rates + thrust; position, velocity,
+acceleration and yaw targets, see sitl_quad.offboard_setpoints) fly the vehicle only in OFFBOARD and only while
+fresh: no new setpoint of any kind for `offboard_loss_timeout_s` of simulated time and the vehicle leaves
+OFFBOARD for the mode OFFB_LOSS_ACT names, as PX4's commander does. The latest setpoint decides what is flown.
+Ages are counted in integer physics steps, so a lockstep flight decides the loss at the same tick whatever the
+wall clock did.
+
+The geofence (uavcore.geofence, uploaded as a MISSION_TYPE_FENCE list) is checked every tick while flying;
+a breach switches to the mode GF_ACTION names and says so in a STATUSTEXT.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sitl_quad.config import FailsafeAction, FailsafeConfig
+from sitl_quad.config import FailsafeAction, FailsafeConfig, GeofenceAction
+from sitl_quad.offboard_setpoints import PositionTarget, RatesTarget, SetpointKind
+from uavcore.geodesy import LocalFrame
+from uavcore.geofence import Geofence, PlanarFence, Zone
 from uavcore.modes import FlightMode
 from uavcore.state import AttitudeTarget
 
@@ -23,17 +31,33 @@ OFFBOARD_LOSS_MODES = {
 
 @dataclass
 class OffboardStream:
-    """The latest SET_ATTITUDE_TARGET from the offboard controller."""
+    """The latest offboard setpoint: its kind and the one of that kind."""
 
-    target: AttitudeTarget | None = None
+    target: AttitudeTarget | None = None  # the latest attitude + thrust (SET_ATTITUDE_TARGET)
+    position_target: PositionTarget | None = None  # the latest SET_POSITION_TARGET_*
+    rates_target: RatesTarget | None = None  # the latest body rates + thrust
+    kind: SetpointKind | None = None  # the kind of the latest setpoint: what OFFBOARD flies
     received_step: int = -(10**12)  # the physics step it arrived at
-    answered_ms: int = -1  # the state time_boot_ms it answers (lockstep)
+    answered_ms: int = -1  # the state time_boot_ms the latest attitude target answers (lockstep)
     count: int = 0
 
     def receive(self, target: AttitudeTarget, answered_ms: int, step_index: int) -> None:
+        """An attitude + thrust target (the offboard controller's, answering state `answered_ms`)."""
         self.target = target
-        self.received_step = step_index
         self.answered_ms = answered_ms
+        self._arrived(SetpointKind.ATTITUDE, step_index)
+
+    def receive_position(self, target: PositionTarget, step_index: int) -> None:
+        self.position_target = target
+        self._arrived(SetpointKind.TRAJECTORY, step_index)
+
+    def receive_rates(self, target: RatesTarget, step_index: int) -> None:
+        self.rates_target = target
+        self._arrived(SetpointKind.RATES, step_index)
+
+    def _arrived(self, kind: SetpointKind, step_index: int) -> None:
+        self.kind = kind
+        self.received_step = step_index
         self.count += 1
 
     def age_s(self, step_index: int, dt: float) -> float:
@@ -47,3 +71,47 @@ class OffboardStream:
 def offboard_loss_mode(failsafe: FailsafeConfig) -> FlightMode:
     """The mode OFFB_LOSS_ACT switches to when the stream is lost."""
     return OFFBOARD_LOSS_MODES[FailsafeAction(failsafe.offboard_loss_action)]
+
+
+GEOFENCE_MODES = {
+    GeofenceAction.HOLD: FlightMode.AUTO_LOITER,
+    GeofenceAction.RETURN: FlightMode.AUTO_RTL,
+    GeofenceAction.LAND: FlightMode.AUTO_LAND,
+}
+
+
+class GeofenceGuard:
+    """The vehicle's geofence in its own NED frame, and whether the vehicle is breaching it.
+
+    As PX4's geofence, the action (GF_ACTION) is taken once, when a breach begins; the vehicle may then be flown
+    back inside (or further out: the ground station's business) without the action repeating every tick.
+    """
+
+    def __init__(self) -> None:
+        self.fence = Geofence()
+        self.plane = PlanarFence(())
+        self.breached = False
+
+    @property
+    def present(self) -> bool:
+        return not self.fence.empty
+
+    def set_fence(self, fence: Geofence, frame: LocalFrame) -> None:
+        self.fence = fence
+        self.plane = fence.in_plane(frame)
+        self.breached = False
+
+    def violation(self, north: float, east: float) -> Zone | None:
+        return self.plane.violation((north, east)) if self.present else None
+
+    def new_breach(self, north: float, east: float) -> Zone | None:
+        """The zone broken if the vehicle at (north, east) has just left where it may be, else None."""
+        zone = self.violation(north, east)
+        began = zone is not None and not self.breached
+        self.breached = zone is not None
+        return zone if began else None
+
+
+def geofence_action_mode(action: GeofenceAction) -> FlightMode | None:
+    """The mode GF_ACTION switches to on a breach (None: warn only, or nothing)."""
+    return GEOFENCE_MODES.get(action)

@@ -17,7 +17,8 @@ from uavcore.modes import FlightMode
 from uavcore.state import VehicleState
 
 CLIMB_MODES = (FlightMode.AUTO_MISSION, FlightMode.AUTO_TAKEOFF)  # on the ground these start a flight
-HOLD_MODES = (FlightMode.AUTO_LOITER, FlightMode.POSCTL, FlightMode.AUTO_READY)
+# ORBIT holds until the vehicle's orbit command gives the navigator its circle (Vehicle.orbit)
+HOLD_MODES = (FlightMode.AUTO_LOITER, FlightMode.POSCTL, FlightMode.AUTO_READY, FlightMode.ORBIT)
 
 
 def start_activity(

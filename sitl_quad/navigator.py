@@ -25,6 +25,7 @@ from typing import Literal
 
 import numpy as np
 
+from sitl_quad.orbit import Orbit, OrbitSegment
 from sitl_quad.trajectory import (
     MotionLimits,
     NavigationError,
@@ -34,7 +35,7 @@ from sitl_quad.trajectory import (
     bearing,
 )
 from uavcore.geodesy import LocalFrame
-from uavcore.mission import MavCmd, MavFrame, MissionItem
+from uavcore.mission import ITEM_FRAMES, MavCmd, MavFrame, MissionItem
 from uavcore.rotation import euler_from_quat
 from uavcore.state import TrajectorySetpoint, VehicleState
 
@@ -57,7 +58,7 @@ SPEED_TYPE_CLIMB = 2
 SPEED_TYPE_DESCENT = 3
 SPEED_RESET_TO_DEFAULT = -2
 
-Activity = Literal["idle", "takeoff", "mission", "hold", "rtl", "land"]
+Activity = Literal["idle", "takeoff", "mission", "hold", "rtl", "land", "orbit"]
 MissionState = Literal["no_mission", "not_started", "active", "paused", "complete"]
 
 
@@ -126,6 +127,7 @@ class Navigator:
         self.mission_state: MissionState = "no_mission"
         self.activity: Activity = "idle"
         self.is_landing = False
+        self.orbit: Orbit | None = None  # the circle flown while the activity is "orbit"
         self._items: list[MissionItem] = []
         self._targets: list[tuple[tuple[float, float] | None, float | None]] = []
         self._events: list[NavEvent] = []
@@ -161,7 +163,7 @@ class Navigator:
         """(north, east) of the item or None for "here"; its down coordinate or None for "keep altitude"."""
         if item.command not in NAV_COMMANDS or item.command == MavCmd.NAV_RETURN_TO_LAUNCH:
             return None, None
-        if item.frame not in frozenset(MavFrame):
+        if item.frame not in ITEM_FRAMES:
             raise NavigationError(f"mission item {item.seq}: frame {item.frame} is not supported")
         horizontal = None
         if item.has_position:
@@ -233,6 +235,33 @@ class Navigator:
         if yaw is not None:
             trajectory.turn_to(yaw, self.config.yaw_rate, self.config.yaw_acceleration)
         self._switch_activity("hold", trajectory, None)
+
+    def start_orbit(self, t: float, state: VehicleState, orbit: Orbit) -> None:
+        """Fly straight to the nearest point of the circle, face as the orbit's yaw behaviour asks, then circle
+        until something else is asked (sitl_quad.orbit)."""
+        initial_heading = _yaw_of(state)
+        trajectory = self._fresh_trajectory(t, state)
+        here = trajectory.end_position
+        angle = orbit.angle_of(here[0], here[1])
+        self._fly_to(trajectory, orbit.point_at(angle), None, mission=False)
+        segment = OrbitSegment(orbit, angle, initial_heading, self.config.max_acceleration / 2)
+        trajectory.turn_to(segment.end_yaw, self.config.yaw_rate, self.config.yaw_acceleration)
+        trajectory.append(segment)
+        self._switch_activity("orbit", trajectory, None)
+        self.orbit = orbit
+
+    def release(self, t: float) -> None:
+        """Fly nothing: something else (an offboard stream) sets the reference. A mission under way pauses; the
+        next activity starts from the vehicle's own state."""
+        self._descent_start = self._ground_time = None
+        self.is_landing = False
+        if self.mission_state == "active":
+            self.mission_state = "paused"
+        self.activity = "idle"
+        self.orbit = None
+        self._trajectory = self._goal = None
+        self._phase = "done"
+        self._last_update = t
 
     def update(self, t: float, state: VehicleState) -> TrajectorySetpoint:
         """The reference at time t; also detects arrival, dwells and advances the mission."""
@@ -318,6 +347,7 @@ class Navigator:
         if self.mission_state == "active" and activity != "mission":
             self.mission_state = "paused"
         self.activity = activity
+        self.orbit = None
         self._trajectory = trajectory
         self._goal = goal
         self._phase = "enroute" if goal is not None else "done"

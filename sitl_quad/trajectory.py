@@ -322,6 +322,10 @@ class Trajectory:
         self.end_yaw = segment.end_yaw
         return start
 
+    def append(self, segment: Segment) -> None:
+        """Add a segment of another kind (e.g. sitl_quad.orbit's endless circle) after the chain."""
+        self._append(segment)
+
     def turn_to(self, yaw: float, rate: float, acceleration: float) -> None:
         """Turn on the spot to `yaw` (the short way)."""
         self._append(YawTurn(self.end_position, self.end_yaw, yaw, rate, acceleration))

@@ -5,12 +5,15 @@
 - sitl_quad.navigator: the mission and the reference the position loop follows;
 - sitl_quad.arming: armed or not, spool-up, the land detector and its automatic disarms (`ArmingState`);
 - sitl_quad.flight_modes: what each flight mode asks of the navigator;
-- sitl_quad.failsafe: the offboard setpoint stream and its loss (`OffboardStream`);
+- sitl_quad.failsafe: the offboard setpoint stream and its loss (`OffboardStream`), the geofence (`GeofenceGuard`);
+- sitl_quad.offboard_setpoints: what position/velocity and body-rate setpoints ask of the loops;
+- sitl_quad.orbit: DO_ORBIT's circle;
 - sitl_quad.vehicle_types: command results, events, tick records.
 
 `Vehicle.tick()` advances one outer-loop period (50 Hz by default): the navigator's reference, the outer
-loop's attitude target (built-in PID cascade, or the offboard controller's SET_ATTITUDE_TARGET while in
-OFFBOARD and fresh), then the attitude loop at 250 Hz, each attitude step driving 1 kHz RK4 physics steps.
+loop's attitude target (built-in PID cascade toward the navigator's reference or an offboard position target,
+or the offboard controller's SET_ATTITUDE_TARGET while in OFFBOARD and fresh), then the attitude loop at
+250 Hz, each attitude step driving 1 kHz RK4 physics steps.
 Nothing here knows MAVLink: commands return a `CommandResult` whose numbers equal MAV_RESULT's, and what
 the outside world should hear about is queued as `VehicleEvent`s.
 """
@@ -24,6 +27,7 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from sitl_quad.arming import (
+    CLIMBING_ACTIVITIES,
     FORCE_DISARM_MAGIC,
     PREFLIGHT_DISARM_S,
     SPOOLUP_S,
@@ -33,17 +37,20 @@ from sitl_quad.arming import (
     PendingClimb,
     touching_ground,
 )
-from sitl_quad.config import AttitudeControllerKind, VehicleConfig
-from sitl_quad.failsafe import OffboardStream, offboard_loss_mode
+from sitl_quad.config import AttitudeControllerKind, GeofenceAction, VehicleConfig
+from sitl_quad.failsafe import GeofenceGuard, OffboardStream, geofence_action_mode, offboard_loss_mode
 from sitl_quad.flight_loop import AttitudeLoopFactory, FlightLoop, builtin_pid_loop, motors_off_target
 from sitl_quad.flight_modes import CLIMB_MODES, flight_navigator, reposition_target, resume_seq, start_activity
 from sitl_quad.navigator import Navigator
+from sitl_quad.offboard_setpoints import OffboardTracker, PositionTarget, RatesTarget, SetpointKind, wants_takeoff
+from sitl_quad.orbit import orbit_from_command
 from sitl_quad.position_control import PidPositionController
 from sitl_quad.rotors import Mixer
 from sitl_quad.simulator import Simulator
 from sitl_quad.vehicle_types import CommandResult, TickRecord, VehicleEvent
 from uavcore.control import AttitudeController
 from uavcore.geodesy import LocalFrame
+from uavcore.geofence import Geofence
 from uavcore.mission import MissionItem
 from uavcore.modes import FlightMode
 from uavcore.rotation import euler_from_quat
@@ -86,6 +93,12 @@ class Vehicle:
         self.arming = ArmingState()
         self.mode = FlightMode.AUTO_LOITER
         self.offboard = OffboardStream()
+        self.offboard_tracker = OffboardTracker()
+        self.geofence = GeofenceGuard()
+        self.fence_items: list[MissionItem] = []  # the MISSION_TYPE_FENCE list, as uploaded
+        self.rally_points: list[MissionItem] = []  # the MISSION_TYPE_RALLY list, as uploaded
+        # DO_REPOSITION received while taking off: flown once the climb is done, as PX4 does
+        self._reposition_after_takeoff: tuple[float, float, float, float] | None = None
         self.events: list[VehicleEvent] = []
         self.estimate = self.sim.measure()
         self.setpoint = self._hold_here()
@@ -191,6 +204,9 @@ class Vehicle:
         if not self.sim.on_ground:
             self._emit("text", "Arming denied: not on the ground", 4)
             return CommandResult.DENIED
+        if self._geofence_enforced() and self.geofence.violation(*self._north_east()) is not None:
+            self._emit("text", "Arming denied: vehicle outside geofence", 4)
+            return CommandResult.DENIED
         self.arming.arm(self.t)
         self.loop.reset_controllers()
         self._emit("armed", "Armed")
@@ -213,11 +229,15 @@ class Vehicle:
 
     def set_mode(self, mode: FlightMode) -> CommandResult:
         if mode == FlightMode.OFFBOARD and not self.offboard_fresh():
-            self._emit("text", "Offboard denied: no attitude setpoint stream", 4)
+            self._emit("text", "Offboard denied: no setpoint stream", 4)
             return CommandResult.TEMPORARILY_REJECTED
         if mode == FlightMode.AUTO_MISSION and not self.mission:
             self._emit("text", "Mission denied: no mission", 4)
             return CommandResult.DENIED
+        if mode == FlightMode.AUTO_MISSION and not self._mission_inside_fence():
+            return CommandResult.DENIED
+        if mode == FlightMode.ORBIT:  # an orbit around here with the defaults, as PX4 enters it by mode
+            return self.orbit(math.nan, math.nan, math.nan, math.nan, math.nan, math.nan)
         self._enter(mode)
         return CommandResult.ACCEPTED
 
@@ -233,6 +253,8 @@ class Vehicle:
             self._emit("text", "Mission start denied: no mission", 4)
             return CommandResult.DENIED
         if first_seq is not None and not 0 <= first_seq < len(self.mission):
+            return CommandResult.DENIED
+        if not self._mission_inside_fence():
             return CommandResult.DENIED
         self._enter(FlightMode.AUTO_MISSION, first_seq=first_seq)
         return CommandResult.ACCEPTED
@@ -255,15 +277,64 @@ class Vehicle:
     def reposition(self, lat: float, lon: float, alt_amsl: float, yaw: float) -> CommandResult:
         """DO_REPOSITION (QGC's "go to location", MAVSDK's goto_location): hold at a place, as PX4 does.
 
-        NaN keeps the current value of a coordinate; yaw NaN keeps the heading toward the travel."""
-        if not self.armed or not self.in_air:
+        NaN keeps the current value of a coordinate; yaw NaN keeps the heading toward the travel. During a
+        takeoff (spool-up included) the place is flown to once the climb is done."""
+        taking_off = self.mode == FlightMode.AUTO_TAKEOFF and (
+            self.arming.pending_climb is not None or self.navigator.activity == "takeoff"
+        )
+        if not self.armed or not (self.in_air or taking_off):
             self._emit("text", "Reposition denied: not flying", 4)
             return CommandResult.DENIED
         place = reposition_target(self.frame, self.home[2], self.estimate, lat, lon, alt_amsl)
         if place is None:
             return CommandResult.DENIED
+        if taking_off:
+            self._reposition_after_takeoff = (lat, lon, alt_amsl, yaw)
+            return CommandResult.ACCEPTED
         self._enter(FlightMode.AUTO_LOITER)
         self.navigator.hold(self.clock, self.estimate, position=place, yaw=yaw if math.isfinite(yaw) else None)
+        return CommandResult.ACCEPTED
+
+    def orbit(
+        self, radius: float, speed: float, yaw_behaviour: float, lat: float, lon: float, alt_amsl: float
+    ) -> CommandResult:
+        """DO_ORBIT (MAVSDK's do_orbit, QGC's orbit): circle a centre, as PX4's orbit mode (POSCTL.ORBIT).
+
+        radius: m, its sign the direction (positive clockwise); speed: tangential m/s; yaw_behaviour:
+        ORBIT_YAW_BEHAVIOUR; lat/lon: the centre; alt_amsl: the altitude. NaN: the orbit under way's value, else a
+        default (the centre and altitude: the vehicle's own)."""
+        if not self.armed or not self.in_air:
+            self._emit("text", "Orbit denied: not flying", 4)
+            return CommandResult.DENIED
+        here = tuple(float(c) for c in self.estimate.position)
+        center = None
+        if math.isfinite(lat) and math.isfinite(lon):
+            place = reposition_target(self.frame, self.home[2], self.estimate, lat, lon, math.nan)
+            if place is None:
+                return CommandResult.DENIED
+            center = place[:2]
+        down = -(alt_amsl - self.home[2]) if math.isfinite(alt_amsl) else None
+        if down is not None and down > 0:
+            return CommandResult.DENIED  # below home
+        current = self.navigator.orbit if self.mode == FlightMode.ORBIT else None
+        limits = self.config
+        try:
+            orbit = orbit_from_command(
+                current,
+                here,
+                radius,
+                speed,
+                yaw_behaviour,
+                center,
+                down,
+                limits.navigator.max_acceleration,
+                limits.position_pid.mpc_xy_vel_max,
+            )
+        except ValueError as exc:
+            self._emit("text", f"Orbit denied: {exc}", 4)
+            return CommandResult.DENIED
+        self._enter(FlightMode.ORBIT)
+        self.navigator.start_orbit(self.clock, self.estimate, orbit)
         return CommandResult.ACCEPTED
 
     def set_current_item(self, seq: int) -> bool:
@@ -279,15 +350,56 @@ class Vehicle:
     def set_offboard_target(self, target: AttitudeTarget, answered_ms: int) -> None:
         self.offboard.receive(target, answered_ms, self.sim.step_index)
 
+    def set_offboard_position_target(self, target: PositionTarget) -> None:
+        """SET_POSITION_TARGET_*, already in the local NED frame (sitl_quad.offboard_setpoints)."""
+        self.offboard.receive_position(target, self.sim.step_index)
+
+    def set_offboard_rates_target(self, target: RatesTarget) -> None:
+        """SET_ATTITUDE_TARGET with body rates and thrust, the attitude ignored."""
+        self.offboard.receive_rates(target, self.sim.step_index)
+
+    # ----- geofence and rally points (the other two lists of the mission protocol)
+    def set_fence(self, items: list[MissionItem]) -> None:
+        """Store a MISSION_TYPE_FENCE list; raises uavcore.geofence.FenceError (nothing changed) if it does not
+        describe zones."""
+        fence = Geofence.from_items(items)
+        self.fence_items = list(items)
+        self.geofence.set_fence(fence, self.frame)
+
+    def set_rally_points(self, items: list[MissionItem]) -> None:
+        self.rally_points = list(items)
+
+    def _north_east(self) -> tuple[float, float]:
+        return float(self.estimate.position[0]), float(self.estimate.position[1])
+
+    def _geofence_enforced(self) -> bool:
+        return self.geofence.present and self.config.failsafe.geofence_action != GeofenceAction.NONE
+
+    def _mission_inside_fence(self) -> bool:
+        """PX4's mission feasibility check: every place the mission names is where the vehicle may be."""
+        if not self._geofence_enforced():
+            return True
+        for item in self.mission:
+            if item.has_position:
+                north, east, _ = self.frame.to_ned(item.lat, item.lon, self.frame.alt0)
+                if self.geofence.violation(float(north), float(east)) is not None:
+                    self._emit("text", f"Mission denied: item {item.seq} outside geofence", 4)
+                    return False
+        return True
+
     # ----- mode changes
     def _enter(self, mode: FlightMode, first_seq: int | None = None, altitude: float | None = None) -> None:
         """Switch mode and tell the navigator what to fly (only when armed; a disarmed mode waits)."""
         changed = mode != self.mode
         self.mode = mode
+        self._reposition_after_takeoff = None
         if changed:
             self._emit("mode", mode.label)
-        if not self.armed or mode == FlightMode.OFFBOARD:
-            return  # OFFBOARD: the navigator keeps flying whatever it flies; only the outer loop changes hands
+        if not self.armed:
+            return
+        if mode == FlightMode.OFFBOARD:
+            self._enter_offboard()
+            return
         self.arming.pending_climb = None
         if self.sim.on_ground and not self.arming.was_airborne and mode in CLIMB_MODES:
             self._prepare_takeoff(mode, first_seq, altitude)
@@ -308,6 +420,32 @@ class Vehicle:
         self.navigator = flight_navigator(self.frame, self.config.navigator, self.mission, self.clock, self.estimate)
         self.arming.schedule_climb(PendingClimb(self.clock + SPOOLUP_S, mode, first_seq, altitude))
 
+    def _enter_offboard(self) -> None:
+        """OFFBOARD takes the outer loop. With the offboard controller's attitude targets during a flight the
+        navigator keeps flying its reference (the controller follows it); position targets or body rates, or a
+        start from the ground, leave the navigator nothing to fly. From the ground the motors first spool up, and
+        the vehicle leaves the ground when the setpoints ask for it (`_offboard_lifts_off`)."""
+        self.offboard_tracker.reset()
+        from_ground = (
+            self.sim.on_ground
+            and not self.arming.was_airborne
+            and self.arming.pending_climb is None
+            and self.navigator.activity not in CLIMBING_ACTIVITIES
+        )
+        if from_ground:
+            self._prepare_takeoff(FlightMode.OFFBOARD, None, None)
+        if from_ground or self.offboard.kind != SetpointKind.ATTITUDE:
+            self.navigator.release(self.clock)
+
+    def _offboard_lifts_off(self, est: VehicleState) -> bool:
+        """Whether OFFBOARD setpoints fly an armed vehicle still on the ground: once the motors have spooled up,
+        attitude and rate setpoints at once (their thrust decides), position targets when they ask to climb."""
+        if self.mode != FlightMode.OFFBOARD or not self.arming.spooled_up:
+            return False
+        if self.offboard.kind == SetpointKind.TRAJECTORY:
+            return wants_takeoff(self.offboard.position_target, est)
+        return True
+
     def _start_activity(self, mode: FlightMode, first_seq: int | None = None, altitude: float | None = None) -> None:
         start_activity(self.navigator, mode, self.clock, self.estimate, first_seq, altitude, self.config.navigator)
 
@@ -316,6 +454,28 @@ class Vehicle:
         climb = self.arming.due_climb(self.clock)
         if climb is not None and self.armed:
             self._start_activity(climb.mode, climb.first_seq, climb.altitude)
+
+    def _reposition_once_climbed(self) -> None:
+        """Fly to a place asked for during the takeoff, once the climb is done."""
+        request = self._reposition_after_takeoff
+        climbing = self.arming.pending_climb is not None or self.navigator.activity == "takeoff"
+        if request is not None and not climbing:
+            self._reposition_after_takeoff = None
+            self.reposition(*request)
+
+    def _check_geofence(self) -> None:
+        """GF_ACTION when the flying vehicle leaves where its geofence lets it be (sitl_quad.failsafe)."""
+        if not (self.armed and self.in_air and self._geofence_enforced()):
+            return
+        zone = self.geofence.new_breach(*self._north_east())
+        if zone is None:
+            return
+        action = GeofenceAction(self.config.failsafe.geofence_action)
+        next_mode = geofence_action_mode(action)
+        then = next_mode.label if next_mode is not None else "warning only"
+        self._emit("text", f"Geofence breached ({zone.kind}): {then}", 2)
+        if next_mode is not None and next_mode != self.mode:
+            self._enter(next_mode)
 
     def _check_offboard_loss(self) -> None:
         """OFFB_LOSS_ACT once the offboard stream is older than OFFB_LOSS_T (sitl_quad.failsafe)."""
@@ -334,14 +494,27 @@ class Vehicle:
         """
         self.estimate = est = self.sim.measure()
         self._start_pending_takeoff()
-        if self.armed:
+        kind = self.offboard.kind if self.mode == FlightMode.OFFBOARD and self.offboard_fresh() else None
+        if self.armed and kind in (SetpointKind.TRAJECTORY, SetpointKind.RATES):
+            if self.navigator.activity != "idle":  # the stream switched kind: it sets the reference now
+                self.navigator.release(self.clock)
+            self.setpoint = (
+                self.offboard_tracker.trajectory_setpoint(self.offboard.position_target, est, self.outer_dt)
+                if kind == SetpointKind.TRAJECTORY
+                else self._hold_here()
+            )
+        elif self.armed:
             self.setpoint = self.navigator.update(self.clock, est)
             self._drain_navigator()
+            self._reposition_once_climbed()
         else:
             self.setpoint = self._hold_here()
         self._check_offboard_loss()
-        offboard = self.offboard.target if self.mode == FlightMode.OFFBOARD else None
-        idling = self.armed and self.arming.idling(self.sim.on_ground, self.navigator)
+        self._check_geofence()
+        offboard = self._offboard_attitude(est) if self.mode == FlightMode.OFFBOARD else None
+        idling = (
+            self.armed and self.arming.idling(self.sim.on_ground, self.navigator) and not self._offboard_lifts_off(est)
+        )
         target, source = self.loop.outer_target(est, self.setpoint, offboard, armed=self.armed, idling=idling)
         self.target, self.source = target, source
         saturated = self.loop.fly(target, source)
@@ -358,6 +531,15 @@ class Vehicle:
             source=source,
             disturbance=dict(self.sim.last_disturbance),
         )
+
+    def _offboard_attitude(self, est: VehicleState) -> AttitudeTarget | None:
+        """The attitude target OFFBOARD sends straight to the attitude loop: the offboard controller's, or one
+        integrated from body rates; None for position targets (the position loop flies those)."""
+        if self.offboard.kind == SetpointKind.RATES:
+            return self.offboard_tracker.rates_target(self.offboard.rates_target, est, self.outer_dt)
+        if self.offboard.kind == SetpointKind.TRAJECTORY:
+            return None
+        return self.offboard.target
 
     def _drain_navigator(self) -> None:
         for event in self.navigator.pop_events():

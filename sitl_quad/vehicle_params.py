@@ -106,5 +106,13 @@ VEHICLE_PARAMETERS: list[ParamSpec] = [
     ParamSpec(
         "OFFB_LOSS_ACT", "failsafe.offboard_loss_action", INT32, 0, 2, "offboard loss action: 0 hold, 1 land, 2 return"
     ),
+    ParamSpec(
+        "GF_ACTION",
+        "failsafe.geofence_action",
+        INT32,
+        0,
+        5,
+        "geofence breach action: 0 none, 1 warning, 2 hold, 3 return, 5 land (4 terminate: not simulated)",
+    ),
     ParamSpec("MC_ATT_CTRL", "control.attitude_controller", INT32, 0, 1, "attitude loop: 0 PID, 1 ADRC"),
 ]

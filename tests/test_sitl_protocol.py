@@ -380,16 +380,20 @@ def test_mission_count_beyond_capacity_is_refused_no_space(gcs):
 @pytest.mark.parametrize(
     "mission_type", [mavlink.MAV_MISSION_TYPE_FENCE, mavlink.MAV_MISSION_TYPE_RALLY], ids=["fence", "rally"]
 )
-def test_fence_and_rally_are_answered_never_silent(gcs, mission_type):
+def test_fence_and_rally_lists_hold_their_own_items_only(gcs, mission_type):
+    """A rally point is stored in the rally list and handed back; in the fence list it is refused."""
     assert gcs.download_mission(mission_type=mission_type) == []
     point = mission_item(0, mavlink.MAV_CMD_NAV_RALLY_POINT, *DEFAULT_HOME, mission_type=mission_type)
     ack = gcs.upload_mission([point], mission_type=mission_type, timeout=5)
-    assert ack is not None and ack.type == mavlink.MAV_MISSION_UNSUPPORTED
+    rally = mission_type == mavlink.MAV_MISSION_TYPE_RALLY
+    assert ack is not None and ack.type == (mavlink.MAV_MISSION_ACCEPTED if rally else mavlink.MAV_MISSION_UNSUPPORTED)
     assert ack.mission_type == mission_type
+    stored = gcs.download_mission(mission_type=mission_type)
+    assert [(i.command, i.x, i.y) for i in stored] == ([(point.command, point.x, point.y)] if rally else [])
     gcs.mav.mission_clear_all_send(VEHICLE_SYSID, VEHICLE_COMPID, mission_type)
     cleared = gcs.recv("MISSION_ACK", timeout=5, condition=lambda m: m.mission_type == mission_type)
-    assert cleared is not None
-    assert cleared.type in (mavlink.MAV_MISSION_ACCEPTED, mavlink.MAV_MISSION_UNSUPPORTED)
+    assert cleared is not None and cleared.type == mavlink.MAV_MISSION_ACCEPTED
+    assert gcs.download_mission(mission_type=mission_type) == []
 
 
 def longer_mission(n_waypoints: int = 8) -> list:

@@ -21,17 +21,29 @@ class MavCmd(IntEnum):
     NAV_RETURN_TO_LAUNCH = 20
     NAV_LAND = 21
     NAV_TAKEOFF = 22
+    DO_ORBIT = 34
     DO_CHANGE_SPEED = 178
+    DO_REPOSITION = 192
+    NAV_FENCE_RETURN_POINT = 5000
+    NAV_FENCE_POLYGON_VERTEX_INCLUSION = 5001  # param1: the polygon's vertex count
+    NAV_FENCE_POLYGON_VERTEX_EXCLUSION = 5002  # param1: the polygon's vertex count
+    NAV_FENCE_CIRCLE_INCLUSION = 5003  # param1: radius, m
+    NAV_FENCE_CIRCLE_EXCLUSION = 5004  # param1: radius, m
+    NAV_RALLY_POINT = 5100
 
 
 class MavFrame(IntEnum):
-    """MAV_FRAME values for mission positions."""
+    """MAV_FRAME values for mission positions and offboard setpoints."""
 
     GLOBAL = 0  # altitude AMSL, lat/lon as float degrees (legacy MISSION_ITEM)
+    LOCAL_NED = 1  # metres from the local origin (home), north-east-down
     MISSION = 2  # for DO_ commands without a position
     GLOBAL_RELATIVE_ALT = 3
     GLOBAL_INT = 5  # altitude AMSL, lat/lon as degE7
     GLOBAL_RELATIVE_ALT_INT = 6  # altitude above home, lat/lon as degE7
+    LOCAL_OFFSET_NED = 7  # north-east-down, relative to the vehicle's position
+    BODY_NED = 8  # velocity/acceleration along the vehicle's heading (forward, right, down); position as LOCAL_NED
+    BODY_OFFSET_NED = 9  # as BODY_NED, position relative to the vehicle along its heading
 
 
 class MissionType(IntEnum):
@@ -41,6 +53,38 @@ class MissionType(IntEnum):
     FENCE = 1
     RALLY = 2
 
+
+# What each list may hold: the flight plan's commands, the fence's shapes, the rally points
+MISSION_COMMANDS = frozenset(
+    {
+        MavCmd.NAV_WAYPOINT,
+        MavCmd.NAV_LOITER_TIME,
+        MavCmd.NAV_RETURN_TO_LAUNCH,
+        MavCmd.NAV_LAND,
+        MavCmd.NAV_TAKEOFF,
+        MavCmd.DO_CHANGE_SPEED,
+    }
+)
+FENCE_COMMANDS = frozenset(
+    {
+        MavCmd.NAV_FENCE_RETURN_POINT,
+        MavCmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+        MavCmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
+        MavCmd.NAV_FENCE_CIRCLE_INCLUSION,
+        MavCmd.NAV_FENCE_CIRCLE_EXCLUSION,
+    }
+)
+RALLY_COMMANDS = frozenset({MavCmd.NAV_RALLY_POINT})
+COMMANDS_OF_TYPE = {
+    MissionType.MISSION: MISSION_COMMANDS,
+    MissionType.FENCE: FENCE_COMMANDS,
+    MissionType.RALLY: RALLY_COMMANDS,
+}
+# Frames a stored item's position may be given in (latitude/longitude, altitude AMSL or above home)
+GLOBAL_FRAMES = frozenset(
+    {MavFrame.GLOBAL, MavFrame.GLOBAL_RELATIVE_ALT, MavFrame.GLOBAL_INT, MavFrame.GLOBAL_RELATIVE_ALT_INT}
+)
+ITEM_FRAMES = GLOBAL_FRAMES | {MavFrame.MISSION}
 
 # Commands that name a place (lat/lon 0,0 means "here" for takeoff/land, as in PX4)
 POSITION_COMMANDS = frozenset({MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_TIME, MavCmd.NAV_TAKEOFF, MavCmd.NAV_LAND})

@@ -31,6 +31,13 @@ class Px4AutoSubMode(IntEnum):
     LAND = 6
 
 
+class Px4PosctlSubMode(IntEnum):
+    """PX4_CUSTOM_SUB_MODE_POSCTL: the sub mode under main mode POSCTL (orbit is one, as PX4 reports it)."""
+
+    POSCTL = 0
+    ORBIT = 1
+
+
 def px4_custom_mode(main: int, sub: int = 0) -> int:
     """HEARTBEAT / SET_MODE custom_mode for PX4 main and sub mode numbers."""
     return (sub << 24) | (main << 16)
@@ -48,6 +55,8 @@ def px4_mode_name(custom_mode: int) -> str:
         main_name = Px4MainMode(main).name
     except ValueError:
         return f"main {main} sub {sub}"
+    if main == Px4MainMode.POSCTL and sub == Px4PosctlSubMode.ORBIT:
+        return "POSCTL.ORBIT"
     if main != Px4MainMode.AUTO:
         return main_name if sub == 0 else f"{main_name} sub {sub}"
     try:
@@ -60,6 +69,7 @@ class FlightMode(Enum):
     """The modes this project's vehicle flies, as (main_mode, sub_mode) PX4 numbers."""
 
     POSCTL = (Px4MainMode.POSCTL, 0)
+    ORBIT = (Px4MainMode.POSCTL, Px4PosctlSubMode.ORBIT)
     AUTO_READY = (Px4MainMode.AUTO, Px4AutoSubMode.READY)
     AUTO_TAKEOFF = (Px4MainMode.AUTO, Px4AutoSubMode.TAKEOFF)
     AUTO_LOITER = (Px4MainMode.AUTO, Px4AutoSubMode.LOITER)

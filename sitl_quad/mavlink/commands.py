@@ -17,7 +17,19 @@ from uavcore.modes import FlightMode
 log = logging.getLogger(__name__)
 
 # handler(params: tuple of 7 floats) -> CommandResult
-POSITIONAL_COMMANDS = {mavlink.MAV_CMD_DO_REPOSITION, mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_CMD_NAV_LAND}
+POSITIONAL_COMMANDS = {
+    mavlink.MAV_CMD_DO_REPOSITION,
+    mavlink.MAV_CMD_DO_ORBIT,
+    mavlink.MAV_CMD_NAV_TAKEOFF,
+    mavlink.MAV_CMD_NAV_LAND,
+}
+# COMMAND_INT frames whose z is above home: the handlers take AMSL altitudes, as COMMAND_LONG's param7
+RELATIVE_ALT_FRAMES = {
+    mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+    mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+    mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT,
+    mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT,
+}
 INT32_MAX = 2**31 - 1  # COMMAND_INT's "unused" x / y
 CommandHandler = Callable[[tuple], CommandResult]
 
@@ -37,6 +49,7 @@ class Commands:
             mavlink.MAV_CMD_NAV_LOITER_UNLIM: lambda p: self.vehicle.set_mode(FlightMode.AUTO_LOITER),
             mavlink.MAV_CMD_DO_CHANGE_SPEED: lambda p: self.vehicle.change_speed(p[1]),
             mavlink.MAV_CMD_DO_REPOSITION: self.reposition,
+            mavlink.MAV_CMD_DO_ORBIT: self.orbit,
         }
 
     def register(self, command: int, handler: CommandHandler) -> None:
@@ -50,13 +63,17 @@ class Commands:
         self._run(peer, msg, params)
 
     def command_int(self, peer, msg) -> None:
-        # x, y are degE7 in a COMMAND_INT: positional commands get degrees, like COMMAND_LONG's param5/6
+        # x, y are degE7 in a COMMAND_INT: positional commands get degrees, like COMMAND_LONG's param5/6, and an
+        # AMSL altitude (the ground is flat at home's altitude, so terrain-relative is relative to home)
+        z = msg.z
         if msg.command in POSITIONAL_COMMANDS:
             x = msg.x * 1e-7 if msg.x != INT32_MAX else math.nan
             y = msg.y * 1e-7 if msg.y != INT32_MAX else math.nan
+            if msg.frame in RELATIVE_ALT_FRAMES:
+                z += self.vehicle.home[2]
         else:
             x, y = float(msg.x), float(msg.y)
-        params = (msg.param1, msg.param2, msg.param3, msg.param4, x, y, msg.z)
+        params = (msg.param1, msg.param2, msg.param3, msg.param4, x, y, z)
         self._run(peer, msg, params)
 
     def _run(self, peer, msg, params: tuple) -> None:
@@ -117,6 +134,10 @@ class Commands:
 
     def reposition(self, p: tuple) -> CommandResult:
         return self.vehicle.reposition(p[4], p[5], p[6], math.radians(p[3]) if math.isfinite(p[3]) else math.nan)
+
+    def orbit(self, p: tuple) -> CommandResult:
+        """DO_ORBIT: radius, velocity, yaw behaviour, (orbits: not limited here), centre lat/lon, altitude AMSL."""
+        return self.vehicle.orbit(p[0], p[1], p[2], p[4], p[5], p[6])
 
     def set_mission_current(self, p: tuple) -> CommandResult:
         if not math.isfinite(p[0]):

@@ -1,4 +1,6 @@
-"""The mission protocol, vehicle side: upload, download, clear, set current.
+"""The mission protocol, vehicle side: upload, download, clear, set current, for the three lists a vehicle
+stores (MAV_MISSION_TYPE): the mission, the geofence (MAV_CMD_NAV_FENCE_* items, see uavcore.geofence) and the
+rally points (MAV_CMD_NAV_RALLY_POINT).
 
 Upload: MISSION_COUNT -> MISSION_REQUEST_INT(seq) ... <- MISSION_ITEM_INT -> MISSION_ACK. A missing item is
 re-requested after RETRY_S of wall-clock time; the transfer is abandoned after TIMEOUT_S without progress;
@@ -17,8 +19,9 @@ import time
 from dataclasses import dataclass, field
 
 from sitl_quad.vehicle import Vehicle
+from uavcore.geofence import FenceError
 from uavcore.mavlink import item_from_message, item_message, mavlink
-from uavcore.mission import MavCmd, MavFrame, MissionItem
+from uavcore.mission import COMMANDS_OF_TYPE, GLOBAL_FRAMES, ITEM_FRAMES, MavFrame, MissionItem, MissionType
 
 log = logging.getLogger(__name__)
 
@@ -34,30 +37,42 @@ class Upload:
     sysid: int
     compid: int
     count: int
+    mission_type: int = MISSION
     items: list[MissionItem] = field(default_factory=list)
     last_request: float = 0.0
     last_progress: float = 0.0
     use_int: bool = True
 
 
-def validate_item(item: MissionItem, expected_seq: int) -> int:
-    """MAV_MISSION_RESULT for one item: ACCEPTED or the first reason it cannot be flown."""
+def _place_result(item: MissionItem, need_altitude: bool) -> int:
+    """MAV_MISSION_RESULT for an item's latitude, longitude (degE7) and altitude."""
+    if not -900_000_000 <= item.x <= 900_000_000:
+        return mavlink.MAV_MISSION_INVALID_PARAM5_X
+    if not -1_800_000_000 <= item.y <= 1_800_000_000:
+        return mavlink.MAV_MISSION_INVALID_PARAM6_Y
+    if need_altitude and not math.isfinite(item.z):
+        return mavlink.MAV_MISSION_INVALID_PARAM7
+    return mavlink.MAV_MISSION_ACCEPTED
+
+
+def validate_item(item: MissionItem, expected_seq: int, mission_type: int = MISSION) -> int:
+    """MAV_MISSION_RESULT for one item of a list of `mission_type`: ACCEPTED or the first reason it cannot be
+    used. Fence and rally items name places (a fence's own consistency is checked once the list is complete)."""
     if item.seq != expected_seq:
         return mavlink.MAV_MISSION_INVALID_SEQUENCE
-    if item.command not in frozenset(MavCmd):
+    if item.command not in COMMANDS_OF_TYPE[MissionType(mission_type)]:
         return mavlink.MAV_MISSION_UNSUPPORTED
-    if item.frame not in frozenset(MavFrame):
+    if mission_type != MISSION:
+        if item.frame not in GLOBAL_FRAMES:
+            return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
+        return _place_result(item, need_altitude=mission_type == MissionType.RALLY)
+    if item.frame not in ITEM_FRAMES:
         return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
     positional = item.command != mavlink.MAV_CMD_DO_CHANGE_SPEED
     if positional and item.frame == MavFrame.MISSION and item.command != mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH:
         return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
-    if positional:
-        if not -900_000_000 <= item.x <= 900_000_000:
-            return mavlink.MAV_MISSION_INVALID_PARAM5_X
-        if not -1_800_000_000 <= item.y <= 1_800_000_000:
-            return mavlink.MAV_MISSION_INVALID_PARAM6_Y
-        if not math.isfinite(item.z):
-            return mavlink.MAV_MISSION_INVALID_PARAM7
+    if positional and (result := _place_result(item, need_altitude=True)) != mavlink.MAV_MISSION_ACCEPTED:
+        return result
     if item.command in (mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_TIME):
         if math.isfinite(item.param1) and item.param1 < 0:
             return mavlink.MAV_MISSION_INVALID_PARAM1  # negative dwell / loiter time
@@ -91,17 +106,42 @@ class MissionProtocol:
             "MISSION_SET_CURRENT": self.on_set_current,
         }
 
-    def _ack(self, peer, msg_or_upload, result: int, mission_type: int = MISSION) -> None:
+    def _ack(self, peer, msg_or_upload, result: int, mission_type: int | None = None) -> None:
+        """MISSION_ACK to the sender of a message, or to an upload's peer (for the upload's list by default)."""
         sysid = getattr(msg_or_upload, "sysid", None)
         if sysid is None:
             sysid, compid = msg_or_upload.get_srcSystem(), msg_or_upload.get_srcComponent()
         else:
             compid = msg_or_upload.compid
+        if mission_type is None:
+            mission_type = getattr(msg_or_upload, "mission_type", MISSION)
         self.send(mavlink.MAVLink_mission_ack_message(sysid, compid, result, mission_type), peer)
+
+    def stored(self, mission_type: int) -> list[MissionItem]:
+        """The list of a MAV_MISSION_TYPE as the vehicle holds it (empty for a type it does not store)."""
+        if mission_type == MissionType.FENCE:
+            return self.vehicle.fence_items
+        if mission_type == MissionType.RALLY:
+            return self.vehicle.rally_points
+        return self.vehicle.mission if mission_type == MISSION else []
+
+    def _store(self, mission_type: int, items: list[MissionItem]) -> int:
+        """Give the vehicle a complete list; MAV_MISSION_RESULT (a fence that describes no zones is refused)."""
+        if mission_type == MissionType.FENCE:
+            try:
+                self.vehicle.set_fence(items)
+            except FenceError as exc:
+                log.info("fence upload refused: %s", exc)
+                return mavlink.MAV_MISSION_INVALID_PARAM1  # vertex counts and radii are both param1
+        elif mission_type == MissionType.RALLY:
+            self.vehicle.set_rally_points(items)
+        else:
+            self.vehicle.set_mission(items)
+        return mavlink.MAV_MISSION_ACCEPTED
 
     # ----- upload
     def on_count(self, peer, msg) -> None:
-        if msg.mission_type != MISSION:
+        if msg.mission_type not in COMMANDS_OF_TYPE:
             self._ack(peer, msg, mavlink.MAV_MISSION_UNSUPPORTED, msg.mission_type)
             return
         old = self.upload
@@ -114,32 +154,36 @@ class MissionProtocol:
             self._ack(peer, msg, mavlink.MAV_MISSION_NO_SPACE)
             return
         if msg.count == 0:
-            self.vehicle.set_mission([])
-            self._ack(peer, msg, mavlink.MAV_MISSION_ACCEPTED)
+            self._ack(peer, msg, self._store(msg.mission_type, []))
             return
         now = time.monotonic()
         self.upload = Upload(
-            peer=peer, sysid=msg.get_srcSystem(), compid=msg.get_srcComponent(), count=msg.count, last_progress=now
+            peer=peer,
+            sysid=msg.get_srcSystem(),
+            compid=msg.get_srcComponent(),
+            count=msg.count,
+            mission_type=msg.mission_type,
+            last_progress=now,
         )
         self._request_next(now)
 
     def _request_next(self, now: float) -> None:
         up = self.upload
         seq = len(up.items)
-        request = mavlink.MAVLink_mission_request_int_message(up.sysid, up.compid, seq, MISSION)
+        request = mavlink.MAVLink_mission_request_int_message(up.sysid, up.compid, seq, up.mission_type)
         self.send(request, up.peer)
         up.last_request = now
 
     def on_item(self, peer, msg) -> None:
         up = self.upload
-        if getattr(msg, "mission_type", MISSION) != MISSION:
-            return
+        mission_type = getattr(msg, "mission_type", MISSION)
         done = self.accepted
-        if up is None and done is not None and peer is done.peer and msg.seq == done.count - 1:
+        last_again = done is not None and peer is done.peer and msg.seq == done.count - 1
+        if up is None and last_again and mission_type == done.mission_type:
             self._ack(peer, done, mavlink.MAV_MISSION_ACCEPTED)  # our final ACK was lost: say it again
             return
-        if up is None or peer is not up.peer:
-            return  # not in a transfer with this peer: PX4 ignores stray items too
+        if up is None or peer is not up.peer or mission_type != up.mission_type:
+            return  # not in a transfer with this peer (of this list): PX4 ignores stray items too
         expected = len(up.items)
         if msg.seq != expected:
             if msg.seq < expected:
@@ -147,7 +191,7 @@ class MissionProtocol:
             self._fail(peer, mavlink.MAV_MISSION_INVALID_SEQUENCE)
             return
         item = item_from_message(msg)
-        result = validate_item(item, expected)
+        result = validate_item(item, expected, up.mission_type)
         if result != mavlink.MAV_MISSION_ACCEPTED:
             self._fail(peer, result)
             return
@@ -157,8 +201,13 @@ class MissionProtocol:
         if len(up.items) < up.count:
             self._request_next(now)
             return
-        self.upload, self.accepted = None, up
-        self.vehicle.set_mission(up.items)
+        self.upload = None
+        result = self._store(up.mission_type, up.items)
+        if result != mavlink.MAV_MISSION_ACCEPTED:
+            self.transfers_failed += 1
+            self._ack(peer, up, result)
+            return
+        self.accepted = up
         self.transfers_completed += 1
         self._ack(peer, up, mavlink.MAV_MISSION_ACCEPTED)
 
@@ -189,14 +238,14 @@ class MissionProtocol:
 
     # ----- download
     def on_request_list(self, peer, msg) -> None:
-        count = len(self.vehicle.mission) if msg.mission_type == MISSION else 0  # no fence or rally points
+        count = len(self.stored(msg.mission_type))
         self.send(
             mavlink.MAVLink_mission_count_message(msg.get_srcSystem(), msg.get_srcComponent(), count, msg.mission_type),
             peer,
         )
 
     def on_request(self, peer, msg) -> None:
-        mission = self.vehicle.mission if msg.mission_type == MISSION else []
+        mission = self.stored(msg.mission_type)
         if not 0 <= msg.seq < len(mission):
             self._ack(peer, msg, mavlink.MAV_MISSION_INVALID_SEQUENCE, msg.mission_type)
             return
@@ -226,9 +275,11 @@ class MissionProtocol:
 
     # ----- clear, set current
     def on_clear_all(self, peer, msg) -> None:
-        if msg.mission_type in (MISSION, mavlink.MAV_MISSION_TYPE_ALL):
-            self.upload = self.accepted = None
-            self.vehicle.set_mission([])
+        cleared = COMMANDS_OF_TYPE if msg.mission_type == mavlink.MAV_MISSION_TYPE_ALL else [msg.mission_type]
+        for mission_type in cleared:
+            if mission_type in COMMANDS_OF_TYPE:
+                self.upload = self.accepted = None
+                self._store(mission_type, [])
         self._ack(peer, msg, mavlink.MAV_MISSION_ACCEPTED, msg.mission_type)
 
     def on_set_current(self, peer, msg) -> None:

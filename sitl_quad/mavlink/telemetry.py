@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import time
 
+from sitl_quad.config import GeofenceAction
 from sitl_quad.mavlink.heartbeat import heartbeat_message
 from sitl_quad.vehicle import CommandResult, Vehicle
 from uavcore.mavlink import mavlink
@@ -24,6 +25,10 @@ CAPABILITIES = (
     | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
     | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
     | mavlink.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
+    | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+    | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
     | mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
 )
 FLIGHT_SW_VERSION = (1 << 24) | (15 << 16) | (0 << 8) | 255  # reads as PX4 v1.15.0 release
@@ -43,8 +48,9 @@ SENSORS = (
     | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
     | mavlink.MAV_SYS_STATUS_PREARM_CHECK
 )
-# There is no geofence, so none is breached: the GEOFENCE health bit alone (not present, not enabled), as
-# ArduPilot reports it. Without it MAVProxy announces "fence breach" as soon as it connects.
+# Without a geofence none is breached: the GEOFENCE health bit alone (not present, not enabled), as ArduPilot
+# reports it; without it MAVProxy announces "fence breach" as soon as it connects. Once a fence is uploaded
+# the bit is also present, enabled while GF_ACTION acts, and healthy unless the vehicle is breaching it.
 HEALTH = SENSORS | mavlink.MAV_SYS_STATUS_GEOFENCE
 
 # The offboard controller closes its loop on these: onboard peers get them at every outer-loop tick, as
@@ -266,10 +272,11 @@ class Telemetry:
         dropped = stats.dropped if stats else 0
         received = max(1, stats.messages + dropped) if stats else 1
         drop_rate = min(10000, int(10000 * dropped / received))  # centi-percent
+        present, enabled, health = geofence_status_bits(self.vehicle)
         return mavlink.MAVLink_sys_status_message(
-            SENSORS,
-            SENSORS,
-            HEALTH,
+            present,
+            enabled,
+            health,
             250,
             voltage_mv,
             800 if self.vehicle.armed else 50,
@@ -336,6 +343,16 @@ class Telemetry:
         return mavlink.MAVLink_autopilot_version_message(
             CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0x26AC, 0x0011, 0x4255_4F59_5349_544C
         )  # uid: "BUOYSITL"
+
+
+def geofence_status_bits(vehicle: Vehicle) -> tuple[int, int, int]:
+    """SYS_STATUS onboard_control_sensors present, enabled, health with the geofence's bit as it stands."""
+    fence = mavlink.MAV_SYS_STATUS_GEOFENCE
+    if not vehicle.geofence.present:
+        return SENSORS, SENSORS, HEALTH
+    enabled = SENSORS | fence if vehicle.config.failsafe.geofence_action != GeofenceAction.NONE else SENSORS
+    health = HEALTH & ~fence if vehicle.geofence.breached else HEALTH
+    return SENSORS | fence, enabled, health
 
 
 def _cm(metres_per_second: float) -> int:
