@@ -9,6 +9,9 @@ whole tour with the depot clamped when the mission is that small). Two operators
 alone is a weak optimiser: order crossover (OX) with another member, and an iterated local search chain
 (segment-local double-bridge kicks). Every child is repaired with 2-opt + Or-opt before it competes: that
 memetic repair is where most of the quality comes from (bench/planner_bench.py measures the CHNN's share).
+Two options let the CHNN contribute as a prior on edges instead (planner.chnn_guidance): CHNN partners in the
+local search's candidate lists, and an edge crossover weighted by the CHNN's edge frequencies; both are off by
+default (bench/chnn_contribution.py measures them; planner/README.md has the verdict).
 
 Seeded and reproducible for a given seed and generation count; anytime: it stops at the time limit or after
 a number of generations without a shorter tour (``stall_generations``, more for more nodes), and returns the
@@ -23,6 +26,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planner import chnn
+from planner.chnn_guidance import Windows, edge_frequencies, guided_neighbour_lists, neighbourhood_edge_frequencies
+from planner.edge_crossover import edge_crossover
 from planner.local_search import iterated_local_search, local_search, neighbour_lists, tour_length
 
 
@@ -43,6 +48,11 @@ class GAParameters:
     stall_generations: int = 5  # stop after max(this, stall_per_node x n) generations without a shorter tour
     stall_per_node: float = 0.3
     use_chnn: bool = True  # False = the same memetic GA with random tours and no CHNN (ablation)
+    # The CHNN as a prior on edges (planner.chnn_guidance); both off = the paper's way. Measured in
+    # bench/chnn_contribution.py (see planner/README.md for the verdict).
+    chnn_candidates: int = 0  # slots of each candidate list given to the node's likeliest CHNN partners
+    edge_crossover: bool = False  # edge crossover weighted by the CHNN's edge frequencies instead of OX
+    # (with use_chnn=False the edge crossover runs with a zero prior: the control without the CHNN)
 
 
 @dataclass
@@ -111,17 +121,20 @@ def _chnn_children(
 
 def _initial_population(
     dist: np.ndarray, size: int, ga: GAParameters, params: chnn.CHNNParameters, rng: np.random.Generator
-) -> tuple[list[np.ndarray], dict]:
+) -> tuple[list[np.ndarray], dict, np.ndarray | None]:
     """Algorithm 2's start: the CHNN from random states (small missions) or random tours (large ones, where
-    an n^2-neuron network is too slow). An invalid network state is replaced by a random tour."""
+    an n^2-neuron network is too slow). An invalid network state is replaced by a random tour. Also returns
+    the networks' final activations (None when no network ran), which the edge prior reuses."""
     n = len(dist)
     m = n - 1
     info: dict = {"chnn_children": 0, "chnn_valid": 0, "energy": []}
     tours: list[np.ndarray | None] = [None] * size
+    activations = None
     if ga.use_chnn and 2 <= m <= ga.initial_chnn_max:
         free = np.arange(1, n)
         d, d_start, d_end = chnn.normalised(dist, free, 0, 0)
         run = chnn.run_chnn(d, d_start, d_end, params, chnn.initial_state(size, m, params, rng))
+        activations = run.v
         for k in range(size):
             order = chnn.decode(run.v[k])
             if order is not None:
@@ -131,7 +144,33 @@ def _initial_population(
         valid = [k for k in range(size) if tours[k] is not None]
         if valid:
             info["chnn_best_length"] = min(tour_length(tours[k], dist) for k in valid)
-    return [t if t is not None else rng.permutation(n).astype(np.int64) for t in tours], info
+    tours = [t if t is not None else rng.permutation(n).astype(np.int64) for t in tours]
+    return tours, info, activations
+
+
+def _edge_prior(
+    dist: np.ndarray,
+    activations: np.ndarray | None,
+    ga: GAParameters,
+    params: chnn.CHNNParameters,
+    rng: np.random.Generator,
+) -> np.ndarray | None:
+    """The CHNN's edge frequencies (planner.chnn_guidance) when an option reads them, else None: from the
+    initial population's whole-tour networks when they ran, else from a batch of neighbourhood networks of
+    ``window`` nodes."""
+    if not (ga.use_chnn and (ga.chnn_candidates > 0 or ga.edge_crossover)):
+        return None
+    n = len(dist)
+    if activations is not None:
+        return edge_frequencies(activations, Windows.whole_tour(n, len(activations)), n)
+    return neighbourhood_edge_frequencies(dist, min(ga.window, n - 1), params, rng)
+
+
+def _candidate_lists(dist: np.ndarray, prior: np.ndarray | None, ga: GAParameters) -> np.ndarray:
+    """Nearest-neighbour lists, or lists that give chnn_candidates slots to the CHNN's likeliest partners."""
+    if prior is None or ga.chnn_candidates <= 0:
+        return neighbour_lists(dist, ga.neighbours)
+    return guided_neighbour_lists(dist, prior, ga.neighbours, ga.chnn_candidates)
 
 
 def _population_size(n: int, ga: GAParameters) -> int:
@@ -150,11 +189,13 @@ class _Run:
 
     dist: np.ndarray
     neighbours: np.ndarray  # candidate lists for 2-opt / Or-opt
+    edge_weight: np.ndarray  # the edge crossover's prior: the CHNN's edge frequencies, or zeros
     ga: GAParameters
     params: chnn.CHNNParameters
     rng: np.random.Generator
     ils_kicks: int
     started: float  # time.perf_counter() at the call
+    cpu_started: float  # time.process_time() at the call
     time_limit_s: float
 
     def elapsed_s(self) -> float:
@@ -207,6 +248,7 @@ class _Population:
             "best_length": self.best_length,
             "mean_length": float(self.lengths.mean()),
             "elapsed_s": run.elapsed_s(),
+            "cpu_s": time.process_time() - run.cpu_started,
         }
 
 
@@ -238,11 +280,15 @@ def _chnn_mutations(
 
 
 def _crossover_child(k: int, population: _Population, run: _Run) -> tuple[np.ndarray, float]:
-    """Order crossover of parent k with another member drawn at random (the best tour when k is alone),
-    repaired."""
+    """Order crossover (or the edge crossover, GAParameters.edge_crossover) of parent k with another member
+    drawn at random (the best tour when k is alone), repaired."""
     others = np.delete(np.arange(len(population.tours)), k)
     mate = population.tours[int(run.rng.choice(others))] if len(others) else population.best_tour
-    child = _order_crossover(population.tours[k], mate, run.rng)
+    if run.ga.edge_crossover:
+        start = int(run.rng.integers(len(mate)))
+        child = edge_crossover(population.tours[k], mate, run.edge_weight, run.dist, run.neighbours, start)
+    else:
+        child = _order_crossover(population.tours[k], mate, run.rng)
     return child, run.repair(child)
 
 
@@ -287,8 +333,10 @@ def chnn_ga(
     time_limit_s: float = 2.0,
     ga: GAParameters | None = None,
     params: chnn.CHNNParameters = chnn.VALID_TOURS,
+    target_length: float | None = None,
 ) -> GAResult:
-    """Best closed tour found by the memetic CHNN-GA within the time limit (node 0 first).
+    """Best closed tour found by the memetic CHNN-GA within the time limit (node 0 first); it also stops as
+    soon as a tour no longer than ``target_length`` is found (e.g. a known optimum, for time-to-target).
 
     Algorithm 2 of the paper ("Constructing a Reliable and Feasible Path", Section V-C of *Maritime Buoyage
     Inspection System Based on an Unmanned Aerial Vehicle and Active Disturbance Rejection Control*), and the
@@ -317,26 +365,31 @@ def chnn_ga(
     (_choose_operators), and 2-opt + Or-opt repair of every child before line 9.
     """
     ga = ga or GAParameters()
-    started = time.perf_counter()
+    started, cpu_started = time.perf_counter(), time.process_time()
     n = len(dist)
     dist = np.ascontiguousarray(dist, dtype=float)
     if n <= 3:
         return GAResult(list(range(n)), float(tour_length(np.arange(n), dist)), [])
+    rng = np.random.default_rng(seed)
+    tours, initial_info, activations = _initial_population(dist, _population_size(n, ga), ga, params, rng)
+    prior = _edge_prior(dist, activations, ga, params, rng)
     run = _Run(
         dist=dist,
-        neighbours=neighbour_lists(dist, ga.neighbours),
+        neighbours=_candidate_lists(dist, prior, ga),
+        edge_weight=prior if prior is not None else np.zeros_like(dist),
         ga=ga,
         params=params,
-        rng=np.random.default_rng(seed),
+        rng=rng,
         ils_kicks=ga.ils_kicks or max(30, n),
         started=started,
+        cpu_started=cpu_started,
         time_limit_s=time_limit_s,
     )
-    tours, initial_info = _initial_population(dist, _population_size(n, ga), ga, params, run.rng)
     population = _Population.repaired(tours, run)
     history = [{**population.summary(0, run), **initial_info}]
     stall, stall_limit = 0, _stall_limit(n, ga)
-    while stall < stall_limit and not run.out_of_time():
+    target = -np.inf if target_length is None else target_length + 1e-9
+    while stall < stall_limit and not run.out_of_time() and population.best_length > target:
         counts = _next_generation(population, run)
         stall = 0 if population.update_best() else stall + 1
         history.append({**population.summary(len(history), run), **counts})
