@@ -3,6 +3,11 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+# MAVSDK-Python 3.x (the gRPC wrapper bundling mavsdk_server) has the import name of the native mavsdk 4.x in
+# .venv, so it lives in a venv of its own: tests/test_mavsdk_examples.py runs its example programs with it.
+MAVSDK3_VENV  := .venv-mavsdk3
+MAVSDK3_STAMP := $(MAVSDK3_VENV)/.installed
+MAVSDK3_REQS  := tests/mavsdk_examples/requirements.txt
 
 .PHONY: run test lint bench clean chromium
 
@@ -12,12 +17,20 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
 	touch $(STAMP)
 
+# The last line proves the bundled mavsdk_server binary runs on this machine (it is a prebuilt executable).
+$(MAVSDK3_STAMP): $(MAVSDK3_REQS)
+	$(PYTHON) -m venv $(MAVSDK3_VENV)
+	$(MAVSDK3_VENV)/bin/python -m pip install --quiet --upgrade pip
+	$(MAVSDK3_VENV)/bin/python -m pip install --quiet -r $(MAVSDK3_REQS)
+	$(MAVSDK3_VENV)/bin/python tests/mavsdk_examples/check_mavsdk_server.py
+	touch $(MAVSDK3_STAMP)
+
 # The main job: vehicle + ADRC offboard controller + service + map page, flying the paper's reference
 # scenario in lockstep, then serving the map page at http://127.0.0.1:8000 until Ctrl-C.
 run: $(STAMP)
 	$(BIN)/python -m gcs up --demo
 
-test: $(STAMP) chromium
+test: $(STAMP) $(MAVSDK3_STAMP) chromium
 	$(BIN)/python -m ruff check .
 	$(BIN)/python -m ruff format --check .
 	$(BIN)/lint-imports
@@ -38,4 +51,4 @@ bench: $(STAMP)
 	$(BIN)/python -m bench.gcs_bench
 
 clean:
-	rm -rf $(VENV) .pytest_cache .ruff_cache
+	rm -rf $(VENV) $(MAVSDK3_VENV) .pytest_cache .ruff_cache
