@@ -23,13 +23,6 @@ POSITIONAL_COMMANDS = {
     mavlink.MAV_CMD_NAV_TAKEOFF,
     mavlink.MAV_CMD_NAV_LAND,
 }
-# COMMAND_INT frames whose z is above home: the handlers take AMSL altitudes, as COMMAND_LONG's param7
-RELATIVE_ALT_FRAMES = {
-    mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
-    mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-    mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT,
-    mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT,
-}
 INT32_MAX = 2**31 - 1  # COMMAND_INT's "unused" x / y
 CommandHandler = Callable[[tuple], CommandResult]
 
@@ -63,17 +56,15 @@ class Commands:
         self._run(peer, msg, params)
 
     def command_int(self, peer, msg) -> None:
-        # x, y are degE7 in a COMMAND_INT: positional commands get degrees, like COMMAND_LONG's param5/6, and an
-        # AMSL altitude (the ground is flat at home's altitude, so terrain-relative is relative to home)
-        z = msg.z
+        # x, y are degE7 in a COMMAND_INT: positional commands get degrees, like COMMAND_LONG's param5/6. z is
+        # passed on as it comes, whatever the frame says, as PX4's receiver does: MAVSDK sends DO_ORBIT's AMSL
+        # altitude in a COMMAND_INT whose frame is its default, GLOBAL_RELATIVE_ALT_INT.
         if msg.command in POSITIONAL_COMMANDS:
             x = msg.x * 1e-7 if msg.x != INT32_MAX else math.nan
             y = msg.y * 1e-7 if msg.y != INT32_MAX else math.nan
-            if msg.frame in RELATIVE_ALT_FRAMES:
-                z += self.vehicle.home[2]
         else:
             x, y = float(msg.x), float(msg.y)
-        params = (msg.param1, msg.param2, msg.param3, msg.param4, x, y, z)
+        params = (msg.param1, msg.param2, msg.param3, msg.param4, x, y, msg.z)
         self._run(peer, msg, params)
 
     def _run(self, peer, msg, params: tuple) -> None:
