@@ -11,9 +11,9 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from gcs.buoy_files import BuoyFileError, buoys_from_geojson
+from gcs.status import MissionStatus
 
 MAX_BUOYS = 500
-MissionStatus = Literal["planned", "uploading", "uploaded", "flying", "completed", "aborted", "failed"]
 PlannerMethod = Literal["auto", "chnn-ga", "chnn", "exact"]
 
 
@@ -166,6 +166,10 @@ class MissionSummary(BaseModel):
 
 
 class TelemetrySample(BaseModel):
+    """One recorded sample of the vehicle's state. The one definition of a sample: the recorder fills these
+    fields (TELEMETRY_FROM_STATUS from the link's vehicle status by name, the rest computed), storage keeps each
+    sample as this document, and the API, the exports and the report read these names."""
+
     t_s: float = Field(description="vehicle time, time_boot_ms / 1000")
     lat: float | None
     lon: float | None
@@ -188,6 +192,11 @@ class TelemetrySample(BaseModel):
     armed: bool
     eso: dict[str, Any] | None = Field(description="the offboard controller's ESO estimates, by name")
     cross_track_m: float | None = Field(default=None, description="distance to the leg being flown")
+
+
+# The sample's fields the recorder copies from the link's VehicleStatus attribute of the same name.
+TELEMETRY_COMPUTED = ("t_s", "eso", "cross_track_m")
+TELEMETRY_FROM_STATUS = tuple(name for name in TelemetrySample.model_fields if name not in TELEMETRY_COMPUTED)
 
 
 class ImportOut(BaseModel):

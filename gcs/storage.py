@@ -18,17 +18,17 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-STATUSES = ("planned", "uploading", "uploaded", "flying", "completed", "aborted", "failed")
-UNFINISHED = ("uploading", "uploaded", "flying")
+from gcs.status import UNFINISHED, MissionStatus
 
-# Each entry upgrades the schema by one version; never edit a released one, append a new one.
+# Each entry upgrades the schema by one version; never edit a released one, append a new one. (The status CHECK
+# lists MissionStatus's values: a status added later needs a migration that rebuilds the table's CHECK.)
 MIGRATIONS: list[str] = [
     f"""
     CREATE TABLE missions (
         id INTEGER PRIMARY KEY AUTOINCREMENT,
         created_at TEXT NOT NULL,
         updated_at TEXT NOT NULL,
-        status TEXT NOT NULL CHECK (status IN ({", ".join(repr(s) for s in STATUSES)})),
+        status TEXT NOT NULL CHECK (status IN ({", ".join(f"'{s.value}'" for s in MissionStatus)})),
         reason TEXT,
         flight TEXT NOT NULL,
         plan TEXT NOT NULL,
@@ -62,7 +62,7 @@ class MissionRecord:
     id: int
     created_at: str
     updated_at: str
-    status: str
+    status: MissionStatus
     reason: str | None
     flight: dict[str, Any]
     plan: dict[str, Any]
@@ -137,7 +137,9 @@ class Storage:
             self._db.close()
 
     # ----- missions
-    def create_mission(self, flight: dict[str, Any], plan: dict[str, Any], status: str = "planned") -> int:
+    def create_mission(
+        self, flight: dict[str, Any], plan: dict[str, Any], status: MissionStatus = MissionStatus.PLANNED
+    ) -> int:
         now = _now()
         with self.transaction() as db:
             cursor = db.execute(
@@ -150,7 +152,7 @@ class Storage:
             )
         return mission_id
 
-    def set_status(self, mission_id: int, status: str, reason: str | None = None) -> None:
+    def set_status(self, mission_id: int, status: MissionStatus, reason: str | None = None) -> None:
         now = _now()
         with self.transaction() as db:
             cursor = db.execute(
@@ -190,7 +192,7 @@ class Storage:
             id=int(row["id"]),
             created_at=row["created_at"],
             updated_at=row["updated_at"],
-            status=row["status"],
+            status=MissionStatus(row["status"]),
             reason=row["reason"],
             flight=json.loads(row["flight"]),
             plan=json.loads(row["plan"]),
