@@ -1,11 +1,15 @@
 """gcs: the ground-control mission service (FastAPI + SQLite + MAVLink).
 
 Read in this order:
-- `settings` (plain data), `schemas` (the REST contract), `validation` (limits -> 422)
+- `settings` (every default, overridable from BUOY_GCS_* variables), `status` (MissionStatus),
+  `schemas` (the REST contract, with the one TelemetrySample), `validation` (limits -> 422)
 - `planning` (request -> plan -> mission items; uses planner), `tracking` (pure flight figures),
   `buoy_files` / `exports` (buoy files, track.geojson, QGC .plan and WPL 110)
 - `storage` (the only module that knows SQL)
-- `link` (the MAVLink link manager), `mission_protocol` (upload/download), `missions` (the lifecycle)
+- `link` (the MAVLink link manager), `mission_protocol` (upload/download)
+- `recorder` (a mission's samples and progress), `results` (a flown mission's figures),
+  `lifecycle` (upload, arm, start, watch to the end), `missions` (the service: the facade the routes call)
 - `report` (the mission report: PNG figures + index.html, cached per mission)
-- `app` (create_app), `routes/*` (thin), `views` (records -> documents), `cli` (`python -m gcs serve`)
+- `app` (create_app), `routes/*` (thin; `routes.deps` gives them the service), `views` (records -> documents),
+  `cli` (`python -m gcs serve | report | up`), `up` and `supervisor` (the whole stack as supervised children)
 """

@@ -12,8 +12,9 @@ from fastapi.responses import FileResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from gcs.buoy_files import BuoyFileError
+from gcs.lifecycle import MissionConflictError
 from gcs.link import LinkManager
-from gcs.missions import MissionConflictError, MissionNotFoundError, MissionService
+from gcs.missions import MissionNotFoundError, MissionService
 from gcs.routes import buoy_files, live, missions, plans, vehicle
 from gcs.settings import Settings
 from gcs.storage import Storage

@@ -8,26 +8,55 @@ import sqlite3
 import sys
 from pathlib import Path
 
-from gcs.link import parse_udpout
-from gcs.settings import TOKEN_ENV, Settings
+from pydantic import ValidationError
+
+from gcs.connection import ConnectionStringError, parse_connection
+from gcs.settings import DB_FILENAME, Settings
 from gcs.storage import Storage, StorageError
+
+# `up` starts its own vehicle on this machine: by default on the port of the default vehicle connection.
+DEFAULT_VEHICLE_PORT = parse_connection(Settings.default("vehicle_url")).port
+
+
+def _help(text: str, field: str, default: object = None) -> str:
+    """An option's help naming its default (the settings' own) and the environment variable that sets it."""
+    shown = Settings.default(field) if default is None else default
+    return f"{text} (default {shown}, or ${Settings.env_name(field)})"
+
+
+def _add_service_options(parser: argparse.ArgumentParser) -> None:
+    """The options `serve` and `up` share. Each defaults to None: "the settings' value" (environment, else
+    Settings' default), so a default is written only in gcs.settings."""
+    parser.add_argument("--host", help=_help("address to bind", "host"))
+    parser.add_argument("--port", type=int, help=_help("HTTP port of the service and map page", "port"))
+    parser.add_argument("--token", help=_help("API token for mutating endpoints", "token", "none"))
+    parser.add_argument(
+        "--signing-key",
+        metavar="KEY",
+        help=_help("MAVLink 2 signing key (64 hex digits, or a passphrase), as the vehicle's", "signing_key", "none"),
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="buoy-gcs", description="Ground-control mission service for buoy inspection")
     commands = parser.add_subparsers(dest="command", required=True)
     serve = commands.add_parser("serve", help="serve the REST API, the WebSocket and the map page")
-    serve.add_argument("--vehicle", default="udpout:127.0.0.1:14540", help="MAVLink connection (udpout:HOST:PORT)")
-    serve.add_argument("--host", default="127.0.0.1", help="address to bind (default loopback only)")
-    serve.add_argument("--port", type=int, default=8000)
-    serve.add_argument("--db", type=Path, default=Path("data/gcs.sqlite"), help="SQLite file")
-    serve.add_argument("--token", default=None, help=f"API token for mutating endpoints (or ${TOKEN_ENV})")
-    serve.add_argument("--vehicle-wait", type=float, default=5.0, help="seconds a mission waits for a vehicle")
     serve.add_argument(
-        "--signing-key",
-        default=None,
-        metavar="KEY",
-        help="MAVLink 2 signing key (64 hex digits, or a passphrase), as the vehicle's --signing-key",
+        "--vehicle",
+        dest="vehicle_url",
+        help=_help(
+            "MAVLink connection: udpout://HOST:PORT, udpin://[HOST]:PORT, tcp://HOST:PORT or serial:///dev/DEVICE[:BAUD]",
+            "vehicle_url",
+        ),
+    )
+    _add_service_options(serve)
+    db_default = f"{Settings.default('data_dir')}/{DB_FILENAME}"
+    serve.add_argument("--db", dest="db_path", type=Path, help=_help("SQLite file", "db_path", db_default))
+    serve.add_argument(
+        "--vehicle-wait",
+        dest="vehicle_wait_s",
+        type=float,
+        help=_help("seconds a mission waits for a vehicle", "vehicle_wait_s"),
     )
     report = commands.add_parser(
         "report",
@@ -36,7 +65,9 @@ def build_parser() -> argparse.ArgumentParser:
         "track, tracking error, altitude and yaw tracking, ESO estimates.",
     )
     report.add_argument("mission_id", type=int, metavar="MISSION_ID")
-    report.add_argument("--db", type=Path, default=Path("data/gcs.sqlite"), help="SQLite file of the service")
+    report.add_argument(
+        "--db", dest="db_path", type=Path, help=_help("SQLite file of the service", "db_path", db_default)
+    )
     report.add_argument(
         "--out",
         type=Path,
@@ -72,20 +103,22 @@ def build_parser() -> argparse.ArgumentParser:
         default="adrc",
         help="outer loop: the ADRC process (default), the PID baseline, or none (the vehicle's own)",
     )
-    up.add_argument("--host", default="127.0.0.1")
-    up.add_argument("--port", type=int, default=8000, help="HTTP port of the service and map page")
-    up.add_argument("--vehicle-port", type=int, default=14540, help="UDP port the vehicle listens on")
-    up.add_argument("--data", type=Path, default=Path("data"), help="data directory (database, logs, parameters)")
-    up.add_argument("--token", default=None, help=f"API token for mutating endpoints (or ${TOKEN_ENV})")
+    _add_service_options(up)
+    up.add_argument(
+        "--vehicle-port",
+        type=int,
+        default=DEFAULT_VEHICLE_PORT,
+        help=f"UDP port the vehicle listens on (default {DEFAULT_VEHICLE_PORT})",
+    )
+    up.add_argument(
+        "--data",
+        dest="data_dir",
+        type=Path,
+        help=_help("data directory (database, logs, parameters)", "data_dir"),
+    )
     up.add_argument("--demo", action="store_true", help="fly the paper's reference scenario and print its report")
     up.add_argument("--demo-seed", type=int, default=1, help="which reference scenario the demo flies")
     up.add_argument("--exit-after-demo", action="store_true", help="stop the stack once the demo has flown")
-    up.add_argument(
-        "--signing-key",
-        default=None,
-        metavar="KEY",
-        help="MAVLink 2 signing key shared by the vehicle, the offboard controller and the service",
-    )
     return parser
 
 
@@ -100,16 +133,17 @@ def _wind(text: str) -> tuple[float, float]:
     return values[0], values[1] if len(values) == 2 else 0.0
 
 
-def settings_from_args(args: argparse.Namespace) -> Settings:
-    return Settings(
-        vehicle_url=args.vehicle,
-        host=args.host,
-        port=args.port,
-        db_path=args.db,
-        token=Settings.token_from_env(args.token),
-        vehicle_wait_s=args.vehicle_wait,
-        signing_key=args.signing_key,
-    )
+def settings_from_args(args: argparse.Namespace, **overrides: object) -> Settings:
+    """The settings with every option given on the command line (options left at None keep the environment's
+    value, else the default). Raises pydantic's ValidationError for a value of the wrong type."""
+    given = {name: value for name, value in vars(args).items() if name in Settings.model_fields and value is not None}
+    return Settings(**given, **overrides)
+
+
+def _settings_error(error: ValidationError) -> str:
+    first = error.errors()[0]
+    where = ".".join(str(part) for part in first["loc"])
+    return f"{where} ({Settings.env_name(where.split('.')[0])}): {first['msg']}"
 
 
 def serve(settings: Settings) -> None:
@@ -126,26 +160,25 @@ def up(args: argparse.Namespace) -> int:
     if args.speed is not None and not (math.isfinite(args.speed) and 0 < args.speed <= 1000):
         print("buoy-gcs: --speed must be in (0, 1000]", file=sys.stderr)
         return 2
-    for name in ("port", "vehicle_port"):
-        if not 0 < getattr(args, name) < 65536:
-            print(f"buoy-gcs: --{name.replace('_', '-')} {getattr(args, name)} is not a port", file=sys.stderr)
-            return 2
+    if not 0 < args.vehicle_port < 65536:
+        print(f"buoy-gcs: --vehicle-port {args.vehicle_port} is not a port", file=sys.stderr)
+        return 2
+    # the service talks to the vehicle `up` starts, whatever vehicle $BUOY_GCS_VEHICLE_URL names
+    settings = settings_from_args(args, vehicle_url=f"udpout:127.0.0.1:{args.vehicle_port}")
+    if (problem := check_serve(settings)) is not None:
+        print(f"buoy-gcs: {problem}", file=sys.stderr)
+        return 2
     options = UpOptions(
+        settings=settings,
         lockstep=args.speed is None,
         speed=args.speed or 1.0,
         seed=args.seed,
         wind_m_s=args.wind[0],
         wind_from_deg=args.wind[1],
         controller=args.controller,
-        host=args.host,
-        port=args.port,
-        vehicle_port=args.vehicle_port,
-        data_dir=args.data,
         demo=args.demo,
         demo_seed=args.demo_seed,
         exit_after_demo=args.exit_after_demo,
-        token=Settings.token_from_env(args.token),
-        signing_key=args.signing_key,
     )
     return run_up(options, say=lambda text: print(text, flush=True))
 
@@ -154,21 +187,23 @@ def report(args: argparse.Namespace) -> int:
     """`python -m gcs report`: a missing database or an unknown mission is a message and exit 2."""
     from gcs.report import ReportError, cached_report, write_report
 
-    if not args.db.is_file():
-        print(f"buoy-gcs: no database at {args.db} (give the service's --db file)", file=sys.stderr)
+    settings = settings_from_args(args)
+    db = settings.db_path
+    if not db.is_file():
+        print(f"buoy-gcs: no database at {db} (give the service's --db file)", file=sys.stderr)
         return 2
     try:
-        storage = Storage(args.db)
+        storage = Storage(db)
     except (StorageError, OSError, sqlite3.Error) as error:
-        print(f"buoy-gcs: --db {args.db}: {error}", file=sys.stderr)
+        print(f"buoy-gcs: --db {db}: {error}", file=sys.stderr)
         return 2
     try:
         if args.out is None:
-            index = cached_report(storage, args.mission_id, args.db.parent / "reports")
+            index = cached_report(storage, args.mission_id, settings.reports_dir)
         else:
             record = storage.get_mission(args.mission_id)
             if record is None:
-                raise ReportError(f"no mission {args.mission_id} in {args.db}")
+                raise ReportError(f"no mission {args.mission_id} in {db}")
             index = write_report(record, storage.telemetry(args.mission_id), args.out)
     except ReportError as error:
         print(f"buoy-gcs: {error.args[0]}", file=sys.stderr)
@@ -182,25 +217,35 @@ def report(args: argparse.Namespace) -> int:
     return 0
 
 
+def check_serve(settings: Settings) -> str | None:
+    """Why `serve` cannot start with these settings, or None: a bad vehicle connection or port, or a database
+    that cannot be opened (opened and migrated now, so a bad --db is a message, not a server traceback)."""
+    try:
+        parse_connection(settings.vehicle_url)
+    except ConnectionStringError as error:
+        return str(error)
+    if not 0 < settings.port < 65536:
+        return f"--port {settings.port} is not a TCP port"
+    try:
+        Storage(settings.db_path).close()
+    except (StorageError, OSError) as error:
+        return f"--db {settings.db_path}: {error}"
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    if args.command == "up":
-        return up(args)
-    if args.command == "report":
-        return report(args)
-    if args.command == "serve":
-        try:
-            parse_udpout(args.vehicle)
-        except ValueError as error:
-            print(f"buoy-gcs: {error}", file=sys.stderr)
-            return 2
-        if not 0 < args.port < 65536:
-            print(f"buoy-gcs: --port {args.port} is not a TCP port", file=sys.stderr)
-            return 2
-        try:  # open (and migrate) the database now, so a bad --db is a message, not a server traceback
-            Storage(args.db).close()
-        except (StorageError, OSError) as error:
-            print(f"buoy-gcs: --db {args.db}: {error}", file=sys.stderr)
-            return 2
-        serve(settings_from_args(args))
+    try:
+        if args.command == "up":
+            return up(args)
+        if args.command == "report":
+            return report(args)
+        settings = settings_from_args(args)
+    except ValidationError as error:  # an option or a BUOY_GCS_ variable of the wrong type
+        print(f"buoy-gcs: {_settings_error(error)}", file=sys.stderr)
+        return 2
+    if (problem := check_serve(settings)) is not None:
+        print(f"buoy-gcs: {problem}", file=sys.stderr)
+        return 2
+    serve(settings)
     return 0

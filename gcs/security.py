@@ -6,10 +6,12 @@ import secrets
 
 from fastapi import HTTPException, Request, status
 
+from gcs.routes.deps import SettingsDep
 
-def require_token(request: Request) -> None:
+
+def require_token(request: Request, settings: SettingsDep) -> None:
     """FastAPI dependency: `Authorization: Bearer <token>` (or `X-API-Token: <token>`) must match."""
-    expected = request.app.state.settings.token
+    expected = settings.token
     if not expected:
         return
     header = request.headers.get("authorization", "")

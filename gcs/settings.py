@@ -1,4 +1,10 @@
-"""The service's settings: plain data, filled from the command line and the environment.
+"""The service's settings, each default written once: from the command line, else the environment, else here.
+
+`Settings` is a pydantic-settings `BaseSettings`: every field can be set by an environment variable named
+`BUOY_GCS_` + the field's name in capitals (BUOY_GCS_VEHICLE_URL, BUOY_GCS_DB_PATH, BUOY_GCS_TOKEN,
+BUOY_GCS_SIGNING_KEY, BUOY_GCS_LIVE_RATE_HZ, ...; a limit as BUOY_GCS_LIMITS__MAX_BUOYS). `python -m gcs serve`
+and `up` pass only the options given on their command line, so an option beats the environment, which beats
+the default below. An empty variable counts as unset.
 
 Airframe limits (altitude, speed) and the battery range are data here, not code, so a different airframe or
 battery is a settings change. Values are for the paper's quadrotor (Table 2) flying the reference scenario.
@@ -6,18 +12,22 @@ battery is a settings change. Values are for the paper's quadrotor (Table 2) fly
 
 from __future__ import annotations
 
-import os
-from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from uavcore.geodesy import DEFAULT_HOME
 
-TOKEN_ENV = "BUOY_GCS_TOKEN"
+ENV_PREFIX = "BUOY_GCS_"
+DB_FILENAME = "gcs.sqlite"  # the database's name inside the data directory
 
 
-@dataclass(frozen=True)
-class Limits:
+class Limits(BaseModel):
     """What a mission request may ask for; anything outside is refused with HTTP 422."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
 
     max_buoys: int = 500
     min_buoy_spacing_m: float = 2.0  # two buoys (or a buoy and the depot) closer than this are one buoy
@@ -30,31 +40,42 @@ class Limits:
     max_time_limit_s: float = 30.0  # planner budget a request may ask for
 
 
-@dataclass(frozen=True)
-class Settings:
-    """Everything `create_app` needs. Defaults serve on loopback and talk to the vehicle's default port."""
+class Settings(BaseSettings):
+    """Everything `create_app` and `up` need. Defaults serve on loopback and talk to the vehicle's default port."""
 
-    vehicle_url: str = "udpout:127.0.0.1:14540"
-    host: str = "127.0.0.1"
-    port: int = 8000
-    db_path: Path = Path("data/gcs.sqlite")
-    token: str | None = None  # when set, every mutating endpoint needs `Authorization: Bearer <token>`
+    model_config = SettingsConfigDict(
+        env_prefix=ENV_PREFIX, env_nested_delimiter="__", env_ignore_empty=True, frozen=True, extra="forbid"
+    )
+
+    vehicle_url: str = Field("udpout:127.0.0.1:14540", description="MAVLink connection to the vehicle")
+    host: str = Field("127.0.0.1", description="address the service binds (loopback only by default)")
+    port: int = Field(8000, description="HTTP port of the service and map page")
+    data_dir: Path = Field(Path("data"), description="`up`'s data directory (database, logs, vehicle parameters)")
+    db_path: Path = Field(
+        default_factory=lambda fields: fields["data_dir"] / DB_FILENAME, description="the SQLite file"
+    )
+    token: str | None = Field(None, description="when set, every mutating endpoint needs `Authorization: Bearer`")
+    signing_key: str | None = Field(None, description="MAVLink 2 signing: 64 hex digits or a passphrase")
     home: tuple[float, float, float] = DEFAULT_HOME  # depot used while the vehicle has not reported its home
-    limits: Limits = field(default_factory=Limits)
+    limits: Limits = Field(default_factory=Limits)
     heartbeat_timeout_s: float = 3.0  # wall clock, as MAVSDK: no vehicle heartbeat for this long = link lost
-    vehicle_wait_s: float = 5.0  # how long a mission waits for a vehicle before failing with "no vehicle"
+    vehicle_wait_s: float = Field(5.0, description="seconds a mission waits for a vehicle before failing")
     telemetry_period_s: float = 0.1  # recorded sample spacing in the vehicle's simulated time (10 Hz)
     live_rate_hz: float = 20.0  # WebSocket push rate to each client
     mission_timeout_margin_s: float = 120.0  # simulated seconds allowed beyond the planned flight time
     web_dir: Path = Path(__file__).resolve().parent / "web"  # package data: ships in the wheel
-    signing_key: str | None = None  # MAVLink 2 signing: 64 hex digits or a passphrase (sitl_quad's format)
 
     @property
     def reports_dir(self) -> Path:
         """Where GET /missions/{id}/report caches its drawings: beside the database."""
         return self.db_path.parent / "reports"
 
+    @classmethod
+    def default(cls, name: str) -> Any:
+        """A field's default as written above (not the environment's value), for command-line help."""
+        return cls.model_fields[name].default
+
     @staticmethod
-    def token_from_env(token: str | None) -> str | None:
-        """The token given on the command line, else the environment's, else none."""
-        return token or os.environ.get(TOKEN_ENV) or None
+    def env_name(name: str) -> str:
+        """The environment variable that sets a field."""
+        return f"{ENV_PREFIX}{name.upper()}"

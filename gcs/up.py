@@ -11,54 +11,60 @@ import math
 import time
 import urllib.error
 import urllib.request
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from gcs.connection import parse_connection
+from gcs.settings import Settings
+from gcs.status import TERMINAL, MissionStatus
 from gcs.supervisor import ChildSpec, Supervisor, SupervisorError, python_module
 
 REPO = Path(__file__).resolve().parent.parent
-TERMINAL = ("completed", "aborted", "failed")
 
 
 @dataclass
 class UpOptions:
+    # the service's settings: its host, port and token; the vehicle's UDP port (vehicle_url's); the data
+    # directory (database, logs, the vehicle's parameters); the MAVLink signing key shared by all three children
+    settings: Settings = field(default_factory=Settings)
     lockstep: bool = True
     speed: float = 1.0
     seed: int = 0
     wind_m_s: float = 0.0
     wind_from_deg: float = 0.0
     controller: str = "adrc"  # adrc | pid | none (the vehicle's built-in PX4-style loop only)
-    host: str = "127.0.0.1"
-    port: int = 8000
-    vehicle_port: int = 14540
-    data_dir: Path = Path("data")
     demo: bool = False
     demo_seed: int = 1  # which reference scenario to fly
     exit_after_demo: bool = False
-    token: str | None = None
-    signing_key: str | None = None  # MAVLink 2 signing, passed to the vehicle and the service
+
+    @property
+    def base_url(self) -> str:
+        return f"http://{self.settings.host}:{self.settings.port}"
 
 
 def stack(options: UpOptions) -> list[ChildSpec]:
     """The three children, in start order, with how to tell each is ready."""
+    settings = options.settings
+    vehicle_port = parse_connection(settings.vehicle_url).port
+    vehicle_url = f"udpout:127.0.0.1:{vehicle_port}"  # the children all run on this machine
     vehicle_args = [
         "--port",
-        str(options.vehicle_port),
+        str(vehicle_port),
         "--seed",
         str(options.seed),
         "--params",
-        str(options.data_dir / "vehicle.params"),
+        str(settings.data_dir / "vehicle.params"),
         "--param",
         f"SIM_WIND_SPD={options.wind_m_s:g}",
         "--param",
         f"SIM_WIND_DIR={options.wind_from_deg:g}",
     ]
     vehicle_args += ["--lockstep"] if options.lockstep else ["--speed", f"{options.speed:g}"]
-    signing = ["--signing-key", options.signing_key] if options.signing_key else []
+    signing = ["--signing-key", settings.signing_key] if settings.signing_key else []
     vehicle_args += signing
-    vehicle_log = options.data_dir / "logs" / "sitl_quad.log"
+    vehicle_log = settings.data_dir / "logs" / "sitl_quad.log"
     children = [
         ChildSpec(
             "sitl_quad", python_module("sitl_quad", *vehicle_args), ready=lambda: _log_says(vehicle_log, "listening")
@@ -68,52 +74,46 @@ def stack(options: UpOptions) -> list[ChildSpec]:
         children.append(
             ChildSpec(
                 "adrc_offboard",
-                python_module(
-                    "adrc_offboard",
-                    "--connect",
-                    f"udpout:127.0.0.1:{options.vehicle_port}",
-                    "--controller",
-                    options.controller,
-                    *signing,
-                ),
+                python_module("adrc_offboard", "--connect", vehicle_url, "--controller", options.controller, *signing),
             )
         )
     gcs_args = [
         "serve",
         "--vehicle",
-        f"udpout:127.0.0.1:{options.vehicle_port}",
+        vehicle_url,
         "--host",
-        options.host,
+        settings.host,
         "--port",
-        str(options.port),
+        str(settings.port),
         "--db",
-        str(options.data_dir / "gcs.sqlite"),
+        str(settings.db_path),
     ]
-    if options.token:
-        gcs_args += ["--token", options.token]
+    if settings.token:
+        gcs_args += ["--token", settings.token]
     gcs_args += signing
-    base = f"http://{options.host}:{options.port}"
+    base = options.base_url
     children.append(ChildSpec("gcs", python_module("gcs", *gcs_args), ready=lambda: _http_ok(f"{base}/vehicle")))
     return children
 
 
 def run_up(options: UpOptions, say=print) -> int:
-    options.data_dir.mkdir(parents=True, exist_ok=True)
-    supervisor = Supervisor(stack(options), options.data_dir / "logs", REPO, say=say)
+    settings = options.settings
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    supervisor = Supervisor(stack(options), settings.data_dir / "logs", REPO, say=say)
     supervisor.install_signal_handlers()
-    base = f"http://{options.host}:{options.port}"
+    base = options.base_url
     pacing = "lockstep" if options.lockstep else f"speed {options.speed:g}x"
     say(f"starting vehicle ({pacing}, seed {options.seed}), {options.controller} controller and service ...")
     try:
         supervisor.start_all()
         say(f"map page:   {base}/")
         say(f"API docs:   {base}/docs")
-        say(f"data:       {options.data_dir.resolve()} (gcs.sqlite, vehicle.params, logs/)")
+        say(f"data:       {settings.data_dir.resolve()} (vehicle.params, logs/); database {settings.db_path}")
         if options.demo:
             mission = fly_demo(base, options, supervisor, say)
             say(demo_report(mission, options))
             if options.exit_after_demo:
-                return 0 if mission["status"] == "completed" else 1
+                return 0 if mission["status"] == MissionStatus.COMPLETED else 1
         say("running; Ctrl-C stops everything")
         supervisor.run_until_stopped()
         return 0
@@ -160,7 +160,8 @@ def fly_demo(base: str, options: UpOptions, supervisor: Supervisor, say) -> dict
             raise SupervisorError("the offboard controller never answered the vehicle")
         supervisor.poll()
         time.sleep(0.2)
-    headers = {"Authorization": f"Bearer {options.token}"} if options.token else {}
+    token = options.settings.token
+    headers = {"Authorization": f"Bearer {token}"} if token else {}
     mission = _post_json(f"{base}/missions", reference_request(options), headers)
     say(f"demo: mission {mission['id']} planned, {len(mission['order'])} buoys, {mission['length_m']:.0f} m; flying")
     last_visited = -1
@@ -206,7 +207,7 @@ def demo_report(mission: dict, options: UpOptions) -> str:
             f"  tracking   cross-track RMS {tracking['rms_cross_track_m'] or math.nan:.3f} m, "
             f"max {tracking['max_cross_track_m'] or math.nan:.3f} m ({options.controller} controller)"
         )
-    lines.append(f"  report     python -m gcs report {mission['id']} --db {options.data_dir / 'gcs.sqlite'}")
+    lines.append(f"  report     python -m gcs report {mission['id']} --db {options.settings.db_path}")
     return "\n".join(lines)
 
 

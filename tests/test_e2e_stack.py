@@ -29,7 +29,7 @@ from pymavlink.dialects.v20 import common as mavlink
 from sitl_process import GroundStation, free_udp_port, short_mission
 from udp_relay import LossyUdpRelay
 
-from gcs.missions import REATTACHED, RESTART_NOT_FLYING
+from gcs.lifecycle import REATTACHED, RESTART_NOT_FLYING
 from gcs.planning import make_plan
 from gcs.storage import Storage
 from gcs.up import UpOptions, reference_request

@@ -13,6 +13,7 @@ from fastapi.testclient import TestClient
 from gcs.app import create_app
 from gcs.exports import read_qgc_plan, read_waypoints
 from gcs.settings import Limits, Settings
+from gcs.status import MissionStatus
 from planner import plan_tour
 from planner.scenario import reference_scenario
 from uavcore.geodesy import DEFAULT_HOME
@@ -272,8 +273,17 @@ def test_token_guards_every_mutating_endpoint(tmp_path):
 
 def test_token_from_the_environment(monkeypatch):
     monkeypatch.setenv("BUOY_GCS_TOKEN", "from-env")
-    assert Settings.token_from_env(None) == "from-env"
-    assert Settings.token_from_env("cli") == "cli"
+    assert Settings().token == "from-env"
+    assert Settings(token="cli").token == "cli"  # the command line's value wins
+    monkeypatch.setenv("BUOY_GCS_TOKEN", "")
+    assert Settings().token is None  # an empty variable is no token
+
+
+def test_mission_status_is_one_named_enum_in_the_openapi_document(client):
+    schemas = client.get("/openapi.json").json()["components"]["schemas"]
+    assert schemas["MissionStatus"]["enum"] == [status.value for status in MissionStatus]
+    for model in ("MissionOut", "MissionSummary"):
+        assert schemas[model]["properties"]["status"] == {"$ref": "#/components/schemas/MissionStatus"}
 
 
 # ----- live and page

@@ -11,8 +11,8 @@ from gcs.cli import build_parser, main, settings_from_args
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["serve", "--vehicle", "tcp:127.0.0.1:5760"], "expected udpout:HOST:PORT"),
-        (["serve", "--vehicle", "udpout:127.0.0.1:notaport"], "expected udpout:HOST:PORT"),
+        (["serve", "--vehicle", "pigeon:127.0.0.1:5760"], "unknown scheme 'pigeon'"),
+        (["serve", "--vehicle", "udpout:127.0.0.1:notaport"], "the port must be a number"),
         (["serve", "--port", "70000"], "not a TCP port"),
     ],
 )
@@ -48,7 +48,7 @@ def test_settings_from_the_documented_options(tmp_path, monkeypatch):
     settings = settings_from_args(args)
     assert (settings.vehicle_url, settings.port, settings.token) == ("udpout:127.0.0.1:14600", 8123, "t")
     assert settings.db_path == tmp_path / "x.sqlite"
-    assert build_parser().parse_args(["serve"]).host == "127.0.0.1"  # loopback by default
+    assert settings_from_args(build_parser().parse_args(["serve"])).host == "127.0.0.1"  # loopback by default
 
 
 def test_module_entry_point_without_a_command_shows_usage():

@@ -15,9 +15,9 @@ from fastapi.testclient import TestClient
 
 from gcs.app import create_app
 from gcs.cli import main
-from gcs.missions import flight_results
 from gcs.planning import FIRST_BUOY_SEQ, FlightParams, leg_of_seq, make_plan
 from gcs.report import FIGURES, cached_report, report_series, summary_rows, write_report
+from gcs.results import flight_results
 from gcs.settings import Settings
 from gcs.storage import Storage
 from uavcore.geodesy import DEFAULT_HOME

@@ -10,21 +10,17 @@ from fastapi import APIRouter, Depends, HTTPException, Path, Query, Response
 from fastapi.responses import FileResponse, RedirectResponse
 
 from gcs import exports, report
-from gcs.missions import MissionService
-from gcs.planning import FlightParams, Plan, mission_items
-from gcs.routes.deps import get_service
+from gcs.routes.deps import ServiceDep
 from gcs.schemas import MissionOut, MissionRequest, MissionSummary, TelemetrySample
 from gcs.security import require_token
 from gcs.views import mission_out, mission_summary
-from uavcore.mission import MissionItem
 
 router = APIRouter(tags=["missions"])
-Service = Annotated[MissionService, Depends(get_service)]
 MissionId = Annotated[int, Path(ge=1, le=2**63 - 1, description="the mission's id (SQLite integer)")]
 
 
 @router.post("/missions", status_code=201, response_model=MissionOut, dependencies=[Depends(require_token)])
-async def create_mission(request: MissionRequest, service: Service) -> dict:
+async def create_mission(request: MissionRequest, service: ServiceDep) -> dict:
     """Plan, store, and (start=true) upload, arm and fly.
 
     Answers 201 as soon as the mission is planned and stored (status `planned`); the upload, arming and flight
@@ -36,24 +32,24 @@ async def create_mission(request: MissionRequest, service: Service) -> dict:
 
 
 @router.get("/missions", response_model=list[MissionSummary])
-def list_missions(service: Service, limit: Annotated[int, Query(ge=1, le=1000)] = 100) -> list[dict]:
-    return [mission_summary(record) for record in service.storage.list_missions(limit)]
+def list_missions(service: ServiceDep, limit: Annotated[int, Query(ge=1, le=1000)] = 100) -> list[dict]:
+    return [mission_summary(record) for record in service.list_missions(limit)]
 
 
 @router.get("/missions/{mission_id}", response_model=MissionOut)
-async def get_mission(mission_id: MissionId, service: Service) -> dict:
+async def get_mission(mission_id: MissionId, service: ServiceDep) -> dict:
     return mission_out(service.get(mission_id))
 
 
 @router.post("/missions/{mission_id}/start", response_model=MissionOut, dependencies=[Depends(require_token)])
-async def start_mission(mission_id: MissionId, service: Service) -> dict:
+async def start_mission(mission_id: MissionId, service: ServiceDep) -> dict:
     """Fly a mission created with start=false."""
     service.launch(mission_id)
     return mission_out(service.get(mission_id))
 
 
 @router.post("/missions/{mission_id}/abort", response_model=MissionOut, dependencies=[Depends(require_token)])
-async def abort_mission(mission_id: MissionId, service: Service) -> dict:
+async def abort_mission(mission_id: MissionId, service: ServiceDep) -> dict:
     """Return to the depot (NAV_RETURN_TO_LAUNCH); a mission not yet flying simply ends."""
     await service.abort(mission_id)
     return mission_out(service.get(mission_id))
@@ -61,10 +57,9 @@ async def abort_mission(mission_id: MissionId, service: Service) -> dict:
 
 @router.get("/missions/{mission_id}/telemetry", response_model=list[TelemetrySample])
 def get_telemetry(
-    mission_id: MissionId, service: Service, limit: Annotated[int | None, Query(ge=1, le=1_000_000)] = None
+    mission_id: MissionId, service: ServiceDep, limit: Annotated[int | None, Query(ge=1, le=1_000_000)] = None
 ) -> list[dict]:
-    service.get(mission_id)
-    return service.storage.telemetry(mission_id, limit)
+    return service.telemetry(mission_id, limit)
 
 
 def _download(content: str, media_type: str, filename: str) -> Response:
@@ -74,37 +69,27 @@ def _download(content: str, media_type: str, filename: str) -> Response:
 
 
 @router.get("/missions/{mission_id}/track.geojson")
-def get_track(mission_id: MissionId, service: Service) -> Response:
-    record = service.get(mission_id)
-    properties = {"mission": mission_id, "status": record.status}
-    document = exports.track_geojson(service.storage.telemetry(mission_id), properties)
+def get_track(mission_id: MissionId, service: ServiceDep) -> Response:
+    properties = {"mission": mission_id, "status": service.get(mission_id).status}
+    document = exports.track_geojson(service.telemetry(mission_id), properties)
     return _download(json.dumps(document), "application/geo+json", f"mission-{mission_id}-track.geojson")
 
 
-def _items(
-    service: MissionService, mission_id: int
-) -> tuple[list[MissionItem], tuple[float, float, float], FlightParams]:
-    record = service.get(mission_id)
-    plan, flight = Plan.from_dict(record.plan), FlightParams(**record.flight)
-    home = (plan.depot[0], plan.depot[1], 0.0)
-    return mission_items(plan, flight), home, flight
-
-
 @router.get("/missions/{mission_id}/plan")
-def get_qgc_plan(mission_id: MissionId, service: Service) -> Response:
-    items, home, flight = _items(service, mission_id)
+def get_qgc_plan(mission_id: MissionId, service: ServiceDep) -> Response:
+    items, home, flight = service.mission_file(mission_id)
     document = exports.qgc_plan(items, home, cruise_speed=flight.speed_m_s, hover_speed=flight.speed_m_s)
     return _download(json.dumps(document, indent=2), "application/json", f"mission-{mission_id}.plan")
 
 
 @router.get("/missions/{mission_id}/waypoints")
-def get_waypoints(mission_id: MissionId, service: Service) -> Response:
-    items, home, _ = _items(service, mission_id)
+def get_waypoints(mission_id: MissionId, service: ServiceDep) -> Response:
+    items, home, _ = service.mission_file(mission_id)
     return _download(exports.waypoints_text(items, home), "text/plain", f"mission-{mission_id}.waypoints")
 
 
 @router.get("/missions/{mission_id}/report", response_class=RedirectResponse)
-def get_report(mission_id: MissionId, service: Service) -> RedirectResponse:
+def get_report(mission_id: MissionId, service: ServiceDep) -> RedirectResponse:
     """The mission report (figures table and PNGs, the paper's Section VI from this flight): redirects to
     its index.html, which names its figures relative to itself."""
     service.get(mission_id)
@@ -112,11 +97,10 @@ def get_report(mission_id: MissionId, service: Service) -> RedirectResponse:
 
 
 @router.get("/missions/{mission_id}/report/{name}")
-async def get_report_file(mission_id: MissionId, name: str, service: Service) -> FileResponse:
+async def get_report_file(mission_id: MissionId, name: str, service: ServiceDep) -> FileResponse:
     """index.html or one of its figures, drawn on first request and again only after the mission changed."""
     service.get(mission_id)
     if name != "index.html" and name not in report.FIGURES:
         raise HTTPException(404, f"no report file {name!r}")
-    cache = service.settings.reports_dir
-    index = await asyncio.to_thread(report.cached_report, service.storage, mission_id, cache)
+    index = await asyncio.to_thread(service.report_index, mission_id)
     return FileResponse(index.parent / name, headers={"Cache-Control": "no-cache"})

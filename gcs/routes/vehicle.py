@@ -2,20 +2,16 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Any
 
-from fastapi import APIRouter, Depends
+from fastapi import APIRouter
 
-from gcs.missions import MissionService
-from gcs.routes.deps import get_service
+from gcs.routes.deps import ServiceDep
 
 router = APIRouter(tags=["vehicle"])
 
 
 @router.get("/vehicle")
-def get_vehicle(service: Annotated[MissionService, Depends(get_service)]) -> dict[str, Any]:
+def get_vehicle(service: ServiceDep) -> dict[str, Any]:
     """`connected` is false until the vehicle's heartbeat is heard; `home` falls back to the default depot."""
-    data = service.link.status.as_dict()
-    data["depot"] = dict(zip(("lat", "lon"), service.default_depot(), strict=True))
-    data["active_mission"] = service.active_mission()
-    return data
+    return service.vehicle()

@@ -1,0 +1,337 @@
+"""The flight lifecycle: upload -> arm -> start -> watch to the end, persisted at every transition.
+
+One mission flies at a time; each runs as an asyncio task that ends in a terminal state.
+
+States: planned -> uploading -> uploaded -> flying -> completed | aborted | failed (with a reason). Every way a
+flight can go wrong ends in a terminal state, never a hang: no vehicle within `vehicle_wait_s` ("no vehicle"),
+a refused upload, arm or mode change, a lost link (no heartbeat for `heartbeat_timeout_s`), a vehicle reboot,
+a disarm before the end (named after the vehicle's failsafe when it reported one, e.g. "Failsafe: offboard
+setpoints lost, AUTO.RTL", with the mode change), or a flight longer than planned plus a margin (simulated
+time).
+
+A mission left unfinished by a previous run of the service is re-attached at start-up when the vehicle is still
+flying it (the same waypoints on board, downloaded and compared, and armed): recording and monitoring go on
+where they stopped, and the mission ends as it would have. A vehicle that finished it meanwhile (mission
+complete, landed, disarmed) completes it; anything else fails it with reason RESTART_NOT_FLYING.
+
+Completed means: the vehicle reported the mission complete (MISSION_CURRENT.mission_state COMPLETE, or the
+last item reached), and it is on the ground (EXTENDED_SYS_STATE) and disarmed (HEARTBEAT base_mode).
+
+When no vehicle answers, POST /missions with start=true still answers 201 (status planned); the background
+lifecycle then ends in `failed` with reason "no vehicle" after `vehicle_wait_s`. Clients poll
+GET /missions/{id} or watch /ws.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from typing import Any
+
+from gcs.link import ARMED_FLAG, ON_GROUND, CommandTimeoutError, LinkManager, mavlink
+from gcs.mission_protocol import MissionTransferError, download_mission, upload_mission
+from gcs.planning import FIRST_BUOY_SEQ, FlightParams, Plan, mission_items
+from gcs.recorder import MissionRecorder
+from gcs.results import flight_results
+from gcs.settings import Settings
+from gcs.status import TERMINAL, MissionStatus
+from gcs.storage import MissionRecord, Storage
+from uavcore.mavlink import result_name
+
+log = logging.getLogger(__name__)
+
+MISSION_STATE_COMPLETE = 5  # MISSION_STATE enum (MISSION_CURRENT.mission_state)
+FLUSH_PERIOD_S = 0.5  # wall clock between telemetry writes and checks
+DISARM_GRACE_S = 3.0  # wall clock a flying mission may be disarmed (before takeoff) before it counts as ended
+CLIMB_RATE_M_S = 1.0  # for the flight-time budget only
+ABORTED_BEFORE_TAKEOFF = "aborted by the operator before takeoff"
+RESTART_NOT_FLYING = "GCS restarted; vehicle no longer flying this mission"
+REATTACHED = "GCS restarted; re-attached to the vehicle flying this mission"
+MISSION_CURRENT_WAIT_S = 3.0  # wall clock a re-attaching service waits for the vehicle's MISSION_CURRENT
+ARMED_CONFIRM_S = 2.0  # wall clock to see an "already armed" vehicle's heartbeat say armed
+
+
+class MissionConflictError(RuntimeError):
+    """Another mission is using the vehicle, or the mission is not in a state that allows the request."""
+
+
+class MissionEndError(Exception):
+    """Raised inside the lifecycle to finish with a terminal status and a reason."""
+
+    def __init__(self, status: MissionStatus, reason: str | None) -> None:
+        super().__init__(reason)
+        self.status, self.reason = status, reason
+
+
+def flight_budget_s(plan: Plan, flight: FlightParams, margin_s: float) -> float:
+    """Simulated seconds a mission may take before it is declared failed."""
+    cruise = plan.length_m / flight.speed_m_s
+    return cruise + len(plan.order) * flight.dwell_s + 2 * flight.altitude_m / CLIMB_RATE_M_S + margin_s
+
+
+def ended_early_reason(events: list[dict[str, Any]], visited: int, buoys: int) -> str:
+    """Why a mission ended with the vehicle disarmed before completing it: its failsafe, when it reported one
+    (the last "Failsafe..." STATUSTEXT and the mode change that followed it), else the plain fact."""
+    texts = [event["text"] for event in events]
+    failsafes = [i for i, text in enumerate(texts) if text.lower().startswith("failsafe")]
+    count = f"{visited} of {buoys} buoys visited"
+    if not failsafes:
+        return f"the vehicle disarmed before completing the mission ({count})"
+    first = failsafes[-1]
+    modes = [text for text in texts[first:] if text.startswith("mode ")]
+    mode = f"; {modes[0]}" if modes else ""
+    return f"vehicle failsafe: {texts[first]}{mode}; landed and disarmed with {count}"
+
+
+class FlightLifecycle:
+    """Flies stored missions over one LinkManager, one at a time, and records them."""
+
+    def __init__(self, settings: Settings, storage: Storage, link: LinkManager) -> None:
+        self.settings, self.storage, self.link = settings, storage, link
+        self._tasks: dict[int, asyncio.Task] = {}
+        self._abort_requested: set[int] = set()
+        self._recorders: dict[int, MissionRecorder] = {}
+        self._statuses: dict[int, MissionStatus] = {}  # last status of missions run here, for the live view
+
+    def reattach(self, unfinished: list[int]) -> None:
+        """At start-up, with the ids of the missions a previous run left unfinished (oldest first)."""
+        # the vehicle flies one mission at a time: only the latest unfinished one can still be in the air
+        for mission_id in unfinished[:-1]:
+            self._transition(mission_id, MissionStatus.FAILED, RESTART_NOT_FLYING)
+        if unfinished:
+            mission_id = unfinished[-1]
+            log.warning("mission %s was unfinished at start-up: re-attaching if the vehicle still flies it", mission_id)
+            self._start_task(mission_id, resume=True)
+
+    async def stop(self) -> None:
+        """Cancel every running mission (each ends failed: "the service stopped during the mission")."""
+        for task in list(self._tasks.values()):
+            task.cancel()
+        for task in list(self._tasks.values()):
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
+
+    def active_mission(self) -> int | None:
+        for mission_id, task in self._tasks.items():
+            if not task.done():
+                return mission_id
+        return None
+
+    def ensure_vehicle_free(self) -> None:
+        if (active := self.active_mission()) is not None:
+            raise MissionConflictError(f"mission {active} is using the vehicle; abort it or wait for it to end")
+
+    def launch(self, record: MissionRecord) -> None:
+        """Fly a planned mission in the background."""
+        self.ensure_vehicle_free()
+        if record.status != MissionStatus.PLANNED:
+            raise MissionConflictError(f"mission {record.id} is {record.status}; only a planned mission can start")
+        self._start_task(record.id)
+
+    async def abort(self, record: MissionRecord) -> None:
+        """Return to the depot. A mission not yet flying ends at once; a flying one ends when it has landed."""
+        mission_id = record.id
+        if record.status in TERMINAL:
+            raise MissionConflictError(f"mission {mission_id} is {record.status}; nothing to abort")
+        task = self._tasks.get(mission_id)
+        if record.status == MissionStatus.FLYING and task is not None and not task.done():
+            self._abort_requested.add(mission_id)
+            return
+        if task is not None and not task.done():
+            self._abort_requested.add(mission_id)  # _run ends it as aborted
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
+        else:
+            self._transition(mission_id, MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF)
+
+    def live_mission(self) -> dict[str, Any] | None:
+        """The active mission's status, progress and latest sample, for /ws; None when no mission flies."""
+        active = self.active_mission()
+        if active is None:
+            return None
+        recorder = self._recorders.get(active)
+        return {
+            "id": active,
+            "status": self._statuses.get(active, MissionStatus.PLANNED),
+            "progress": recorder.progress() if recorder else None,
+            "sample": recorder.latest if recorder else None,
+            "first_buoy_seq": FIRST_BUOY_SEQ,
+        }
+
+    # ----- one mission's task
+    def _start_task(self, mission_id: int, resume: bool = False) -> None:
+        self._tasks[mission_id] = asyncio.create_task(self._run(mission_id, resume), name=f"mission-{mission_id}")
+
+    async def _run(self, mission_id: int, resume: bool = False) -> None:
+        record = self.storage.get_mission(mission_id)
+        plan, flight = Plan.from_dict(record.plan), FlightParams(**record.flight)
+        recorder = MissionRecorder(self.link, plan, self.settings.telemetry_period_s)
+        status, reason = MissionStatus.FAILED, "internal error"
+        try:
+            if resume:
+                recorder.restore(record.progress)
+                await self._resume(mission_id, plan, flight, recorder)
+            else:
+                await self._fly(mission_id, plan, flight, recorder)
+        except MissionEndError as ended:
+            status, reason = ended.status, ended.reason
+        except MissionTransferError as error:
+            reason = str(error)
+        except CommandTimeoutError as error:
+            reason = f"the vehicle stopped answering: {error}"
+        except asyncio.CancelledError:
+            status, reason = MissionStatus.FAILED, "the service stopped during the mission"
+            if mission_id in self._abort_requested:
+                status, reason = MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF
+            self._finish(mission_id, plan, flight, recorder, status, reason)
+            raise
+        except Exception as error:  # never leave a mission hanging in a non-terminal state
+            log.exception("mission %s failed", mission_id)
+            reason = f"internal error: {type(error).__name__}: {error}"
+        self._finish(mission_id, plan, flight, recorder, status, reason)
+
+    def _record_with(self, mission_id: int, recorder: MissionRecorder) -> None:
+        """From now on the recorder hears every message of the vehicle, and /ws shows its progress."""
+        self.link.add_listener(recorder, recorder.end_of_datagram)
+        self._recorders[mission_id] = recorder
+
+    def _finish(
+        self,
+        mission_id: int,
+        plan: Plan,
+        flight: FlightParams,
+        recorder: MissionRecorder,
+        status: MissionStatus,
+        reason: str | None,
+    ) -> None:
+        self.link.remove_listener(recorder, recorder.end_of_datagram)
+        self._recorders.pop(mission_id, None)
+        self._abort_requested.discard(mission_id)
+        self.storage.add_telemetry(mission_id, recorder.take())
+        progress = recorder.progress()
+        self.storage.set_progress(mission_id, progress)
+        samples = self.storage.telemetry(mission_id)
+        if samples:
+            self.storage.set_results(mission_id, flight_results(plan, flight, samples, progress))
+        self._transition(mission_id, status, reason)
+
+    def _transition(self, mission_id: int, status: MissionStatus, reason: str | None = None) -> None:
+        self.storage.set_status(mission_id, status, reason)
+        self._statuses[mission_id] = status
+
+    async def _command(self, command: int, params: list[float], what: str) -> None:
+        result = await self.link.command_long(command, params)
+        if result != mavlink.MAV_RESULT_ACCEPTED:
+            raise MissionEndError(
+                MissionStatus.FAILED, f"the vehicle refused to {what} ({result_name('MAV_RESULT', result)})"
+            )
+
+    async def _arm(self) -> None:
+        """ARM, surviving a lost acknowledgement: the link resends a command whose ACK was lost, and the vehicle
+        answers an ARM while armed with TEMPORARILY_REJECTED. If its heartbeat then says armed, the first ARM
+        did arrive and the mission goes on."""
+        result = await self.link.command_long(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, [1])
+        if result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED:
+            deadline = time.monotonic() + ARMED_CONFIRM_S
+            while time.monotonic() < deadline and not self.link.status.armed:
+                await asyncio.sleep(0.05)
+            if self.link.status.armed:
+                return
+        if result != mavlink.MAV_RESULT_ACCEPTED:
+            raise MissionEndError(
+                MissionStatus.FAILED, f"the vehicle refused to arm ({result_name('MAV_RESULT', result)})"
+            )
+
+    async def _fly(self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder) -> None:
+        if not await self.link.wait_connected(self.settings.vehicle_wait_s):
+            raise MissionEndError(MissionStatus.FAILED, "no vehicle")
+        boot = self.link.status.reboots
+        self._transition(mission_id, MissionStatus.UPLOADING)
+        home = self.link.status.home
+        items = mission_items(plan, flight, None if home is None else (home[0], home[1]))
+        await upload_mission(self.link, items)
+        self._transition(mission_id, MissionStatus.UPLOADED)
+        self._record_with(mission_id, recorder)
+        await self._arm()
+        # AUTO.MISSION as MAVSDK's start_mission does: DO_SET_MODE(custom | armed, main 4, sub 4)
+        mode_flags = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | ARMED_FLAG
+        result = await self.link.command_long(mavlink.MAV_CMD_DO_SET_MODE, [mode_flags, 4, 4])
+        if result != mavlink.MAV_RESULT_ACCEPTED:
+            await self._command(mavlink.MAV_CMD_MISSION_START, [0, len(items) - 1], "start the mission")
+        self._transition(mission_id, MissionStatus.FLYING)
+        await self._monitor(mission_id, plan, flight, recorder, boot, len(items))
+
+    async def _resume(self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder) -> None:
+        """Re-attach to a mission a previous run of the service left unfinished, or end it (see the module doc)."""
+        if not await self.link.wait_connected(self.settings.vehicle_wait_s):
+            raise MissionEndError(MissionStatus.FAILED, f"{RESTART_NOT_FLYING} (no vehicle)")
+        s = self.link.status
+        deadline = time.monotonic() + MISSION_CURRENT_WAIT_S
+        while s.mission_total is None and time.monotonic() < deadline:
+            await asyncio.sleep(0.1)
+        home = s.home
+        expected = mission_items(plan, flight, None if home is None else (home[0], home[1]))
+        on_board = await download_mission(self.link)
+        same = len(on_board) == len(expected) and all(
+            (a.command, a.x, a.y) == (b.command, b.x, b.y) for a, b in zip(on_board, expected, strict=True)
+        )
+        if not same:
+            raise MissionEndError(MissionStatus.FAILED, f"{RESTART_NOT_FLYING} (another mission is on board)")
+        self._record_with(mission_id, recorder)
+        if not s.armed:
+            finished = s.mission_state == MISSION_STATE_COMPLETE and s.landed_state == ON_GROUND
+            if finished:
+                raise MissionEndError(MissionStatus.COMPLETED, None)
+            raise MissionEndError(MissionStatus.FAILED, RESTART_NOT_FLYING)
+        self._transition(mission_id, MissionStatus.FLYING, REATTACHED)
+        await self._monitor(mission_id, plan, flight, recorder, s.reboots, len(expected))
+
+    async def _monitor(
+        self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder, boot: int, n_items: int
+    ) -> None:
+        s = self.link.status
+        budget_s = flight_budget_s(plan, flight, self.settings.mission_timeout_margin_s)
+        start_s = (s.time_boot_ms or 0) / 1000.0
+        disarmed_since: float | None = None
+        aborting = False
+        last_progress: dict[str, Any] | None = None
+        while True:
+            await asyncio.sleep(FLUSH_PERIOD_S)
+            self.storage.add_telemetry(mission_id, recorder.take())
+            progress = recorder.progress()
+            if progress != last_progress:
+                self.storage.set_progress(mission_id, progress)
+                last_progress = progress
+            if s.reboots != boot:
+                raise MissionEndError(MissionStatus.FAILED, "the vehicle rebooted during the mission")
+            if not s.connected:
+                raise MissionEndError(MissionStatus.FAILED, "link lost: no heartbeat from the vehicle")
+            if mission_id in self._abort_requested and not aborting:
+                aborting = True
+                await self._command(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, [], "return to launch")
+                self._transition(mission_id, MissionStatus.ABORTED, "aborted by the operator: returning to the depot")
+            on_ground_disarmed = not s.armed and s.landed_state == ON_GROUND
+            finished = s.mission_state == MISSION_STATE_COMPLETE or (n_items - 1) in recorder.reached_seqs
+            if on_ground_disarmed and aborting:
+                raise MissionEndError(MissionStatus.ABORTED, "aborted by the operator: returned to the depot")
+            if on_ground_disarmed and finished:
+                raise MissionEndError(MissionStatus.COMPLETED, None)
+            if not s.armed:
+                disarmed_since = disarmed_since or time.monotonic()
+                if time.monotonic() - disarmed_since > DISARM_GRACE_S:
+                    reason = ended_early_reason(recorder.vehicle_events, progress["visited"], len(plan.order))
+                    raise MissionEndError(MissionStatus.FAILED, reason)
+            else:
+                disarmed_since = None
+            elapsed = (s.time_boot_ms or 0) / 1000.0 - start_s
+            # a vehicle already down and disarmed is not overrunning: the disarm check above ends the mission
+            # (a lockstep vehicle with no controller runs free, so the wall-clock grace is many simulated seconds)
+            if elapsed > budget_s and not aborting and s.armed:
+                with contextlib.suppress(CommandTimeoutError):
+                    await self.link.command_long(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, [])
+                raise MissionEndError(
+                    MissionStatus.FAILED, f"the mission took longer than {budget_s:.0f} s (vehicle time); returning"
+                )

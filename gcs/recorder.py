@@ -1,0 +1,121 @@
+"""The mission recorder: one mission's telemetry samples and progress, taken from the link's messages.
+
+A link listener: it sees every message the vehicle sends while the mission flies. It samples the vehicle's
+state at most every `period_s` of the vehicle's (simulated) time, collects the items the vehicle reached and
+sequenced past (the mission's progress: buoys visited and when), and the vehicle's own events (STATUSTEXTs and
+mode changes), which name a failsafe when the vehicle ends a mission early.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from gcs import tracking
+from gcs.link import LinkManager, VehicleStatus
+from gcs.planning import FIRST_BUOY_SEQ, Plan, buoy_of_seq, leg_of_seq
+from gcs.schemas import TELEMETRY_FROM_STATUS, TelemetrySample
+from uavcore.mavlink import AUTOPILOT_COMPID, statustext
+from uavcore.modes import px4_mode_name
+
+VEHICLE_EVENTS_KEPT = 50  # STATUSTEXTs and mode changes kept in a mission's progress
+
+
+class MissionRecorder:
+    """Samples the vehicle's status at most every `period_s` of simulated time, and collects progress."""
+
+    def __init__(self, link: LinkManager, plan: Plan, period_s: float) -> None:
+        self.link, self.plan, self.period_ms = link, plan, period_s * 1000.0
+        self.samples: list[dict[str, Any]] = []
+        self.last_ms: float | None = None
+        self.reached_seqs: list[int] = []
+        self.reached_at: dict[int, float] = {}  # buoy index -> vehicle time
+        self.highest_seq = -1  # the vehicle moved past every item below this one
+        self.latest: dict[str, Any] | None = None
+        self.route = plan.route_local()
+        self.vehicle_events: list[dict[str, Any]] = []  # {t_s, text}: the vehicle's STATUSTEXTs, mode changes
+        self.custom_mode: int | None = None
+        self.sample_due = False
+
+    def restore(self, progress: dict[str, Any]) -> None:
+        """Continue from the progress a previous run of the service stored (re-attaching after a restart)."""
+        self.reached_seqs = list(progress.get("reached_seqs") or [])
+        self.reached_at = {int(k): float(v) for k, v in (progress.get("reached_at") or {}).items()}
+        current = progress.get("current_seq")
+        self.highest_seq = -1 if current is None else int(current)
+        self.vehicle_events = list(progress.get("vehicle_events") or [])
+
+    def _event(self, text: str) -> None:
+        t_ms = self.link.status.time_boot_ms
+        self.vehicle_events = [*self.vehicle_events, {"t_s": None if t_ms is None else t_ms / 1000.0, "text": text}]
+        self.vehicle_events = self.vehicle_events[-VEHICLE_EVENTS_KEPT:]
+
+    def __call__(self, message: Any) -> None:
+        kind = message.get_type()
+        status = self.link.status
+        from_autopilot = message.get_srcComponent() == AUTOPILOT_COMPID
+        if kind == "STATUSTEXT" and from_autopilot:
+            self._event(statustext(message))
+        elif kind == "HEARTBEAT" and from_autopilot and message.custom_mode != self.custom_mode:
+            if self.custom_mode is not None:
+                self._event(f"mode {px4_mode_name(self.custom_mode)} -> {px4_mode_name(message.custom_mode)}")
+            self.custom_mode = message.custom_mode
+        elif kind == "MISSION_ITEM_REACHED" and message.get_srcComponent() == AUTOPILOT_COMPID:
+            if message.seq not in self.reached_seqs:
+                self.reached_seqs.append(message.seq)
+            buoy = buoy_of_seq(message.seq, self.plan)
+            if buoy is not None and status.time_boot_ms is not None:
+                self.reached_at.setdefault(buoy, status.time_boot_ms / 1000.0)
+        elif kind == "MISSION_CURRENT" and message.get_srcComponent() == AUTOPILOT_COMPID:
+            self.highest_seq = max(self.highest_seq, message.seq)
+        elif kind == "LOCAL_POSITION_NED" and message.get_srcComponent() == AUTOPILOT_COMPID:
+            now_ms = message.time_boot_ms
+            if self.last_ms is None or now_ms - self.last_ms >= self.period_ms or now_ms < self.last_ms:
+                self.last_ms = now_ms
+                self.sample_due = True  # taken at the end of the datagram, with the rest of this tick
+
+    def end_of_datagram(self) -> None:
+        if self.sample_due:
+            self.sample_due = False
+            self.latest = self.sample()
+            self.samples.append(self.latest)
+
+    def sample(self) -> dict[str, Any]:
+        """The vehicle's state now, as a TelemetrySample document."""
+        s = self.link.status
+        sample = TelemetrySample(
+            t_s=(s.time_boot_ms or 0) / 1000.0,
+            eso=dict(s.estimates) or None,
+            cross_track_m=self._cross_track(s),
+            **{name: getattr(s, name) for name in TELEMETRY_FROM_STATUS},
+        )
+        return sample.model_dump()
+
+    def _cross_track(self, s: VehicleStatus) -> float | None:
+        leg = leg_of_seq(s.mission_seq, len(self.plan.order))
+        if leg is None or s.lat is None:
+            return None
+        east, north = self.plan.frame.project(np.array([[s.lat, s.lon]]))[0]
+        return tracking.cross_track_m(float(east), float(north), self.route, leg)
+
+    def progress(self) -> dict[str, Any]:
+        s = self.link.status
+        # a buoy counts as visited when the vehicle reported it reached or sequenced past it (a lost
+        # MISSION_ITEM_REACHED datagram must not leave a buoy unvisited)
+        done = set(self.reached_seqs) | set(range(FIRST_BUOY_SEQ, self.highest_seq))
+        visited = sum(1 for seq in done if buoy_of_seq(seq, self.plan) is not None)
+        return {
+            "current_seq": s.mission_seq,
+            "total": s.mission_total,
+            "mission_state": s.mission_state,
+            "reached_seqs": list(self.reached_seqs),
+            "visited": visited,
+            "buoys": len(self.plan.order),
+            "reached_at": {str(k): v for k, v in self.reached_at.items()},
+            "vehicle_events": list(self.vehicle_events),
+        }
+
+    def take(self) -> list[dict[str, Any]]:
+        samples, self.samples = self.samples, []
+        return samples
