@@ -89,6 +89,7 @@ class MavsdkServerVehicle:
         self.armed = False
         self.mode = FlightMode.READY
         # state only the loop touches
+        self.mission_flown: list[MissionItem] = []  # the mission completed_seq belongs to
         self.completed_seq: int | None = None
         self.north = self.east = self.down = 0.0
         self.velocity = (0.0, 0.0, 0.0)
@@ -169,8 +170,10 @@ class MavsdkServerVehicle:
         with self.lock:
             armed, mode, items, seq = self.armed, self.mode, self.items, self.current_seq
         self.velocity = (0.0, 0.0, 0.0)
-        flying = armed and mode == FlightMode.MISSION and seq is not None and seq < len(items)
-        if not flying or seq == self.completed_seq:
+        if items is not self.mission_flown:  # a new upload: nothing of it is done yet
+            self.mission_flown, self.completed_seq = items, None
+        in_mission = armed and mode == FlightMode.MISSION and seq is not None and seq < len(items)
+        if not in_mission or seq == self.completed_seq:
             return
         item = items[seq]
         if self.fly_item(item, dt):
@@ -212,20 +215,14 @@ class MavsdkServerVehicle:
         rate); True once there."""
         d_north, d_east, d_down = north - self.north, east - self.east, down - self.down
         horizontal = math.hypot(d_north, d_east)
-        vertical_rate = CLIMB_M_S if d_down < 0 else DESCENT_M_S
-        h_step = min(horizontal, self.speed_m_s * dt)
-        v_step = math.copysign(min(abs(d_down), vertical_rate * dt), d_down)
         if horizontal > 0:
-            self.north += d_north / horizontal * h_step
-            self.east += d_east / horizontal * h_step
             self.heading_deg = math.degrees(math.atan2(d_east, d_north)) % 360.0
-        self.down += v_step
-        self.velocity = (
-            d_north / horizontal * h_step / dt if horizontal else 0.0,
-            d_east / horizontal * h_step / dt if horizontal else 0.0,
-            v_step / dt,
-        )
-        return horizontal - h_step <= ARRIVED_M and abs(d_down - v_step) <= ARRIVED_M
+        scale = min(1.0, self.speed_m_s * dt / horizontal) if horizontal > 0 else 0.0
+        vertical_rate = CLIMB_M_S if d_down < 0 else DESCENT_M_S
+        step = (d_north * scale, d_east * scale, math.copysign(min(abs(d_down), vertical_rate * dt), d_down))
+        self.north, self.east, self.down = self.north + step[0], self.east + step[1], self.down + step[2]
+        self.velocity = (step[0] / dt, step[1] / dt, step[2] / dt)
+        return math.dist((self.north, self.east, self.down), (north, east, down)) <= ARRIVED_M
 
     def dwelt(self, seconds: float) -> bool:
         """Hold at a waypoint for its hold time (param1, seconds; NaN means none)."""
