@@ -478,12 +478,12 @@ class LinkManager:
                 self._on_connected()
             return
         boot_ms = getattr(m, "time_boot_ms", None)
-        if boot_ms is not None:
+        if boot_ms:  # 0 is "not stamped" (MAVSDK's server plugins send SYSTEM_TIME and ATTITUDE with 0)
             if s.time_boot_ms is not None and boot_ms < s.time_boot_ms - REBOOT_BACKSTEP_MS:
                 self._rebooted()
             s.time_boot_ms = boot_ms
         if kind == "SYSTEM_TIME":
-            if m.time_unix_usec > 0:
+            if m.time_unix_usec > 0 and m.time_boot_ms > 0:
                 instant = m.time_unix_usec / 1e6 - m.time_boot_ms / 1e3
                 if s.boot_instant_s is not None and abs(instant - s.boot_instant_s) > BOOT_INSTANT_TOLERANCE_S:
                     self._rebooted()
@@ -526,7 +526,8 @@ class LinkManager:
             )
         )
         self._tasks = [t for t in self._tasks if not t.done()]
-        self._tasks.append(asyncio.create_task(self._request_streams(), name="gcs-streams"))
+        if not any(t.get_name() == "gcs-streams" for t in self._tasks):  # one request round at a time
+            self._tasks.append(asyncio.create_task(self._request_streams(), name="gcs-streams"))
 
     async def _request_streams(self) -> None:
         """SET_MESSAGE_INTERVAL for each stream; ArduPilot also gets REQUEST_DATA_STREAM (its classic way)."""

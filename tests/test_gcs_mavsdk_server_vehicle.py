@@ -221,16 +221,8 @@ async def count_reboots(start_vehicle, watch_s: float) -> int:
         await link.stop()
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="gcs.link reads SYSTEM_TIME.time_boot_ms as the vehicle's boot clock, but MAVSDK 4.1's TelemetryServer "
-    "(publish_unix_epoch_time) sends SYSTEM_TIME with time_boot_ms = 0 ('TODO: add timestamping' in its source): "
-    "each one looks like time_boot_ms going back by more than REBOOT_BACKSTEP_MS, and the boot instant "
-    "(unix time - 0) moves 1 s per second, so the link counts reboots and re-requests every stream; a mission in "
-    "flight then fails 'the vehicle rebooted during the mission' (seen with the service and --unix-time). A "
-    "time_boot_ms of 0 in SYSTEM_TIME should read as 'unknown', not as a new boot.",
-)
 def test_a_vehicle_sending_system_time_without_boot_time_is_not_rebooting(start_vehicle):
+    """MAVSDK 4.1's TelemetryServer sends SYSTEM_TIME with time_boot_ms = 0 (not stamped): no new boot."""
     assert asyncio.run(count_reboots(start_vehicle, watch_s=6.0)) == 0
 
 
