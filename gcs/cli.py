@@ -44,6 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument(
         "--vehicle",
         dest="vehicle_url",
+        metavar="URL",
         help=_help(
             "MAVLink connection: udpout://HOST:PORT, udpin://[HOST]:PORT, tcp://HOST:PORT or serial:///dev/DEVICE[:BAUD]",
             "vehicle_url",
@@ -51,11 +52,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_service_options(serve)
     db_default = f"{Settings.default('data_dir')}/{DB_FILENAME}"
-    serve.add_argument("--db", dest="db_path", type=Path, help=_help("SQLite file", "db_path", db_default))
+    serve.add_argument(
+        "--db", dest="db_path", type=Path, metavar="FILE", help=_help("SQLite file", "db_path", db_default)
+    )
     serve.add_argument(
         "--vehicle-wait",
         dest="vehicle_wait_s",
         type=float,
+        metavar="SECONDS",
         help=_help("seconds a mission waits for a vehicle", "vehicle_wait_s"),
     )
     report = commands.add_parser(
@@ -66,7 +70,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     report.add_argument("mission_id", type=int, metavar="MISSION_ID")
     report.add_argument(
-        "--db", dest="db_path", type=Path, help=_help("SQLite file of the service", "db_path", db_default)
+        "--db",
+        dest="db_path",
+        type=Path,
+        metavar="FILE",
+        help=_help("SQLite file of the service", "db_path", db_default),
     )
     report.add_argument(
         "--out",
@@ -114,6 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--data",
         dest="data_dir",
         type=Path,
+        metavar="DIR",
         help=_help("data directory (database, logs, parameters)", "data_dir"),
     )
     up.add_argument("--demo", action="store_true", help="fly the paper's reference scenario and print its report")
@@ -144,6 +153,22 @@ def _settings_error(error: ValidationError) -> str:
     first = error.errors()[0]
     where = ".".join(str(part) for part in first["loc"])
     return f"{where} ({Settings.env_name(where.split('.')[0])}): {first['msg']}"
+
+
+def check_serve(settings: Settings) -> str | None:
+    """Why `serve` cannot start with these settings, or None: a bad vehicle connection or port, or a database
+    that cannot be opened (opened and migrated now, so a bad --db is a message, not a server traceback)."""
+    try:
+        parse_connection(settings.vehicle_url)
+    except ConnectionStringError as error:
+        return str(error)
+    if not 0 < settings.port < 65536:
+        return f"--port {settings.port} is not a TCP port"
+    try:
+        Storage(settings.db_path).close()
+    except (StorageError, OSError) as error:
+        return f"--db {settings.db_path}: {error}"
+    return None
 
 
 def serve(settings: Settings) -> None:
@@ -215,22 +240,6 @@ def report(args: argparse.Namespace) -> int:
         storage.close()
     print(index)
     return 0
-
-
-def check_serve(settings: Settings) -> str | None:
-    """Why `serve` cannot start with these settings, or None: a bad vehicle connection or port, or a database
-    that cannot be opened (opened and migrated now, so a bad --db is a message, not a server traceback)."""
-    try:
-        parse_connection(settings.vehicle_url)
-    except ConnectionStringError as error:
-        return str(error)
-    if not 0 < settings.port < 65536:
-        return f"--port {settings.port} is not a TCP port"
-    try:
-        Storage(settings.db_path).close()
-    except (StorageError, OSError) as error:
-        return f"--db {settings.db_path}: {error}"
-    return None
 
 
 def main(argv: list[str] | None = None) -> int:
