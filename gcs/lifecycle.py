@@ -30,19 +30,17 @@ import logging
 import time
 from typing import Any
 
-from gcs.link import ARMED_FLAG, ON_GROUND, CommandTimeoutError, LinkManager, mavlink
-from gcs.mission_protocol import MissionTransferError, download_mission, upload_mission
+from gcs.link import CommandDeniedError, CommandTimeoutError, LinkError, LinkManager
+from gcs.mission_protocol import MissionTransferError
 from gcs.planning import FIRST_BUOY_SEQ, FlightParams, Plan, mission_items
 from gcs.recorder import MissionRecorder
 from gcs.results import flight_results
 from gcs.settings import Settings
 from gcs.status import TERMINAL, MissionStatus
 from gcs.storage import MissionRecord, Storage
-from uavcore.mavlink import result_name
 
 log = logging.getLogger(__name__)
 
-MISSION_STATE_COMPLETE = 5  # MISSION_STATE enum (MISSION_CURRENT.mission_state)
 FLUSH_PERIOD_S = 0.5  # wall clock between telemetry writes and checks
 DISARM_GRACE_S = 3.0  # wall clock a flying mission may be disarmed (before takeoff) before it counts as ended
 CLIMB_RATE_M_S = 1.0  # for the flight-time budget only
@@ -50,7 +48,6 @@ ABORTED_BEFORE_TAKEOFF = "aborted by the operator before takeoff"
 RESTART_NOT_FLYING = "GCS restarted; vehicle no longer flying this mission"
 REATTACHED = "GCS restarted; re-attached to the vehicle flying this mission"
 MISSION_CURRENT_WAIT_S = 3.0  # wall clock a re-attaching service waits for the vehicle's MISSION_CURRENT
-ARMED_CONFIRM_S = 2.0  # wall clock to see an "already armed" vehicle's heartbeat say armed
 
 
 class MissionConflictError(RuntimeError):
@@ -178,10 +175,12 @@ class FlightLifecycle:
                 await self._fly(mission_id, plan, flight, recorder)
         except MissionEndError as ended:
             status, reason = ended.status, ended.reason
-        except MissionTransferError as error:
+        except (MissionTransferError, CommandDeniedError) as error:
             reason = str(error)
         except CommandTimeoutError as error:
             reason = f"the vehicle stopped answering: {error}"
+        except LinkError as error:
+            reason = str(error)
         except asyncio.CancelledError:
             status, reason = MissionStatus.FAILED, "the service stopped during the mission"
             if mission_id in self._abort_requested:
@@ -195,7 +194,7 @@ class FlightLifecycle:
 
     def _record_with(self, mission_id: int, recorder: MissionRecorder) -> None:
         """From now on the recorder hears every message of the vehicle, and /ws shows its progress."""
-        self.link.add_listener(recorder, recorder.end_of_datagram)
+        self.link.add_listener(recorder, recorder.end_of_chunk)
         self._recorders[mission_id] = recorder
 
     def _finish(
@@ -207,7 +206,7 @@ class FlightLifecycle:
         status: MissionStatus,
         reason: str | None,
     ) -> None:
-        self.link.remove_listener(recorder, recorder.end_of_datagram)
+        self.link.remove_listener(recorder, recorder.end_of_chunk)
         self._recorders.pop(mission_id, None)
         self._abort_requested.discard(mission_id)
         self.storage.add_telemetry(mission_id, recorder.take())
@@ -222,47 +221,20 @@ class FlightLifecycle:
         self.storage.set_status(mission_id, status, reason)
         self._statuses[mission_id] = status
 
-    async def _command(self, command: int, params: list[float], what: str) -> None:
-        result = await self.link.command_long(command, params)
-        if result != mavlink.MAV_RESULT_ACCEPTED:
-            raise MissionEndError(
-                MissionStatus.FAILED, f"the vehicle refused to {what} ({result_name('MAV_RESULT', result)})"
-            )
-
-    async def _arm(self) -> None:
-        """ARM, surviving a lost acknowledgement: the link resends a command whose ACK was lost, and the vehicle
-        answers an ARM while armed with TEMPORARILY_REJECTED. If its heartbeat then says armed, the first ARM
-        did arrive and the mission goes on."""
-        result = await self.link.command_long(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, [1])
-        if result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED:
-            deadline = time.monotonic() + ARMED_CONFIRM_S
-            while time.monotonic() < deadline and not self.link.status.armed:
-                await asyncio.sleep(0.05)
-            if self.link.status.armed:
-                return
-        if result != mavlink.MAV_RESULT_ACCEPTED:
-            raise MissionEndError(
-                MissionStatus.FAILED, f"the vehicle refused to arm ({result_name('MAV_RESULT', result)})"
-            )
-
     async def _fly(self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder) -> None:
         if not await self.link.wait_connected(self.settings.vehicle_wait_s):
             raise MissionEndError(MissionStatus.FAILED, "no vehicle")
-        boot = self.link.status.reboots
+        incarnation = self.link.status.incarnation
         self._transition(mission_id, MissionStatus.UPLOADING)
-        home = self.link.status.home
-        items = mission_items(plan, flight, None if home is None else (home[0], home[1]))
-        await upload_mission(self.link, items)
+        home = self.link.status.home or self.settings.home
+        items = mission_items(plan, flight, (home[0], home[1]) if self.link.status.home is not None else None)
+        await self.link.upload_mission(items, home)
         self._transition(mission_id, MissionStatus.UPLOADED)
         self._record_with(mission_id, recorder)
-        await self._arm()
-        # AUTO.MISSION as MAVSDK's start_mission does: DO_SET_MODE(custom | armed, main 4, sub 4)
-        mode_flags = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | ARMED_FLAG
-        result = await self.link.command_long(mavlink.MAV_CMD_DO_SET_MODE, [mode_flags, 4, 4])
-        if result != mavlink.MAV_RESULT_ACCEPTED:
-            await self._command(mavlink.MAV_CMD_MISSION_START, [0, len(items) - 1], "start the mission")
+        await self.link.arm()
+        await self.link.start_mission(items)
         self._transition(mission_id, MissionStatus.FLYING)
-        await self._monitor(mission_id, plan, flight, recorder, boot, len(items))
+        await self._monitor(mission_id, plan, flight, recorder, incarnation, len(items))
 
     async def _resume(self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder) -> None:
         """Re-attach to a mission a previous run of the service left unfinished, or end it (see the module doc)."""
@@ -274,7 +246,7 @@ class FlightLifecycle:
             await asyncio.sleep(0.1)
         home = s.home
         expected = mission_items(plan, flight, None if home is None else (home[0], home[1]))
-        on_board = await download_mission(self.link)
+        on_board = await self.link.download_mission()
         same = len(on_board) == len(expected) and all(
             (a.command, a.x, a.y) == (b.command, b.x, b.y) for a, b in zip(on_board, expected, strict=True)
         )
@@ -282,17 +254,24 @@ class FlightLifecycle:
             raise MissionEndError(MissionStatus.FAILED, f"{RESTART_NOT_FLYING} (another mission is on board)")
         self._record_with(mission_id, recorder)
         if not s.armed:
-            finished = s.mission_state == MISSION_STATE_COMPLETE and s.landed_state == ON_GROUND
+            finished = s.mission_complete and s.on_ground
             if finished:
                 raise MissionEndError(MissionStatus.COMPLETED, None)
             raise MissionEndError(MissionStatus.FAILED, RESTART_NOT_FLYING)
         self._transition(mission_id, MissionStatus.FLYING, REATTACHED)
-        await self._monitor(mission_id, plan, flight, recorder, s.reboots, len(expected))
+        await self._monitor(mission_id, plan, flight, recorder, s.incarnation, len(expected))
 
     async def _monitor(
-        self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder, boot: int, n_items: int
+        self,
+        mission_id: int,
+        plan: Plan,
+        flight: FlightParams,
+        recorder: MissionRecorder,
+        incarnation: int,
+        n_items: int,
     ) -> None:
         s = self.link.status
+        sysid = s.sysid
         budget_s = flight_budget_s(plan, flight, self.settings.mission_timeout_margin_s)
         start_s = (s.time_boot_ms or 0) / 1000.0
         disarmed_since: float | None = None
@@ -300,21 +279,25 @@ class FlightLifecycle:
         last_progress: dict[str, Any] | None = None
         while True:
             await asyncio.sleep(FLUSH_PERIOD_S)
+            s = self.link.status  # a new vehicle on the link gets a new status object
             self.storage.add_telemetry(mission_id, recorder.take())
             progress = recorder.progress()
             if progress != last_progress:
                 self.storage.set_progress(mission_id, progress)
                 last_progress = progress
-            if s.reboots != boot:
-                raise MissionEndError(MissionStatus.FAILED, "the vehicle rebooted during the mission")
+            if s.incarnation != incarnation:
+                what = (
+                    "the vehicle rebooted" if s.sysid == sysid else f"another vehicle (system {s.sysid}) took the link"
+                )
+                raise MissionEndError(MissionStatus.FAILED, f"{what} during the mission")
             if not s.connected:
                 raise MissionEndError(MissionStatus.FAILED, "link lost: no heartbeat from the vehicle")
             if mission_id in self._abort_requested and not aborting:
                 aborting = True
-                await self._command(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, [], "return to launch")
+                await self.link.return_to_launch()
                 self._transition(mission_id, MissionStatus.ABORTED, "aborted by the operator: returning to the depot")
-            on_ground_disarmed = not s.armed and s.landed_state == ON_GROUND
-            finished = s.mission_state == MISSION_STATE_COMPLETE or (n_items - 1) in recorder.reached_seqs
+            on_ground_disarmed = not s.armed and s.on_ground
+            finished = s.mission_complete or (n_items - 1) in recorder.reached_seqs
             if on_ground_disarmed and aborting:
                 raise MissionEndError(MissionStatus.ABORTED, "aborted by the operator: returned to the depot")
             if on_ground_disarmed and finished:
@@ -330,8 +313,8 @@ class FlightLifecycle:
             # a vehicle already down and disarmed is not overrunning: the disarm check above ends the mission
             # (a lockstep vehicle with no controller runs free, so the wall-clock grace is many simulated seconds)
             if elapsed > budget_s and not aborting and s.armed:
-                with contextlib.suppress(CommandTimeoutError):
-                    await self.link.command_long(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, [])
+                with contextlib.suppress(LinkError):
+                    await self.link.return_to_launch()
                 raise MissionEndError(
                     MissionStatus.FAILED, f"the mission took longer than {budget_s:.0f} s (vehicle time); returning"
                 )

@@ -36,7 +36,6 @@ from gcs.autopilots import CUSTOM_MODE_ENABLED, Autopilot, Px4, autopilot_for
 from gcs.connection import ConnectionStringError, Transport, open_transport, parse_connection
 from gcs.mission_protocol import download_items, upload_items
 from uavcore.mavlink import (
-    AUTOPILOT_COMPID,  # noqa: F401  (read by gcs.missions until it asks link.target)
     GCS_COMPID,
     GCS_SYSID,
     Encoder,
@@ -169,6 +168,15 @@ class VehicleStatus:
     estimates: dict[str, Any] = field(default_factory=dict)  # a companion controller's ESO outputs by name
     status_texts: list[str] = field(default_factory=list)  # the vehicle's latest STATUSTEXTs, oldest first
 
+    @property
+    def on_ground(self) -> bool:
+        return self.landed_state == ON_GROUND
+
+    @property
+    def mission_complete(self) -> bool:
+        """MISSION_CURRENT.mission_state says COMPLETE (autopilots that report it: PX4, recent ArduPilot)."""
+        return self.mission_state == mavlink.MISSION_STATE_COMPLETE
+
     def as_dict(self) -> dict[str, Any]:
         age = None if self.last_heartbeat is None else time.monotonic() - self.last_heartbeat
         data = {k: v for k, v in self.__dict__.items() if k not in ("last_heartbeat", "home")}
@@ -181,12 +189,6 @@ class VehicleStatus:
 
 def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
-
-
-def parse_udpout(url: str) -> tuple[str, int]:
-    """Kept until gcs.cli validates with gcs.connection.parse_connection: any connection string, checked."""
-    connection = parse_connection(url)
-    return connection.host, connection.port
 
 
 class LinkManager:
@@ -386,7 +388,10 @@ class LinkManager:
 
     def add_listener(self, listener: Callable[[Any], None], end_of_chunk: Callable[[], None] | None = None) -> None:
         """Call listener(message) for every message from the vehicle's system, after `status` is updated, and
-        end_of_chunk() after each received datagram or stream chunk (a point where `status` is consistent)."""
+        end_of_chunk() after each received datagram or stream chunk. Nothing is assumed about what a chunk holds:
+        our vehicle sends a tick's messages in one datagram (so `status` is then of one instant), PX4 and
+        ArduPilot one message per datagram (then the other fields are the latest received, one stream period
+        old at most), a serial or TCP chunk any slice of the stream."""
         self._listeners.append(listener)
         if end_of_chunk is not None:
             self._chunk_ends.append(end_of_chunk)

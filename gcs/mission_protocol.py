@@ -141,7 +141,3 @@ async def download_items(link: LinkManager, step_timeout_s: float = 1.0, retries
             items.append(item_from_message(message))
         link.send(link.encoder.mission_ack_encode(*link.target, mavlink.MAV_MISSION_ACCEPTED, MISSION))
     return items
-
-
-# Until gcs.missions calls the link's typed methods (link.upload_mission / link.download_mission).
-upload_mission, download_mission = upload_items, download_items

@@ -16,8 +16,7 @@ from gcs import tracking
 from gcs.link import LinkManager, VehicleStatus
 from gcs.planning import FIRST_BUOY_SEQ, Plan, buoy_of_seq, leg_of_seq
 from gcs.schemas import TELEMETRY_FROM_STATUS, TelemetrySample
-from uavcore.mavlink import AUTOPILOT_COMPID, statustext
-from uavcore.modes import px4_mode_name
+from uavcore.mavlink import statustext
 
 VEHICLE_EVENTS_KEPT = 50  # STATUSTEXTs and mode changes kept in a mission's progress
 
@@ -54,28 +53,30 @@ class MissionRecorder:
     def __call__(self, message: Any) -> None:
         kind = message.get_type()
         status = self.link.status
-        from_autopilot = message.get_srcComponent() == AUTOPILOT_COMPID
+        from_autopilot = message.get_srcComponent() == status.compid
         if kind == "STATUSTEXT" and from_autopilot:
             self._event(statustext(message))
         elif kind == "HEARTBEAT" and from_autopilot and message.custom_mode != self.custom_mode:
             if self.custom_mode is not None:
-                self._event(f"mode {px4_mode_name(self.custom_mode)} -> {px4_mode_name(message.custom_mode)}")
+                names = self.link.autopilot.mode_name
+                self._event(f"mode {names(self.custom_mode)} -> {names(message.custom_mode)}")
             self.custom_mode = message.custom_mode
-        elif kind == "MISSION_ITEM_REACHED" and message.get_srcComponent() == AUTOPILOT_COMPID:
-            if message.seq not in self.reached_seqs:
-                self.reached_seqs.append(message.seq)
-            buoy = buoy_of_seq(message.seq, self.plan)
+        elif kind == "MISSION_ITEM_REACHED" and from_autopilot:
+            seq = self.link.autopilot.planned_seq(message.seq)
+            if seq not in self.reached_seqs:
+                self.reached_seqs.append(seq)
+            buoy = buoy_of_seq(seq, self.plan)
             if buoy is not None and status.time_boot_ms is not None:
                 self.reached_at.setdefault(buoy, status.time_boot_ms / 1000.0)
-        elif kind == "MISSION_CURRENT" and message.get_srcComponent() == AUTOPILOT_COMPID:
-            self.highest_seq = max(self.highest_seq, message.seq)
-        elif kind == "LOCAL_POSITION_NED" and message.get_srcComponent() == AUTOPILOT_COMPID:
+        elif kind == "MISSION_CURRENT" and from_autopilot:
+            self.highest_seq = max(self.highest_seq, self.link.autopilot.planned_seq(message.seq))
+        elif kind == "LOCAL_POSITION_NED" and from_autopilot:
             now_ms = message.time_boot_ms
             if self.last_ms is None or now_ms - self.last_ms >= self.period_ms or now_ms < self.last_ms:
                 self.last_ms = now_ms
-                self.sample_due = True  # taken at the end of the datagram, with the rest of this tick
+                self.sample_due = True  # taken at the end of the chunk, with what else it brought of this instant
 
-    def end_of_datagram(self) -> None:
+    def end_of_chunk(self) -> None:
         if self.sample_due:
             self.sample_due = False
             self.latest = self.sample()

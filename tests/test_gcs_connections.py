@@ -9,6 +9,7 @@ vehicle's system id, uploads and downloads a mission, and arms.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 import os
 import select
@@ -150,7 +151,8 @@ class StreamBridge(threading.Thread):
                 if fd is self.udp:
                     data = self.udp.recv(65535)
                     if self.write_stream is not None:
-                        self.write_stream(data)
+                        with contextlib.suppress(OSError):  # the link closed its end at the test's end
+                            self.write_stream(data)
                 else:
                     try:
                         data = self.read_stream()

@@ -19,7 +19,7 @@ from pymavlink.dialects.v20 import common as mavlink
 
 from gcs.app import create_app
 from gcs.link import CommandTimeoutError, LinkManager
-from gcs.mission_protocol import MissionRejectedError, MissionTimeoutError, download_mission, upload_mission
+from gcs.mission_protocol import MissionRejectedError, MissionTimeoutError, download_items, upload_items
 from gcs.settings import Settings
 from uavcore.mavlink import item_message
 from uavcore.mission import MavCmd, MissionItem
@@ -169,8 +169,8 @@ def test_upload_retries_a_lost_request_and_download_round_trips(vehicle):
     async def scenario():
         link = await connected_link(vehicle)
         try:
-            await upload_mission(link, ITEMS, step_timeout_s=0.2)
-            return await download_mission(link, step_timeout_s=0.2)
+            await upload_items(link, ITEMS, step_timeout_s=0.2)
+            return await download_items(link, step_timeout_s=0.2)
         finally:
             await link.stop()
 
@@ -185,11 +185,11 @@ def test_upload_refused_and_upload_unanswered(vehicle):
         try:
             vehicle.mission_result = mavlink.MAV_MISSION_NO_SPACE
             with pytest.raises(MissionRejectedError, match="MAV_MISSION_NO_SPACE"):
-                await upload_mission(link, ITEMS, step_timeout_s=0.2)
+                await upload_items(link, ITEMS, step_timeout_s=0.2)
             vehicle.mission_result = mavlink.MAV_MISSION_ACCEPTED
             vehicle.ignore_mission = True
             with pytest.raises(MissionTimeoutError, match="after MISSION_COUNT"):
-                await upload_mission(link, ITEMS, step_timeout_s=0.1, retries=2)
+                await upload_items(link, ITEMS, step_timeout_s=0.1, retries=2)
         finally:
             await link.stop()
 
