@@ -112,11 +112,19 @@ def build_parser() -> argparse.ArgumentParser:
         help="outer loop: the ADRC process (default), the PID baseline, or none (the vehicle's own)",
     )
     _add_service_options(up)
-    up.add_argument(
+    vehicle = up.add_mutually_exclusive_group()
+    vehicle.add_argument(
         "--vehicle-port",
         type=int,
         default=DEFAULT_VEHICLE_PORT,
-        help=f"UDP port the vehicle listens on (default {DEFAULT_VEHICLE_PORT})",
+        help=f"UDP port the simulated vehicle listens on (default {DEFAULT_VEHICLE_PORT})",
+    )
+    vehicle.add_argument(
+        "--vehicle",
+        dest="vehicle_url",
+        metavar="URL",
+        help="fly a real (or any other) vehicle instead: start only the service and map page, connected by "
+        "udpin://0.0.0.0:14550 (PX4, ArduPilot, radios), udpout://, tcp:// or serial:///dev/DEVICE[:BAUD]",
     )
     up.add_argument(
         "--data",
@@ -146,7 +154,7 @@ def settings_from_args(args: argparse.Namespace, **overrides: object) -> Setting
     """The settings with every option given on the command line (options left at None keep the environment's
     value, else the default). Raises pydantic's ValidationError for a value of the wrong type."""
     given = {name: value for name, value in vars(args).items() if name in Settings.model_fields and value is not None}
-    return Settings(**given, **overrides)
+    return Settings(**{**given, **overrides})
 
 
 def _settings_error(error: ValidationError) -> str:
@@ -188,8 +196,13 @@ def up(args: argparse.Namespace) -> int:
     if not 0 < args.vehicle_port < 65536:
         print(f"buoy-gcs: --vehicle-port {args.vehicle_port} is not a port", file=sys.stderr)
         return 2
-    # the service talks to the vehicle `up` starts, whatever vehicle $BUOY_GCS_VEHICLE_URL names
-    settings = settings_from_args(args, vehicle_url=f"udpout:127.0.0.1:{args.vehicle_port}")
+    external = args.vehicle_url is not None
+    if external and args.demo:
+        print("buoy-gcs: --demo flies the simulated reference scenario; it does not go with --vehicle", file=sys.stderr)
+        return 2
+    # without --vehicle the service talks to the vehicle `up` starts, whatever $BUOY_GCS_VEHICLE_URL names
+    vehicle_url = args.vehicle_url if external else f"udpout:127.0.0.1:{args.vehicle_port}"
+    settings = settings_from_args(args, vehicle_url=vehicle_url)
     if (problem := check_serve(settings)) is not None:
         print(f"buoy-gcs: {problem}", file=sys.stderr)
         return 2
@@ -201,6 +214,7 @@ def up(args: argparse.Namespace) -> int:
         wind_m_s=args.wind[0],
         wind_from_deg=args.wind[1],
         controller=args.controller,
+        simulate=not external,
         demo=args.demo,
         demo_seed=args.demo_seed,
         exit_after_demo=args.exit_after_demo,

@@ -35,6 +35,7 @@ class UpOptions:
     wind_m_s: float = 0.0
     wind_from_deg: float = 0.0
     controller: str = "adrc"  # adrc | pid | none (the vehicle's built-in PX4-style loop only)
+    simulate: bool = True  # False: settings.vehicle_url is a real vehicle; only the service is started
     demo: bool = False
     demo_seed: int = 1  # which reference scenario to fly
     exit_after_demo: bool = False
@@ -45,8 +46,11 @@ class UpOptions:
 
 
 def stack(options: UpOptions) -> list[ChildSpec]:
-    """The three children, in start order, with how to tell each is ready."""
+    """The children in start order (vehicle, offboard controller, service; the service alone for a real
+    vehicle), with how to tell each is ready."""
     settings = options.settings
+    if not options.simulate:
+        return [_service(options, settings.vehicle_url, [])]
     vehicle_port = parse_connection(settings.vehicle_url).port
     vehicle_url = f"udpout:127.0.0.1:{vehicle_port}"  # the children all run on this machine
     vehicle_args = [
@@ -77,6 +81,12 @@ def stack(options: UpOptions) -> list[ChildSpec]:
                 python_module("adrc_offboard", "--connect", vehicle_url, "--controller", options.controller, *signing),
             )
         )
+    children.append(_service(options, vehicle_url, signing))
+    return children
+
+
+def _service(options: UpOptions, vehicle_url: str, signing: list[str]) -> ChildSpec:
+    settings = options.settings
     gcs_args = [
         "serve",
         "--vehicle",
@@ -90,10 +100,9 @@ def stack(options: UpOptions) -> list[ChildSpec]:
     ]
     if settings.token:
         gcs_args += ["--token", settings.token]
-    gcs_args += signing
+    gcs_args += signing or (["--signing-key", settings.signing_key] if settings.signing_key else [])
     base = options.base_url
-    children.append(ChildSpec("gcs", python_module("gcs", *gcs_args), ready=lambda: _http_ok(f"{base}/vehicle")))
-    return children
+    return ChildSpec("gcs", python_module("gcs", *gcs_args), ready=lambda: _http_ok(f"{base}/vehicle"))
 
 
 def run_up(options: UpOptions, say=print) -> int:
@@ -103,7 +112,10 @@ def run_up(options: UpOptions, say=print) -> int:
     supervisor.install_signal_handlers()
     base = options.base_url
     pacing = "lockstep" if options.lockstep else f"speed {options.speed:g}x"
-    say(f"starting vehicle ({pacing}, seed {options.seed}), {options.controller} controller and service ...")
+    if options.simulate:
+        say(f"starting vehicle ({pacing}, seed {options.seed}), {options.controller} controller and service ...")
+    else:
+        say(f"starting the service for the vehicle at {settings.vehicle_url} ...")
     try:
         supervisor.start_all()
         say(f"map page:   {base}/")

@@ -360,3 +360,61 @@ def test_a_new_boot_is_recognised_by_its_boot_instant_even_when_its_clock_is_ahe
         asyncio.run(scenario())
     finally:
         sock.close()
+
+
+# ----- `buoy-gcs up --vehicle URL`: the service alone, for a vehicle it does not start
+
+
+def test_up_with_a_vehicle_url_starts_only_the_service():
+    from gcs.settings import Settings
+    from gcs.up import UpOptions, stack
+
+    settings = Settings(vehicle_url="udpin://0.0.0.0:14550")
+    (service,) = stack(UpOptions(settings=settings, simulate=False))
+    assert service.name == "gcs"
+    assert service.argv[service.argv.index("--vehicle") + 1] == "udpin://0.0.0.0:14550"
+
+
+def test_up_refuses_the_simulated_demo_with_a_real_vehicle(capsys):
+    from gcs.cli import main
+
+    assert main(["up", "--vehicle", "udpin://0.0.0.0:14550", "--demo"]) == 2
+    assert "--demo" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_up_listens_for_a_vehicle_streaming_to_it(tmp_path, vehicle):
+    import json
+    import subprocess
+    import sys
+    import urllib.request
+
+    mavlink_port, http_port = free_udp_port(), free_udp_port()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("BUOY_GCS_")}
+    up = subprocess.Popen(
+        [
+            *(sys.executable, "-m", "gcs", "up", "--vehicle", f"udpin://127.0.0.1:{mavlink_port}"),
+            *("--port", str(http_port), "--data", str(tmp_path)),
+        ],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        vehicle("--sysid", "9", "--out", f"127.0.0.1:{mavlink_port}")
+        deadline = time.monotonic() + CONNECT_S
+        while True:
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{http_port}/vehicle", timeout=2) as response:
+                    state = json.load(response)
+                if state.get("connected"):
+                    break
+            except OSError:
+                pass
+            assert up.poll() is None, "buoy-gcs up exited"
+            assert time.monotonic() < deadline, "the service never heard the vehicle"
+            time.sleep(0.2)
+        assert state["sysid"] == 9 and state["autopilot"] == "PX4"
+    finally:
+        up.terminate()
+        up.wait(timeout=20)
