@@ -57,6 +57,7 @@ class VehicleServer:
         self.on_params_changed = on_params_changed
         self.commands = Commands(vehicle, self.send)
         self.commands.vehicle_sysid = link.sysid
+        self.commands.before_ack = self._publish_events
         self.mission = MissionProtocol(vehicle, self.send, link.sysid, link.compid)
         self.offboard = Offboard(vehicle)
         home_id = mavlink.MAVLINK_MSG_ID_HOME_POSITION

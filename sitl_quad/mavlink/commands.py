@@ -31,6 +31,11 @@ class Commands:
     def __init__(self, vehicle: Vehicle, send) -> None:
         self.vehicle = vehicle
         self.send = send  # callable(msg, peer=None)
+        # callable(): publish what the command changed (the server's events: HEARTBEAT, STATUSTEXT) before its
+        # COMMAND_ACK, so a client that acts on the ACK never gets the old state afterwards. MAVSDK's offboard
+        # plugin stops streaming setpoints on a non-OFFBOARD heartbeat; one arriving just after the ARM ack,
+        # while the example sets its first setpoint, made offboard.start() fail with NO_SETPOINT_SET.
+        self.before_ack = lambda: None
         self.table: dict[int, CommandHandler] = {
             mavlink.MAV_CMD_COMPONENT_ARM_DISARM: self.arm_disarm,
             mavlink.MAV_CMD_DO_SET_MODE: self.do_set_mode,
@@ -77,6 +82,7 @@ class Commands:
             except (ValueError, OverflowError) as exc:  # a NaN or absurd number where one was required
                 log.info("command %d refused: %s", msg.command, exc)
                 result = CommandResult.DENIED
+        self.before_ack()
         ack = mavlink.MAVLink_command_ack_message(
             msg.command, int(result), 0, 0, msg.get_srcSystem(), msg.get_srcComponent()
         )

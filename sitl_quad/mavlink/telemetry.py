@@ -346,12 +346,14 @@ class Telemetry:
 
 
 def geofence_status_bits(vehicle: Vehicle) -> tuple[int, int, int]:
-    """SYS_STATUS onboard_control_sensors present, enabled, health with the geofence's bit as it stands."""
+    """SYS_STATUS onboard_control_sensors present, enabled, health with the geofence's bit as it stands: healthy
+    unless the vehicle is where the fence does not let it be (armed or not)."""
     fence = mavlink.MAV_SYS_STATUS_GEOFENCE
     if not vehicle.geofence.present:
         return SENSORS, SENSORS, HEALTH
     enabled = SENSORS | fence if vehicle.config.failsafe.geofence_action != GeofenceAction.NONE else SENSORS
-    health = HEALTH & ~fence if vehicle.geofence.breached else HEALTH
+    north, east, _ = (float(c) for c in vehicle.estimate.position)
+    health = HEALTH & ~fence if vehicle.geofence.violation(north, east) is not None else HEALTH
     return SENSORS | fence, enabled, health
 
 
