@@ -42,8 +42,9 @@ from adrc_offboard.gains import load_gains, make_channel
 from adrc_offboard.outer_loop import matched_gains
 from bench.control import RESULTS
 from bench.control.flight import fly
-from bench.control.scenario import Scenario, build_scenario, gust_start_time
+from bench.control.scenario import Scenario, build_scenario
 from gcs.planning import FIRST_BUOY_SEQ
+from planner.scenario import MissionTimeline
 from uavcore.geodesy import LocalFrame
 from uavcore.mission import MavCmd, MavFrame, MissionItem
 
@@ -88,7 +89,8 @@ def short_scenario(base: Scenario) -> Scenario:
             seq=len(items), frame=MavFrame.GLOBAL_RELATIVE_ALT_INT, command=MavCmd.NAV_LAND, x=last.x, y=last.y, z=0.0
         )
     )
-    gust = gust_start_time(items, base.home, 1)
+    start, duration = MissionTimeline().legs(points[:, ::-1])[0]  # points are [north, east]
+    gust = round(start + 0.5 * duration, 1)
     return replace(
         base,
         items=items,

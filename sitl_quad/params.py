@@ -85,7 +85,7 @@ class ParameterTable:
     def set(self, name: str, value: float) -> float:
         """Validate and store; returns the stored value. Raises ParameterError (and changes nothing)."""
         spec = self.spec(name)
-        if not math.isfinite(value):
+        if math.isnan(value) or (math.isinf(value) and value != spec.maximum):  # inf only where it is the maximum
             raise ParameterError(f"{name}: value must be finite, got {value}")
         if spec.type == INT32:
             if value != int(value):

@@ -33,6 +33,7 @@ VEHICLE_PARAMETERS: list[ParamSpec] = [
     ParamSpec("SIM_GUST_AMP", "wind.gust_amplitude_m_s", REAL32, -40.0, 40.0, "1-cosine gust, m/s"),
     ParamSpec("SIM_GUST_RISE", "wind.gust_rise_time_s", REAL32, 0.01, 60.0, "gust rise time, s"),
     ParamSpec("SIM_GUST_T0", "wind.gust_start_s", REAL32, 0.0, 1e6, "gust start, s after takeoff"),
+    ParamSpec("SIM_GUST_HOLD", "wind.gust_hold_s", REAL32, 0.0, math.inf, "gust hold at full strength, s; inf = stays"),
     ParamSpec("SIM_GUST_DIR", "wind.gust_direction_from_deg", REAL32, -360.0, 360.0, "gust from, deg"),
     ParamSpec("SIM_TURB_W20", "wind.turbulence_w20_m_s", REAL32, 0.0, 40.0, "Dryden W20 intensity, m/s"),
     # the paper's Gaussian disturbance terms D_x..D_psi

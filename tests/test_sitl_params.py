@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 
@@ -10,6 +11,7 @@ import pytest
 from sitl_quad.config import VehicleConfig
 from sitl_quad.params import INT32, REAL32, ParameterError, ParameterTable, decode_value, encode_value
 from sitl_quad.vehicle_params import VEHICLE_PARAMETERS
+from sitl_quad.wind import gust_speed
 
 
 @pytest.fixture
@@ -61,6 +63,24 @@ def test_file_round_trip_and_all_or_nothing_load(table, tmp_path):
     with pytest.raises(ParameterError, match="SIM_MASS"):
         fresh.load(bad)
     assert fresh.get("MPC_XY_CRUISE") == 7.5  # the good first line was not applied either
+
+
+def test_the_gust_hold_reaches_the_wind_model_and_its_default_inf_survives_the_file(table, tmp_path):
+    assert table.get("SIM_GUST_HOLD") == math.inf  # the default: a gust that stays (MIL-F-8785C)
+    path = tmp_path / "vehicle.params"
+    table.save(path)
+    fresh = ParameterTable(VEHICLE_PARAMETERS, VehicleConfig())
+    fresh.load(path)  # the saved "inf" loads back
+    for name, value in [("SIM_GUST_AMP", 4.0), ("SIM_GUST_RISE", 1.0), ("SIM_GUST_T0", 0.0), ("SIM_GUST_HOLD", 10.0)]:
+        fresh.set(name, value)
+    assert fresh.config.wind.gust_hold_s == 10.0
+    air = fresh.config.wind.as_array()  # the wind model: full strength through the hold, then back to none
+    assert gust_speed(air, 10.9) == 4.0 and gust_speed(air, 12.5) == 0.0
+    for bad in (-1.0, math.nan):
+        with pytest.raises(ParameterError):
+            fresh.set("SIM_GUST_HOLD", bad)
+    with pytest.raises(ParameterError, match="finite"):
+        fresh.set("SIM_WIND_SPD", math.inf)  # inf only where it is the parameter's maximum
 
 
 @pytest.mark.parametrize(

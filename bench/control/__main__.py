@@ -21,8 +21,9 @@ from bench.control import REPO, RESULTS
 from bench.control.figures import draw_figures
 from bench.control.flight import CONTROLLERS, LABELS, fly, step_response
 from bench.control.metrics import GUST_WINDOW_S, METRICS, RECOVERED_M, STEP_METRICS, TARGETS
-from bench.control.scenario import ACCEPTANCE_RADIUS_M, DWELL_S, TURBULENCE_SIGMA_M_S, Scenario, build_scenario
+from bench.control.scenario import ACCEPTANCE_RADIUS_M, DWELL_S, Scenario, build_scenario
 from bench.control.statistics import summarise
+from planner.scenario import TURBULENCE_SIGMA_M_S
 
 Gains = tuple[AdrcOuterGains | None, PidOuterGains | None]  # None: the shipped gains files
 
