@@ -355,10 +355,8 @@ class LinkManager:
                     raise LinkError(f"the vehicle did not climb to {altitude:g} m within {TAKEOFF_TIMEOUT_S:g} s")
                 await asyncio.sleep(0.1)
             await self.set_mode("mission")
-            last = len(items) - 1 + self.autopilot.mission_offset
-            await self._command(
-                "start the mission", mavlink.MAV_CMD_MISSION_START, [self.autopilot.mission_offset, last]
-            )
+            # ArduCopter DENIES MISSION_START naming a first or last item (handle_MAV_CMD_MISSION_START): 0, 0
+            await self._command("start the mission", mavlink.MAV_CMD_MISSION_START, [0, 0])
             return
         try:
             await self.set_mode("mission")
@@ -506,7 +504,7 @@ class LinkManager:
             s.landed_state = m.landed_state
         elif kind == "MISSION_CURRENT":
             s.mission_seq = self.autopilot.planned_seq(m.seq)
-            s.mission_total = m.total - self.autopilot.mission_offset
+            s.mission_total = m.total  # MAVLink: "a home stored as part of the mission is excluded from the total"
             s.mission_state = m.mission_state
         elif kind == "HOME_POSITION":
             s.home = (m.latitude * 1e-7, m.longitude * 1e-7, m.altitude / 1000.0)
