@@ -112,3 +112,46 @@ def tracking_figures(route: np.ndarray, planned_length_m: float, track: Sequence
         "planned_length_m": float(planned_length_m),
         "flight_time_s": flight_time_s(track),
     }
+
+
+# ----- a gust's effect (the paper's Figure 6): shared with the control benchmark (bench.control.metrics)
+GUST_WINDOW_S = 10.0  # the error is looked at this long after the gust's onset
+RECOVERED_M = 0.2  # back on track: the 3-D error stays under this
+
+
+@dataclass(frozen=True)
+class GustEffect:
+    peak_m: float  # largest 3-D tracking error within GUST_WINDOW_S of the onset (NaN: no sample there)
+    recovery_s: float  # from the onset until the error is under RECOVERED_M for good within the window:
+    # 0 = it never left, GUST_WINDOW_S = not recovered within the window (NaN: no sample there)
+
+
+def gust_effect(
+    t_s: np.ndarray,
+    error_m: np.ndarray,
+    onset_s: float,
+    window_s: float = GUST_WINDOW_S,
+    recovered_m: float = RECOVERED_M,
+) -> GustEffect:
+    """The gust's effect on a tracking-error series: error_m[k] is |position - reference| at time t_s[k]
+    (increasing; samples without an error, NaN, are left out). An error above recovered_m at sample k lasts
+    until the next sample, so the recovery ends at the time of the sample after the last one above it."""
+    t = np.asarray(t_s, dtype=float)
+    error = np.asarray(error_m, dtype=float)
+    in_window = (t >= onset_s) & (t <= onset_s + window_s) & np.isfinite(error)
+    if not in_window.any():
+        return GustEffect(float("nan"), float("nan"))
+    above = np.flatnonzero(in_window & (error > recovered_m))
+    if above.size == 0:
+        return GustEffect(float(error[in_window].max()), 0.0)
+    last = above[-1]
+    back_on_track = t[last + 1] if last + 1 < t.size else float("inf")
+    return GustEffect(float(error[in_window].max()), float(min(back_on_track - onset_s, window_s)))
+
+
+def climb_start_s(t_s: np.ndarray, ref_down: np.ndarray, moved_m: float = 1e-4) -> float | None:
+    """The vehicle time at which the flight's reference starts to climb: the last sample before the first one
+    whose reference is higher than the sample before by more than moved_m (the reference holds still on the
+    ground while the motors spool up). None if it never climbs."""
+    rising = np.flatnonzero(np.diff(np.asarray(ref_down, dtype=float)) < -moved_m)
+    return float(np.asarray(t_s, dtype=float)[rising[0]]) if rising.size else None

@@ -71,3 +71,39 @@ def test_empty_track_gives_no_figures_rather_than_errors():
     figures = tracking.tracking_figures(ROUTE, 200.0, [])
     assert figures["rms_cross_track_m"] is None and figures["flight_time_s"] is None
     assert tracking.buoy_figures(np.array([[1.0, 1.0]]), [1.0], [], {})[0]["closest_m"] is None
+
+
+# ----- a gust's effect: peak 3-D error after the onset and the time until it is back under 0.2 m for good
+def test_gust_effect_on_a_synthetic_bump_peaks_and_recovers_when_the_error_stays_under_the_threshold():
+    t = np.arange(0.0, 40.0, 0.1)
+    onset = 20.0
+    # 0.05 m before the gust; after it a bump peaking at 0.45 m 1 s in, over 0.2 m while |t - 21| < 0.99 s
+    error = 0.05 + np.where(t >= onset, 0.4 * np.exp(-(((t - 21.0) / 1.0) ** 2)), 0.0)
+    error[t > 35.0] = 0.9  # outside the 10 s window: does not count
+    error[100] = 2.0  # before the onset (t = 10 s): does not count
+    effect = tracking.gust_effect(t, error, onset)
+    assert effect.peak_m == pytest.approx(0.45, abs=1e-9)
+    last_above = t[(t >= onset) & (t <= onset + 10.0) & (error > 0.2)].max()
+    assert effect.recovery_s == pytest.approx(last_above + 0.1 - onset)
+    assert effect.recovery_s == pytest.approx(2.0)  # the first sample back under 0.2 m is t = 22.0 s
+
+
+def test_gust_effect_never_above_is_zero_never_back_is_the_window_and_no_sample_is_nan():
+    t = np.arange(0.0, 30.0, 0.5)
+    calm = tracking.gust_effect(t, np.full(t.size, 0.1), 5.0)
+    assert (calm.peak_m, calm.recovery_s) == (pytest.approx(0.1), 0.0)
+    off_track = tracking.gust_effect(t, np.where(t >= 5.0, 0.3, 0.1), 5.0)
+    assert off_track.recovery_s == tracking.GUST_WINDOW_S
+    ends_above = tracking.gust_effect(t[t < 8.0], np.full((t < 8.0).sum(), 0.5), 5.0)  # the record ends off track
+    assert ends_above.recovery_s == tracking.GUST_WINDOW_S
+    gaps = np.where(t == 6.0, np.nan, 0.1)  # samples without a reference are left out
+    assert tracking.gust_effect(t, gaps, 5.0).peak_m == pytest.approx(0.1)
+    nothing = tracking.gust_effect(t, np.full(t.size, 0.1), 100.0)
+    assert np.isnan(nothing.peak_m) and np.isnan(nothing.recovery_s)
+
+
+def test_the_climb_starts_at_the_last_sample_before_the_reference_rises():
+    t = np.arange(0.0, 3.0, 0.1)
+    ref_down = np.where(t < 1.25, 0.03, 0.03 - 2.0 * (t - 1.25) ** 2)  # on the ground, then climbing
+    assert tracking.climb_start_s(t, ref_down) == pytest.approx(1.2)
+    assert tracking.climb_start_s(t, np.full(t.size, 0.03)) is None

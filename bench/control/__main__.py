@@ -20,9 +20,10 @@ from adrc_offboard.outer_loop import AdrcOuterGains, PidOuterGains, matched_gain
 from bench.control import REPO, RESULTS
 from bench.control.figures import draw_figures
 from bench.control.flight import CONTROLLERS, LABELS, fly, step_response
-from bench.control.metrics import GUST_WINDOW_S, METRICS, RECOVERED_M, STEP_METRICS, TARGETS
+from bench.control.metrics import METRICS, STEP_METRICS, TARGETS
 from bench.control.scenario import ACCEPTANCE_RADIUS_M, DWELL_S, Scenario, build_scenario
 from bench.control.statistics import summarise
+from gcs.tracking import GUST_WINDOW_S, RECOVERED_M
 from planner.scenario import TURBULENCE_SIGMA_M_S
 
 Gains = tuple[AdrcOuterGains | None, PidOuterGains | None]  # None: the shipped gains files

@@ -7,7 +7,8 @@ vehicle above 1 m:
 - cross_track_rms_m / cross_track_max_m: horizontal distance to the planned leg (straight segment between
   consecutive waypoints, takeoff point first) while flying to each buoy;
 - gust_peak_m: largest 3-D error within 10 s of the gust onset; gust_recovery_s: time from the onset until
-  the error is back under 0.2 m for good within that window (10 s = not recovered);
+  the error is back under 0.2 m for good within that window (10 s = not recovered): gcs.tracking.gust_effect,
+  the demo's (`gcs up --demo`) measure too;
 - altitude_rms_m: vertical error;
 - yaw_turn_rms_deg / yaw_turn_max_deg: yaw error during the on-the-spot turns at the buoys (reference yaw
   rate non-zero, and 1.5 s after), the paper's Figure 11;
@@ -31,10 +32,9 @@ import numpy as np
 
 from bench.control.scenario import OUTER_RATE_HZ, STEP_M, Scenario
 from gcs.planning import FIRST_BUOY_SEQ
+from gcs.tracking import GUST_WINDOW_S, gust_effect
 from uavcore.rotation import wrap_pi
 
-GUST_WINDOW_S = 10.0
-RECOVERED_M = 0.2
 TRACKING_MIN_ALTITUDE_M = 1.0
 TURN_TAIL_S = 1.5
 ESO_MAX_LAG_TICKS = 25
@@ -99,15 +99,8 @@ def flight_metrics(s: dict[str, np.ndarray], scenario: Scenario, n_items: int) -
     # the gust
     t_gust = scenario.wind.gust_start_s
     window = (t_since_takeoff >= t_gust) & (t_since_takeoff <= t_gust + GUST_WINDOW_S)
-    out["gust_peak_m"] = _max(error[window])
-    above = np.flatnonzero(window & (error > RECOVERED_M))
-    out["gust_recovery_s"] = (
-        math.nan
-        if not window.any()
-        else 0.0
-        if above.size == 0
-        else float(min(t_since_takeoff[above[-1]] + dt - t_gust, GUST_WINDOW_S))
-    )
+    gust = gust_effect(t_since_takeoff, error, t_gust)
+    out["gust_peak_m"], out["gust_recovery_s"] = gust.peak_m, gust.recovery_s
     out["gust_leg_seq_at_onset"] = int(seq[np.argmax(t_since_takeoff >= t_gust)]) if window.any() else -1
     # yaw at the turns
     turning = np.abs(s["yaw_rate_ref"][1:]) > 1e-3
