@@ -170,7 +170,11 @@ class VehicleStatus:
 
     @property
     def on_ground(self) -> bool:
-        return self.landed_state == ON_GROUND
+        """EXTENDED_SYS_STATE says so; from an autopilot that never reports a landed state (ArduPilot's classic
+        stream groups have no EXTENDED_SYS_STATE), within half a metre of home's altitude."""
+        if self.landed_state not in (None, mavlink.MAV_LANDED_STATE_UNDEFINED):
+            return self.landed_state == ON_GROUND
+        return self.alt_m is not None and abs(self.alt_m) < 0.5
 
     @property
     def mission_complete(self) -> bool:

@@ -418,3 +418,19 @@ def test_up_listens_for_a_vehicle_streaming_to_it(tmp_path, vehicle):
     finally:
         up.terminate()
         up.wait(timeout=20)
+
+
+@pytest.mark.parametrize(
+    ("landed_state", "alt_m", "on_ground"),
+    [
+        (mavlink.MAV_LANDED_STATE_ON_GROUND, 3.0, True),  # the vehicle's word wins
+        (mavlink.MAV_LANDED_STATE_IN_AIR, 0.1, False),
+        (None, 0.2, True),  # no EXTENDED_SYS_STATE (ArduPilot's stream groups): by altitude above home
+        (mavlink.MAV_LANDED_STATE_UNDEFINED, 4.0, False),
+        (None, None, False),
+    ],
+)
+def test_on_ground_from_the_landed_state_or_else_the_altitude(landed_state, alt_m, on_ground):
+    from gcs.link import VehicleStatus
+
+    assert VehicleStatus(landed_state=landed_state, alt_m=alt_m).on_ground is on_ground
