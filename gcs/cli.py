@@ -13,6 +13,7 @@ from pydantic import ValidationError
 from gcs.connection import ConnectionStringError, parse_connection
 from gcs.settings import DB_FILENAME, Settings
 from gcs.storage import Storage, StorageError
+from planner.scenario import Weather
 
 # `up` starts its own vehicle on this machine: by default on the port of the default vehicle connection.
 DEFAULT_VEHICLE_PORT = parse_connection(Settings.default("vehicle_url")).port
@@ -98,18 +99,22 @@ def build_parser() -> argparse.ArgumentParser:
     )
     pacing.add_argument("--speed", type=float, help="pace the vehicle at N times real time instead of lockstep")
     up.add_argument("--seed", type=int, default=0, help="the vehicle's wind, turbulence and noise seed")
-    up.add_argument(
+    air = up.add_mutually_exclusive_group()
+    air.add_argument(
         "--wind",
         type=_wind,
-        default=(0.0, 0.0),
         metavar="SPEED[,FROM_DEG]",
-        help="steady wind in m/s, blowing from FROM_DEG (default calm)",
+        help="a steady wind in m/s, blowing from FROM_DEG, and nothing else (default: still air; with --demo the "
+        "paper's weather: a 5 m/s crosswind across the longest leg, a 4 m/s gust halfway along it, turbulence)",
     )
+    air.add_argument("--calm", action="store_true", help="still air, the demo too")
     up.add_argument(
         "--controller",
-        choices=("adrc", "pid", "none"),
+        choices=("adrc", "pid", "px4"),  # gcs.up.CONTROLLERS (not imported here: gcs.up loads the planner)
         default="adrc",
-        help="outer loop: the ADRC process (default), the PID baseline, or none (the vehicle's own)",
+        help="adrc (default): the cascade dual ADRC, ADRC offboard outer loop over the vehicle's ADRC attitude "
+        "loop (MC_ATT_CTRL=1); pid: the PID cascade (PID outer loop, MC_ATT_CTRL=0); px4: the vehicle's own "
+        "position and attitude loops, no offboard process",
     )
     _add_service_options(up)
     vehicle = up.add_mutually_exclusive_group()
@@ -136,6 +141,12 @@ def build_parser() -> argparse.ArgumentParser:
     up.add_argument("--demo", action="store_true", help="fly the paper's reference scenario and print its report")
     up.add_argument("--demo-seed", type=int, default=1, help="which reference scenario the demo flies")
     up.add_argument("--exit-after-demo", action="store_true", help="stop the stack once the demo has flown")
+    up.add_argument(
+        "--compare",
+        action="store_true",
+        help="after the demo, restart the stack with the PID cascade, fly the demo again on the same seed and "
+        "weather and print both side by side (and a figure of the tracking error around the gust)",
+    )
     return parser
 
 
@@ -148,6 +159,16 @@ def _wind(text: str) -> tuple[float, float]:
     if len(values) not in (1, 2) or not all(map(math.isfinite, values)) or not 0 <= values[0] <= 40:
         raise argparse.ArgumentTypeError(f"expected SPEED[,FROM_DEG] with 0 <= SPEED <= 40 m/s, got {text!r}")
     return values[0], values[1] if len(values) == 2 else 0.0
+
+
+def _weather(args: argparse.Namespace) -> Weather | None:
+    """The air `up` asks of the vehicle: None for the default (the demo's paper weather, else still air)."""
+    if args.calm:
+        return Weather()
+    if args.wind is not None:
+        speed, from_deg = args.wind
+        return Weather(wind_m_s=speed, wind_from_deg=from_deg)
+    return None
 
 
 def settings_from_args(args: argparse.Namespace, **overrides: object) -> Settings:
@@ -197,6 +218,9 @@ def up(args: argparse.Namespace) -> int:
         print(f"buoy-gcs: --vehicle-port {args.vehicle_port} is not a port", file=sys.stderr)
         return 2
     external = args.vehicle_url is not None
+    if args.compare and not args.demo:
+        print("buoy-gcs: --compare compares two demo flights; it needs --demo", file=sys.stderr)
+        return 2
     if external and args.demo:
         print("buoy-gcs: --demo flies the simulated reference scenario; it does not go with --vehicle", file=sys.stderr)
         return 2
@@ -211,13 +235,13 @@ def up(args: argparse.Namespace) -> int:
         lockstep=args.speed is None,
         speed=args.speed or 1.0,
         seed=args.seed,
-        wind_m_s=args.wind[0],
-        wind_from_deg=args.wind[1],
+        weather=_weather(args),
         controller=args.controller,
         simulate=not external,
         demo=args.demo,
         demo_seed=args.demo_seed,
         exit_after_demo=args.exit_after_demo,
+        compare=args.compare,
     )
     return run_up(options, say=lambda text: print(text, flush=True))
 

@@ -185,10 +185,25 @@ def _circle(centre: tuple[float, float], radius: float):
 
 
 def _draw_lines(path: Path, title: str, ylabel: str, t_s: np.ndarray, lines: list[tuple[np.ndarray, str]]) -> None:
+    draw_series(path, title, "vehicle time (s)", ylabel, [(t_s, values, label) for values, label in lines])
+
+
+def draw_series(
+    path: Path,
+    title: str,
+    xlabel: str,
+    ylabel: str,
+    lines: list[tuple[np.ndarray, np.ndarray, str]],
+    shade: tuple[float, float] | None = None,
+) -> None:
+    """Curves (x, y, label), each on its own x values (e.g. two missions around the same event), in one PNG;
+    `shade` greys an x interval."""
     figure, ax = _figure()
-    for values, label in lines:
-        ax.plot(t_s, values, lw=1, label=label)
-    ax.set(xlabel="vehicle time (s)", ylabel=ylabel, title=title)
+    if shade is not None:
+        ax.axvspan(*shade, color="0.9", zorder=0)
+    for x, values, label in lines:
+        ax.plot(x, values, lw=1, label=label)
+    ax.set(xlabel=xlabel, ylabel=ylabel, title=title)
     ax.grid(alpha=0.3)
     if len(lines) > 1:
         ax.legend(loc="best", fontsize=8)

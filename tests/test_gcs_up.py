@@ -1,0 +1,156 @@
+"""`buoy-gcs up`: which loops each controller starts, the weather the demo hands the vehicle, the demo's figures.
+
+No process is started here except one `python -m sitl_quad --list-params`, which checks that the vehicle takes
+every parameter `up` gives it.
+"""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from gcs.cli import _weather, build_parser, main
+from gcs.settings import Settings
+from gcs.up import CONTROLLERS, UpOptions, measure_flight, prepare, stack
+from planner.scenario import GUST_HOLD_S, Weather, compass_bearing_deg
+
+
+def _options(tmp_path, **kwargs) -> UpOptions:
+    return UpOptions(settings=Settings(data_dir=tmp_path, vehicle_url="udpout:127.0.0.1:14600"), **kwargs)
+
+
+def _vehicle_params(argv: list[str]) -> dict[str, float]:
+    return {
+        argv[i + 1].split("=")[0]: float(argv[i + 1].split("=")[1]) for i, arg in enumerate(argv) if arg == "--param"
+    }
+
+
+@pytest.mark.parametrize(
+    "controller, attitude_loop, offboard",
+    [("adrc", 1, ["--controller", "adrc"]), ("pid", 0, ["--controller", "pid"]), ("px4", 0, None)],
+)
+def test_each_controller_starts_its_loops(tmp_path, controller, attitude_loop, offboard):
+    children = stack(_options(tmp_path, controller=controller))
+    names = [child.name for child in children]
+    vehicle = children[0]
+    assert _vehicle_params(vehicle.argv)["MC_ATT_CTRL"] == attitude_loop  # the vehicle's inner loop: 1 ADRC, 0 PID
+    if offboard is None:
+        assert names == ["sitl_quad", "gcs"]  # no offboard process: the vehicle's own position loop flies
+    else:
+        assert names == ["sitl_quad", "adrc_offboard", "gcs"]
+        argv = children[1].argv
+        assert argv[argv.index("--controller") :][:2] == offboard
+        assert "udpout:127.0.0.1:14600" in argv
+
+
+def test_the_command_line_offers_exactly_the_controllers_and_adrc_is_the_default():
+    parser = build_parser()
+    assert parser.parse_args(["up"]).controller == "adrc"
+    for controller in CONTROLLERS:
+        assert parser.parse_args(["up", "--controller", controller]).controller == controller
+    with pytest.raises(SystemExit):
+        parser.parse_args(["up", "--controller", "none"])
+
+
+def test_without_a_demo_the_air_is_still_and_every_weather_parameter_is_set(tmp_path):
+    options, demo = prepare(_options(tmp_path))
+    assert demo is None and options.weather == Weather()
+    params = _vehicle_params(stack(options)[0].argv)
+    assert params["SIM_WIND_SPD"] == params["SIM_GUST_AMP"] == params["SIM_TURB_W20"] == 0.0
+    assert params["SIM_GUST_HOLD"] == math.inf
+    assert {"SIM_WIND_DIR", "SIM_GUST_T0", "SIM_GUST_RISE", "SIM_GUST_DIR", "SIM_DIST_VX", "SIM_DIST_VYAW"} <= set(
+        params
+    )
+
+
+def test_the_demo_flies_the_papers_weather_placed_on_the_route_the_service_will_plan(tmp_path):
+    options, demo = prepare(_options(tmp_path, demo=True))
+    params = _vehicle_params(stack(options)[0].argv)
+    route = demo.plan.route_local()[:-1]  # [east, north]: the depot, then the buoys in visiting order
+    legs = np.hypot(*np.diff(route, axis=0).T)
+    longest = int(np.argmax(legs))
+    bearing = compass_bearing_deg(route[longest], route[longest + 1])
+    assert demo.placed.longest_leg == longest + 1
+    # the crosswind: 5 m/s, perpendicular to the longest leg, from its right-hand side
+    assert params["SIM_WIND_SPD"] == 5.0
+    assert params["SIM_WIND_DIR"] == pytest.approx((bearing + 90.0) % 360.0, abs=1e-3)
+    # the gust: 4 m/s along the crosswind, 1 s rise, held 10 s, starting while the longest leg is flown
+    assert params["SIM_GUST_AMP"] == 4.0 and params["SIM_GUST_RISE"] == 1.0 and params["SIM_GUST_HOLD"] == GUST_HOLD_S
+    assert params["SIM_GUST_DIR"] == params["SIM_WIND_DIR"]
+    onset = params["SIM_GUST_T0"]
+    assert onset == pytest.approx(demo.placed.leg_start_s + demo.placed.leg_duration_s / 2, abs=0.05)
+    assert demo.placed.leg_start_s + 10.0 < onset < demo.placed.leg_start_s + demo.placed.leg_duration_s - 10.0
+    # Dryden turbulence with sigma 1 m/s at 5 m, and the D terms
+    assert params["SIM_TURB_W20"] == pytest.approx(5.152)
+    assert params["SIM_DIST_VX"] == 0.05
+    # the ADRC cascade by default; --calm and --wind replace the weather, the demo still flies
+    assert params["MC_ATT_CTRL"] == 1
+    calm, _ = prepare(_options(tmp_path, demo=True, weather=Weather()))
+    assert _vehicle_params(stack(calm)[0].argv)["SIM_GUST_AMP"] == 0.0
+
+
+def test_the_vehicle_takes_every_parameter_up_gives_it(tmp_path):
+    options, _ = prepare(_options(tmp_path, demo=True))
+    argv = stack(options)[0].argv
+    params = [arg for i, arg in enumerate(argv) if i > 0 and argv[i - 1] == "--param"]
+    listed = subprocess.run(
+        [sys.executable, "-m", "sitl_quad", *[a for p in params for a in ("--param", p)], "--list-params"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert listed.returncode == 0, listed.stderr
+    values = {line.split()[0]: line.split()[1] for line in listed.stdout.splitlines()}
+    assert values["MC_ATT_CTRL"] == "1" and values["SIM_GUST_HOLD"] == "10"
+
+
+def test_weather_options_on_the_command_line(capsys):
+    parser = build_parser()
+    assert _weather(parser.parse_args(["up"])) is None  # the default: the paper's weather with --demo
+    assert _weather(parser.parse_args(["up", "--calm"])) == Weather()
+    assert _weather(parser.parse_args(["up", "--wind", "3,90"])) == Weather(wind_m_s=3.0, wind_from_deg=90.0)
+    with pytest.raises(SystemExit):
+        parser.parse_args(["up", "--calm", "--wind", "3"])
+    assert main(["up", "--compare"]) == 2
+    assert "--demo" in capsys.readouterr().err
+
+
+def _sample(t: float, north: float, ref_down: float, seq: int) -> dict:
+    return {
+        "t_s": t,
+        "north": north,
+        "east": 0.0,
+        "down": ref_down,
+        "ref_north": 0.0,
+        "ref_east": 0.0,
+        "ref_down": ref_down,
+        "yaw": 0.0,
+        "ref_yaw": 0.0,
+        "mission_seq": seq,
+        "eso": None,
+        "cross_track_m": None,
+    }
+
+
+def test_the_gust_is_found_in_the_telemetry_by_the_climb_and_measured_there():
+    """Telemetry at 10 Hz from t = 100 s: the reference starts climbing after 101.0 s, so the mission started
+    at 100.0 s (1 s spool-up) and a gust stated at 20 s meets the vehicle at 120.0 s."""
+    weather = Weather(gust_m_s=4.0, gust_start_s=20.0, gust_hold_s=10.0)
+    samples = []
+    for k in range(400):
+        t = 100.0 + 0.1 * k
+        ref_down = 0.03 if t <= 101.0 + 1e-9 else 0.03 - 2.5 * (t - 101.0)
+        error = 0.05 + (0.3 if 121.0 <= t < 123.0 else 0.0) + (0.9 if t > 131.0 else 0.0)  # the last: after 10 s
+        samples.append(_sample(t, error, ref_down, 8 if t > 110.0 else 1))
+    flight = measure_flight("adrc", weather, {"status": "completed"}, samples, wall_s=2.0)
+    assert flight.gust_onset_t_s == pytest.approx(120.0)
+    assert flight.gust.peak_m == pytest.approx(0.35)
+    assert flight.gust.recovery_s == pytest.approx(3.0)  # the sample at 123.0 s is back at 0.05 m
+    assert flight.gust_leg == 7  # mission item 8 is the 7th buoy leg
+    assert flight.simulated_s == pytest.approx(39.9) and flight.simulated_s / flight.wall_s == pytest.approx(19.95)
+    still = measure_flight("adrc", Weather(), {"status": "completed"}, samples, wall_s=2.0)
+    assert still.gust is None and still.gust_onset_t_s is None
