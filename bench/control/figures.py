@@ -11,7 +11,7 @@ import numpy as np
 
 from bench.control import REPO
 from bench.control.flight import LABELS
-from bench.control.scenario import GUST_RISE_S, OUTER_RATE_HZ, STEP_M, Scenario
+from bench.control.scenario import OUTER_RATE_HZ, STEP_M, Scenario
 from gcs.planning import FIRST_BUOY_SEQ
 
 
@@ -49,7 +49,7 @@ def draw_figures(scenario: Scenario, series: dict[str, dict], steps: dict[str, n
         axes, ("north error x - x_ref (m)", "east error y - y_ref (m)", "altitude (m)", "yaw (deg)"), strict=True
     ):
         ax.set_ylabel(label)
-        ax.axvspan(t_gust, t_gust + GUST_RISE_S, color="0.9")
+        ax.axvspan(t_gust, t_gust + scenario.wind.gust_rise_time_s, color="0.9")
     axes[0].legend(fontsize=7)
     axes[-1].set_xlabel(f"time since takeoff (s); gust onset {t_gust:g} s (shaded: rise)")
     fig.suptitle("Tracking around the gust (seed 0; paper Fig. 6)")
@@ -76,7 +76,7 @@ def draw_figures(scenario: Scenario, series: dict[str, dict], steps: dict[str, n
             axes[2, col].plot(t[w], s[f"z3_{axis}"][w], "r", label="z3 (total disturbance estimate)")
             axes[0, col].set_title(f"{'north' if axis == 'x' else 'east'} channel")
             for ax in axes[:, col]:
-                ax.axvspan(t_gust, t_gust + GUST_RISE_S, color="0.9")
+                ax.axvspan(t_gust, t_gust + scenario.wind.gust_rise_time_s, color="0.9")
                 ax.legend(fontsize=7)
         axes[0, 0].set_ylabel("m")
         axes[1, 0].set_ylabel("m/s")
