@@ -301,7 +301,7 @@ def fly_demo(base: str, options: UpOptions, demo: DemoPlan, supervisor: Supervis
         say("demo: WARNING the service planned another order than this one did: the gust was placed for this one's")
     last_visited = -1
     while mission["status"] not in TERMINAL:
-        _wait(supervisor, math.inf, "", 0.25)
+        _wait(supervisor, math.inf, "", 0.5)
         mission = _get_json(f"{base}/missions/{mission['id']}")
         visited = mission["progress"]["visited"]
         if visited != last_visited:
