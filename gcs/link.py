@@ -34,7 +34,8 @@ from typing import Any
 
 from gcs.autopilots import CUSTOM_MODE_ENABLED, Autopilot, Px4, autopilot_for
 from gcs.connection import ConnectionStringError, Transport, open_transport, parse_connection
-from gcs.mission_protocol import download_items, upload_items
+from gcs.mission_protocol import MissionTransferError, download_items, upload_items
+from uavcore.geofence import FenceError, Geofence
 from uavcore.mavlink import (
     GCS_COMPID,
     GCS_SYSID,
@@ -45,7 +46,7 @@ from uavcore.mavlink import (
     result_name,
     statustext,
 )
-from uavcore.mission import MavCmd, MissionItem
+from uavcore.mission import MavCmd, MissionItem, MissionType
 
 log = logging.getLogger(__name__)
 
@@ -218,6 +219,7 @@ class LinkManager:
         self._connected_event = asyncio.Event()
         self._command_lock = asyncio.Lock()
         self.messages_received = 0
+        self.fence: Geofence | None = None  # the vehicle's geofence, read at each connection (None: not read)
 
     @property
     def target(self) -> tuple[int, int]:
@@ -377,6 +379,11 @@ class LinkManager:
     async def download_mission(self) -> list[MissionItem]:
         return self.autopilot.items_from_vehicle(await download_items(self))
 
+    async def download_fence(self) -> Geofence:
+        """The geofence the vehicle holds (MISSION_TYPE_FENCE), kept as `fence` for the planner."""
+        self.fence = Geofence.from_items(await download_items(self, mission_type=MissionType.FENCE))
+        return self.fence
+
     # ----- receiving
     @contextlib.contextmanager
     def subscribe(self, names: set[str]) -> Iterator[asyncio.Queue]:
@@ -532,6 +539,7 @@ class LinkManager:
                 *self.target, mavlink.MAV_CMD_REQUEST_MESSAGE, 0, mavlink.MAVLINK_MSG_ID_HOME_POSITION, *[math.nan] * 6
             )
         )
+        self.fence = None
         self._tasks = [t for t in self._tasks if not t.done()]
         if not any(t.get_name() == "gcs-streams" for t in self._tasks):  # one request round at a time
             self._tasks.append(asyncio.create_task(self._request_streams(), name="gcs-streams"))
@@ -548,3 +556,6 @@ class LinkManager:
             refused = refused or result != mavlink.MAV_RESULT_ACCEPTED
         if refused and self.autopilot.streams_by_data_stream_request:
             self.send(self.encoder.request_data_stream_encode(*self.target, mavlink.MAV_DATA_STREAM_ALL, 10, 1))
+        # The fence the planner must respect; an autopilot without fences answers an empty list or refuses.
+        with contextlib.suppress(LinkError, MissionTransferError, FenceError):
+            await self.download_fence()

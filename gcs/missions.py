@@ -14,15 +14,27 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from gcs import report
 from gcs.lifecycle import FlightLifecycle, MissionConflictError
-from gcs.link import LinkManager
-from gcs.planning import FlightParams, Plan, make_plan, mission_items
+from gcs.link import LinkError, LinkManager
+from gcs.mission_protocol import MissionTransferError
+from gcs.planning import FlightParams, Plan, fenced_legs, make_plan, mission_items
 from gcs.schemas import MissionRequest, PlanRequest
 from gcs.settings import Settings
 from gcs.storage import MissionRecord, Storage
-from gcs.validation import validate_request, validate_route_length
+from gcs.validation import (
+    fence_from_request,
+    validate_fence_points,
+    validate_fenced_route,
+    validate_request,
+    validate_route_length,
+)
+from uavcore.geofence import FenceError, Geofence
 from uavcore.mission import MissionItem
+
+FENCE_READ_TIMEOUT_S = 1.5  # wall clock for the vehicle's geofence before a plan
 
 
 class MissionNotFoundError(KeyError):
@@ -36,6 +48,7 @@ class MissionService:
         self.settings = settings
         self._storage, self._link = storage, link
         self._flights = FlightLifecycle(settings, storage, link)
+        self._fence_unanswered: int | None = None  # the vehicle incarnation that did not answer a fence request
 
     async def start(self) -> None:
         unfinished = self._storage.unfinished_missions()  # read before this run can start any mission
@@ -51,19 +64,44 @@ class MissionService:
         home = self._link.status.home or self.settings.home
         return home[0], home[1]
 
-    def plan(self, request: PlanRequest) -> tuple[Plan, FlightParams]:
-        """Validate and plan (CPU-bound: call it from a worker thread). Raises RequestInvalidError or InputError."""
+    async def plan(self, request: PlanRequest) -> tuple[Plan, FlightParams]:
+        """Validate and plan against the request's geofence, else the one the vehicle holds (read now).
+        Raises RequestInvalidError or InputError."""
+        fence = fence_from_request(request.geofence) if request.geofence else await self._vehicle_fence()
+        return await asyncio.to_thread(self._plan, request, fence)
+
+    async def _vehicle_fence(self) -> Geofence | None:
+        """The vehicle's current geofence; what was read at connection if it does not answer in time (an
+        autopilot without fences may never answer: it is not asked again until it reconnects or reboots)."""
+        link = self._link
+        if not link.status.connected or self._fence_unanswered == link.status.incarnation:
+            return link.fence
+        try:
+            return await asyncio.wait_for(link.download_fence(), FENCE_READ_TIMEOUT_S)
+        except (TimeoutError, LinkError, MissionTransferError, FenceError):
+            self._fence_unanswered = link.status.incarnation
+            return link.fence
+
+    def _plan(self, request: PlanRequest, fence: Geofence | None) -> tuple[Plan, FlightParams]:
+        """The CPU-bound part of `plan` (runs in a worker thread)."""
         depot = (request.depot.lat, request.depot.lon) if request.depot else self.default_depot()
         validate_request(request, depot, self.settings.limits)
         ids = [b.id or f"B{i + 1}" for i, b in enumerate(request.buoys)]
+        buoys = [(b.lat, b.lon) for b in request.buoys]
+        fenced = {}
+        if fence is not None and not fence.empty:
+            validate_fence_points(depot, buoys, fence)
+            fenced = fenced_legs(depot, np.asarray(buoys), fence)
         plan = make_plan(
             depot,
-            [(b.lat, b.lon) for b in request.buoys],
+            buoys,
             ids,
             request.planner.method,
             request.planner.seed,
             request.planner.time_limit_s,
+            fenced,
         )
+        validate_fenced_route(plan, fenced)
         validate_route_length(plan.length_m, self.settings.limits)
         flight = FlightParams(request.altitude_m, request.speed_m_s, request.dwell_s, request.acceptance_radius_m)
         return plan, flight
@@ -76,7 +114,7 @@ class MissionService:
         """Plan and store a mission; with start=true, also fly it in the background."""
         if request.start:
             self._flights.ensure_vehicle_free()
-        plan, flight = await asyncio.to_thread(self.plan, request)
+        plan, flight = await self.plan(request)
         mission_id = self._storage.create_mission(asdict(flight), plan.to_dict())
         if request.start:
             try:

@@ -6,6 +6,7 @@ depot's tangent plane (uavcore.geodesy) so the planner works in metres.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -14,12 +15,14 @@ import numpy as np
 from planner import plan_tour
 from planner.distances import closed_tour_length, euclidean_matrix
 from uavcore.geodesy import LocalFrame
+from uavcore.geofence import Geofence
 from uavcore.mission import MavCmd, MavFrame, MissionItem
 
 # Mission layout: item 0 takeoff, item 1 speed, items 2..n+1 the buoys in visiting order, then the return.
 FIRST_BUOY_SEQ = 2
 SPEED_TYPE_GROUND = 1.0  # MavCmd.DO_CHANGE_SPEED param1
 HOME_TOLERANCE_M = 1.0  # a depot this close to the vehicle's home returns with RTL, else waypoint + land
+FENCED_LEG_PENALTY_M = 1e7  # longer than any tour a battery allows: a fenced leg is taken only if unavoidable
 
 
 @dataclass(frozen=True)
@@ -73,6 +76,18 @@ class Plan:
         return Plan(**{**data, "depot": tuple(data["depot"])})
 
 
+def fenced_legs(depot: tuple[float, float], lat_lon: np.ndarray, fence: Geofence) -> dict[tuple[int, int], str]:
+    """Every straight leg between two nodes (0 the depot, k the buoy k - 1) that breaks the fence, with the kind of
+    zone it breaks (i < j)."""
+    nodes = [tuple(depot), *map(tuple, lat_lon.tolist())]
+    broken = {}
+    for i, j in itertools.combinations(range(len(nodes)), 2):
+        zone = fence.segment_violation(nodes[i], nodes[j])
+        if zone is not None:
+            broken[(i, j)] = zone.kind
+    return broken
+
+
 def make_plan(
     depot: tuple[float, float],
     buoys: list[tuple[float, float]],
@@ -80,21 +95,31 @@ def make_plan(
     method: str = "auto",
     seed: int = 0,
     time_limit_s: float = 2.0,
+    fenced: dict[tuple[int, int], str] | None = None,
 ) -> Plan:
-    """Plan the closed tour depot -> every buoy once -> depot. Raises planner.errors.InputError/TooLargeError."""
+    """Plan the closed tour depot -> every buoy once -> depot. Raises planner.errors.InputError/TooLargeError.
+
+    fenced: legs the fence forbids (`fenced_legs`); the planner sees them as very long, so it takes one only when
+    no tour avoids them (the caller then refuses the plan), and the plan's length is the true one."""
     frame = LocalFrame(depot[0], depot[1], 0.0)
     lat_lon = np.asarray(buoys, dtype=float).reshape(-1, 2)
     local = frame.project(lat_lon)
     points = np.vstack([[0.0, 0.0], local])
-    result = plan_tour(points, method=method, seed=seed, time_limit_s=time_limit_s)
-    input_order_length = closed_tour_length(np.arange(len(points)), euclidean_matrix(points))
+    distance = euclidean_matrix(points)
+    penalised = None
+    if fenced:
+        penalised = distance.copy()
+        for i, j in fenced:
+            penalised[i, j] = penalised[j, i] = distance[i, j] + FENCED_LEG_PENALTY_M
+    result = plan_tour(points, method=method, seed=seed, time_limit_s=time_limit_s, distance=penalised)
+    input_order_length = closed_tour_length(np.arange(len(points)), distance)
     return Plan(
         depot=(float(depot[0]), float(depot[1])),
         buoy_ids=list(buoy_ids),
         buoys_lat_lon=lat_lon.tolist(),
         buoys_local=local.tolist(),
         order=[int(node) - 1 for node in result.order[1:]],
-        length_m=float(result.length),
+        length_m=float(closed_tour_length(np.asarray(result.order), distance)),
         input_order_length_m=float(input_order_length),
         method=str(result.method),
         elapsed_s=float(result.elapsed_s),

@@ -8,12 +8,14 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from gcs.buoy_files import BuoyFileError, buoys_from_geojson
 from gcs.status import MissionStatus
 
 MAX_BUOYS = 500
+MAX_FENCE_ZONES = 50
+MAX_FENCE_VERTICES = 200
 PlannerMethod = Literal["auto", "chnn-ga", "chnn", "exact"]
 
 
@@ -30,6 +32,24 @@ class LatLon(Strict):
 
 class BuoyIn(LatLon):
     id: str | None = Field(default=None, max_length=64, description="the buoy's name; defaults to B<index>")
+
+
+class FenceZoneIn(Strict):
+    """One geofence zone, as MAVLink's fence items describe them: a polygon (3 or more vertices) or a circle."""
+
+    kind: Literal["polygon", "circle"]
+    inclusion: bool = Field(description="true: the vehicle must stay inside; false: it must stay out")
+    vertices: list[LatLon] | None = Field(default=None, min_length=3, max_length=MAX_FENCE_VERTICES)
+    center: LatLon | None = None
+    radius_m: float | None = Field(default=None, gt=0.0, le=100_000.0)
+
+    @model_validator(mode="after")
+    def _shape(self) -> FenceZoneIn:
+        if self.kind == "polygon" and (self.vertices is None or self.center is not None or self.radius_m is not None):
+            raise ValueError("a polygon zone has vertices (3 or more) and no center or radius_m")
+        if self.kind == "circle" and (self.center is None or self.radius_m is None or self.vertices is not None):
+            raise ValueError("a circle zone has a center and a radius_m and no vertices")
+        return self
 
 
 class PlannerOptions(Strict):
@@ -50,6 +70,11 @@ class PlanRequest(Strict):
     dwell_s: float = Field(default=1.0, description="inspection time hovering at each buoy")
     acceptance_radius_m: float = Field(default=2.0, description="how close counts as reaching a buoy")
     planner: PlannerOptions = Field(default_factory=PlannerOptions)
+    geofence: list[FenceZoneIn] | None = Field(
+        default=None,
+        max_length=MAX_FENCE_ZONES,
+        description="zones the route must respect; default: the fence the vehicle holds, if any",
+    )
 
     @field_validator("buoys", mode="before")
     @classmethod

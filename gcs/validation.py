@@ -7,12 +7,16 @@ one format whichever layer refused the request.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
-from gcs.schemas import PlanRequest
+from gcs.planning import Plan
+from gcs.schemas import FenceZoneIn, PlanRequest
 from gcs.settings import Limits
 from planner.distances import euclidean_matrix
 from uavcore.geodesy import LocalFrame
+from uavcore.geofence import CircleZone, Geofence, PolygonZone
 
 Location = tuple[str | int, ...]
 
@@ -94,3 +98,46 @@ def validate_route_length(length_m: float, limits: Limits) -> None:
                 )
             ]
         )
+
+
+def fence_from_request(zones: list[FenceZoneIn]) -> Geofence:
+    """The request's zones as a uavcore Geofence."""
+    built: list[PolygonZone | CircleZone] = []
+    for zone in zones:
+        if zone.kind == "polygon":
+            built.append(PolygonZone(tuple((v.lat, v.lon) for v in zone.vertices), zone.inclusion))
+        else:
+            built.append(CircleZone((zone.center.lat, zone.center.lon), zone.radius_m, zone.inclusion))
+    return Geofence(tuple(built))
+
+
+def validate_fence_points(depot: tuple[float, float], buoys: list[tuple[float, float]], fence: Geofence) -> None:
+    """The depot and every buoy where the fence lets the vehicle be."""
+    errors: list[tuple[Location, str]] = []
+    zone = fence.violation(*depot)
+    if zone is not None:
+        errors.append((("body", "depot"), f"the depot breaks the geofence's {zone.kind}"))
+    for i, (lat, lon) in enumerate(buoys):
+        zone = fence.violation(lat, lon)
+        if zone is not None:
+            errors.append((("body", "buoys", i), f"buoy {i} breaks the geofence's {zone.kind}"))
+    if errors:
+        raise RequestInvalidError(errors)
+
+
+def validate_fenced_route(plan: Plan, fenced: dict[tuple[int, int], str]) -> None:
+    """A planned tour that still uses a leg the fence forbids (no tour avoids it): 422 naming the buoy pair."""
+    nodes = [0, *(i + 1 for i in plan.order), 0]
+    names = ["the depot", *plan.buoy_ids]
+    errors: list[tuple[Location, str]] = []
+    for a, b in itertools.pairwise(nodes):
+        kind = fenced.get((min(a, b), max(a, b)))
+        if kind is not None:
+            errors.append(
+                (
+                    ("body", "geofence"),
+                    f"the leg {names[a]} -> {names[b]} breaks the geofence's {kind}, and no route avoids it",
+                )
+            )
+    if errors:
+        raise RequestInvalidError(errors)

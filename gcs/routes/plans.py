@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
-
 from fastapi import APIRouter, Depends
 
 from gcs.routes.deps import ServiceDep
@@ -16,5 +14,5 @@ router = APIRouter(tags=["plans"])
 
 @router.post("/plans", response_model=PlanOut, dependencies=[Depends(require_token)])
 async def create_plan(request: PlanRequest, service: ServiceDep) -> dict:
-    plan, _ = await asyncio.to_thread(service.plan, request)
+    plan, _ = await service.plan(request)
     return plan_out(plan)
