@@ -110,9 +110,14 @@ def parse_datagram(parser: mavlink.MAVLink, data: bytes) -> list:
     return parser.parse_buffer(data) or []
 
 
-def item_message(item: MissionItem, target_system: int, target_component: int) -> Any:
-    """The MISSION_ITEM_INT that carries a `MissionItem`, verbatim."""
-    return mavlink.MAVLink_mission_item_int_message(
+def item_message(item: MissionItem, target_system: int, target_component: int, integer: bool = True) -> Any:
+    """The MISSION_ITEM_INT that carries a `MissionItem` verbatim; with integer=False the legacy MISSION_ITEM
+    (lat/lon as float degrees) that answers a plain MISSION_REQUEST."""
+    if integer:
+        message, x, y = mavlink.MAVLink_mission_item_int_message, item.x, item.y
+    else:
+        message, x, y = mavlink.MAVLink_mission_item_message, item.lat, item.lon
+    return message(
         target_system,
         target_component,
         item.seq,
@@ -124,8 +129,8 @@ def item_message(item: MissionItem, target_system: int, target_component: int) -
         item.param2,
         item.param3,
         item.param4,
-        item.x,
-        item.y,
+        x,
+        y,
         item.z,
         item.mission_type,
     )

@@ -251,26 +251,7 @@ class MissionProtocol:
             return
         item = mission[msg.seq]
         sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
-        if msg.get_type() == "MISSION_REQUEST_INT":
-            reply = item_message(item, sysid, compid)
-        else:
-            reply = mavlink.MAVLink_mission_item_message(
-                sysid,
-                compid,
-                item.seq,
-                item.frame,
-                item.command,
-                item.current,
-                item.autocontinue,
-                item.param1,
-                item.param2,
-                item.param3,
-                item.param4,
-                item.lat,
-                item.lon,
-                item.z,
-                item.mission_type,
-            )
+        reply = item_message(item, sysid, compid, integer=msg.get_type() == "MISSION_REQUEST_INT")
         self.send(reply, peer)
 
     # ----- clear, set current
