@@ -83,7 +83,14 @@ def fal(e: float, alpha: float, delta: float) -> float:
 
 class TrackingDifferentiator:
     """Second-order tracking differentiator, eq. (9): v1 follows the reference with acceleration at most
-    r0 and without overshoot; v2 is its rate. h0 >= h filters noise (h0 = h is time-optimal)."""
+    r0 and without overshoot; v2 is its rate. h0 >= h filters noise (h0 = h is time-optimal).
+
+    When the reference's own rate is known (a feed-forward: the navigator's yaw rate), fhan acts on the
+    tracking error (v1 - v, v2 - v'), not on (v1 - v, v2): fhan is the time-optimal control bringing a double
+    integrator to the origin, and for a reference moving at a steady rate the error is such a double
+    integrator. v2 then converges to v' and v1 onto v with no lag on a ramp; with v' = 0 it is eq. (9) as
+    printed, which lags a ramp by about 2 h0 v' and only learns v' from that lag.
+    """
 
     __slots__ = ("h", "h0", "r0", "v1", "v2")
 
@@ -94,11 +101,11 @@ class TrackingDifferentiator:
     def reset(self, v1: float = 0.0, v2: float = 0.0) -> None:
         self.v1, self.v2 = v1, v2
 
-    def update(self, reference: float) -> tuple[float, float]:
-        """One step; returns (v1, v2) after it."""
+    def update(self, reference: float, reference_rate: float = 0.0) -> tuple[float, float]:
+        """One step toward the reference v moving at the known rate v' (0: unknown); returns (v1, v2) after it."""
         v1, v2, h = self.v1, self.v2, self.h
         self.v1 = v1 + h * v2
-        self.v2 = v2 + h * fhan(v1 - reference, v2, self.r0, self.h0)
+        self.v2 = v2 + h * fhan(v1 - reference, v2 - reference_rate, self.r0, self.h0)
         return self.v1, self.v2
 
 
@@ -277,11 +284,12 @@ class ChannelBase:
         self._started = True
 
     def _reference(self, reference: float, reference_rate: float, reference_acceleration: float):
-        """(v1, v2, feed-forward acceleration): the TD's outputs and none, or the reference as given."""
+        """(v1, v2, feed-forward acceleration): the TD's outputs (tracking the reference at its known rate) and
+        none, or the reference as given."""
         td = self.tracking_differentiator
         if td is None:
             return reference, reference_rate, reference_acceleration
-        v1, v2 = td.update(reference)
+        v1, v2 = td.update(reference, reference_rate)
         return v1, v2, 0.0  # eq. (12) uses only e1, e2; see AdrcChannel's docstring
 
     def _clip(self, u: float) -> float:
@@ -323,7 +331,8 @@ class AdrcChannel(ChannelBase):
 
     Without a TD (r0 = None) the reference is used as given, with its rate and acceleration as feed-forward
     (a navigator's smooth setpoint needs no re-differentiation). With a TD, the TD's v1, v2 are the
-    reference and, as in eq. (12), nothing is fed forward: the TD's own acceleration is bang-bang at +-r0, and
+    reference (the TD tracking the reference at its rate, when one is given) and, as in eq. (12), no
+    acceleration is fed forward: the TD's own acceleration is bang-bang at +-r0, and
     with a reference that steps at a lower rate (a 50 Hz target into a 250 Hz loop) feeding it forward
     makes the output chatter between its limits.
     """

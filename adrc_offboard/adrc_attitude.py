@@ -25,7 +25,14 @@ airframe's motor lag, 0.02 s for Table 2, taken by `for_airframe`) the command g
 lag first. Fed the raw command, the observer reads the lag as a disturbance (a 9 rad/s^2 phantom z3 on a
 0.3 rad step in the simulator instead of 0.7).
 
-AttitudeTarget.body_rates (feed-forward) is ignored; the thrust field is the mixer's business.
+Yaw-rate feed-forward: the yaw channel's reference theta_z + e_z moves at the target's body yaw rate, which
+the outer loop sends as AttitudeTarget.body_rates[2] (the navigator's yaw rate in the target's body axes).
+That rate is the reference's known derivative v', so the yaw TD tracks (v, v') (eq. 9 with fhan on
+v1 - v, v2 - v'; `TrackingDifferentiator`) and its v2 becomes the turn rate itself rather than a lagging
+estimate of it; the NLSEF (eq. 12) then acts on e2 = v2 - r, the error to the wanted rate, so the loop turns
+with the reference instead of building up an angle error first. Only the yaw channel takes it: roll and pitch
+track the thrust axis, which a turn leaves where it is (PX4's R^T e_z yaw_rate has roll/pitch components
+when tilted; the PX4-style PID loop adds those as PX4 does). The thrust field is the mixer's business.
 """
 
 from __future__ import annotations
@@ -160,12 +167,16 @@ class AdrcAttitudeController:
             yaw_error += 2.0 * math.pi
         errors = (roll_error, pitch_error, yaw_error)
         rates = state.angular_velocity.tolist()
+        # the reference rates: the yaw channel's from the feed-forward (module docstring), none for roll/pitch
+        reference_rates = (0.0, 0.0, 0.0 if target.body_rates is None else float(target.body_rates[2]))
         theta, actuator, lag = self._theta, self._actuator, self._actuator_step
         torques = [0.0, 0.0, 0.0]
         for i, channel in enumerate(self.channels):
             angle = theta[i]
             rate = rates[i]
-            torque = channel.control(angle + errors[i], angle, 0.0, 0.0, rate if self._use_rate else None)
+            torque = channel.control(
+                angle + errors[i], angle, reference_rates[i], 0.0, rate if self._use_rate else None
+            )
             # the ESO gets the torque the rotors deliver during this step, not the command
             actuator[i] += (torque - actuator[i]) * lag
             channel.observe_applied(actuator[i])

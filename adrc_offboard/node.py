@@ -3,7 +3,8 @@
 The vehicle sends LOCAL_POSITION_NED, ATTITUDE_QUATERNION and POSITION_TARGET_LOCAL_NED stamped with the
 same time_boot_ms every tick; as soon as all three of a tick have arrived the node runs the outer loop
 and answers with a SET_ATTITUDE_TARGET carrying that time_boot_ms (which is what a lockstep vehicle waits
-for). It asks for OFFBOARD as soon as the vehicle is armed in mission (or takeoff) mode, keeps its
+for): attitude, thrust and the reference's yaw rate as body-rate feed-forward (R^T e_z yaw_rate in the
+target's body axes). It asks for OFFBOARD as soon as the vehicle is armed in mission (or takeoff) mode, keeps its
 observers reset whenever it is not in control (disarmed, another mode) or the vehicle restarted, and
 publishes the ESO's total-disturbance estimates z3 as DEBUG_VECT "ESO_Z3" (x, y, z, m/s^2) at 10 Hz.
 """
@@ -29,7 +30,7 @@ from uavcore.mavlink import (
     parse_datagram,
 )
 from uavcore.modes import Px4AutoSubMode, Px4MainMode, px4_main_sub
-from uavcore.state import TrajectorySetpoint, VehicleState
+from uavcore.state import AttitudeTarget, TrajectorySetpoint, VehicleState
 
 log = logging.getLogger(__name__)
 
@@ -81,6 +82,24 @@ def setpoint_from_message(target) -> TrajectorySetpoint:
 
 
 STATE_MESSAGES = ("LOCAL_POSITION_NED", "ATTITUDE_QUATERNION", "POSITION_TARGET_LOCAL_NED")
+IGNORE_BODY_RATES = (
+    mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_ROLL_RATE_IGNORE
+    | mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_PITCH_RATE_IGNORE
+    | mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_YAW_RATE_IGNORE
+)
+
+
+def attitude_target_message(t_ms: int, target: AttitudeTarget):
+    """SET_ATTITUDE_TARGET for the tick stamped t_ms: attitude, thrust and, when the target has them, body rates
+    as feed-forward (the yaw-rate feed-forward of the outer loops); without them the rate bits say ignore."""
+    w, x, y, z = (float(c) for c in target.quaternion)
+    if target.body_rates is None:
+        type_mask, rates = IGNORE_BODY_RATES, (0.0, 0.0, 0.0)
+    else:
+        type_mask, rates = 0, tuple(float(r) for r in target.body_rates)
+    return mavlink.MAVLink_set_attitude_target_message(
+        t_ms, 1, 1, type_mask, [w, x, y, z], *rates, float(target.thrust)
+    )
 
 
 def _autopilot_heartbeat(msg) -> bool:
@@ -161,22 +180,7 @@ class OffboardProtocol:
         if not (v.armed and v.in_offboard and v.landed_state != mavlink.MAV_LANDED_STATE_ON_GROUND):
             self.controller.reset()  # not in control, or idling on the ground: start fresh at the climb
         target = self.controller.update(setpoint, estimate, self.dt)
-        w, x, y, z = (float(c) for c in target.quaternion)
-        out.append(
-            mavlink.MAVLink_set_attitude_target_message(
-                t_ms,
-                1,
-                1,
-                mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_ROLL_RATE_IGNORE
-                | mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_PITCH_RATE_IGNORE
-                | mavlink.ATTITUDE_TARGET_TYPEMASK_BODY_YAW_RATE_IGNORE,
-                [w, x, y, z],
-                0.0,
-                0.0,
-                0.0,
-                float(target.thrust),
-            )
-        )
+        out.append(attitude_target_message(t_ms, target))
         self.ticks_answered += 1
         if self.ticks_answered % ESO_PUBLISH_EVERY == 0:
             z3 = self.controller.disturbance_estimates()

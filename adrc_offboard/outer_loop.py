@@ -19,7 +19,10 @@ normalised thrust. Both run at the same rate and see the same measurements (posi
   (frozen while the axis is saturated in the direction the error pushes) and a clamp.
 
 Yaw is not a feedback channel here: the setpoint's yaw goes straight into the target quaternion and the
-attitude loop (ADRC or PID, at 250 Hz) tracks it, which also handles the wrap-around at +-180 deg.
+attitude loop (ADRC or PID, at 250 Hz) tracks it, which also handles the wrap-around at +-180 deg. The
+setpoint's yaw rate (the navigator's turns) goes with it as the target's body-rate feed-forward, R^T e_z
+yaw_rate in the target's body axes (PX4's yaw-rate feed-forward; `acceleration_to_attitude`), so the attitude
+loop turns with the reference instead of chasing it.
 
 `matched_gains()` tunes both to the same closed-loop bandwidth for the comparison.
 """
@@ -165,10 +168,14 @@ class _ThrustVectorOutput:
         self.demanded = (0.0, 0.0, 0.0)
         self.applied = (0.0, 0.0, 0.0)
 
-    def output(self, demanded: tuple[float, float, float], yaw: float) -> AttitudeTarget:
+    def output(self, demanded: tuple[float, float, float], setpoint: TrajectorySetpoint) -> AttitudeTarget:
+        """The attitude target for the demanded acceleration, facing the setpoint's yaw and turning at its yaw rate
+        (body-rate feed-forward)."""
         self.demanded = demanded
         limited = self.limits.apply(*demanded)
-        target = acceleration_to_attitude(limited, yaw, self.mass, self.g, self.max_thrust_n, self.max_tilt_rad)
+        target = acceleration_to_attitude(
+            limited, setpoint.yaw, self.mass, self.g, self.max_thrust_n, self.max_tilt_rad, setpoint.yaw_rate
+        )
         self.applied = applied_acceleration(target, self.mass, self.g, self.max_thrust_n)
         return target
 
@@ -179,7 +186,7 @@ class _ThrustVectorOutput:
 
 
 class AdrcOuterLoop:
-    """ADRC position loop (x, y, z channels; yaw passed through). See the module docstring."""
+    """ADRC position loop (x, y, z channels; yaw and yaw rate passed through). See the module docstring."""
 
     def __init__(
         self,
@@ -220,7 +227,7 @@ class AdrcOuterLoop:
             )
             for i, channel in enumerate(self.channels)
         )
-        target = self._out.output(demanded, setpoint.yaw)
+        target = self._out.output(demanded, setpoint)
         for channel, applied in zip(self.channels, self._out.applied, strict=True):
             channel.observe_applied(applied)
         return target
@@ -265,7 +272,7 @@ class PidOuterLoop:
             reference_acc[i] + k.kp * errors[i] + k.kd * (reference_rate[i] - velocity[i]) + self.integrals[i]
             for i, k in enumerate(self._axis_gains)
         )
-        target = self._out.output(demanded, setpoint.yaw)
+        target = self._out.output(demanded, setpoint)
         step = dt if dt > 0 else self._out.h
         for i, k in enumerate(self._axis_gains):
             excess = demanded[i] - self._out.applied[i]

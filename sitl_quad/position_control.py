@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from uavcore.airframe import Airframe, ModelParameterError
-from uavcore.rotation import acceleration_to_attitude, euler_from_quat
+from uavcore.rotation import acceleration_to_attitude, heading
 from uavcore.state import AttitudeTarget, TrajectorySetpoint, VehicleState
 
 
@@ -119,11 +119,10 @@ class PidPositionController:
         af = self.airframe
         yaw = float(setpoint.yaw)
         if not math.isfinite(yaw):  # PX4: no yaw setpoint means keep the current heading
-            yaw = euler_from_quat(estimate.quaternion)[2]
-        target = acceleration_to_attitude(acc_sp, yaw, af.mass, af.g, af.max_thrust_n, math.radians(g.mpc_tiltmax_air))
-        yaw_rate = _finite_or(float(setpoint.yaw_rate), 0.0)
-        if yaw_rate != 0.0:
-            target.body_rates = np.array([0.0, 0.0, yaw_rate])
+            yaw = heading(estimate.quaternion)
+        yaw_rate = _finite_or(float(setpoint.yaw_rate), 0.0)  # fed forward in body axes, as PX4
+        tilt_max = math.radians(g.mpc_tiltmax_air)
+        target = acceleration_to_attitude(acc_sp, yaw, af.mass, af.g, af.max_thrust_n, tilt_max, yaw_rate)
 
         # integrate, except horizontally while the acceleration is limited and vertically while thrust is
         # saturated the way the error pushes (NED: up is -z)

@@ -62,10 +62,11 @@ def test_nan_position_means_velocity_control_and_nan_yaw_keeps_heading():
     )
     target = controller.update(setpoint, at([50.0, 0.0, -5.0], yaw=1.2), 0.02)
     np.testing.assert_allclose(controller.velocity_setpoint, [2.0, 0.0, 1.0])
-    # heading kept: the body y axis stays perpendicular to the horizontal direction yaw 1.2 (the convention of
-    # acceleration_to_attitude), whatever the tilt
-    right = rotate(target.quaternion, (0.0, 1.0, 0.0))
-    assert float(right @ [math.cos(1.2), math.sin(1.2), 0.0]) == pytest.approx(0.0, abs=1e-12)
+    # heading kept: the body x axis projected on the horizontal plane points along yaw 1.2 (the convention of
+    # acceleration_to_attitude, PX4's), whatever the tilt
+    forward = rotate(target.quaternion, (1.0, 0.0, 0.0))
+    assert float(forward @ [-math.sin(1.2), math.cos(1.2), 0.0]) == pytest.approx(0.0, abs=1e-12)
+    assert float(forward @ [math.cos(1.2), math.sin(1.2), 0.0]) > 0.0
     assert np.all(np.isfinite(target.quaternion)) and math.isfinite(target.thrust)
 
 

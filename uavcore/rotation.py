@@ -2,6 +2,11 @@
 
 Quaternions are (w, x, y, z), body FRD -> world NED. Euler angles are ZYX: yaw psi about down, pitch theta,
 roll phi. Scalar maths on floats: these run in 250 Hz and 50 Hz loops where numpy's per-call cost dominates.
+
+Heading and yaw: the heading of an attitude is the direction of its body x axis projected on the horizontal
+plane (`heading`), which is also the ZYX Euler yaw. A yaw setpoint means that heading (as in PX4), so
+`acceleration_to_attitude` builds targets whose heading is exactly the commanded yaw at any tilt, and a yaw
+error is heading minus yaw setpoint.
 """
 
 from __future__ import annotations
@@ -34,6 +39,15 @@ def euler_from_quat(q) -> tuple[float, float, float]:
     pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
     yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
     return roll, pitch, yaw
+
+
+def heading(q) -> float:
+    """Direction of the body x axis projected on the horizontal plane, radians from north toward east: atan2 of
+    the east and north components of R(q) e_x. Identical to the ZYX Euler yaw (the first column of
+    Rz(psi) Ry(theta) Rx(phi) is (cos psi cos theta, sin psi cos theta, -sin theta)); undefined when the body x
+    axis points straight up or down."""
+    w, x, y, z = (float(c) for c in q)
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
 def quat_multiply(a, b) -> np.ndarray:
@@ -80,12 +94,19 @@ def acceleration_to_attitude(
     g: float,
     max_thrust_n: float,
     max_tilt_rad: float = math.radians(35.0),
+    yaw_rate: float = 0.0,
 ) -> AttitudeTarget:
-    """Desired world acceleration + yaw -> attitude quaternion and normalised thrust (PX4's thrust vector).
+    """Desired world acceleration + yaw -> attitude quaternion and normalised thrust (PX4's thrust vector), with the
+    yaw rate as body-rate feed-forward.
 
     The rotors can only push along body -z, so the wanted specific force f = a - g (NED, g = +z) fixes the
-    body z axis; yaw fixes the rest. The tilt is limited to max_tilt_rad keeping the vertical component,
-    because altitude matters more than horizontal speed near the water.
+    body z axis; yaw fixes the rest as PX4's ControlMath::bodyzToAttitude does: the body x axis is taken
+    perpendicular to y_c = (-sin yaw, cos yaw, 0), i.e. in the vertical plane of the commanded heading, so the
+    target's heading (`heading`) is the commanded yaw at any tilt. (Taking the body y axis perpendicular to
+    x_c = (cos yaw, sin yaw, 0) instead biases the heading by up to 9 deg at a 35 deg tilt off the heading's
+    plane.) The tilt is limited to max_tilt_rad keeping the vertical component, because altitude matters more
+    than horizontal speed near the water. body_rates = R^T e_z yaw_rate (world down axis in the target's body
+    axes): PX4's yaw-rate feed-forward, AttitudeControl::update's q^-1 dcm_z * yawspeed, with the target for q.
     """
     ax, ay, az = (float(c) for c in acceleration_ned)
     fx, fy, fz = ax, ay, az - g  # specific force wanted, NED (fz < 0 when pushing up)
@@ -98,16 +119,18 @@ def acceleration_to_attitude(
     norm = math.sqrt(fx * fx + fy * fy + fz * fz)
     # body z axis (down) points against the specific force
     zbx, zby, zbz = -fx / norm, -fy / norm, -fz / norm
-    # body x axis: heading direction projected into the plane normal to zb
-    cx, cy = math.cos(yaw), math.sin(yaw)
-    # yb = zb x x_c, with x_c = (cos yaw, sin yaw, 0)
-    ybx, yby, ybz = zby * 0.0 - zbz * cy, zbz * cx - zbx * 0.0, zbx * cy - zby * cx
-    yn = math.sqrt(ybx * ybx + yby * yby + ybz * ybz)
-    ybx, yby, ybz = ybx / yn, yby / yn, ybz / yn
-    xbx, xby, xbz = yby * zbz - ybz * zby, ybz * zbx - ybx * zbz, ybx * zby - yby * zbx
+    # body x axis: xb = y_c x zb with y_c = (-sin yaw, cos yaw, 0); never parallel, as zbz > 0 (tilt < 90 deg)
+    ycx, ycy = -math.sin(yaw), math.cos(yaw)
+    xbx, xby, xbz = ycy * zbz, -ycx * zbz, ycx * zby - ycy * zbx
+    xn = math.sqrt(xbx * xbx + xby * xby + xbz * xbz)
+    xbx, xby, xbz = xbx / xn, xby / xn, xbz / xn
+    # yb = zb x xb completes the right-handed frame
+    ybx, yby, ybz = zby * xbz - zbz * xby, zbz * xbx - zbx * xbz, zbx * xby - zby * xbx
     quaternion = _quat_from_matrix(xbx, ybx, zbx, xby, yby, zby, xbz, ybz, zbz)
     thrust = min(1.0, max(0.0, mass * norm / max_thrust_n))
-    return AttitudeTarget(quaternion=quaternion, thrust=thrust)
+    # R^T e_z is the third row of R = (xbz, ybz, zbz): the world down axis in the target's body axes
+    body_rates = np.array([xbz, ybz, zbz]) * float(yaw_rate)
+    return AttitudeTarget(quaternion=quaternion, thrust=thrust, body_rates=body_rates)
 
 
 def _quat_from_matrix(m00, m01, m02, m10, m11, m12, m20, m21, m22) -> np.ndarray:

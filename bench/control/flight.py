@@ -28,7 +28,7 @@ from sitl_quad.lockstep_harness import HarnessError, LockstepHarness
 from sitl_quad.vehicle import TickRecord, Vehicle
 from sitl_quad.wind import WindConfig
 from uavcore.mission import MissionItem
-from uavcore.rotation import euler_from_quat
+from uavcore.rotation import heading
 from uavcore.state import TrajectorySetpoint, VehicleState
 
 CONTROLLERS = ("adrc", "pid", "px4")
@@ -107,7 +107,7 @@ class FlightRecorder:
             [
                 record.t,
                 *truth.position,
-                euler_from_quat(truth.quaternion)[2],
+                heading(truth.quaternion),
                 *sp.position,
                 sp.yaw,
                 sp.yaw_rate,

@@ -11,7 +11,8 @@ vehicle above 1 m:
   the demo's (`gcs up --demo`) measure too;
 - altitude_rms_m: vertical error;
 - yaw_turn_rms_deg / yaw_turn_max_deg: yaw error during the on-the-spot turns at the buoys (reference yaw
-  rate non-zero, and 1.5 s after), the paper's Figure 11;
+  rate non-zero, and 1.5 s after), the paper's Figure 11: the heading of the body x axis
+  (uavcore.rotation.heading, the recorder's "yaw") against the reference yaw (`turn_yaw_errors_deg`);
 - eso_lateral_rel_error (ADRC only): RMS over the tracking phase of |z3_xy - a_ext,xy| / RMS |a_ext,xy|,
   where a_ext is the simulator's true external acceleration (drag + D terms, `external_accel_ned`) at the
   instant the ESO's output is an estimate for (the sample after its latest measurement);
@@ -103,13 +104,9 @@ def flight_metrics(s: dict[str, np.ndarray], scenario: Scenario, n_items: int) -
     out["gust_peak_m"], out["gust_recovery_s"] = gust.peak_m, gust.recovery_s
     out["gust_leg_seq_at_onset"] = int(seq[np.argmax(t_since_takeoff >= t_gust)]) if window.any() else -1
     # yaw at the turns
-    turning = np.abs(s["yaw_rate_ref"][1:]) > 1e-3
-    tail = round(TURN_TAIL_S / dt)
-    turns = np.convolve(turning.astype(float), np.ones(tail + 1), mode="full")[: turning.size] > 0
-    yaw_error = np.degrees(np.abs(wrap_pi(s["yaw"][:-1] - s["yaw_ref"][1:])))
-    airborne = -truth[:, 2] > TRACKING_MIN_ALTITUDE_M
-    out["yaw_turn_rms_deg"] = _rms(yaw_error[turns & airborne])
-    out["yaw_turn_max_deg"] = _max(yaw_error[turns & airborne])
+    yaw_error = turn_yaw_errors_deg(s["yaw"], s["yaw_ref"], s["yaw_rate_ref"], -s["z"] > TRACKING_MIN_ALTITUDE_M, dt)
+    out["yaw_turn_rms_deg"] = _rms(yaw_error)
+    out["yaw_turn_max_deg"] = _max(yaw_error)
     # control effort and saturation over the tracking phase
     thrust_step = np.diff(s["thrust"])
     q = np.column_stack([s["qw"], s["qx"], s["qy"], s["qz"]])
@@ -124,6 +121,19 @@ def flight_metrics(s: dict[str, np.ndarray], scenario: Scenario, n_items: int) -
     else:
         out.update(eso_errors(s, tracking))
     return out
+
+
+def turn_yaw_errors_deg(
+    heading: np.ndarray, yaw_ref: np.ndarray, yaw_rate_ref: np.ndarray, airborne: np.ndarray, dt: float
+) -> np.ndarray:
+    """|heading - reference yaw| in degrees at the ticks of the turns (reference yaw rate non-zero, and
+    TURN_TAIL_S after) while airborne. Per-tick series as the recorder's: heading[k] (the truth's, at the end of
+    tick k) meets the reference of tick k + 1, computed for that instant."""
+    turning = np.abs(yaw_rate_ref[1:]) > 1e-3
+    tail = round(TURN_TAIL_S / dt)
+    turns = np.convolve(turning.astype(float), np.ones(tail + 1), mode="full")[: turning.size] > 0
+    yaw_error = np.degrees(np.abs(wrap_pi(heading[:-1] - yaw_ref[1:])))
+    return yaw_error[turns & airborne[:-1]]
 
 
 def eso_errors(s: dict[str, np.ndarray], tracking: np.ndarray) -> dict:

@@ -112,7 +112,12 @@ def parse_position_target(msg, vehicle: Vehicle) -> PositionTarget:
 
 
 def parse_attitude_target(msg) -> AttitudeTarget | None:
-    """The target carried by a SET_ATTITUDE_TARGET, or None if it is not a usable attitude + thrust."""
+    """The target carried by a SET_ATTITUDE_TARGET, or None if it is not a usable attitude + thrust.
+
+    Body rates sent with the attitude are the attitude loop's body-frame feed-forward (the offboard outer loops
+    send the reference's yaw rate as R^T e_z yaw_rate). PX4 also feeds them forward when the attitude is given,
+    but reads only body_yaw_rate, as a rate about the world down axis it rotates into body axes itself; for
+    the small tilts of a turn on the spot the two differ by the cosine of the tilt."""
     if msg.type_mask & (IGNORE_ATTITUDE | IGNORE_THROTTLE):
         return None
     q = np.array(msg.q, dtype=float)
