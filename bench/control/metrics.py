@@ -13,11 +13,20 @@ vehicle above 1 m:
 - yaw_turn_rms_deg / yaw_turn_max_deg: yaw error during the on-the-spot turns at the buoys (reference yaw
   rate non-zero, and 1.5 s after), the paper's Figure 11: the heading of the body x axis
   (uavcore.rotation.heading, the recorder's "yaw") against the reference yaw (`turn_yaw_errors_deg`);
-- eso_lateral_rel_error (ADRC only): RMS over the tracking phase of |z3_xy - a_ext,xy| / RMS |a_ext,xy|,
-  where a_ext is the simulator's true external acceleration (drag + D terms, `external_accel_ned`) at the
-  instant the ESO's output is an estimate for (the sample after its latest measurement);
-  eso_lateral_rel_error_best_lag is the same at the best time shift (0-0.5 s), a diagnostic of how much
-  is observer lag;
+- the lateral ESO (ADRC only; `eso_errors`), over the tracking phase, with a_ext the simulator's true external
+  acceleration (drag + D terms, `external_accel_ned`, north and east) at the instant the ESO's output z3 is an
+  estimate for (the sample after its latest measurement):
+  - eso_lateral_error_m_s2: RMS |z3_xy - a_ext,xy|, in m/s^2;
+  - eso_disturbance_deviation_m_s2: RMS |a_ext,xy - mean of a_ext,xy over the leg|, the leg being the
+    mission item flown (the steady drag of cruising along a leg points along that leg, so one mean over the
+    whole route would leave most of it in); eso_lateral_rel_deviation = eso_lateral_error_m_s2 / that:
+    the error as a share of what actually varies (gust, turbulence, D terms, speeding up and slowing down),
+    not of the steady drag, which an estimate held constant along each leg would already get right;
+  - eso_best_lag_s: the time shift (0-0.5 s) at which z3 matches a_ext best (how much of the error is
+    observer delay); eso_lateral_error_best_lag_m_s2 and eso_lateral_rel_deviation_best_lag: the error there;
+  - eso_disturbance_rms_m_s2: RMS |a_ext,xy| (steady drag included) and eso_lateral_rel_error =
+    eso_lateral_error_m_s2 / that, the ratio earlier results reported as "lateral ESO error": kept only
+    to compare with them, it counts the steady drag as disturbance and so reads smaller than the error is;
 - thrust_step_rms / attitude_step_rms_deg: RMS change of the normalised thrust and of the commanded attitude
   between consecutive ticks (control effort and chatter);
 - saturated_fraction: share of tracking-phase ticks in which the mixer had to clip a rotor command.
@@ -51,14 +60,22 @@ METRICS = (
     "altitude_rms_m",
     "yaw_turn_rms_deg",
     "yaw_turn_max_deg",
+    "eso_lateral_error_m_s2",
+    "eso_lateral_rel_deviation",
+    "eso_best_lag_s",
+    "eso_lateral_error_best_lag_m_s2",
+    "eso_lateral_rel_deviation_best_lag",
+    "eso_disturbance_deviation_m_s2",
+    "eso_disturbance_rms_m_s2",
     "eso_lateral_rel_error",
-    "eso_lateral_rel_error_best_lag",
     "thrust_step_rms",
     "attitude_step_rms_deg",
     "saturated_fraction",
 )
+ESO_METRICS = tuple(m for m in METRICS if m.startswith("eso_"))
 STEP_METRICS = ("overshoot_pct", "rise_time_s", "settling_time_s")
-TARGETS = {"rms_error_m": 0.25, "gust_peak_m": 0.6, "eso_lateral_rel_error": 0.25}  # the issue's, for ADRC
+# the issue's, for ADRC; its ESO target of 25 % is held against the error relative to the disturbance's variation
+TARGETS = {"rms_error_m": 0.25, "gust_peak_m": 0.6, "eso_lateral_rel_deviation": 0.25}
 
 
 def _max(values: np.ndarray) -> float:
@@ -115,11 +132,8 @@ def flight_metrics(s: dict[str, np.ndarray], scenario: Scenario, n_items: int) -
     out["thrust_step_rms"] = _rms(thrust_step[tracking])
     out["attitude_step_rms_deg"] = _rms(attitude_step[tracking])
     out["saturated_fraction"] = float(np.mean(s["saturated"][1:][tracking] > 0)) if tracking.any() else math.nan
-    # the ESO's z3 against the true external acceleration
-    if np.all(np.isnan(s["z3_x"])):
-        out["eso_lateral_rel_error"] = out["eso_lateral_rel_error_best_lag"] = math.nan
-    else:
-        out.update(eso_errors(s, tracking))
+    # the ESO's z3 against the true external acceleration (NaN for the controllers without one)
+    out.update(eso_errors(s, tracking))
     return out
 
 
@@ -137,30 +151,45 @@ def turn_yaw_errors_deg(
 
 
 def eso_errors(s: dict[str, np.ndarray], tracking: np.ndarray) -> dict:
-    """z3 read after tick k has just stepped the ESO with the measurement taken at t_(k-1) (the state stamped
-    t_k); the discrete ESO's output after that step is its estimate for the next sample, t_k, whose true
-    external acceleration is the one reported at the end of tick k-1: compare z3[k] with ext[k - 1 - lag]
-    (lag 0 is the ESO's own claim; the best lag shows how much of the error is observer delay)."""
+    """The ESO metrics of the module docstring (all NaN without an ESO or a tracking phase long enough).
+
+    Timing: z3 read after tick k has just stepped the ESO with the measurement taken at t_(k-1) (the state
+    stamped t_k); the discrete ESO's output after that step is its estimate for the next sample, t_k, whose
+    true external acceleration is the one reported at the end of tick k-1: z3[k] is compared with
+    ext[k - 1 - lag], lag 0 being the ESO's own claim. Every lag is scored on the same ticks k, and the
+    relative figures divide by the same disturbance statistics (those of the lag-0 instants)."""
     z3 = np.column_stack([s["z3_x"], s["z3_y"]])
     ext = np.column_stack([s["ext_x"], s["ext_y"]])
     mask = np.concatenate([[False], tracking]) & (s["offboard"] > 0)  # tracking is indexed from tick 1
-    if mask.sum() <= 1 + ESO_MAX_LAG_TICKS:
-        return {
-            "eso_lateral_rel_error": math.nan,
-            "eso_lateral_rel_error_best_lag": math.nan,
-            "eso_best_lag_s": math.nan,
-        }
-    results = []
-    for lag in range(ESO_MAX_LAG_TICKS + 1):
-        shift = 1 + lag
-        k = np.flatnonzero(mask[shift:]) + shift
-        diff = z3[k] - ext[k - shift]
-        results.append(_rms(np.linalg.norm(diff, axis=1)) / _rms(np.linalg.norm(ext[k - shift], axis=1)))
+    mask[: 1 + ESO_MAX_LAG_TICKS] = False  # every lag needs its truth sample
+    k = np.flatnonzero(mask & np.all(np.isfinite(z3), axis=1))
+    if k.size < 2:
+        return dict.fromkeys(ESO_METRICS, math.nan)
+    errors = [_rms(np.linalg.norm(z3[k] - ext[k - 1 - lag], axis=1)) for lag in range(ESO_MAX_LAG_TICKS + 1)]
+    best = int(np.argmin(errors))
+    truth = ext[k - 1]
+    leg = s["seq"][k - 1]  # the mission item being flown when that truth was sampled
+    deviation = truth.copy()
+    for item in np.unique(leg):
+        deviation[leg == item] -= truth[leg == item].mean(axis=0)
+    deviation_rms = _rms(np.linalg.norm(deviation, axis=1))
+    total_rms = _rms(np.linalg.norm(truth, axis=1))
     return {
-        "eso_lateral_rel_error": results[0],
-        "eso_lateral_rel_error_best_lag": min(results),
-        "eso_best_lag_s": results.index(min(results)) / OUTER_RATE_HZ,
+        "eso_lateral_error_m_s2": errors[0],
+        "eso_lateral_rel_deviation": _ratio(errors[0], deviation_rms),
+        "eso_best_lag_s": best / OUTER_RATE_HZ,
+        "eso_lateral_error_best_lag_m_s2": errors[best],
+        "eso_lateral_rel_deviation_best_lag": _ratio(errors[best], deviation_rms),
+        "eso_disturbance_deviation_m_s2": deviation_rms,
+        "eso_disturbance_rms_m_s2": total_rms,
+        "eso_lateral_rel_error": _ratio(errors[0], total_rms),
     }
+
+
+def _ratio(error: float, scale: float) -> float:
+    """error / scale; NaN for a disturbance that does not vary (nothing to be a share of; 1e-9 m/s^2 is
+    rounding left by subtracting a constant's mean)."""
+    return error / scale if scale > 1e-9 else math.nan
 
 
 def step_metrics(t: np.ndarray, east: np.ndarray) -> dict:
