@@ -2,6 +2,14 @@
 
 The command line (see the package docstring, bench/control/__init__.py): flies every controller on every seed
 in a pool of worker processes, then the step experiment, prints the tables and writes control.json (+ figures).
+
+Operating points (--tunings, from bench/tune_control.py's control_tuning.json): "shared" flies the ADRC and the
+PID at the one bandwidth tuned for both (its "chosen"), "own" flies each at its own best tuning (its
+"own_best"). The results' rows ("controllers") are "adrc", "pid" at the shared bandwidth (the keys earlier
+results had), "adrc@own", "pid@own" at the own best, and "px4", whose built-in cascade has no tuning and flies
+once. A controller whose own best is the shared tuning is not flown twice: its "@own" row repeats the shared
+flights (operating_points.<name>.same_flights_as says so). The paper's variance-15 seeds fly the first
+operating point only.
 """
 
 from __future__ import annotations
@@ -12,80 +20,125 @@ import math
 import os
 import sys
 import time
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from multiprocessing import Pool
 from pathlib import Path
 
 from adrc_offboard.outer_loop import AdrcOuterGains, PidOuterGains, matched_gains
 from bench.control import REPO, RESULTS
+from bench.control import metrics as metrics_module
 from bench.control.figures import draw_figures
 from bench.control.flight import CONTROLLERS, LABELS, fly, step_response
-from bench.control.metrics import METRICS, STEP_METRICS, TARGETS
+from bench.control.metrics import ESO_METRICS, METRICS, STEP_METRICS, TARGETS
 from bench.control.scenario import ACCEPTANCE_RADIUS_M, DWELL_S, Scenario, build_scenario
 from bench.control.statistics import summarise
 from gcs.tracking import GUST_WINDOW_S, RECOVERED_M
 from planner.scenario import TURBULENCE_SIGMA_M_S
 
-Gains = tuple[AdrcOuterGains | None, PidOuterGains | None]  # None: the shipped gains files
+TUNINGS = ("shared", "own")  # operating points read from control_tuning.json
+TUNING_SELECTION = {"shared": "chosen", "own": "own_best"}  # ... and the key each is read from
+TUNED = ("adrc", "pid")  # the controllers an operating point sets gains for
+# the honest summary: one line per controller and operating point (the README's top table)
+HEADLINE = (
+    "rms_error_m",
+    "gust_peak_m",
+    "saturated_fraction",
+    *(m for m in ESO_METRICS if m not in ("eso_disturbance_rms_m_s2", "eso_lateral_rel_error")),
+)
 
-# What every flight job shares, set once per worker process by _share (the pool's initializer)
+
+@dataclass(frozen=True)
+class OperatingPoint:
+    """The outer-loop gains the ADRC and the PID fly at (None: the shipped gains files) and where they are from."""
+
+    name: str  # "shared", "own" or "shipped"
+    adrc: AdrcOuterGains | None
+    pid: PidOuterGains | None
+    described: dict
+
+    def row(self, kind: str) -> str:
+        """The results' key for controller `kind` at this point: bare at the shared bandwidth (and for px4)."""
+        return kind if kind not in TUNED or self.name in ("shared", "shipped") else f"{kind}@{self.name}"
+
+    def gains(self, kind: str) -> AdrcOuterGains | PidOuterGains | None:
+        return self.adrc if kind == "adrc" else self.pid if kind == "pid" else None
+
+
+# What every flight job shares, set once per worker process by _share (the pool's initializer):
+# the scenario and, per results row, (controller, ADRC gains, PID gains)
 _scenario: Scenario
-_gains: Gains = (None, None)
+_rows: dict[str, tuple[str, AdrcOuterGains | None, PidOuterGains | None]] = {}
 
 
-def _share(scenario: Scenario, gains: Gains) -> None:
-    global _scenario, _gains
-    _scenario, _gains = scenario, gains
+def _share(scenario: Scenario, rows: dict) -> None:
+    global _scenario, _rows
+    _scenario, _rows = scenario, rows
 
 
 def _flight_job(job: tuple) -> tuple:
-    kind, seed, paper, keep = job
-    metrics, series = fly(kind, seed, _scenario, paper_disturbance=paper, adrc_gains=_gains[0], pid_gains=_gains[1])
-    return kind, seed, paper, metrics, (series if keep else None)
+    row, seed, paper, keep = job
+    kind, adrc, pid = _rows[row]
+    metrics, series = fly(kind, seed, _scenario, paper_disturbance=paper, adrc_gains=adrc, pid_gains=pid)
+    return row, seed, paper, metrics, (series if keep else None)
 
 
 def _step_job(job: tuple) -> tuple:
-    kind, seed = job
-    metrics, trace = step_response(kind, seed, _scenario, *_gains)
-    return kind, seed, metrics, (trace if seed == 0 else None)
+    row, seed, keep = job
+    kind, adrc, pid = _rows[row]
+    metrics, trace = step_response(kind, seed, _scenario, adrc, pid)
+    return row, seed, metrics, (trace if keep else None)
 
 
-def tuned_gains(path: Path) -> tuple[tuple[AdrcOuterGains, PidOuterGains], dict]:
-    """The outer-loop gains bench/tune_control.py chose (its JSON), rebuilt with outer_loop.matched_gains."""
+def tuned_gains(path: Path, tuning: str = "shared") -> OperatingPoint:
+    """The outer-loop gains bench/tune_control.py found (its JSON) for operating point `tuning`, rebuilt with
+    outer_loop.matched_gains: "shared" its "chosen" (one bandwidth for both), "own" its "own_best"."""
     data = json.loads(path.read_text())
-    grid, chosen = data["grid"], data["chosen"]
-    omega_c = float(data["shared_omega_c"])
+    grid, picks = data["grid"], data[TUNING_SELECTION[tuning]]
+    if any(picks.get(kind) is None for kind in TUNED):
+        raise ValueError(f"{path}: no admissible {TUNING_SELECTION[tuning]} tuning for every controller")
+    adrc_pick, pid_pick = picks["adrc"], picks["pid"]
     adrc, _ = matched_gains(
-        omega_c,
-        grid["vertical_ratio"] * omega_c,
-        observer_ratio=chosen["adrc"]["second"],
+        adrc_pick["omega_c"],
+        grid["vertical_ratio"] * adrc_pick["omega_c"],
+        observer_ratio=adrc_pick["second"],
         delta=grid["adrc_delta"],
         r1=tuple(grid["adrc_r1"]),
     )
-    _, pid = matched_gains(omega_c, grid["vertical_ratio"] * omega_c, integral_ratio=chosen["pid"]["second"])
+    _, pid = matched_gains(
+        pid_pick["omega_c"], grid["vertical_ratio"] * pid_pick["omega_c"], integral_ratio=pid_pick["second"]
+    )
     path = path.resolve()
+
+    def bandwidth(pick: dict) -> dict:
+        return {
+            "omega_c_horizontal": pick["omega_c"],
+            "omega_c_vertical": grid["vertical_ratio"] * pick["omega_c"],
+            "tuning_flight_rms_error_m": pick["rms_error_m"],
+            "tuning_flight_saturated_fraction": pick["saturated_fraction"],
+        }
+
     described = {
-        "source": str(path.relative_to(REPO) if path.is_relative_to(REPO) else path),
-        "omega_c_horizontal": omega_c,
-        "omega_c_vertical": grid["vertical_ratio"] * omega_c,
-        "adrc_observer_ratio": chosen["adrc"]["second"],
-        "pid_integral_ratio": chosen["pid"]["second"],
-        "adrc_delta": grid["adrc_delta"],
-        "adrc_r1": grid["adrc_r1"],
-        "pid": asdict(pid),
+        "source": f"{path.relative_to(REPO) if path.is_relative_to(REPO) else path}: {TUNING_SELECTION[tuning]}",
+        "adrc": {
+            **bandwidth(adrc_pick),
+            "observer_ratio": adrc_pick["second"],
+            "delta": grid["adrc_delta"],
+            "r1": grid["adrc_r1"],
+        },
+        "pid": {**bandwidth(pid_pick), "integral_ratio": pid_pick["second"], "gains": asdict(pid)},
     }
-    return (adrc, pid), described
+    return OperatingPoint(tuning, adrc, pid, described)
 
 
-def print_table(title: str, summary: dict, metrics: tuple[str, ...]) -> None:
-    kinds = list(summary["per_controller"])
+def print_table(title: str, summary: dict, metrics: tuple[str, ...], rows: list[str], pair: str) -> None:
+    """Mean [95 % CI] of `metrics` for the results `rows`, with the paired p-values of test `pair`."""
     print(f"\n{title}")
-    header = f"{'metric':30}" + "".join(f"{k:>26}" for k in kinds) + f"{'p (t / W) adrc-pid':>24}"
+    header = f"{'metric':36}" + "".join(f"{k:>26}" for k in rows) + f"{'p (t / W) ' + pair:>30}"
     print(header)
     print("-" * len(header))
     for m in metrics:
         cells = []
-        for k in kinds:
+        for k in rows:
             c = summary["per_controller"][k][m]
             if c["mean"] is None:
                 cells.append(f"{'-':>26}")
@@ -93,9 +146,35 @@ def print_table(title: str, summary: dict, metrics: tuple[str, ...]) -> None:
                 cells.append(f"{c['mean']:>26.4g}")
             else:
                 cells.append(f"{c['mean']:>10.4g} [{c['ci95'][0]:.3g}, {c['ci95'][1]:.3g}]".rjust(26))
-        test = summary["paired"].get("adrc_vs_pid", {}).get(m)
+        test = summary["paired"].get(pair, {}).get(m)
         p = f"{test['paired_t_p']:.2g} / {test['wilcoxon_p']:.2g}" if test else "-"
-        print(f"{m:30}" + "".join(cells) + f"{p:>24}")
+        print(f"{m:36}" + "".join(cells) + f"{p:>30}")
+
+
+def headline(summary: dict, completed: dict[str, int], seeds: int, bandwidths: dict[str, float | None]) -> list:
+    """One line per results row: its bandwidth, missions completed and the HEADLINE metrics' means."""
+    return [
+        {
+            "controller": row,
+            "omega_c_horizontal": bandwidths.get(row),
+            "completed": completed[row],
+            "seeds": seeds,
+            **{m: summary["per_controller"][row][m]["mean"] for m in HEADLINE},
+        }
+        for row in summary["per_controller"]
+    ]
+
+
+def print_headline(title: str, lines: list[dict]) -> None:
+    print(f"\n{title}")
+    header = f"{'controller':14}{'omega_c':>8}{'done':>8}" + "".join(f"{m:>{max(len(m), 9) + 2}}" for m in HEADLINE)
+    print(header)
+    print("-" * len(header))
+    for line in lines:
+        w = line["omega_c_horizontal"]
+        cells = "".join(f"{'-' if line[m] is None else format(line[m], '.3g'):>{max(len(m), 9) + 2}}" for m in HEADLINE)
+        done = f"{line['completed']}/{line['seeds']}"
+        print(f"{line['controller']:14}{'-' if w is None else format(w, 'g'):>8}{done:>8}" + cells)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -111,70 +190,127 @@ def main(argv: list[str] | None = None) -> int:
         default=RESULTS / "control_tuning.json",
         help="outer-loop gains chosen by bench/tune_control.py (default); see --shipped-gains",
     )
+    p.add_argument(
+        "--tunings",
+        help=f"operating points from --tuning, comma-separated, from {','.join(TUNINGS)} (default: all): "
+        "the shared bandwidth, each controller's own best",
+    )
     p.add_argument("--shipped-gains", action="store_true", help="fly adrc_offboard/gains/outer_*.json instead")
     args = p.parse_args(argv)
     if args.seeds < 3 or args.workers < 1 or args.paper_seeds < 0:
         p.error("need --seeds >= 3, --workers >= 1, --paper-seeds >= 0")
     started = time.perf_counter()
     scenario = build_scenario()
-    gains: Gains = (None, None)
-    gains_used = {
-        "adrc_outer": "adrc_offboard/gains/outer_adrc.json",
-        "pid_outer": "adrc_offboard/gains/outer_pid.json",
-    }
-    if not args.shipped_gains:
+    if args.shipped_gains:
+        if args.tunings:
+            p.error("--tunings picks from --tuning's file; --shipped-gains flies the gains files instead")
+        shipped = {"adrc": "adrc_offboard/gains/outer_adrc.json", "pid": "adrc_offboard/gains/outer_pid.json"}
+        points = [OperatingPoint("shipped", None, None, shipped)]
+    else:
+        names = (args.tunings or ",".join(TUNINGS)).split(",")
+        if not names or any(n not in TUNINGS for n in names) or len(set(names)) < len(names):
+            p.error(f"--tunings: comma-separated, each once, from {', '.join(TUNINGS)}")
         if not args.tuning.exists():
             p.error(f"{args.tuning} not found: run python -m bench.tune_control or use --shipped-gains")
-        gains, gains_used = tuned_gains(args.tuning)
+        try:
+            points = [tuned_gains(args.tuning, name) for name in names]
+        except ValueError as exc:
+            p.error(str(exc))
+    # the results rows: the first point's ADRC, PID and px4 (untuned, flown once), then the others' ADRC, PID;
+    # a row whose gains equal the first point's repeats that row's flights
+    first = points[0]
+    rows: dict[str, tuple[str, OperatingPoint]] = {first.row(k): (k, first) for k in CONTROLLERS}
+    rows |= {point.row(k): (k, point) for point in points[1:] for k in TUNED}
+    same_flights_as = {
+        row: first.row(kind)
+        for row, (kind, point) in rows.items()
+        if point is not first and point.gains(kind) == first.gains(kind)
+    }
+    flown = [row for row in rows if row not in same_flights_as]
+    worker_rows = {row: (kind, point.adrc, point.pid) for row, (kind, point) in rows.items()}  # what _share hands out
     print(
         f"route {scenario.route_length_m:.0f} m, longest leg {scenario.longest_leg}, crosswind from "
         f"{scenario.crosswind_from_deg:.0f} deg, gust at {scenario.gust_start_s:g} s after takeoff, "
-        f"W20 {scenario.wind.turbulence_w20_m_s} m/s",
+        f"W20 {scenario.wind.turbulence_w20_m_s} m/s; operating points {', '.join(pt.name for pt in points)}"
+        + "".join(f"; {row} repeats the flights of {same}" for row, same in same_flights_as.items()),
         flush=True,
     )
-    jobs = [(k, seed, False, seed == 0) for seed in range(args.seeds) for k in CONTROLLERS]
-    jobs += [(k, seed, True, False) for seed in range(args.paper_seeds) for k in CONTROLLERS]
-    step_jobs = [(k, seed) for seed in range(args.seeds) for k in CONTROLLERS]
-    per_seed: dict[str, list] = {k: [None] * args.seeds for k in CONTROLLERS}
-    paper: dict[str, list] = {k: [None] * args.paper_seeds for k in CONTROLLERS}
-    steps: dict[str, list] = {k: [None] * args.seeds for k in CONTROLLERS}
+    first_rows = [first.row(k) for k in CONTROLLERS]
+    jobs = [(row, seed, False, seed == 0 and row in first_rows) for seed in range(args.seeds) for row in flown]
+    jobs += [(row, seed, True, False) for seed in range(args.paper_seeds) for row in first_rows]
+    step_jobs = [(row, seed, seed == 0 and row in first_rows) for seed in range(args.seeds) for row in flown]
+    per_seed: dict[str, list] = {row: [None] * args.seeds for row in rows}
+    paper: dict[str, list] = {row: [None] * args.paper_seeds for row in first_rows}
+    steps: dict[str, list] = {row: [None] * args.seeds for row in rows}
     series, traces = {}, {}
-    pool = Pool(args.workers, _share, (scenario, gains)) if args.workers > 1 else _InlinePool(scenario, gains)
+    pool = (
+        Pool(args.workers, _share, (scenario, worker_rows)) if args.workers > 1 else _InlinePool(scenario, worker_rows)
+    )
     with pool:
-        for done, (kind, seed, is_paper, metrics, s) in enumerate(pool.imap_unordered(_flight_job, jobs), 1):
-            (paper if is_paper else per_seed)[kind][seed] = metrics
+        for done, (row, seed, is_paper, metrics, s) in enumerate(pool.imap_unordered(_flight_job, jobs), 1):
+            (paper if is_paper else per_seed)[row][seed] = metrics
             if s is not None:
-                series[kind] = s
+                series[rows[row][0]] = s  # seed 0 of the first point, for the figures (keyed by controller)
             print(
-                f"  [{done}/{len(jobs)}] {kind} seed {seed}{' (paper D)' if is_paper else ''}: "
+                f"  [{done}/{len(jobs)}] {row} seed {seed}{' (paper D)' if is_paper else ''}: "
                 f"rms {metrics['rms_error_m']:.3f} m, gust peak {metrics['gust_peak_m']:.3f} m, "
                 f"completed {metrics['completed']} ({time.perf_counter() - started:.0f} s)",
                 flush=True,
             )
-        for kind, seed, metrics, trace in pool.imap_unordered(_step_job, step_jobs):
-            steps[kind][seed] = metrics
+        for row, seed, metrics, trace in pool.imap_unordered(_step_job, step_jobs):
+            steps[row][seed] = metrics
             if trace is not None:
-                traces[kind] = trace
+                traces[rows[row][0]] = trace
+    for row, same in same_flights_as.items():
+        per_seed[row], steps[row] = per_seed[same], steps[same]
     elapsed = time.perf_counter() - started
-    summary = summarise(per_seed, METRICS)
-    step_summary = summarise(steps, STEP_METRICS)
-    print_table(
-        f"Reference mission, {args.seeds} paired seeds (mean [95% CI]; paired p: t-test / Wilcoxon)", summary, METRICS
-    )
-    print_table("5 m lateral step at hover", step_summary, STEP_METRICS)
-    paper_summary = None
+    pairs = tuple((point.row("adrc"), point.row(other)) for point in points for other in ("pid", "px4"))
+    summary = summarise(per_seed, METRICS, pairs)
+    step_summary = summarise(steps, STEP_METRICS, pairs)
+    completed = {row: sum(bool(r["completed"]) for r in results) for row, results in per_seed.items()}
+    for point in points:
+        point_rows = [point.row(k) for k in CONTROLLERS]
+        pair = f"{point.row('adrc')}_vs_{point.row('pid')}"
+        print_table(
+            f"Reference mission, {args.seeds} paired seeds, {_point_title(point)} "
+            "(mean [95% CI]; paired p: t-test / Wilcoxon)",
+            summary,
+            METRICS,
+            point_rows,
+            pair,
+        )
+        print_table(f"5 m lateral step at hover, {_point_title(point)}", step_summary, STEP_METRICS, point_rows, pair)
+    bandwidths = {
+        row: point.described[kind]["omega_c_horizontal"] if point.name != "shipped" and kind in TUNED else None
+        for row, (kind, point) in rows.items()
+    }
+    headlines = {"mission": headline(summary, completed, args.seeds, bandwidths)}
+    print_headline(f"Summary, reference mission ({args.seeds} seeds; means)", headlines["mission"])
+    paper_summary = paper_completed = None
+    if args.paper_seeds:
+        paper_completed = {row: sum(bool(r["completed"]) for r in results) for row, results in paper.items()}
+        paper_summary = summarise(paper, METRICS, pairs[:2])
+        headlines["paper_disturbance"] = headline(paper_summary, paper_completed, args.paper_seeds, bandwidths)
+        print_headline(
+            f"Summary, paper's variance-15 disturbance ({args.paper_seeds} seeds, {_point_title(first)}; means "
+            "over the flights that reached each phase)",
+            headlines["paper_disturbance"],
+        )
     if args.paper_seeds >= 3:
-        paper_summary = summarise(paper, METRICS)
-        print_table(f"Paper's variance-15 disturbance, {args.paper_seeds} seeds", paper_summary, METRICS)
-    adrc = summary["per_controller"]["adrc"]
+        first_pair = f"{first.row('adrc')}_vs_{first.row('pid')}"
+        print_table(
+            f"Paper's variance-15 disturbance, {args.paper_seeds} seeds", paper_summary, METRICS, first_rows, first_pair
+        )
+    adrc = summary["per_controller"][first.row("adrc")]
     targets = {
         m: {"target_max": v, "adrc_mean": adrc[m]["mean"], "met": adrc[m]["mean"] is not None and adrc[m]["mean"] <= v}
         for m, v in TARGETS.items()
     }
     print(
-        "\nADRC targets: "
+        f"\nADRC targets ({_point_title(first)}): "
         + ", ".join(
-            f"{m} {t['adrc_mean']:.3g} <= {t['target_max']} {'met' if t['met'] else 'MISSED'}"
+            f"{m} {'-' if t['adrc_mean'] is None else format(t['adrc_mean'], '.3g')} <= {t['target_max']} "
+            f"{'met' if t['met'] else 'MISSED'}"
             for m, t in targets.items()
         )
     )
@@ -194,20 +330,28 @@ def main(argv: list[str] | None = None) -> int:
             "gust_window_s": GUST_WINDOW_S,
             "recovered_below_m": RECOVERED_M,
         },
-        "controllers": LABELS,
+        "metrics_definitions": metrics_module.__doc__,
+        "controllers": {row: _label(kind, point) for row, (kind, point) in rows.items()},
+        "operating_points": {
+            point.name: {
+                "rows": {k: point.row(k) for k in TUNED},
+                "outer_gains": point.described,
+                "same_flights_as": {r: same for r, same in same_flights_as.items() if rows[r][1] is point},
+            }
+            for point in points
+        },
         "gains": {
-            **gains_used,
+            "outer": "per operating point: operating_points.<name>.outer_gains",
             "adrc_inner": "adrc_offboard/gains/attitude_adrc.json",
             "pid_inner": "the vehicle's PidAttitudeGains (PX4 defaults)",
         },
         "seeds": args.seeds,
+        "headline": headlines,
         "mission": summary,
-        "completed": {k: sum(bool(r["completed"]) for r in rows) for k, rows in per_seed.items()},
+        "completed": completed,
         "step": step_summary,
         "paper_disturbance": paper_summary,
-        "paper_disturbance_completed": {k: sum(bool(r["completed"]) for r in rows) for k, rows in paper.items()}
-        if args.paper_seeds
-        else None,
+        "paper_disturbance_completed": paper_completed,
         "targets": targets,
         "per_seed": per_seed,
         "figures": figures,
@@ -216,6 +360,26 @@ def main(argv: list[str] | None = None) -> int:
     args.out.write_text(json.dumps(_finite_or_null(result), indent=1, default=float))
     print(f"\nwrote {args.out} ({elapsed:.0f} s){''.join(chr(10) + '  ' + f for f in figures)}")
     return 0
+
+
+def _point_title(point: OperatingPoint) -> str:
+    if point.name == "shipped":
+        return "shipped gains"
+    if point.name == "shared":
+        return f"shared bandwidth omega_c {point.described['adrc']['omega_c_horizontal']:g} rad/s"
+    return (
+        "each at its own best tuning ("
+        + ", ".join(f"{k} omega_c {point.described[k]['omega_c_horizontal']:g}" for k in TUNED)
+        + " rad/s)"
+    )
+
+
+def _label(kind: str, point: OperatingPoint) -> str:
+    """LABELS[kind], which describes the shared bandwidth, for the rows of the other operating points."""
+    if kind not in TUNED or point.name in ("shared", "shipped"):
+        return LABELS[kind]
+    omega_c = point.described[kind]["omega_c_horizontal"]
+    return f"{kind.upper()} outer + {kind.upper()} inner at its own best tuning (omega_c {omega_c:g} rad/s)"
 
 
 def _finite_or_null(value):
@@ -232,8 +396,8 @@ def _finite_or_null(value):
 class _InlinePool:
     """Pool stand-in for --workers 1: runs the jobs in this process."""
 
-    def __init__(self, scenario: Scenario, gains: Gains) -> None:
-        _share(scenario, gains)
+    def __init__(self, scenario: Scenario, rows: dict) -> None:
+        _share(scenario, rows)
 
     def __enter__(self):
         return self

@@ -4,9 +4,10 @@ Controllers:
 - "adrc": ADRC outer loop (adrc_offboard.outer_loop.AdrcOuterLoop) + ADRC inner loop (MC_ATT_CTRL = 1,
   gains/attitude_adrc.json): the paper's cascade dual ADRC.
 - "pid": PID outer loop (PidOuterLoop) + the vehicle's PID attitude loop (MC_ATT_CTRL = 0).
-  Both outer loops fly the gains bench/tune_control.py chose (results/control_tuning.json: one shared
-  bandwidth, each controller's free parameter tuned with the same budget, rebuilt by
-  outer_loop.matched_gains); --shipped-gains flies adrc_offboard/gains/outer_*.json instead.
+  Both outer loops fly gains bench/tune_control.py found (results/control_tuning.json, rebuilt by
+  outer_loop.matched_gains), at two operating points (__main__'s --tunings): one shared bandwidth with each
+  controller's free parameter tuned with the same budget, and each controller's own best tuning;
+  --shipped-gains flies adrc_offboard/gains/outer_*.json instead.
 - "px4": the vehicle's built-in PX4-default PID cascade, no offboard controller ("PX4 defaults").
 
 `fly` flies the scenario's mission and records every outer-loop tick (`FlightRecorder`); `step_response`

@@ -1,9 +1,9 @@
 """Statistics over the seeds: mean and 95 % confidence interval per controller, paired tests between them.
 
 A seed fixes the air (wind, turbulence, D terms, sensor noise), and every controller flies every seed, so the
-comparison is paired: the per-seed differences ADRC - PID and ADRC - PX4 defaults are tested with the paired
-t-test and with the Wilcoxon signed-rank test, which does not assume the differences are normal (a few
-gusty seeds make tracking errors skewed).
+comparison is paired: the per-seed differences ADRC - PID and ADRC - PX4 defaults (at each operating point)
+are tested with the paired t-test and with the Wilcoxon signed-rank test, which does not assume the
+differences are normal (a few gusty seeds make tracking errors skewed).
 """
 
 from __future__ import annotations
@@ -52,18 +52,21 @@ def wilcoxon_signed_rank(a: np.ndarray, b: np.ndarray) -> float:
     return float(stats.wilcoxon(d, correction=True, method="asymptotic" if ties else "exact").pvalue)
 
 
-def summarise(per_seed: dict[str, list[dict]], metrics: tuple[str, ...]) -> dict:
-    """{"per_controller": {kind: {metric: mean_ci}}, "paired": {"adrc_vs_pid" / "adrc_vs_px4": {metric: tests}}};
-    a metric is tested on the seeds where both flights have it, if there are at least 3."""
+def summarise(
+    per_seed: dict[str, list[dict]], metrics: tuple[str, ...], pairs: tuple[tuple[str, str], ...] = ()
+) -> dict:
+    """{"per_controller": {row: {metric: mean_ci}}, "paired": {"<a>_vs_<b>": {metric: tests}}} for the `pairs`
+    (a, b) of rows of per_seed (default ("adrc", "pid") and ("adrc", "px4")); a metric is tested on the seeds
+    where both flights have it, if there are at least 3."""
     out: dict = {"per_controller": {}, "paired": {}}
     for kind, rows in per_seed.items():
         out["per_controller"][kind] = {m: mean_ci(np.array([r[m] for r in rows], dtype=float)) for m in metrics}
-    for other in ("pid", "px4"):
-        if "adrc" not in per_seed or other not in per_seed:
+    for first, other in pairs or (("adrc", "pid"), ("adrc", "px4")):
+        if first not in per_seed or other not in per_seed:
             continue
         tests = {}
         for m in metrics:
-            a = np.array([r[m] for r in per_seed["adrc"]], dtype=float)
+            a = np.array([r[m] for r in per_seed[first]], dtype=float)
             b = np.array([r[m] for r in per_seed[other]], dtype=float)
             ok = np.isfinite(a) & np.isfinite(b)
             if ok.sum() < 3:
@@ -74,5 +77,5 @@ def summarise(per_seed: dict[str, list[dict]], metrics: tuple[str, ...]) -> dict
                 "wilcoxon_p": wilcoxon_signed_rank(a[ok], b[ok]),
                 "n": int(ok.sum()),
             }
-        out["paired"][f"adrc_vs_{other}"] = tests
+        out["paired"][f"{first}_vs_{other}"] = tests
     return out
