@@ -26,7 +26,12 @@ must have spectral radius < 1 at the configured step, and so must the linearised
 Sign convention: z3 estimates f in y'' = f + b0 u, in the channel's own units (m/s^2 for a position
 channel, rad/s^2 for an attitude channel). A wind pushing the vehicle north gives a positive z3 on x.
 
-Inner loops run this 250 times a simulated second, so the update path is plain float arithmetic.
+Inner loops run this 250 times a simulated second, so every law is a numba kernel on floats (`fhan`, `fal`,
+`td_step`, `eso_step`, `nlsef_control`) and `AdrcChannel` keeps its parameters and state in flat arrays
+(`P_*`, `S_*` layouts) that `adrc_channel_control` / `adrc_channel_observe` advance: the classes are the
+Python face, and the vehicle's compiled attitude loop (adrc_offboard.adrc_attitude, sitl_quad.attitude_loops)
+runs the very same kernels. numba's on-disk cache is invalidated by edits to a kernel's own file only: after
+changing a kernel here, delete adrc_offboard/__pycache__/*.nbi and sitl_quad/__pycache__/*.nbi.
 """
 
 from __future__ import annotations
@@ -35,17 +40,20 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 
 class AdrcParameterError(ValueError):
     """A parameter set that cannot work: non-physical values, or a discrete loop unstable at its step."""
 
 
+@njit(cache=True)
 def sign(x: float) -> float:
     """sign() as in the paper: -1, 0 or +1."""
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
+@njit(cache=True)
 def fsg(x: float, d: float) -> float:
     """fsg(x, d) = (sign(x + d) - sign(x - d)) / 2, eq. (10), for d > 0: 1 inside |x| < d, 0 outside,
     1/2 on the edge. Written with comparisons: it sits on the 250 Hz path."""
@@ -53,6 +61,7 @@ def fsg(x: float, d: float) -> float:
     return 1.0 if magnitude < d else (0.0 if magnitude > d else 0.5)
 
 
+@njit(cache=True)
 def fhan(x1: float, x2: float, r: float, h: float) -> float:
     """Han's discrete time-optimal synthesis function, eq. (10) (gamma = r, eta = h).
 
@@ -70,6 +79,7 @@ def fhan(x1: float, x2: float, r: float, h: float) -> float:
     return -r * (a / d) * fsg_a - r * sign(a) * (1.0 - fsg_a)
 
 
+@njit(cache=True)
 def fal(e: float, alpha: float, delta: float) -> float:
     """Han's power function with a linear zone, eq. (13): e / delta^(1-alpha) inside |e| <= delta,
     |e|^alpha sign(e) outside; continuous at |e| = delta. Its linear-zone slope is delta^(alpha-1)."""
@@ -79,6 +89,54 @@ def fal(e: float, alpha: float, delta: float) -> float:
     if magnitude > delta:  # s = 0
         return math.copysign(magnitude**alpha, e)
     return e * 0.5 / delta ** (1.0 - alpha) + 0.5 * math.copysign(magnitude**alpha, e)  # s = 1/2: = e^alpha
+
+
+@njit(cache=True)
+def td_step(
+    v1: float, v2: float, reference: float, reference_rate: float, r0: float, h0: float, h: float
+) -> tuple[float, float]:
+    """One step of the tracking differentiator, eq. (9) (see `TrackingDifferentiator`): (v1, v2) after it."""
+    return v1 + h * v2, v2 + h * fhan(v1 - reference, v2 - reference_rate, r0, h0)
+
+
+@njit(cache=True)
+def eso_step(
+    z1: float,
+    z2: float,
+    z3: float,
+    y: float,
+    u: float,
+    beta1: float,
+    beta2: float,
+    beta3: float,
+    b0: float,
+    delta: float,
+    alpha1: float,
+    alpha2: float,
+    h: float,
+) -> tuple[float, float, float]:
+    """One step of the ESO, eq. (11) in Han's Euler form (see `ExtendedStateObserver`): (z1, z2, z3) after it."""
+    eps1 = z1 - y
+    return (
+        z1 + h * (z2 - beta1 * eps1),
+        z2 + h * (z3 - beta2 * fal(eps1, alpha1, delta) + b0 * u),
+        z3 - h * beta3 * fal(eps1, alpha2, delta),
+    )
+
+
+@njit(cache=True)
+def nlsef_control(
+    e1: float, e2: float, z3: float, reference_acceleration: float, r1: float, h1: float, c: float, b0: float
+) -> float:
+    """Eq. (12): U = (u0 - z3) / b0 with u0 = -fhan(e1, c e2, r1, h1) (+ the reference acceleration)."""
+    u0 = reference_acceleration - fhan(e1, c * e2, r1, h1)
+    return (u0 - z3) / b0
+
+
+@njit(cache=True)
+def clip(u: float, u_min: float, u_max: float) -> float:
+    """u limited to [u_min, u_max] (a NaN passes through, to be caught downstream)."""
+    return u_min if u < u_min else (u_max if u > u_max else u)
 
 
 class TrackingDifferentiator:
@@ -103,9 +161,7 @@ class TrackingDifferentiator:
 
     def update(self, reference: float, reference_rate: float = 0.0) -> tuple[float, float]:
         """One step toward the reference v moving at the known rate v' (0: unknown); returns (v1, v2) after it."""
-        v1, v2, h = self.v1, self.v2, self.h
-        self.v1 = v1 + h * v2
-        self.v2 = v2 + h * fhan(v1 - reference, v2 - reference_rate, self.r0, self.h0)
+        self.v1, self.v2 = td_step(self.v1, self.v2, reference, reference_rate, self.r0, self.h0, self.h)
         return self.v1, self.v2
 
 
@@ -135,11 +191,21 @@ class ExtendedStateObserver:
 
     def update(self, y: float, u: float) -> None:
         """Advance one step with the measured output y(k) and the control u(k) actually applied."""
-        z1, z2, z3, h, delta = self.z1, self.z2, self.z3, self.h, self.delta
-        eps1 = z1 - y
-        self.z1 = z1 + h * (z2 - self.beta1 * eps1)
-        self.z2 = z2 + h * (z3 - self.beta2 * fal(eps1, self.alpha1, delta) + self.b0 * u)
-        self.z3 = z3 - h * self.beta3 * fal(eps1, self.alpha2, delta)
+        self.z1, self.z2, self.z3 = eso_step(
+            self.z1,
+            self.z2,
+            self.z3,
+            y,
+            u,
+            self.beta1,
+            self.beta2,
+            self.beta3,
+            self.b0,
+            self.delta,
+            self.alpha1,
+            self.alpha2,
+            self.h,
+        )
 
     def linear_zone_gains(self) -> tuple[float, float, float]:
         """(beta1, beta2, beta3) as the observer applies them to small errors (|eps1| <= delta)."""
@@ -171,8 +237,7 @@ class NonlinearStateErrorFeedback:
 
     def control(self, e1: float, e2: float, z3: float, reference_acceleration: float = 0.0) -> float:
         """U for tracking errors e1 = v1 - z1, e2 = v2 - z2 and disturbance estimate z3."""
-        u0 = reference_acceleration - fhan(e1, self.c * e2, self.r1, self.h1)
-        return (u0 - z3) / self.b0
+        return nlsef_control(e1, e2, z3, reference_acceleration, self.r1, self.h1, self.c, self.b0)
 
 
 @dataclass(frozen=True)
@@ -237,6 +302,18 @@ class AdrcChannelParameters:
                 f"{rho:.3f}): lower the bandwidth 1/h1 or raise the rate"
             )
 
+    def as_array(self, h: float) -> np.ndarray:
+        """The parameters at sampling step h in the kernels' flat layout (`P_*`)."""
+        p = np.zeros(CHANNEL_PARAMS_SIZE)
+        p[P_B0], p[P_BETA1], p[P_BETA2], p[P_BETA3] = self.b0, self.beta1, self.beta2, self.beta3
+        p[P_DELTA], p[P_ALPHA1], p[P_ALPHA2] = self.delta, self.alpha1, self.alpha2
+        p[P_R1], p[P_H1], p[P_C] = self.r1, self.h1, self.c
+        p[P_HAS_TD] = float(self.r0 is not None)
+        p[P_R0] = self.r0 if self.r0 is not None else 0.0
+        p[P_H0] = self.h0 if self.h0 is not None else h
+        p[P_H], p[P_U_MIN], p[P_U_MAX] = h, self.u_min, self.u_max
+        return p
+
     def make_observer(self, h: float) -> ExtendedStateObserver:
         return ExtendedStateObserver(
             self.beta1, self.beta2, self.beta3, self.b0, self.delta, h, self.alpha1, self.alpha2
@@ -293,7 +370,7 @@ class ChannelBase:
         return v1, v2, 0.0  # eq. (12) uses only e1, e2; see AdrcChannel's docstring
 
     def _clip(self, u: float) -> float:
-        return self._u_min if u < self._u_min else (self._u_max if u > self._u_max else u)
+        return clip(u, self._u_min, self._u_max)
 
     def control(
         self,
@@ -321,6 +398,63 @@ class ChannelBase:
         return u
 
 
+# AdrcChannel's parameters (AdrcChannelParameters.as_array) and state, as flat arrays for the kernels below.
+(P_B0, P_BETA1, P_BETA2, P_BETA3, P_DELTA, P_ALPHA1, P_ALPHA2, P_R1, P_H1, P_C) = range(10)
+(P_HAS_TD, P_R0, P_H0, P_H, P_U_MIN, P_U_MAX) = range(10, 16)
+CHANNEL_PARAMS_SIZE = 16
+# started (0/1), the TD's v1 v2, the ESO's z1 z2 z3, and the measurement y(k) that observe() pairs with U(k)
+S_STARTED, S_V1, S_V2, S_Z1, S_Z2, S_Z3, S_Y = range(7)
+CHANNEL_STATE_SIZE = 7
+
+
+@njit(cache=True)
+def adrc_channel_control(
+    p: np.ndarray,
+    s: np.ndarray,
+    reference: float,
+    measurement: float,
+    reference_rate: float,
+    reference_acceleration: float,
+    measured_rate: float,
+    rate_measured: bool,
+) -> float:
+    """`AdrcChannel.control` on the flat parameters p and state s (measured_rate is used when rate_measured)."""
+    if s[S_STARTED] == 0.0:  # start the ESO at the measurement, the TD at the reference
+        s[S_Z1], s[S_Z2], s[S_Z3] = measurement, (measured_rate if rate_measured else 0.0), 0.0
+        s[S_V1], s[S_V2] = reference, reference_rate
+        s[S_STARTED] = 1.0
+    s[S_Y] = measurement
+    if p[P_HAS_TD] != 0.0:  # eq. (12) uses only e1, e2; see AdrcChannel's docstring
+        v1, v2 = td_step(s[S_V1], s[S_V2], reference, reference_rate, p[P_R0], p[P_H0], p[P_H])
+        s[S_V1], s[S_V2] = v1, v2
+        reference_acceleration = 0.0
+    else:
+        v1, v2 = reference, reference_rate
+    rate = measured_rate if rate_measured else s[S_Z2]
+    u = nlsef_control(v1 - s[S_Z1], v2 - rate, s[S_Z3], reference_acceleration, p[P_R1], p[P_H1], p[P_C], p[P_B0])
+    return clip(u, p[P_U_MIN], p[P_U_MAX])
+
+
+@njit(cache=True)
+def adrc_channel_observe(p: np.ndarray, s: np.ndarray, applied_control: float) -> None:
+    """`AdrcChannel.observe_applied` on the flat parameters p and state s."""
+    s[S_Z1], s[S_Z2], s[S_Z3] = eso_step(
+        s[S_Z1],
+        s[S_Z2],
+        s[S_Z3],
+        s[S_Y],
+        applied_control,
+        p[P_BETA1],
+        p[P_BETA2],
+        p[P_BETA3],
+        p[P_B0],
+        p[P_DELTA],
+        p[P_ALPHA1],
+        p[P_ALPHA2],
+        p[P_H],
+    )
+
+
 class AdrcChannel(ChannelBase):
     """TD + ESO + NLSEF for one second-order channel, with output limits.
 
@@ -335,23 +469,28 @@ class AdrcChannel(ChannelBase):
     acceleration is fed forward: the TD's own acceleration is bang-bang at +-r0, and
     with a reference that steps at a lower rate (a 50 Hz target into a 250 Hz loop) feeding it forward
     makes the output chatter between its limits.
+
+    ``kernel_params`` and ``kernel_state`` are the flat arrays the kernels read and advance (`P_*`, `S_*`);
+    a caller may hand in the state array (the attitude loop keeps its three channels' states in one array).
     """
 
-    __slots__ = ("_b0", "_feedback", "_y", "h", "observer", "parameters")
+    __slots__ = ("h", "kernel_params", "kernel_state", "parameters")
 
-    def __init__(self, parameters: AdrcChannelParameters, h: float) -> None:
+    def __init__(self, parameters: AdrcChannelParameters, h: float, state: np.ndarray | None = None) -> None:
         parameters.validate(h)
         self.parameters, self.h = parameters, h
-        self.observer = parameters.make_observer(h)
-        self._feedback = NonlinearStateErrorFeedback(parameters.r1, parameters.h1, parameters.c, parameters.b0)
-        self._setup(parameters.r0, parameters.h0, h, parameters.u_min, parameters.u_max)
-        self._b0 = parameters.b0
-        self._y = 0.0
+        self.kernel_params = parameters.as_array(h)
+        self.kernel_state = np.zeros(CHANNEL_STATE_SIZE) if state is None else state
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget all state; the next call starts the TD and ESO at the reference and measurement."""
+        self.kernel_state[:] = 0.0
 
     @property
     def disturbance(self) -> float:
         """The ESO's z3: total disturbance f in y'' = f + b0 u."""
-        return self.observer.z3
+        return float(self.kernel_state[S_Z3])
 
     def control(
         self,
@@ -363,22 +502,24 @@ class AdrcChannel(ChannelBase):
     ) -> float:
         """U(k), clipped to the channel's limits. measured_rate, when given, replaces the ESO's z2 in the
         rate error (a measured velocity or gyro rate is fresher than the estimate)."""
-        observer = self.observer
-        if not self._started:
-            observer.reset(measurement, measured_rate if measured_rate is not None else 0.0)
-            self._start_reference(reference, reference_rate)
-        self._y = measurement
-        v1, v2, reference_acceleration = self._reference(reference, reference_rate, reference_acceleration)
-        rate = observer.z2 if measured_rate is None else measured_rate
-        return self._clip(self._feedback.control(v1 - observer.z1, v2 - rate, observer.z3, reference_acceleration))
+        return adrc_channel_control(
+            self.kernel_params,
+            self.kernel_state,
+            reference,
+            measurement,
+            reference_rate,
+            reference_acceleration,
+            0.0 if measured_rate is None else measured_rate,
+            measured_rate is not None,
+        )
 
     def observe_applied(self, applied_control: float) -> None:
         """Step the ESO with this step's measurement and the control the plant really received."""
-        self.observer.update(self._y, applied_control)
+        adrc_channel_observe(self.kernel_params, self.kernel_state, applied_control)
 
     def state(self) -> dict[str, float]:
-        o = self.observer
-        return {"z1": o.z1, "z2": o.z2, "z3": o.z3}
+        s = self.kernel_state
+        return {"z1": float(s[S_Z1]), "z2": float(s[S_Z2]), "z3": float(s[S_Z3])}
 
 
 def bandwidth_parameters(

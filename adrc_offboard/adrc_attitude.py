@@ -33,6 +33,10 @@ estimate of it; the NLSEF (eq. 12) then acts on e2 = v2 - r, the error to the wa
 with the reference instead of building up an angle error first. Only the yaw channel takes it: roll and pitch
 track the thrust axis, which a turn leaves where it is (PX4's R^T e_z yaw_rate has roll/pitch components
 when tilted; the PX4-style PID loop adds those as PX4 does). The thrust field is the mixer's business.
+
+The step is the numba kernel `adrc_attitude_torque` on flat arrays (the channels' `adrc.AdrcChannel` kernels, the
+bookkeeping angles and the actuator model), so the vehicle's compiled inner loop (sitl_quad.attitude_loops)
+runs the very same code; `AdrcAttitudeController` is its Python face. The channels are nonlinear ADRC channels.
 """
 
 from __future__ import annotations
@@ -43,13 +47,96 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numba import njit
 
-from adrc_offboard.adrc import AdrcParameterError
-from adrc_offboard.gains import Channel, channel_parameters, load_gains, make_channel
+from adrc_offboard.adrc import (
+    CHANNEL_STATE_SIZE,
+    AdrcChannel,
+    AdrcChannelParameters,
+    AdrcParameterError,
+    adrc_channel_control,
+    adrc_channel_observe,
+)
+from adrc_offboard.gains import channel_parameters, load_gains
 from uavcore.airframe import Airframe
 from uavcore.state import AttitudeTarget, VehicleState
 
 AXES = ("roll", "pitch", "yaw")
+# the loop's own state beside the channels': the gyro-integrated bookkeeping angles and the modelled actuator
+L_THETA, L_ACTUATOR = 0, 3
+LOOP_STATE_SIZE = 6
+_NO_FEEDFORWARD = np.zeros(3)
+
+
+@njit(cache=True)
+def attitude_errors(q: np.ndarray, qd: np.ndarray) -> tuple[float, float, float]:
+    """(roll, pitch, yaw) errors in rad from the attitude q to the target qd (module docstring: tilt first)."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    tw, tx, ty, tz = qd[0], qd[1], qd[2], qd[3]
+    # q_err = conj(q) * q_target (rotation current body -> target body, body axes)
+    ew = w * tw + x * tx + y * ty + z * tz
+    ex = w * tx - x * tw - y * tz + z * ty
+    ey = w * ty + x * tz - y * tw - z * tx
+    ez = w * tz - x * ty + y * tx - z * tw
+    # Tilt first (PX4's reduced attitude): the target's thrust axis seen from the current body,
+    # z_t = R(q_err) e3, and the shortest rotation taking the body z axis onto it.
+    zx = 2.0 * (ex * ez + ew * ey)
+    zy = 2.0 * (ey * ez - ew * ex)
+    zz = 1.0 - 2.0 * (ex * ex + ey * ey)
+    sin_tilt = math.sqrt(zx * zx + zy * zy)
+    if sin_tilt > 1e-9:
+        scale = math.atan2(sin_tilt, zz) / sin_tilt
+        roll_error, pitch_error = -zy * scale, zx * scale
+    elif zz > 0.0:  # aligned
+        roll_error, pitch_error = 0.0, 0.0
+    else:  # exactly upside down: roll over
+        roll_error, pitch_error = math.pi, 0.0
+    # Yaw: what is left of q_err after the tilt, q_rem = conj(q_tilt) * q_err, a rotation about z;
+    # q_tilt = normalise(1 + zz, -zy, zx, 0) (the half-way quaternion from e3 to z_t).
+    cw, cx, cy = 1.0 + zz, -zy, zx
+    rem_w = cw * ew + cx * ex + cy * ey
+    rem_z = cw * ez - cx * ey + cy * ex
+    yaw_error = 2.0 * math.atan2(rem_z, rem_w)
+    if yaw_error > math.pi:  # the short way round
+        yaw_error -= 2.0 * math.pi
+    elif yaw_error <= -math.pi:
+        yaw_error += 2.0 * math.pi
+    return roll_error, pitch_error, yaw_error
+
+
+@njit(cache=True)
+def adrc_attitude_torque(
+    channel_params: np.ndarray,
+    channel_states: np.ndarray,
+    loop_state: np.ndarray,
+    actuator_step: float,
+    use_measured_rate: bool,
+    q: np.ndarray,
+    rates: np.ndarray,
+    qd: np.ndarray,
+    feedforward: np.ndarray,
+    dt: float,
+    torque: np.ndarray,
+) -> None:
+    """One attitude step: write the torques (N m) into torque and advance the channels' states (rows of
+    channel_states, parameters the rows of channel_params) and loop_state (`L_*`). q and rates are the measured
+    attitude and gyro rates, qd the target and feedforward its body rates (only the yaw rate is used);
+    actuator_step is the fraction of the way the modelled actuator moves toward its command in one step."""
+    errors = attitude_errors(q, qd)
+    for i in range(3):
+        angle = loop_state[L_THETA + i]
+        rate = rates[i]
+        reference_rate = feedforward[2] if i == 2 else 0.0  # the yaw channel's from the feed-forward
+        u = adrc_channel_control(
+            channel_params[i], channel_states[i], angle + errors[i], angle, reference_rate, 0.0, rate, use_measured_rate
+        )
+        # the ESO gets the torque the rotors deliver during this step, not the command
+        actuator = loop_state[L_ACTUATOR + i]
+        actuator += (u - actuator) * actuator_step
+        loop_state[L_ACTUATOR + i] = actuator
+        adrc_channel_observe(channel_params[i], channel_states[i], actuator)
+        torque[i] = u
+        loop_state[L_THETA + i] = angle + rate * dt
 
 
 @dataclass(frozen=True)
@@ -82,7 +169,11 @@ class AdrcAttitudeGains:
 
 
 class AdrcAttitudeController:
-    """Three ADRC channels at the attitude-loop rate; torques in N m [roll, pitch, yaw]."""
+    """Three ADRC channels at the attitude-loop rate; torques in N m [roll, pitch, yaw].
+
+    ``kernel_arguments(target)`` gives `adrc_attitude_torque`'s arguments up to the measurement; a compiled loop
+    calling the kernel with them advances this controller's own state.
+    """
 
     def __init__(
         self,
@@ -97,21 +188,27 @@ class AdrcAttitudeController:
         if not (math.isfinite(rate_hz) and rate_hz > 0):
             raise AdrcParameterError(f"rate_hz must be positive, got {rate_hz}")
         self.gains, self.h = gains, 1.0 / rate_hz
-        self.channels: list[Channel] = []
-        for inertia, spec in zip((Ix, Iy, Iz), (gains.roll, gains.pitch, gains.yaw), strict=True):
+        self.channel_states = np.zeros((3, CHANNEL_STATE_SIZE))  # the channels' states, one row each
+        self.channels: list[AdrcChannel] = []
+        for inertia, spec, state in zip(
+            (Ix, Iy, Iz), (gains.roll, gains.pitch, gains.yaw), self.channel_states, strict=True
+        ):
             if not (math.isfinite(inertia) and inertia > 0):
                 raise AdrcParameterError(f"inertias must be positive, got {(Ix, Iy, Iz)}")
             spec = dict(spec)
             b0 = spec.pop("b0_scale", 1.0) / inertia
-            self.channels.append(make_channel(channel_parameters(spec, b0), self.h))
+            parameters = channel_parameters(spec, b0)
+            if not isinstance(parameters, AdrcChannelParameters):
+                raise AdrcParameterError(f"the attitude loop's channels are nonlinear ADRC channels, got {spec}")
+            self.channels.append(AdrcChannel(parameters, self.h, state))
+        self.channel_params = np.stack([channel.kernel_params for channel in self.channels])
         self._use_rate = gains.use_measured_rate
-        self._theta = [0.0, 0.0, 0.0]
         if not (math.isfinite(actuator_time_constant) and actuator_time_constant >= 0):
             raise AdrcParameterError(f"actuator_time_constant must be >= 0, got {actuator_time_constant}")
         self.actuator_time_constant = actuator_time_constant  # s; 0: the torque is applied as commanded
         # fraction of the way a first-order actuator moves toward its command in one step
         self._actuator_step = 1.0 - math.exp(-self.h / actuator_time_constant) if actuator_time_constant else 1.0
-        self._actuator = [0.0, 0.0, 0.0]
+        self.loop_state = np.zeros(LOOP_STATE_SIZE)  # bookkeeping angles and modelled actuator (L_*)
 
     @classmethod
     def for_airframe(
@@ -129,61 +226,31 @@ class AdrcAttitudeController:
         )
 
     def reset(self) -> None:
-        for channel in self.channels:
-            channel.reset()
-        self._theta = [0.0, 0.0, 0.0]
-        self._actuator = [0.0, 0.0, 0.0]
+        self.channel_states[:] = 0.0
+        self.loop_state[:] = 0.0
+
+    def kernel_arguments(self, target: AttitudeTarget) -> tuple:
+        """`adrc_attitude_torque`'s first arguments for this controller (channel_params .. use_measured_rate)
+        and, after the measurement, the target's quaternion and feed-forward rates: (before, qd, feedforward)."""
+        feedforward = _NO_FEEDFORWARD if target.body_rates is None else _floats(target.body_rates)
+        state = (self.channel_params, self.channel_states, self.loop_state, self._actuator_step, self._use_rate)
+        return state, _floats(target.quaternion), feedforward
 
     def update(self, target: AttitudeTarget, state: VehicleState, dt: float) -> np.ndarray:
         """Torque for this step. The channels are fixed-step at 1/rate_hz (the paper's discrete
         equations); dt only advances the gyro-integrated bookkeeping angles."""
-        w, x, y, z = state.quaternion.tolist()
-        tw, tx, ty, tz = target.quaternion.tolist()
-        # q_err = conj(q) * q_target (rotation current body -> target body, body axes)
-        ew = w * tw + x * tx + y * ty + z * tz
-        ex = w * tx - x * tw - y * tz + z * ty
-        ey = w * ty + x * tz - y * tw - z * tx
-        ez = w * tz - x * ty + y * tx - z * tw
-        # Tilt first (PX4's reduced attitude): the target's thrust axis seen from the current body,
-        # z_t = R(q_err) e3, and the shortest rotation taking the body z axis onto it.
-        zx = 2.0 * (ex * ez + ew * ey)
-        zy = 2.0 * (ey * ez - ew * ex)
-        zz = 1.0 - 2.0 * (ex * ex + ey * ey)
-        sin_tilt = math.sqrt(zx * zx + zy * zy)
-        if sin_tilt > 1e-9:
-            scale = math.atan2(sin_tilt, zz) / sin_tilt
-            roll_error, pitch_error = -zy * scale, zx * scale
-        else:  # aligned, or exactly upside down (then roll over)
-            roll_error, pitch_error = (0.0, 0.0) if zz > 0.0 else (math.pi, 0.0)
-        # Yaw: what is left of q_err after the tilt, q_rem = conj(q_tilt) * q_err, a rotation about z;
-        # q_tilt = normalise(1 + zz, -zy, zx, 0) (the half-way quaternion from e3 to z_t).
-        cw, cx, cy = 1.0 + zz, -zy, zx
-        rem_w = cw * ew + cx * ex + cy * ey
-        rem_z = cw * ez - cx * ey + cy * ex
-        yaw_error = 2.0 * math.atan2(rem_z, rem_w)
-        if yaw_error > math.pi:  # the short way round
-            yaw_error -= 2.0 * math.pi
-        elif yaw_error <= -math.pi:
-            yaw_error += 2.0 * math.pi
-        errors = (roll_error, pitch_error, yaw_error)
-        rates = state.angular_velocity.tolist()
-        # the reference rates: the yaw channel's from the feed-forward (module docstring), none for roll/pitch
-        reference_rates = (0.0, 0.0, 0.0 if target.body_rates is None else float(target.body_rates[2]))
-        theta, actuator, lag = self._theta, self._actuator, self._actuator_step
-        torques = [0.0, 0.0, 0.0]
-        for i, channel in enumerate(self.channels):
-            angle = theta[i]
-            rate = rates[i]
-            torque = channel.control(
-                angle + errors[i], angle, reference_rates[i], 0.0, rate if self._use_rate else None
-            )
-            # the ESO gets the torque the rotors deliver during this step, not the command
-            actuator[i] += (torque - actuator[i]) * lag
-            channel.observe_applied(actuator[i])
-            torques[i] = torque
-            theta[i] = angle + rate * dt
-        return np.array(torques)
+        controller, qd, feedforward = self.kernel_arguments(target)
+        torque = np.empty(3)
+        adrc_attitude_torque(
+            *controller, _floats(state.quaternion), _floats(state.angular_velocity), qd, feedforward, dt, torque
+        )
+        return torque
 
     def disturbance_estimates(self) -> dict[str, float]:
         """Each axis's ESO z3: total angular-acceleration disturbance in rad/s^2."""
         return {axis: channel.disturbance for axis, channel in zip(AXES, self.channels, strict=True)}
+
+
+def _floats(values) -> np.ndarray:
+    """A contiguous float64 copy-free view where possible, as the kernels take their vectors."""
+    return np.ascontiguousarray(values, dtype=np.float64)
