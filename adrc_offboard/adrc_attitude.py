@@ -232,9 +232,12 @@ class AdrcAttitudeController:
     def kernel_arguments(self, target: AttitudeTarget) -> tuple:
         """`adrc_attitude_torque`'s first arguments for this controller (channel_params .. use_measured_rate)
         and, after the measurement, the target's quaternion and feed-forward rates: (before, qd, feedforward)."""
+        qd = _floats(target.quaternion)
         feedforward = _NO_FEEDFORWARD if target.body_rates is None else _floats(target.body_rates)
+        if qd.shape != (4,) or feedforward.shape != (3,):  # the kernel reads them unchecked
+            raise ValueError(f"an attitude target needs a quaternion of 4 and body rates of 3, got {target}")
         state = (self.channel_params, self.channel_states, self.loop_state, self._actuator_step, self._use_rate)
-        return state, _floats(target.quaternion), feedforward
+        return state, qd, feedforward
 
     def update(self, target: AttitudeTarget, state: VehicleState, dt: float) -> np.ndarray:
         """Torque for this step. The channels are fixed-step at 1/rate_hz (the paper's discrete

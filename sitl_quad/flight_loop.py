@@ -4,13 +4,17 @@
 PX4-style position loop and the attitude loop MC_ATT_CTRL selects among the injected factories. Each outer
 tick (50 Hz by default) the vehicle asks it for the tick's attitude target (`outer_target`) and then to fly
 that target for one outer period (`fly`): `attitude_steps` attitude updates, each holding its rotor commands
-for `physics_steps` RK4 steps. Modes, arming and failsafes are the vehicle's business, not this module's.
+for `physics_steps` RK4 steps. An attitude loop that can fly those steps in one compiled call does: the PID
+(Simulator.run_pid_attitude_steps) and any injected loop with a `run_steps` method (`CompiledAttitudeLoop`,
+e.g. sitl_quad.attitude_loops' ADRC); any other is stepped from Python. Modes, arming and failsafes are the
+vehicle's business, not this module's.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -30,6 +34,26 @@ IDLE_THROTTLE = 0.05  # armed on the ground: rotors spin at idle, as PX4 does
 
 # Builds an attitude loop for a configuration at a loop rate (Hz); see sitl_quad.attitude_loops.
 AttitudeLoopFactory = Callable[[VehicleConfig, float], AttitudeController]
+
+
+@runtime_checkable
+class CompiledAttitudeLoop(Protocol):
+    """An attitude loop that flies one outer period in one compiled call, with the same results as its
+    update() stepped from Python (Simulator.run_attitude_steps with its own inner loop)."""
+
+    def run_steps(
+        self,
+        sim: Simulator,
+        mixer: Mixer,
+        target: AttitudeTarget,
+        thrust_n: float,
+        attitude_steps: int,
+        physics_steps: int,
+        attitude_dt: float,
+        apply_torque: bool = True,
+    ) -> bool:
+        """Fly the steps toward target; whether the mixer saturated at any of them."""
+        ...
 
 
 def builtin_pid_loop(config: VehicleConfig, rate_hz: float) -> AttitudeController:
@@ -141,18 +165,13 @@ class FlightLoop:
         if source == "off":  # rotors commanded to 0 all tick: the physics steps in one batch, same result
             self.sim.set_rotor_commands(np.zeros(4))
             self.sim.step(self.attitude_steps * self.physics_steps)
-        elif isinstance(self.attitude, PidAttitudeController):
-            # the steps of the loop below in one compiled call ("idle": the PID runs, its torque unused)
-            saturated = self.sim.run_pid_attitude_steps(
-                self.attitude,
-                self.mixer,
-                target,
-                thrust_n,
-                self.attitude_steps,
-                self.physics_steps,
-                self.attitude_dt,
-                apply_torque=source != "idle",
-            )
+        elif isinstance(self.attitude, PidAttitudeController | CompiledAttitudeLoop):
+            # the steps of the loop below in one compiled call ("idle": the law runs, its torque unused)
+            steps = (self.mixer, target, thrust_n, self.attitude_steps, self.physics_steps, self.attitude_dt)
+            if isinstance(self.attitude, PidAttitudeController):
+                saturated = self.sim.run_pid_attitude_steps(self.attitude, *steps, apply_torque=source != "idle")
+            else:
+                saturated = self.attitude.run_steps(self.sim, *steps, apply_torque=source != "idle")
         else:
             for _ in range(self.attitude_steps):
                 measured = self.sim.measure()

@@ -1,11 +1,22 @@
-"""The vehicle's inner loop with the PID attitude controller, compiled as one numba kernel.
+"""The vehicle's inner loop compiled as one numba kernel per outer tick: attitude steps and physics.
 
-One outer tick (50 Hz) holds several attitude steps (250 Hz), each: measure the state (sensor noise), the PID
+One outer tick (50 Hz) holds several attitude steps (250 Hz), each: measure the state (sensor noise), the
 attitude law, the mixer, clip the rotor commands, then several RK4 physics steps with wind and disturbances.
 Stepping that from Python costs ~70 us per attitude step in call overhead; here it is one call per tick.
-Every law is the kernel its own module defines (add_sensor_noise, pid_attitude_torque, mix, advance): this
-module only orders the calls, exactly as Vehicle.tick() does step by step, so both paths give the same
-numbers. Simulator.run_pid_attitude_steps prepares the random draws and keeps the books.
+Every law is the kernel its own module defines (add_sensor_noise, the attitude law, mix, advance): this module
+only orders the calls, exactly as FlightLoop.fly() does step by step, so both paths give the same numbers.
+`pid_inner_loop` flies the vehicle's PID; an injected attitude loop brings its own loop of the same signature
+built on `measure` and `fly_attitude_step` (sitl_quad.attitude_loops for the ADRC: the vehicle imports no
+controller package). Simulator.run_attitude_steps prepares the random draws and keeps the books.
+
+An inner loop's signature: (physics, sensor_noise, law, attitude_dt, thrust_n, apply_torque, attitude_steps,
+physics_steps, saturated) -> (attitude steps completed, whether the body ends on the ground). physics is the
+tuple `Simulator.physics_arguments` gives (advance()'s arguments, turbulence_noise and disturbance_samples
+covering all the steps, step_index the first step's number); sensor_noise has one row per attitude step (see
+Sensors.noise); law is the attitude law's own arguments (the controller's gains and state, the target);
+thrust_n is the collective thrust (N); apply_torque False mixes zero torque (the law still runs, its output
+unused); saturated[k] is set to whether the mixer saturated at step k. A step stops the loop, before its rotor
+commands and physics, when the mixer's input is not finite.
 
 numba's on-disk cache is invalidated by edits to a kernel's own file only, not to the kernels it calls from
 other modules: after changing one of those, delete sitl_quad/__pycache__/*.nbi (tests/test_sitl_fused_loop.py
@@ -34,24 +45,64 @@ def disturbance_samples_due(first: int, steps: int, steps_per_sample: int) -> in
 
 
 @njit(cache=True)
+def measure(physics: tuple, sensor_noise: np.ndarray, k: int, measured: np.ndarray) -> None:
+    """Attitude step k's measurement of the body (its row of sensor noise added) into measured."""
+    add_sensor_noise(physics[0], sensor_noise[k], measured)
+
+
+@njit(cache=True)
+def fly_attitude_step(
+    physics: tuple,
+    k: int,
+    physics_steps: int,
+    thrust_n: float,
+    torque: np.ndarray,
+    apply_torque: bool,
+    saturated: np.ndarray,
+) -> tuple[bool, bool]:
+    """The rest of attitude step k once the law gave its torque: mix (zero torque unless apply_torque), clip the
+    rotor commands, physics_steps RK4 steps. Returns (whether the mixer's input was finite, whether the body
+    is on the ground after the step); with a non-finite input nothing is commanded or stepped (and the second
+    value means nothing)."""
+    state, omega_cmd, params, wind_params, turbulence, turbulence_noise = physics[:6]
+    disturbance, disturbance_samples, steps_per_sample, step_index, dt, info = physics[6:]
+    if not apply_torque:
+        torque[:] = 0.0
+    if not (
+        math.isfinite(thrust_n) and math.isfinite(torque[0]) and math.isfinite(torque[1]) and math.isfinite(torque[2])
+    ):
+        return False, False
+    omega = np.empty(4)
+    saturated[k] = mix(thrust_n, torque[0], torque[1], torque[2], params, omega)
+    lo, hi = params[P_OMEGA_MIN], params[P_OMEGA_MAX]
+    for i in range(4):
+        omega_cmd[i] = min(max(omega[i], lo), hi)
+    first = step_index + k * physics_steps
+    sample = disturbance_samples_due(step_index, k * physics_steps, steps_per_sample)  # drawn by earlier steps
+    samples = disturbance_samples_due(first, physics_steps, steps_per_sample)
+    on_ground = advance(
+        state,
+        omega_cmd,
+        params,
+        wind_params,
+        turbulence,
+        turbulence_noise[k * physics_steps : (k + 1) * physics_steps],
+        disturbance,
+        disturbance_samples[sample : sample + samples],
+        steps_per_sample,
+        first,
+        dt,
+        physics_steps,
+        info,
+    )
+    return True, on_ground
+
+
+@njit(cache=True)
 def pid_inner_loop(
-    state: np.ndarray,
-    omega_cmd: np.ndarray,
-    params: np.ndarray,
-    wind_params: np.ndarray,
-    turbulence: np.ndarray,
-    turbulence_noise: np.ndarray,
-    disturbance: np.ndarray,
-    disturbance_samples: np.ndarray,
-    steps_per_sample: int,
-    step_index: int,
-    dt: float,
-    info: np.ndarray,
+    physics: tuple,
     sensor_noise: np.ndarray,
-    gains: np.ndarray,
-    pid_state: np.ndarray,
-    qd: np.ndarray,
-    feedforward: np.ndarray,
+    law: tuple,
     attitude_dt: float,
     thrust_n: float,
     apply_torque: bool,
@@ -59,52 +110,17 @@ def pid_inner_loop(
     physics_steps: int,
     saturated: np.ndarray,
 ) -> tuple[int, bool]:
-    """Run attitude_steps attitude steps of physics_steps physics steps each, from step number step_index.
-
-    The arguments are advance()'s (turbulence_noise and disturbance_samples covering all the steps),
-    sensor_noise (one row per attitude step, see Sensors.noise), the PID's gains and state and the target
-    quaternion qd with feed-forward rates, the collective thrust thrust_n (N), and apply_torque: False
-    mixes zero torque (the PID still runs, its output unused). saturated[k] is set to whether the mixer
-    saturated at step k. Returns (attitude steps completed, whether the body ends on the ground): a step stops
-    the loop, before its rotor commands and physics, when the mixer's input is not finite.
-    """
+    """The inner loop (module docstring) with the PID attitude law; law = (gains, PID state, target quaternion,
+    feed-forward body rates)."""
+    gains, pid_state, qd, feedforward = law
     measured = np.empty(STATE_SIZE)
     torque = np.empty(3)
-    omega = np.empty(4)
-    lo, hi = params[P_OMEGA_MIN], params[P_OMEGA_MAX]
-    on_ground = state[2] >= 0.0
-    sample = 0
+    on_ground = physics[0][2] >= 0.0
     for k in range(attitude_steps):
-        add_sensor_noise(state, sensor_noise[k], measured)
+        measure(physics, sensor_noise, k, measured)
         pid_attitude_torque(gains, pid_state, measured[6:10], measured[10:13], qd, feedforward, attitude_dt, torque)
-        if not apply_torque:
-            torque[:] = 0.0
-        if not (
-            math.isfinite(thrust_n)
-            and math.isfinite(torque[0])
-            and math.isfinite(torque[1])
-            and math.isfinite(torque[2])
-        ):
+        finite, landed = fly_attitude_step(physics, k, physics_steps, thrust_n, torque, apply_torque, saturated)
+        if not finite:
             return k, on_ground
-        saturated[k] = mix(thrust_n, torque[0], torque[1], torque[2], params, omega)
-        for i in range(4):
-            omega_cmd[i] = min(max(omega[i], lo), hi)
-        first = step_index + k * physics_steps
-        samples = disturbance_samples_due(first, physics_steps, steps_per_sample)
-        on_ground = advance(
-            state,
-            omega_cmd,
-            params,
-            wind_params,
-            turbulence,
-            turbulence_noise[k * physics_steps : (k + 1) * physics_steps],
-            disturbance,
-            disturbance_samples[sample : sample + samples],
-            steps_per_sample,
-            first,
-            dt,
-            physics_steps,
-            info,
-        )
-        sample += samples
+        on_ground = landed
     return attitude_steps, on_ground

@@ -3,13 +3,15 @@
 Pure computation, no I/O. One seed fixes everything random: it is split into independent streams for the
 wind, the disturbance terms and the sensors, so e.g. changing the sensor noise does not change the wind.
 Results do not depend on how the steps are batched (step(4) twice equals step(1) eight times).
-``run_pid_attitude_steps`` runs the vehicle's 250 Hz loop with the PID attitude controller in one compiled
-call (sitl_quad.inner_loop), with the same results as stepping it from Python.
+``run_attitude_steps`` runs the vehicle's 250 Hz loop in one compiled call (an inner loop as sitl_quad.inner_loop
+describes: ``run_pid_attitude_steps`` with the PID attitude controller), with the same results as stepping it
+from Python.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -23,6 +25,10 @@ from sitl_quad.wind import WindConfig, WindModel
 from uavcore.airframe import Airframe, ModelParameterError
 from uavcore.rotation import quat_from_euler
 from uavcore.state import AttitudeTarget, VehicleState
+
+# (physics, sensor_noise, law, attitude_dt, thrust_n, apply_torque, attitude_steps, physics_steps, saturated)
+# -> (attitude steps completed, on the ground): see sitl_quad.inner_loop
+InnerLoop = Callable[..., tuple[int, bool]]
 
 
 class Simulator:
@@ -200,10 +206,28 @@ class Simulator:
         attitude_dt: float,
         apply_torque: bool = True,
     ) -> bool:
-        """The attitude loop in one compiled call (sitl_quad.inner_loop): attitude_steps times measure(),
-        controller.update(target, measured, attitude_dt), mixer.rotor_commands(thrust_n, torque) (zero torque
-        unless apply_torque), set_rotor_commands and step(physics_steps). Same results as those calls, the
-        same random streams; the controller's state and the mixer's counters advance as they would.
+        """`run_attitude_steps` with the vehicle's PID (sitl_quad.inner_loop.pid_inner_loop)."""
+        law = (controller.kernel_gains, controller.kernel_state, *controller.target_arrays(target))
+        return self.run_attitude_steps(
+            pid_inner_loop, law, mixer, thrust_n, attitude_steps, physics_steps, attitude_dt, apply_torque
+        )
+
+    def run_attitude_steps(
+        self,
+        inner_loop: InnerLoop,
+        law: tuple,
+        mixer: Mixer,
+        thrust_n: float,
+        attitude_steps: int,
+        physics_steps: int,
+        attitude_dt: float,
+        apply_torque: bool = True,
+    ) -> bool:
+        """The attitude loop in one compiled call (an inner loop as sitl_quad.inner_loop describes, law its
+        attitude law's arguments): attitude_steps times measure(), the controller's update(target, measured,
+        attitude_dt), mixer.rotor_commands(thrust_n, torque) (zero torque unless apply_torque),
+        set_rotor_commands and step(physics_steps). Same results as those calls, the same random streams; the
+        controller's state and the mixer's counters advance as they would.
         Returns whether the mixer saturated at any of the steps.
 
         Raises ModelParameterError for a non-finite mixer input, after the steps before it (the sensor-noise,
@@ -218,10 +242,7 @@ class Simulator:
         n = attitude_steps * physics_steps
         first = self._step_index - self._epoch  # the disturbances' own clock
         period = self._steps_per_sample
-        samples = disturbance_samples_due(first, n, period)
-        qd, feedforward = controller.target_arrays(target)
-        saturated = np.zeros(attitude_steps, dtype=np.bool_)
-        completed, on_ground = pid_inner_loop(
+        physics = (
             self._state,
             self._omega_cmd,
             self._params,
@@ -229,21 +250,22 @@ class Simulator:
             self.wind.turbulence,
             self.wind.noise(n),
             self._disturbance_now,
-            self.disturbance.draw(samples),
-            period,
-            first,
+            self.disturbance.draw(disturbance_samples_due(first, n, period)),
+            int(period),
+            int(first),
             self.dt,
             self._info,
+        )
+        saturated = np.zeros(attitude_steps, dtype=np.bool_)
+        completed, on_ground = inner_loop(
+            physics,
             self.sensors.noise(attitude_steps),
-            controller.kernel_gains,
-            controller.kernel_state,
-            qd,
-            feedforward,
+            law,
             float(attitude_dt),
             float(thrust_n),
             bool(apply_torque),
-            attitude_steps,
-            physics_steps,
+            int(attitude_steps),
+            int(physics_steps),
             saturated,
         )
         self._step_index += completed * physics_steps

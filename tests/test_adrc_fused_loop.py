@@ -1,0 +1,121 @@
+"""The vehicle's compiled ADRC inner loop (sitl_quad.attitude_loops: one numba call per outer tick) flies bit for
+bit what stepping AdrcAttitudeController.update, the mixer and the physics from Python flies: same torques, same
+body, same random streams, same observer states; the vehicle takes the compiled path when MC_ATT_CTRL=1."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from test_sitl_fused_loop import (
+    AIRFRAME,
+    ATTITUDE_DT,
+    ATTITUDE_STEPS,
+    DISTURBANCE,
+    PHYSICS_STEPS,
+    WIND,
+    schedule,
+    step_by_step,
+)
+from test_sitl_vehicle import HOME, short_mission
+
+from adrc_offboard.adrc_attitude import AdrcAttitudeController
+from sitl_quad.attitude_loops import CompiledAdrcAttitudeLoop, attitude_loops
+from sitl_quad.config import AttitudeControllerKind, ControlConfig, VehicleConfig
+from sitl_quad.flight_loop import CompiledAttitudeLoop
+from sitl_quad.rotors import Mixer
+from sitl_quad.sensors import SensorNoise
+from sitl_quad.simulator import Simulator
+from sitl_quad.vehicle import Vehicle
+from uavcore.airframe import ModelParameterError
+from uavcore.state import AttitudeTarget
+
+RATE_HZ = 1.0 / ATTITUDE_DT
+
+
+def snapshot(sim: Simulator, controller: AdrcAttitudeController) -> np.ndarray:
+    s = sim.state
+    return np.concatenate(
+        [
+            s.position,
+            s.velocity,
+            s.quaternion,
+            s.angular_velocity,
+            s.rotor_speeds,
+            sim.rotor_commands,
+            *sim.last_disturbance.values(),
+            controller.channel_states.ravel(),
+            controller.loop_state,
+            sim.measure().position,  # the next measurement: the noise stream's position
+        ]
+    )
+
+
+def test_compiled_adrc_loop_equals_stepping_update_from_python_bit_for_bit():
+    def make():
+        sim = Simulator(AIRFRAME, wind=WIND, disturbance=DISTURBANCE, sensor_noise=SensorNoise(), seed=11)
+        return sim, CompiledAdrcAttitudeLoop.for_airframe(AIRFRAME, rate_hz=RATE_HZ), Mixer(AIRFRAME)
+
+    fused, stepped = make(), make()
+    saturated_ticks, ground_ticks = 0, 0
+    for target, thrust_n, apply_torque in schedule():  # idle, lift-off, steps with yaw feed-forward, saturation
+        sim_a, controller_a, mixer_a = fused
+        a = controller_a.run_steps(
+            sim_a, mixer_a, target, thrust_n, ATTITUDE_STEPS, PHYSICS_STEPS, ATTITUDE_DT, apply_torque=apply_torque
+        )
+        b = step_by_step(*stepped, target, thrust_n, apply_torque)
+        assert a == b
+        saturated_ticks += a
+        sim_b, controller_b, mixer_b = stepped
+        np.testing.assert_array_equal(snapshot(sim_a, controller_a), snapshot(sim_b, controller_b))
+        assert sim_a.step_index == sim_b.step_index and sim_a.on_ground == sim_b.on_ground
+        assert (mixer_a.calls, mixer_a.saturated_steps) == (mixer_b.calls, mixer_b.saturated_steps)
+        ground_ticks += sim_a.on_ground
+    assert 0 < ground_ticks < len(schedule()) and saturated_ticks > 0
+    assert np.all(fused[1].channel_states[:, 0] == 1.0)  # every channel started
+
+
+def _vehicle(attitude_loops_given) -> Vehicle:
+    config = VehicleConfig(wind=WIND, disturbance=DISTURBANCE, control=ControlConfig(AttitudeControllerKind.ADRC))
+    vehicle = Vehicle(config, home=HOME, seed=5, attitude_loops=attitude_loops_given)
+    vehicle.set_mission(short_mission())
+    return vehicle
+
+
+def test_vehicle_flies_the_same_with_the_compiled_adrc_loop_and_step_by_step():
+    def python_adrc(config: VehicleConfig, rate_hz: float) -> AdrcAttitudeController:
+        return AdrcAttitudeController.for_airframe(config.airframe, rate_hz=rate_hz)  # no run_steps: stepped
+
+    fused = _vehicle(attitude_loops())
+    stepped = _vehicle({AttitudeControllerKind.ADRC: python_adrc})
+    assert isinstance(fused.attitude, CompiledAttitudeLoop) and not isinstance(stepped.attitude, CompiledAttitudeLoop)
+    sources = set()
+    for tick in range(300):  # 6 s: 0.2 s disarmed, 1 s spool-up at idle, then the climb toward the waypoint
+        if tick == 10:
+            for vehicle in (fused, stepped):
+                assert vehicle.arm() == 0 and vehicle.start_mission() == 0
+        a, b = fused.tick(), stepped.tick()
+        assert a.source == b.source
+        sources.add(a.source)
+        for x, y in [(a.truth, b.truth), (a.estimate, b.estimate)]:
+            for name in ("position", "velocity", "quaternion", "angular_velocity", "rotor_speeds"):
+                np.testing.assert_array_equal(getattr(x, name), getattr(y, name))
+    assert sources == {"off", "idle", "builtin"}
+    assert -fused.sim.state.position[2] > 2.0  # it did fly
+    np.testing.assert_array_equal(fused.attitude.channel_states, stepped.attitude.channel_states)
+    assert fused.attitude.disturbance_estimates() == stepped.attitude.disturbance_estimates()
+    assert (fused.mixer.calls, fused.mixer.saturated_steps) == (stepped.mixer.calls, stepped.mixer.saturated_steps)
+
+
+def test_compiled_adrc_loop_refuses_non_finite_thrust_and_malformed_targets():
+    sim, mixer = Simulator(AIRFRAME, position=(0.0, 0.0, -10.0)), Mixer(AIRFRAME)
+    controller = CompiledAdrcAttitudeLoop.for_airframe(AIRFRAME, rate_hz=RATE_HZ)
+    level = AttitudeTarget(np.array([1.0, 0.0, 0.0, 0.0]), 0.5)
+    with pytest.raises(ModelParameterError, match="finite"):
+        controller.run_steps(sim, mixer, level, math.nan, ATTITUDE_STEPS, PHYSICS_STEPS, ATTITUDE_DT)
+    assert sim.step_index == 0 and mixer.calls == 0  # stopped before the first rotor command
+    with pytest.raises(ValueError, match="body rates of 3"):
+        controller.run_steps(
+            sim, mixer, AttitudeTarget(level.quaternion, 0.5, np.zeros(2)), 10.0, 5, PHYSICS_STEPS, ATTITUDE_DT
+        )
