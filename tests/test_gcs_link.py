@@ -56,7 +56,9 @@ class ScriptedVehicle(threading.Thread):
         self.last_periodic = 0.0
 
     def boot_ms(self) -> int:
-        return int((time.monotonic() - self.boot_start) * 1000) + 60_000
+        # never below 0: a test moving boot_start while this thread computes would otherwise pack a negative
+        # uint32, kill the thread, and leave the link nothing to detect a reboot from
+        return max(0, int((time.monotonic() - self.boot_start) * 1000) + 60_000)
 
     def send(self, message) -> None:
         if self.peer is not None and not self.silent:
