@@ -20,7 +20,8 @@ from test_sitl_fused_loop import (
 )
 from test_sitl_vehicle import HOME, short_mission
 
-from adrc_offboard.adrc_attitude import AdrcAttitudeController
+from adrc_offboard.adrc import AdrcChannel
+from adrc_offboard.adrc_attitude import AdrcAttitudeController, attitude_errors
 from sitl_quad.attitude_loops import CompiledAdrcAttitudeLoop, attitude_loops
 from sitl_quad.config import AttitudeControllerKind, ControlConfig, VehicleConfig
 from sitl_quad.flight_loop import CompiledAttitudeLoop
@@ -29,7 +30,8 @@ from sitl_quad.sensors import SensorNoise
 from sitl_quad.simulator import Simulator
 from sitl_quad.vehicle import Vehicle
 from uavcore.airframe import ModelParameterError
-from uavcore.state import AttitudeTarget
+from uavcore.rotation import quat_from_euler
+from uavcore.state import AttitudeTarget, VehicleState
 
 RATE_HZ = 1.0 / ATTITUDE_DT
 
@@ -119,3 +121,30 @@ def test_compiled_adrc_loop_refuses_non_finite_thrust_and_malformed_targets():
         controller.run_steps(
             sim, mixer, AttitudeTarget(level.quaternion, 0.5, np.zeros(2)), 10.0, 5, PHYSICS_STEPS, ATTITUDE_DT
         )
+
+
+def test_the_attitude_kernel_runs_the_channel_kernels_the_outer_loop_runs():
+    """adrc_attitude_torque against three AdrcChannel objects stepped from Python with the same errors, angles and
+    actuator model (the module's docstring): equal torques and observer states. With a stale numba cache of
+    adrc_attitude.py (edits to adrc.py's kernels do not invalidate it) this fails: delete __pycache__/*.nbi."""
+    controller = AdrcAttitudeController.for_airframe(AIRFRAME, rate_hz=RATE_HZ)
+    channels = [AdrcChannel(channel.parameters, channel.h) for channel in controller.channels]
+    lag = 1.0 - math.exp(-ATTITUDE_DT / AIRFRAME.motor_time_constant)
+    theta, actuator = np.zeros(3), np.zeros(3)
+    rng = np.random.default_rng(3)
+    for step in range(200):
+        target = AttitudeTarget(quat_from_euler(*rng.normal(0.0, 0.3, 3)), 0.5, rng.normal(0.0, 0.2, 3))
+        q = quat_from_euler(*rng.normal(0.0, 0.3, 3))
+        rates = rng.normal(0.0, 0.5, 3)
+        state = VehicleState(t=step * ATTITUDE_DT, quaternion=q, angular_velocity=rates)
+        torque = controller.update(target, state, ATTITUDE_DT)
+        errors = attitude_errors(q, target.quaternion)
+        for i, channel in enumerate(channels):
+            reference_rate = target.body_rates[2] if i == 2 else 0.0
+            u = channel.control(theta[i] + errors[i], theta[i], reference_rate, 0.0, rates[i])
+            actuator[i] += (u - actuator[i]) * lag
+            channel.observe_applied(actuator[i])
+            theta[i] += rates[i] * ATTITUDE_DT
+            assert torque[i] == u
+    for channel, ours in zip(channels, controller.channels, strict=True):
+        assert channel.state() == ours.state()
