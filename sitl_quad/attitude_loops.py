@@ -5,11 +5,10 @@ these factories, as RotorPy injects controllers into its environment, so the veh
 no controller package. The ADRC loop is `adrc_offboard`'s control core (eq. 9-13 serving as the cascade's
 inner loop); the PID is the vehicle's built-in one.
 
-The ADRC loop flies each outer tick in one compiled call, as the PID does (sitl_quad.inner_loop):
-`adrc_inner_loop` orders the same kernels FlightLoop.fly() calls step by step (measure, the ADRC's
-`adrc_attitude_torque`, mix and physics), and `CompiledAdrcAttitudeLoop.run_steps` is what the flight loop
-calls. numba's cache does not see edits to adrc_offboard's kernels: after one, delete
-sitl_quad/__pycache__/*.nbi.
+The ADRC loop flies each outer tick in one compiled call, as the PID does (sitl_quad.inner_loop): `adrc_inner_loop`
+orders the same kernels FlightLoop.fly() calls step by step (measure, the ADRC's `adrc_attitude_torque`, mix and
+physics), and `CompiledAdrcAttitudeLoop` hands it to the flight loop. numba's cache does not see edits to
+adrc_offboard's kernels: after one, delete sitl_quad/__pycache__/*.nbi.
 """
 
 from __future__ import annotations
@@ -21,11 +20,8 @@ from adrc_offboard.adrc_attitude import AdrcAttitudeController, adrc_attitude_to
 from sitl_quad.config import AttitudeControllerKind, VehicleConfig
 from sitl_quad.inner_loop import fly_attitude_step, measure
 from sitl_quad.rigid_body import STATE_SIZE
-from sitl_quad.rotors import Mixer
-from sitl_quad.simulator import Simulator
 from sitl_quad.vehicle import AttitudeLoopFactory, builtin_pid_loop
 from uavcore.control import AttitudeController
-from uavcore.state import AttitudeTarget
 
 
 @njit(cache=True)
@@ -71,30 +67,10 @@ def adrc_inner_loop(
 
 
 class CompiledAdrcAttitudeLoop(AdrcAttitudeController):
-    """The ADRC attitude controller with its outer tick as one compiled call (`adrc_inner_loop`)."""
+    """The ADRC attitude controller with its outer tick as one compiled call (a `CompiledAttitudeLoop`): its
+    kernel_arguments(target) are `adrc_inner_loop`'s law."""
 
-    def run_steps(
-        self,
-        sim: Simulator,
-        mixer: Mixer,
-        target: AttitudeTarget,
-        thrust_n: float,
-        attitude_steps: int,
-        physics_steps: int,
-        attitude_dt: float,
-        apply_torque: bool = True,
-    ) -> bool:
-        """Simulator.run_attitude_steps with this controller: the same as update() step by step."""
-        return sim.run_attitude_steps(
-            adrc_inner_loop,
-            self.kernel_arguments(target),
-            mixer,
-            thrust_n,
-            attitude_steps,
-            physics_steps,
-            attitude_dt,
-            apply_torque,
-        )
+    inner_loop = staticmethod(adrc_inner_loop)
 
 
 def adrc_attitude_loop(config: VehicleConfig, rate_hz: float) -> AttitudeController:

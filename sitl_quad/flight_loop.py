@@ -1,13 +1,13 @@
 """The tick's control path: the outer loop's attitude target, the 250 Hz attitude loop, the 1 kHz physics.
 
 `FlightLoop` owns the simulated body (Simulator), the mixer and the two loops of the cascade: the built-in
-PX4-style position loop and the attitude loop MC_ATT_CTRL selects among the injected factories. Each outer
-tick (50 Hz by default) the vehicle asks it for the tick's attitude target (`outer_target`) and then to fly
-that target for one outer period (`fly`): `attitude_steps` attitude updates, each holding its rotor commands
-for `physics_steps` RK4 steps. An attitude loop that can fly those steps in one compiled call does: the PID
-(Simulator.run_pid_attitude_steps) and any injected loop with a `run_steps` method (`CompiledAttitudeLoop`,
-e.g. sitl_quad.attitude_loops' ADRC); any other is stepped from Python. Modes, arming and failsafes are the
-vehicle's business, not this module's.
+PX4-style position loop and the attitude loop MC_ATT_CTRL selects among the injected factories. Each outer tick
+(50 Hz by default) the vehicle asks it for the tick's attitude target (`outer_target`) and then to fly that target for
+one outer period (`fly`): `attitude_steps` attitude updates, each holding its rotor commands for `physics_steps`
+RK4 steps. An attitude loop that can fly those steps in one compiled call does: the PID
+(Simulator.run_pid_attitude_steps) and any injected loop that brings its own compiled inner loop
+(`CompiledAttitudeLoop`, e.g. sitl_quad.attitude_loops' ADRC); any other is stepped from Python. Modes, arming and
+failsafes are the vehicle's business, not this module's.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from sitl_quad.attitude_pid import PidAttitudeController
 from sitl_quad.config import AttitudeControllerKind, VehicleConfig
 from sitl_quad.position_control import PidPositionController
 from sitl_quad.rotors import Mixer
-from sitl_quad.simulator import Simulator
+from sitl_quad.simulator import InnerLoop, Simulator
 from uavcore.airframe import ModelParameterError
 from uavcore.control import AttitudeController
 from uavcore.rotation import euler_from_quat
@@ -38,21 +38,14 @@ AttitudeLoopFactory = Callable[[VehicleConfig, float], AttitudeController]
 
 @runtime_checkable
 class CompiledAttitudeLoop(Protocol):
-    """An attitude loop that flies one outer period in one compiled call, with the same results as its
-    update() stepped from Python (Simulator.run_attitude_steps with its own inner loop)."""
+    """An attitude loop that flies one outer period in one compiled call: `inner_loop`, with the signature
+    sitl_quad.inner_loop describes, run by Simulator.run_attitude_steps on `kernel_arguments(target)` (its law's
+    arguments: its gains and state, the target), with the same results as its update() stepped from Python."""
 
-    def run_steps(
-        self,
-        sim: Simulator,
-        mixer: Mixer,
-        target: AttitudeTarget,
-        thrust_n: float,
-        attitude_steps: int,
-        physics_steps: int,
-        attitude_dt: float,
-        apply_torque: bool = True,
-    ) -> bool:
-        """Fly the steps toward target; whether the mixer saturated at any of them."""
+    inner_loop: InnerLoop
+
+    def kernel_arguments(self, target: AttitudeTarget) -> tuple:
+        """The inner loop's `law` argument for this target."""
         ...
 
 
@@ -167,11 +160,12 @@ class FlightLoop:
             self.sim.step(self.attitude_steps * self.physics_steps)
         elif isinstance(self.attitude, PidAttitudeController | CompiledAttitudeLoop):
             # the steps of the loop below in one compiled call ("idle": the law runs, its torque unused)
-            steps = (self.mixer, target, thrust_n, self.attitude_steps, self.physics_steps, self.attitude_dt)
+            steps = (thrust_n, self.attitude_steps, self.physics_steps, self.attitude_dt, source != "idle")
             if isinstance(self.attitude, PidAttitudeController):
-                saturated = self.sim.run_pid_attitude_steps(self.attitude, *steps, apply_torque=source != "idle")
+                saturated = self.sim.run_pid_attitude_steps(self.attitude, self.mixer, target, *steps)
             else:
-                saturated = self.attitude.run_steps(self.sim, *steps, apply_torque=source != "idle")
+                law = self.attitude.kernel_arguments(target)
+                saturated = self.sim.run_attitude_steps(self.attitude.inner_loop, law, self.mixer, *steps)
         else:
             for _ in range(self.attitude_steps):
                 measured = self.sim.measure()

@@ -5,6 +5,7 @@ body, same random streams, same observer states; the vehicle takes the compiled 
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -18,11 +19,12 @@ from test_sitl_fused_loop import (
     schedule,
     step_by_step,
 )
+from test_sitl_fused_loop import snapshot as pid_loop_snapshot
 from test_sitl_vehicle import HOME, short_mission
 
 from adrc_offboard.adrc import AdrcChannel
 from adrc_offboard.adrc_attitude import AdrcAttitudeController, attitude_errors
-from sitl_quad.attitude_loops import CompiledAdrcAttitudeLoop, attitude_loops
+from sitl_quad.attitude_loops import CompiledAdrcAttitudeLoop, adrc_inner_loop, attitude_loops
 from sitl_quad.config import AttitudeControllerKind, ControlConfig, VehicleConfig
 from sitl_quad.flight_loop import CompiledAttitudeLoop
 from sitl_quad.rotors import Mixer
@@ -37,21 +39,9 @@ RATE_HZ = 1.0 / ATTITUDE_DT
 
 
 def snapshot(sim: Simulator, controller: AdrcAttitudeController) -> np.ndarray:
-    s = sim.state
-    return np.concatenate(
-        [
-            s.position,
-            s.velocity,
-            s.quaternion,
-            s.angular_velocity,
-            s.rotor_speeds,
-            sim.rotor_commands,
-            *sim.last_disturbance.values(),
-            controller.channel_states.ravel(),
-            controller.loop_state,
-            sim.measure().position,  # the next measurement: the noise stream's position
-        ]
-    )
+    """test_sitl_fused_loop's snapshot (body, commands, disturbances, next noise) with the ADRC's state."""
+    state = np.concatenate([controller.channel_states.ravel(), controller.loop_state])
+    return pid_loop_snapshot(sim, SimpleNamespace(kernel_state=state))
 
 
 def test_compiled_adrc_loop_equals_stepping_update_from_python_bit_for_bit():
@@ -63,8 +53,15 @@ def test_compiled_adrc_loop_equals_stepping_update_from_python_bit_for_bit():
     saturated_ticks, ground_ticks = 0, 0
     for target, thrust_n, apply_torque in schedule():  # idle, lift-off, steps with yaw feed-forward, saturation
         sim_a, controller_a, mixer_a = fused
-        a = controller_a.run_steps(
-            sim_a, mixer_a, target, thrust_n, ATTITUDE_STEPS, PHYSICS_STEPS, ATTITUDE_DT, apply_torque=apply_torque
+        a = sim_a.run_attitude_steps(
+            controller_a.inner_loop,
+            controller_a.kernel_arguments(target),
+            mixer_a,
+            thrust_n,
+            ATTITUDE_STEPS,
+            PHYSICS_STEPS,
+            ATTITUDE_DT,
+            apply_torque,
         )
         b = step_by_step(*stepped, target, thrust_n, apply_torque)
         assert a == b
@@ -115,12 +112,11 @@ def test_compiled_adrc_loop_refuses_non_finite_thrust_and_malformed_targets():
     controller = CompiledAdrcAttitudeLoop.for_airframe(AIRFRAME, rate_hz=RATE_HZ)
     level = AttitudeTarget(np.array([1.0, 0.0, 0.0, 0.0]), 0.5)
     with pytest.raises(ModelParameterError, match="finite"):
-        controller.run_steps(sim, mixer, level, math.nan, ATTITUDE_STEPS, PHYSICS_STEPS, ATTITUDE_DT)
+        law = controller.kernel_arguments(level)
+        sim.run_attitude_steps(adrc_inner_loop, law, mixer, math.nan, ATTITUDE_STEPS, PHYSICS_STEPS, ATTITUDE_DT)
     assert sim.step_index == 0 and mixer.calls == 0  # stopped before the first rotor command
     with pytest.raises(ValueError, match="body rates of 3"):
-        controller.run_steps(
-            sim, mixer, AttitudeTarget(level.quaternion, 0.5, np.zeros(2)), 10.0, 5, PHYSICS_STEPS, ATTITUDE_DT
-        )
+        controller.kernel_arguments(AttitudeTarget(level.quaternion, 0.5, np.zeros(2)))
 
 
 def test_the_attitude_kernel_runs_the_channel_kernels_the_outer_loop_runs():
