@@ -3,6 +3,9 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+# Most integration tests wait on real-time flights (MAVSDK's example programs, test doubles), not on the CPU:
+# four workers on two cores finish the suite sooner than two, and every test polls with generous deadlines.
+TEST_WORKERS ?= 4
 # MAVSDK-Python 3.x (the gRPC wrapper bundling mavsdk_server) has the import name of the native mavsdk 4.x in
 # .venv, so it lives in a venv of its own: tests/test_mavsdk_examples.py runs its example programs with it.
 MAVSDK3_VENV  := .venv-mavsdk3
@@ -34,7 +37,7 @@ test: $(STAMP) $(MAVSDK3_STAMP) chromium
 	$(BIN)/python -m ruff check .
 	$(BIN)/python -m ruff format --check .
 	$(BIN)/lint-imports
-	$(BIN)/python -m pytest -n 2
+	$(BIN)/python -m pytest -n $(TEST_WORKERS)
 
 # The browser tests drive Debian's Chromium (Playwright's own browser download does not work here).
 chromium:

@@ -38,7 +38,7 @@ from uavcore.mission import MissionItem
 pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.timeout(600)]
 
 VEHICLE_SCRIPT = REPO / "tests" / "mavsdk_server_vehicle.py"
-SPEED_M_S = 40.0  # the double's speed: the 3 km reference tour in about 80 s of wall clock
+SPEED_M_S = 100.0  # the double's speed: the 3 km reference tour in about 30 s of wall clock (+ 13 s of dwells)
 CONNECT_S = 60.0
 FLIGHT_S = 400.0
 ACCEPTANCE_RADIUS_M = 2.0
