@@ -8,6 +8,8 @@ import math
 import signal
 import sys
 
+from uavcore.mavlink import VEHICLE_UDP_PORT
+
 EPILOG = """\
 examples:
   adrc-offboard                              # ADRC outer loop for the vehicle on udp 127.0.0.1:14540
@@ -35,9 +37,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--connect",
         type=parse_connect,
-        default=("127.0.0.1", 14540),
+        default=("127.0.0.1", VEHICLE_UDP_PORT),
         metavar="udpout:HOST:PORT",
-        help="the vehicle (default udpout:127.0.0.1:14540)",
+        help=f"the vehicle (default udpout:127.0.0.1:{VEHICLE_UDP_PORT})",
     )
     p.add_argument("--controller", choices=("adrc", "pid"), default="adrc", help="outer-loop law (default adrc)")
     p.add_argument(

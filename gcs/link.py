@@ -39,6 +39,7 @@ from uavcore.geofence import FenceError, Geofence
 from uavcore.mavlink import (
     GCS_COMPID,
     GCS_SYSID,
+    VEHICLE_UDP_PORT,
     Encoder,
     mavlink,
     new_parser,
@@ -200,7 +201,10 @@ class LinkManager:
     """Owns the connection to one vehicle. Create, `await start()`, use, `await stop()`."""
 
     def __init__(
-        self, url: str = "udpout://127.0.0.1:14540", heartbeat_timeout_s: float = 3.0, signing_key: bytes | None = None
+        self,
+        url: str = f"udpout://127.0.0.1:{VEHICLE_UDP_PORT}",
+        heartbeat_timeout_s: float = 3.0,
+        signing_key: bytes | None = None,
     ) -> None:
         self.connection = parse_connection(url)
         self.heartbeat_timeout_s = heartbeat_timeout_s

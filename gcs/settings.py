@@ -19,6 +19,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from uavcore.geodesy import DEFAULT_HOME
+from uavcore.mavlink import VEHICLE_UDP_PORT
 
 ENV_PREFIX = "BUOY_GCS_"
 DB_FILENAME = "gcs.sqlite"  # the database's name inside the data directory
@@ -47,7 +48,7 @@ class Settings(BaseSettings):
         env_prefix=ENV_PREFIX, env_nested_delimiter="__", env_ignore_empty=True, frozen=True, extra="forbid"
     )
 
-    vehicle_url: str = Field("udpout:127.0.0.1:14540", description="MAVLink connection to the vehicle")
+    vehicle_url: str = Field(f"udpout:127.0.0.1:{VEHICLE_UDP_PORT}", description="MAVLink connection to the vehicle")
     host: str = Field("127.0.0.1", description="address the service binds (loopback only by default)")
     port: int = Field(8000, description="HTTP port of the service and map page")
     data_dir: Path = Field(Path("data"), description="`up`'s data directory (database, logs, vehicle parameters)")

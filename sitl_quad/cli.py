@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from uavcore.geodesy import DEFAULT_HOME
-from uavcore.mavlink import parse_signing_key
+from uavcore.mavlink import VEHICLE_UDP_PORT, parse_signing_key
 
 EPILOG = """\
 examples:
@@ -60,7 +60,9 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
-    p.add_argument("--port", type=int, default=14540, help="UDP port to listen on (default 14540)")
+    p.add_argument(
+        "--port", type=int, default=VEHICLE_UDP_PORT, help=f"UDP port to listen on (default {VEHICLE_UDP_PORT})"
+    )
     p.add_argument(
         "--sysid",
         type=int,

@@ -45,6 +45,11 @@ ONBOARD_COMPUTER_COMPID = mavlink.MAV_COMP_ID_ONBOARD_COMPUTER  # 191: the offbo
 GCS_SYSID = 255  # QGroundControl's and MAVProxy's default ground-station system id
 GCS_COMPID = mavlink.MAV_COMP_ID_MISSIONPLANNER  # 190
 
+# Ports, as PX4 SITL uses them: the vehicle's API/offboard port (our vehicle listens here by default) and the
+# ground-control port vehicles and radios send to.
+VEHICLE_UDP_PORT = 14540
+GCS_UDP_PORT = 14550
+
 SIGNING_EPOCH_S = 1420070400  # MAVLink signing timestamps count 10 us units from 2015-01-01 00:00 UTC
 # Messages a keyed endpoint still accepts unsigned: radio status only, as PX4 does.
 _UNSIGNED_ALLOWED = {mavlink.MAVLINK_MSG_ID_RADIO_STATUS}

@@ -14,7 +14,7 @@ import socket
 import time
 from dataclasses import dataclass, field
 
-from uavcore.mavlink import Encoder, mavlink, new_parser, parse_datagram
+from uavcore.mavlink import VEHICLE_UDP_PORT, Encoder, mavlink, new_parser, parse_datagram
 
 log = logging.getLogger(__name__)
 
@@ -66,7 +66,7 @@ class UdpLink:
     def __init__(
         self,
         host: str = "127.0.0.1",
-        port: int = 14540,
+        port: int = VEHICLE_UDP_PORT,
         out_targets: list[tuple[str, int]] | None = None,
         sysid: int = 1,
         compid: int = 1,
