@@ -80,6 +80,18 @@ def make_controller(kind: str, rate_hz: float):
     return cls(mass=airframe.mass, g=airframe.g, max_thrust_n=airframe.max_thrust_n, rate_hz=rate_hz)
 
 
+def warm_up(controller, rate_hz: float) -> None:
+    """One throwaway update, then a reset: the control laws' numba kernels compile (or load from the cache) now,
+    before the node talks to the vehicle. A cold cache takes seconds, and a lockstep vehicle waits at most 2 s for a
+    peer that has been answering before it flies on without it."""
+    import numpy as np
+
+    from uavcore.state import TrajectorySetpoint, VehicleState
+
+    controller.update(TrajectorySetpoint(position=np.zeros(3)), VehicleState(), 1.0 / rate_hz)
+    controller.reset()
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     logging.basicConfig(
@@ -92,8 +104,10 @@ def main(argv: list[str] | None = None) -> int:
     from uavcore.mavlink import parse_signing_key
 
     key = parse_signing_key(args.signing_key) if args.signing_key is not None else None
+    controller = make_controller(args.controller, args.rate)
+    warm_up(controller, args.rate)
     node = OffboardNode(
-        make_controller(args.controller, args.rate),
+        controller,
         args.connect,
         args.rate,
         args.engage,
