@@ -191,6 +191,7 @@ async def fly_with_the_link(start_vehicle) -> None:
             if s.mission_seq is not None:
                 seqs.append(s.mission_seq)
             await asyncio.sleep(0.05)
+        seqs.append(s.mission_seq)  # the state that ended the loop (it can change between a sample and the check)
         assert s.mode == "AUTO.MISSION"
         # every item current in turn and reached in order; MAVSDK ends with seq = the number of items
         assert seqs == sorted(seqs) and seqs[-1] == len(items)
