@@ -30,7 +30,7 @@ import logging
 import time
 from typing import Any
 
-from gcs.link import CommandDeniedError, CommandTimeoutError, LinkError, LinkManager
+from gcs.link import CommandTimeoutError, LinkError, LinkManager
 from gcs.mission_protocol import MissionTransferError
 from gcs.planning import FIRST_BUOY_SEQ, FlightParams, Plan, mission_items
 from gcs.recorder import MissionRecorder
@@ -175,11 +175,9 @@ class FlightLifecycle:
                 await self._fly(mission_id, plan, flight, recorder)
         except MissionEndError as ended:
             status, reason = ended.status, ended.reason
-        except (MissionTransferError, CommandDeniedError) as error:
-            reason = str(error)
         except CommandTimeoutError as error:
             reason = f"the vehicle stopped answering: {error}"
-        except LinkError as error:
+        except (MissionTransferError, LinkError) as error:  # refused commands and transfers say why themselves
             reason = str(error)
         except asyncio.CancelledError:
             status, reason = MissionStatus.FAILED, "the service stopped during the mission"
@@ -226,9 +224,9 @@ class FlightLifecycle:
             raise MissionEndError(MissionStatus.FAILED, "no vehicle")
         incarnation = self.link.status.incarnation
         self._transition(mission_id, MissionStatus.UPLOADING)
-        home = self.link.status.home or self.settings.home
-        items = mission_items(plan, flight, (home[0], home[1]) if self.link.status.home is not None else None)
-        await self.link.upload_mission(items, home)
+        vehicle_home = self.link.status.home
+        items = mission_items(plan, flight, None if vehicle_home is None else vehicle_home[:2])
+        await self.link.upload_mission(items, vehicle_home or self.settings.home)
         self._transition(mission_id, MissionStatus.UPLOADED)
         self._record_with(mission_id, recorder)
         await self.link.arm()

@@ -34,8 +34,8 @@ from typing import Any
 
 from gcs.autopilots import CUSTOM_MODE_ENABLED, Autopilot, Px4, autopilot_for
 from gcs.connection import ConnectionStringError, Transport, open_transport, parse_connection
-from gcs.mission_protocol import MissionTransferError, download_items, upload_items
-from uavcore.geofence import FenceError, Geofence
+from gcs.mission_protocol import download_items, upload_items
+from uavcore.geofence import Geofence
 from uavcore.mavlink import (
     GCS_COMPID,
     GCS_SYSID,
@@ -223,7 +223,7 @@ class LinkManager:
         self._connected_event = asyncio.Event()
         self._command_lock = asyncio.Lock()
         self.messages_received = 0
-        self.fence: Geofence | None = None  # the vehicle's geofence, read at each connection (None: not read)
+        self.fence: Geofence | None = None  # the vehicle's geofence as last read this connection (None: not read)
 
     @property
     def target(self) -> tuple[int, int]:
@@ -426,8 +426,8 @@ class LinkManager:
         for message in messages:
             if message.get_type() == "BAD_DATA":
                 continue
-            if message.get_type() == "HEARTBEAT" and self._discover(message, source):
-                pass
+            if message.get_type() == "HEARTBEAT":
+                self._discover(message, source)
             if self.vehicle is None or message.get_srcSystem() != self.vehicle.sysid:
                 continue
             self.messages_received += 1
@@ -441,32 +441,29 @@ class LinkManager:
         for end in list(self._chunk_ends):
             end()
 
-    def _discover(self, m: Any, source: object) -> bool:
+    def _discover(self, m: Any, source: object) -> None:
         """Adopt the sender of an autopilot heartbeat as the vehicle if there is none (or the one there was has
-        gone silent). True when the heartbeat is the vehicle's."""
+        gone silent)."""
         if m.autopilot == mavlink.MAV_AUTOPILOT_INVALID or m.type in NOT_A_VEHICLE:
-            return False
+            return
         identity = VehicleIdentity(m.get_srcSystem(), m.get_srcComponent(), m.autopilot, m.type)
         current = self.vehicle
         if current is not None and (current.sysid, current.compid) == (identity.sysid, identity.compid):
             self._reply_to(source)
-            return True
+            return
         if current is not None and self.status.connected:
-            return False  # another vehicle on the link while ours is alive: not ours (a fleet is not flown here)
+            return  # another vehicle on the link while ours is alive: not ours (a fleet is not flown here)
         self.vehicle, self.autopilot = identity, autopilot_for(identity.autopilot)
-        previous = self.status
         self.status = VehicleStatus(
             sysid=identity.sysid,
             compid=identity.compid,
             autopilot=identity.autopilot_name,
             vehicle_type=identity.type_name,
-            reboots=previous.reboots if current == identity else 0,
-            incarnation=previous.incarnation + (current is not None),
+            incarnation=self.status.incarnation + (current is not None),
         )
         self._reply_to(source)
         if current is not None:
             log.warning("vehicle changed: %s -> %s", current, identity)
-        return True
 
     def _reply_to(self, source: object) -> None:
         reply_to = getattr(self._transport, "reply_to", None)
@@ -560,6 +557,3 @@ class LinkManager:
             refused = refused or result != mavlink.MAV_RESULT_ACCEPTED
         if refused and self.autopilot.streams_by_data_stream_request:
             self.send(self.encoder.request_data_stream_encode(*self.target, mavlink.MAV_DATA_STREAM_ALL, 10, 1))
-        # The fence the planner must respect; an autopilot without fences answers an empty list or refuses.
-        with contextlib.suppress(LinkError, MissionTransferError, FenceError):
-            await self.download_fence()

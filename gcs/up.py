@@ -105,7 +105,7 @@ def stack(options: UpOptions) -> list[ChildSpec]:
     a real vehicle), with how to tell each is ready."""
     settings = options.settings
     if not options.simulate:
-        return [_service(options, settings.vehicle_url, [])]
+        return [_service(options, settings.vehicle_url)]
     if options.controller not in CONTROLLERS:
         raise ValueError(f"controller must be one of {CONTROLLERS}, got {options.controller!r}")
     vehicle_port = parse_connection(settings.vehicle_url).port
@@ -115,7 +115,7 @@ def stack(options: UpOptions) -> list[ChildSpec]:
     vehicle_args += ["--params", str(settings.data_dir / "vehicle.params")]
     vehicle_args += [arg for param in params for arg in ("--param", param)]
     vehicle_args += ["--lockstep"] if options.lockstep else ["--speed", f"{options.speed:g}"]
-    signing = ["--signing-key", settings.signing_key] if settings.signing_key else []
+    signing = _signing(settings)
     vehicle_args += signing
     vehicle_log = settings.data_dir / "logs" / "sitl_quad.log"
     children = [
@@ -130,11 +130,16 @@ def stack(options: UpOptions) -> list[ChildSpec]:
                 python_module("adrc_offboard", "--connect", vehicle_url, "--controller", options.controller, *signing),
             )
         )
-    children.append(_service(options, vehicle_url, signing))
+    children.append(_service(options, vehicle_url))
     return children
 
 
-def _service(options: UpOptions, vehicle_url: str, signing: list[str]) -> ChildSpec:
+def _signing(settings: Settings) -> list[str]:
+    """The MAVLink signing option every child gets, or none."""
+    return ["--signing-key", settings.signing_key] if settings.signing_key else []
+
+
+def _service(options: UpOptions, vehicle_url: str) -> ChildSpec:
     settings = options.settings
     gcs_args = [
         "serve",
@@ -149,7 +154,7 @@ def _service(options: UpOptions, vehicle_url: str, signing: list[str]) -> ChildS
     ]
     if settings.token:
         gcs_args += ["--token", settings.token]
-    gcs_args += signing or (["--signing-key", settings.signing_key] if settings.signing_key else [])
+    gcs_args += _signing(settings)
     base = options.base_url
     return ChildSpec("gcs", python_module("gcs", *gcs_args), ready=lambda: _http_ok(f"{base}/vehicle"))
 

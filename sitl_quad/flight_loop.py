@@ -155,17 +155,17 @@ class FlightLoop:
         """One outer period of attitude loop and physics toward `target`; whether the mixer saturated."""
         saturated = False
         thrust_n = target.thrust * self.config.airframe.max_thrust_n
+        # a compiled loop flies the steps of the Python loop below in one call ("idle": the law runs, its torque
+        # is not applied)
+        steps = (thrust_n, self.attitude_steps, self.physics_steps, self.attitude_dt, source != "idle")
         if source == "off":  # rotors commanded to 0 all tick: the physics steps in one batch, same result
             self.sim.set_rotor_commands(np.zeros(4))
             self.sim.step(self.attitude_steps * self.physics_steps)
-        elif isinstance(self.attitude, PidAttitudeController | CompiledAttitudeLoop):
-            # the steps of the loop below in one compiled call ("idle": the law runs, its torque unused)
-            steps = (thrust_n, self.attitude_steps, self.physics_steps, self.attitude_dt, source != "idle")
-            if isinstance(self.attitude, PidAttitudeController):
-                saturated = self.sim.run_pid_attitude_steps(self.attitude, self.mixer, target, *steps)
-            else:
-                law = self.attitude.kernel_arguments(target)
-                saturated = self.sim.run_attitude_steps(self.attitude.inner_loop, law, self.mixer, *steps)
+        elif isinstance(self.attitude, PidAttitudeController):
+            saturated = self.sim.run_pid_attitude_steps(self.attitude, self.mixer, target, *steps)
+        elif isinstance(self.attitude, CompiledAttitudeLoop):
+            law = self.attitude.kernel_arguments(target)
+            saturated = self.sim.run_attitude_steps(self.attitude.inner_loop, law, self.mixer, *steps)
         else:
             for _ in range(self.attitude_steps):
                 measured = self.sim.measure()
