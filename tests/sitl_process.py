@@ -39,6 +39,20 @@ def free_udp_port() -> int:
         return sock.getsockname()[1]
 
 
+def start_lockstep_pair(port: int, seed: int, log: Path) -> tuple[subprocess.Popen, subprocess.Popen]:
+    """`python -m sitl_quad --lockstep --log` on port and `python -m adrc_offboard` for it: (vehicle, controller),
+    stderr piped so a test can check neither printed a traceback."""
+
+    def start(*args: str) -> subprocess.Popen:
+        return subprocess.Popen(
+            [sys.executable, "-m", *args], cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+        )
+
+    vehicle = start("sitl_quad", "--port", str(port), "--lockstep", "--seed", str(seed), "--log", str(log))
+    controller = start("adrc_offboard", "--connect", f"udpout:127.0.0.1:{port}")
+    return vehicle, controller
+
+
 class PortTakenError(RuntimeError):
     """The vehicle could not bind its UDP port."""
 

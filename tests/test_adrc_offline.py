@@ -5,12 +5,10 @@ from __future__ import annotations
 
 import csv
 import math
-import subprocess
-import sys
 import time
 
 import pytest
-from sitl_process import REPO, GroundStation, free_udp_port
+from sitl_process import GroundStation, free_udp_port, start_lockstep_pair
 
 from adrc_offboard.cli import make_controller
 from sitl_quad.config import VehicleConfig
@@ -55,20 +53,7 @@ def fly_over_udp(tmp_path) -> list[list[str]]:
     """`python -m sitl_quad --lockstep --log` + `python -m adrc_offboard`; a pymavlink GCS flies the mission."""
     port = free_udp_port()
     log = tmp_path / "udp.csv"
-    vehicle = subprocess.Popen(
-        [sys.executable, "-m", "sitl_quad", "--port", str(port), "--lockstep", "--seed", str(SEED), "--log", str(log)],
-        cwd=REPO,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    controller = subprocess.Popen(
-        [sys.executable, "-m", "adrc_offboard", "--connect", f"udpout:127.0.0.1:{port}"],
-        cwd=REPO,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    vehicle, controller = start_lockstep_pair(port, SEED, log)
     gcs = GroundStation(port)
     try:
         gcs.connect(timeout=60)

@@ -5,12 +5,10 @@ from __future__ import annotations
 
 import csv
 import math
-import subprocess
-import sys
 import time
 
 import pytest
-from sitl_process import REPO, GroundStation, free_udp_port
+from sitl_process import GroundStation, free_udp_port, start_lockstep_pair
 from test_sitl_vehicle import FRAME
 
 from uavcore.mavlink import mavlink
@@ -109,20 +107,7 @@ def _fly_lockstep_mission(tmp_path, tag: str, seed: int) -> list[list[str]]:
     """Vehicle + adrc_offboard in lockstep; a pymavlink GCS uploads a short mission, arms and starts it."""
     port = free_udp_port()
     log = tmp_path / f"{tag}.csv"
-    vehicle = subprocess.Popen(
-        [sys.executable, "-m", "sitl_quad", "--port", str(port), "--lockstep", "--seed", str(seed), "--log", str(log)],
-        cwd=REPO,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    controller = subprocess.Popen(
-        [sys.executable, "-m", "adrc_offboard", "--connect", f"udpout:127.0.0.1:{port}"],
-        cwd=REPO,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    vehicle, controller = start_lockstep_pair(port, seed, log)
     gcs = GroundStation(port)
     try:
         gcs.connect(timeout=60)
