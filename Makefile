@@ -12,7 +12,7 @@ MAVSDK3_VENV  := .venv-mavsdk3
 MAVSDK3_STAMP := $(MAVSDK3_VENV)/.installed
 MAVSDK3_REQS  := tests/mavsdk_examples/requirements.txt
 
-.PHONY: run test lint bench clean chromium
+.PHONY: run test lint bench clean chromium postgresql
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -33,7 +33,7 @@ $(MAVSDK3_STAMP): $(MAVSDK3_REQS)
 run: $(STAMP)
 	$(BIN)/python -m gcs up --demo
 
-test: $(STAMP) $(MAVSDK3_STAMP) chromium
+test: $(STAMP) $(MAVSDK3_STAMP) chromium postgresql
 	$(BIN)/python -m ruff check .
 	$(BIN)/python -m ruff format --check .
 	$(BIN)/lint-imports
@@ -42,6 +42,10 @@ test: $(STAMP) $(MAVSDK3_STAMP) chromium
 # The browser tests drive Debian's Chromium (Playwright's own browser download does not work here).
 chromium:
 	@[ -x /usr/bin/chromium ] || { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; }
+
+# The storage tests run against SQLite and against a throwaway PostgreSQL server started from Debian's binaries.
+postgresql:
+	@ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq postgresql >/dev/null; }
 
 lint: $(STAMP)
 	$(BIN)/python -m ruff check .

@@ -50,7 +50,16 @@ MIGRATIONS: list[str] = [
     CREATE INDEX telemetry_by_mission ON telemetry (mission_id, t_s);
     CREATE INDEX events_by_mission ON mission_events (mission_id, id);
     """,
+    # 2: a change counter per mission, so readers (a read cache, a stand-by service) can tell cheaply whether a
+    # mission or the list changed: every write to a mission sets its version above every other mission's.
+    """
+    ALTER TABLE missions ADD COLUMN version INTEGER NOT NULL DEFAULT 0;
+    CREATE INDEX missions_by_version ON missions (version);
+    """,
 ]
+
+# The next version, taken inside the write's transaction (BEGIN IMMEDIATE serialises writers, so it is unique).
+NEXT_VERSION = "(SELECT COALESCE(MAX(version), 0) + 1 FROM missions)"
 
 
 class StorageError(RuntimeError):
@@ -143,7 +152,8 @@ class Storage:
         now = _now()
         with self.transaction() as db:
             cursor = db.execute(
-                "INSERT INTO missions (created_at, updated_at, status, flight, plan) VALUES (?, ?, ?, ?, ?)",
+                f"INSERT INTO missions (created_at, updated_at, status, flight, plan, version)"
+                f" VALUES (?, ?, ?, ?, ?, {NEXT_VERSION})",
                 (now, now, status, _json(flight), _json(plan)),
             )
             mission_id = int(cursor.lastrowid)
@@ -156,7 +166,7 @@ class Storage:
         now = _now()
         with self.transaction() as db:
             cursor = db.execute(
-                "UPDATE missions SET status = ?, reason = ?, updated_at = ? WHERE id = ?",
+                f"UPDATE missions SET status = ?, reason = ?, updated_at = ?, version = {NEXT_VERSION} WHERE id = ?",
                 (status, reason, now, mission_id),
             )
             if cursor.rowcount != 1:
@@ -169,13 +179,15 @@ class Storage:
     def set_progress(self, mission_id: int, progress: dict[str, Any]) -> None:
         with self.transaction() as db:
             db.execute(
-                "UPDATE missions SET progress = ?, updated_at = ? WHERE id = ?", (_json(progress), _now(), mission_id)
+                f"UPDATE missions SET progress = ?, updated_at = ?, version = {NEXT_VERSION} WHERE id = ?",
+                (_json(progress), _now(), mission_id),
             )
 
     def set_results(self, mission_id: int, results: dict[str, Any]) -> None:
         with self.transaction() as db:
             db.execute(
-                "UPDATE missions SET results = ?, updated_at = ? WHERE id = ?", (_json(results), _now(), mission_id)
+                f"UPDATE missions SET results = ?, updated_at = ?, version = {NEXT_VERSION} WHERE id = ?",
+                (_json(results), _now(), mission_id),
             )
 
     def unfinished_missions(self) -> list[int]:
@@ -210,6 +222,18 @@ class Storage:
                 "SELECT at, status, reason FROM mission_events WHERE mission_id = ? ORDER BY id", (mission_id,)
             ).fetchall()
         return self._record(row, [dict(event) for event in events])
+
+    def mission_version(self, mission_id: int) -> int | None:
+        """The mission's change counter (None: no such mission): it grows at every write to the mission."""
+        with self._lock:
+            row = self._db.execute("SELECT version FROM missions WHERE id = ?", (mission_id,)).fetchone()
+        return None if row is None else int(row[0])
+
+    def latest_version(self) -> int:
+        """The highest change counter of all missions: it grows whenever any mission is created or changes."""
+        with self._lock:
+            row = self._db.execute("SELECT COALESCE(MAX(version), 0) FROM missions").fetchone()
+        return int(row[0])
 
     def list_missions(self, limit: int = 100) -> list[MissionRecord]:
         with self._lock:

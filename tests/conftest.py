@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
+from postgres_server import PostgresServer, postgres_bindir
 from sitl_process import GroundStation, SitlProcess
 
 
@@ -74,3 +75,20 @@ def gcs(shared_gcs, shared_sitl) -> GroundStation:
     shared_gcs.drain()
     shared_gcs.send_heartbeat()  # a peer silent for 10 s stops getting telemetry: be a peer again
     return shared_gcs
+
+
+@pytest.fixture(scope="session")
+def postgres_server() -> Iterator[PostgresServer]:
+    """One PostgreSQL server per test process, from the machine's binaries (`make test` installs them)."""
+    bindir = postgres_bindir()
+    if bindir is None:
+        pytest.skip("PostgreSQL binaries (initdb, pg_ctl) not found: `make test` installs Debian's postgresql")
+    server = PostgresServer(bindir).start()
+    yield server
+    server.stop()
+
+
+@pytest.fixture
+def postgres_url(postgres_server: PostgresServer) -> str:
+    """A fresh, empty database of this test's own: its postgresql:// URL."""
+    return postgres_server.new_database()

@@ -106,3 +106,21 @@ def test_database_from_a_newer_service_is_refused(tmp_path):
     db.close()
     with pytest.raises(StorageError, match="newer"):
         Storage(path)
+
+
+def test_every_write_to_a_mission_raises_its_version_above_all_others(tmp_path):
+    storage = Storage(tmp_path / "gcs.sqlite")
+    assert storage.latest_version() == 0
+    first, second = storage.create_mission(FLIGHT, PLAN), storage.create_mission(FLIGHT, PLAN)
+    assert storage.mission_version(first) < storage.mission_version(second) == storage.latest_version()
+    seen = storage.latest_version()
+    for write in (
+        lambda: storage.set_status(first, "uploading"),
+        lambda: storage.set_progress(first, {"current_seq": 2}),
+        lambda: storage.set_results(first, {"buoys": []}),
+    ):
+        write()
+        assert storage.mission_version(first) == storage.latest_version() > seen
+        seen = storage.latest_version()
+    assert storage.mission_version(999) is None
+    storage.close()
