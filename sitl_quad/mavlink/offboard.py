@@ -31,8 +31,10 @@ from uavcore.state import AttitudeTarget
 log = logging.getLogger(__name__)
 
 # No setpoint this long (wall clock): lockstep stops waiting for the peer. Generous, because a loaded machine
-# can stall a process for a second, and a lockstep tick taken without the answer breaks repeatability.
-STREAM_TIMEOUT_WALL_S = 2.0
+# (the test suite's workers plus a CPU burner on both cores) can stall a process for seconds, and a tick taken
+# without the answer breaks repeatability: with simulated time then running freely, the vehicle's offboard-loss
+# failsafe (OFFB_LOSS_T, simulated) would end a healthy flight. A controller that really died costs 5 s.
+STREAM_TIMEOUT_WALL_S = 5.0
 IGNORE_ATTITUDE = mavlink.ATTITUDE_TARGET_TYPEMASK_ATTITUDE_IGNORE
 IGNORE_THROTTLE = mavlink.ATTITUDE_TARGET_TYPEMASK_THROTTLE_IGNORE
 IGNORE_RATES = (
