@@ -30,7 +30,14 @@ def _add_service_options(parser: argparse.ArgumentParser) -> None:
     Settings' default), so a default is written only in gcs.settings."""
     parser.add_argument("--host", help=_help("address to bind", "host"))
     parser.add_argument("--port", type=int, help=_help("HTTP port of the service and map page", "port"))
-    parser.add_argument("--token", help=_help("API token for mutating endpoints", "token", "none"))
+    parser.add_argument("--token", help=_help("API token for mutating endpoints and /ws", "token", "none"))
+    parser.add_argument(
+        "--cors-origin",
+        dest="cors_origins",
+        action="append",
+        metavar="ORIGIN",
+        help=_help("let pages of this origin (https://host[:port]) call the API; repeatable", "cors_origins", "none"),
+    )
     parser.add_argument(
         "--signing-key",
         metavar="KEY",

@@ -13,10 +13,10 @@ battery is a settings change. Values are for the paper's quadrotor (Table 2) fly
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from uavcore.geodesy import DEFAULT_HOME
 from uavcore.mavlink import VEHICLE_UDP_PORT
@@ -57,6 +57,11 @@ class Settings(BaseSettings):
     )
     token: str | None = Field(None, description="when set, every mutating endpoint needs `Authorization: Bearer`")
     signing_key: str | None = Field(None, description="MAVLink 2 signing: 64 hex digits or a passphrase")
+    cors_origins: Annotated[list[str], NoDecode] = Field(
+        default_factory=list,
+        description="origins (scheme://host[:port]) whose pages may call the API and open /ws; none by default",
+    )
+    max_body_bytes: int = Field(1 << 20, gt=0, description="largest request body (a buoy file too): 413 beyond")
     home: tuple[float, float, float] = DEFAULT_HOME  # depot used while the vehicle has not reported its home
     limits: Limits = Field(default_factory=Limits)
     heartbeat_timeout_s: float = 3.0  # wall clock, as MAVSDK: no vehicle heartbeat for this long = link lost
@@ -65,6 +70,12 @@ class Settings(BaseSettings):
     live_rate_hz: float = 20.0  # WebSocket push rate to each client
     mission_timeout_margin_s: float = 120.0  # simulated seconds allowed beyond the planned flight time
     web_dir: Path = Path(__file__).resolve().parent / "web"  # package data: ships in the wheel
+
+    @field_validator("cors_origins", mode="before")
+    @classmethod
+    def _comma_separated(cls, value: Any) -> Any:
+        # BUOY_GCS_CORS_ORIGINS="https://a.example,https://b.example"
+        return [part.strip() for part in value.split(",") if part.strip()] if isinstance(value, str) else value
 
     @property
     def reports_dir(self) -> Path:
