@@ -1,7 +1,7 @@
 """The service's settings, each default written once: from the command line, else the environment, else here.
 
 `Settings` is a pydantic-settings `BaseSettings`: every field can be set by an environment variable named
-`BUOY_GCS_` + the field's name in capitals (BUOY_GCS_VEHICLE_URL, BUOY_GCS_DB_PATH, BUOY_GCS_TOKEN,
+`BUOY_GCS_` + the field's name in capitals (BUOY_GCS_VEHICLE_URL, BUOY_GCS_DB_PATH, BUOY_GCS_DB, BUOY_GCS_TOKEN,
 BUOY_GCS_SIGNING_KEY, BUOY_GCS_LIVE_RATE_HZ, ...; a limit as BUOY_GCS_LIMITS__MAX_BUOYS). `python -m gcs serve`
 and `up` pass only the options given on their command line, so an option beats the environment, which beats
 the default below. An empty variable counts as unset.
@@ -12,6 +12,8 @@ battery is a settings change. Values are for the paper's quadrotor (Table 2) fly
 
 from __future__ import annotations
 
+import os
+import socket
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -55,6 +57,11 @@ class Settings(BaseSettings):
     db_path: Path = Field(
         default_factory=lambda fields: fields["data_dir"] / DB_FILENAME, description="the SQLite file"
     )
+    db: str | None = Field(
+        None,
+        description="a PostgreSQL database instead of the SQLite file: postgresql://USER[:PASSWORD]@HOST:PORT/NAME",
+        pattern=r"^postgres(ql)?://",
+    )
     token: str | None = Field(None, description="when set, every mutating endpoint needs `Authorization: Bearer`")
     signing_key: str | None = Field(None, description="MAVLink 2 signing: 64 hex digits or a passphrase")
     cors_origins: Annotated[list[str], NoDecode] = Field(
@@ -69,6 +76,17 @@ class Settings(BaseSettings):
     telemetry_period_s: float = 0.1  # recorded sample spacing in the vehicle's simulated time (10 Hz)
     live_rate_hz: float = 20.0  # WebSocket push rate to each client
     mission_timeout_margin_s: float = 120.0  # simulated seconds allowed beyond the planned flight time
+    # several instances on one PostgreSQL database: one owns the vehicle link, the others stand by (gcs.ownership)
+    instance_name: str = Field(
+        default_factory=lambda: f"{socket.gethostname()}:{os.getpid()}",
+        description="this instance's name, shown by the others while it owns the vehicle link (default host:pid)",
+    )
+    vehicle_name: str | None = Field(
+        None, description="the vehicle lease's name: instances naming the same vehicle share it (default: vehicle_url)"
+    )
+    lease_poll_s: float = Field(
+        0.5, gt=0, description="wall seconds between a stand-by's tries to take the vehicle lease (and owner checks)"
+    )
     web_dir: Path = Path(__file__).resolve().parent / "web"  # package data: ships in the wheel
 
     @field_validator("cors_origins", mode="before")
@@ -76,6 +94,11 @@ class Settings(BaseSettings):
     def _comma_separated(cls, value: Any) -> Any:
         # BUOY_GCS_CORS_ORIGINS="https://a.example,https://b.example"
         return [part.strip() for part in value.split(",") if part.strip()] if isinstance(value, str) else value
+
+    @property
+    def database(self) -> str | Path:
+        """What gcs.storage.open_storage opens: the PostgreSQL URL when one is set, else the SQLite file."""
+        return self.db if self.db is not None else self.db_path
 
     @property
     def reports_dir(self) -> Path:
