@@ -2,7 +2,9 @@
 
 - planning: `plan` validates a request and plans it (gcs.validation, gcs.planning);
 - the flight lifecycle: `launch`, `abort`, the live view (gcs.lifecycle, which records with gcs.recorder);
-- queries over what is stored: missions, telemetry, mission files, reports (gcs.storage, gcs.report).
+- queries over what is stored: missions, telemetry, mission files, reports (gcs.storage, gcs.report);
+- ownership of the vehicle link (gcs.ownership): with several instances on one database, only the owner starts
+  the link and flies; a stand-by answers reads and refuses the rest (NotOwnerError) until it takes over.
 
 The routes see no storage, link or lifecycle: only the methods here.
 """
@@ -20,6 +22,7 @@ from gcs import report
 from gcs.lifecycle import FlightLifecycle, MissionConflictError
 from gcs.link import LinkError, LinkManager
 from gcs.mission_protocol import MissionTransferError
+from gcs.ownership import Ownership, SoleLease
 from gcs.planning import FlightParams, Plan, fenced_legs, make_plan, mission_items
 from gcs.schemas import MissionRequest, PlanRequest
 from gcs.settings import Settings
@@ -44,20 +47,30 @@ class MissionNotFoundError(KeyError):
 class MissionService:
     """Plans, stores and flies missions over one LinkManager; answers what is stored."""
 
-    def __init__(self, settings: Settings, storage: Storage, link: LinkManager) -> None:
+    def __init__(
+        self, settings: Settings, storage: Storage, link: LinkManager, ownership: Ownership | None = None
+    ) -> None:
         self.settings = settings
         self._storage, self._link = storage, link
+        self._ownership = ownership or Ownership(SoleLease(), settings.instance_name, settings.lease_poll_s)
         self._flights = FlightLifecycle(settings, storage, link)
         self._fence_unanswered: int | None = None  # the vehicle incarnation that did not answer a fence request
 
     async def start(self) -> None:
+        """Own the vehicle link now, or stand by until the owner is gone (then take it over in the background)."""
+        await self._ownership.start(self._take_link)
+
+    async def _take_link(self) -> None:
+        """As the link's new owner: start it and re-attach a mission left flying, as after a restart."""
         unfinished = self._storage.unfinished_missions()  # read before this run can start any mission
         await self._link.start()
         self._flights.reattach(unfinished)
 
     async def stop(self) -> None:
+        await self._ownership.stop()
         await self._flights.stop()
         await self._link.stop()
+        await self._ownership.release()  # only now may a stand-by talk to the vehicle
 
     # ----- planning
     def default_depot(self) -> tuple[float, float]:
@@ -112,6 +125,7 @@ class MissionService:
 
     async def create(self, request: MissionRequest) -> int:
         """Plan and store a mission; with start=true, also fly it in the background."""
+        self._ownership.ensure_owner()
         if request.start:
             self._flights.ensure_vehicle_free()
         plan, flight = await self.plan(request)
@@ -126,20 +140,24 @@ class MissionService:
         return mission_id
 
     def launch(self, mission_id: int) -> None:
+        self._ownership.ensure_owner()
         self._flights.ensure_vehicle_free()
         self._flights.launch(self.get(mission_id))
 
     async def abort(self, mission_id: int) -> None:
+        self._ownership.ensure_owner()
         await self._flights.abort(self.get(mission_id))
 
     # ----- views
     def live(self) -> dict[str, Any]:
         """What /ws pushes: the vehicle, and the active mission's status, progress and latest sample."""
-        return {"type": "state", "vehicle": self._link.status.as_dict(), "mission": self._flights.live_mission()}
+        vehicle = self._link.status.as_dict() | self._ownership.as_dict()
+        return {"type": "state", "vehicle": vehicle, "mission": self._flights.live_mission()}
 
     def vehicle(self) -> dict[str, Any]:
-        """The link's view of the vehicle, with the depot a plan would use and the mission flying, if any."""
-        data = self._link.status.as_dict()
+        """The link's view of the vehicle, with the depot a plan would use and the mission flying, if any, and
+        who owns the link (`role` owner or standby, this `instance`, the `owner`'s name)."""
+        data = self._link.status.as_dict() | self._ownership.as_dict()
         data["depot"] = dict(zip(("lat", "lon"), self.default_depot(), strict=True))
         data["active_mission"] = self.active_mission()
         return data
