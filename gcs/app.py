@@ -8,16 +8,20 @@ from contextlib import asynccontextmanager
 import xstatic.pkg.leaflet as leaflet
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
+from fastapi.middleware.cors import CORSMiddleware
 from fastapi.responses import FileResponse, JSONResponse
+from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
 
+from gcs.body_limit import BodyLimitMiddleware
 from gcs.buoy_files import BuoyFileError
+from gcs.http_headers import SecurityHeadersMiddleware
 from gcs.lifecycle import MissionConflictError
 from gcs.link import LinkManager
 from gcs.missions import MissionNotFoundError, MissionService
 from gcs.routes import buoy_files, live, missions, plans, vehicle
 from gcs.settings import Settings
-from gcs.storage import Storage
+from gcs.storage import open_storage
 from gcs.validation import RequestInvalidError
 from planner.errors import PlannerError
 from uavcore.mavlink import parse_signing_key
@@ -59,13 +63,34 @@ def _install_error_handlers(app: FastAPI) -> None:
         return JSONResponse({"detail": str(error)}, status_code=409)
 
 
+def _operation_id(route: APIRoute) -> str:
+    """The OpenAPI operationId of a route: its function's name (get_mission), which the links between
+    operations name (POST /missions answers with links to get_mission, start_mission, ...)."""
+    return route.name
+
+
+def _install_middleware(app: FastAPI, settings: Settings) -> None:
+    """Each middleware added wraps those before it: the security headers, added last, go on every answer
+    (a 413 and a CORS preflight too); the body limit acts before CORS and the routes read anything."""
+    if settings.cors_origins:  # off by default: only the service's own page calls it
+        app.add_middleware(
+            CORSMiddleware,
+            allow_origins=list(settings.cors_origins),
+            allow_methods=["GET", "POST"],
+            allow_headers=["Authorization", "Content-Type", "X-API-Token"],
+        )
+    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
+    docs = frozenset(path for path in (app.docs_url, app.redoc_url, app.swagger_ui_oauth2_redirect_url) if path)
+    app.add_middleware(SecurityHeadersMiddleware, docs_paths=docs)
+
+
 def create_app(settings: Settings | None = None) -> FastAPI:
     """The service. Storage opens and the link starts with the app's lifespan, and close with it."""
     settings = settings or Settings()
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        storage = Storage(settings.db_path)
+        storage = open_storage(settings.database)
         key = None if settings.signing_key is None else parse_signing_key(settings.signing_key)
         link = LinkManager(settings.vehicle_url, settings.heartbeat_timeout_s, signing_key=key)
         service = MissionService(settings, storage, link)
@@ -82,8 +107,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         description="Mission service for UAV buoy inspection: plan (CHNN-GA), upload, fly, record, report.",
         version="0.1.0",
         lifespan=lifespan,
+        generate_unique_id_function=_operation_id,
     )
     app.state.settings = settings
+    _install_middleware(app, settings)
     _install_error_handlers(app)
     for module in (plans, missions, buoy_files, vehicle, live):
         app.include_router(module.router)

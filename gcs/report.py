@@ -261,6 +261,14 @@ def write_report(record: MissionRecord, samples: list[dict[str, Any]], out_dir: 
     return index
 
 
+# The report's only inline content: the service's Content-Security-Policy allows it by its hash
+# (gcs.http_headers); the page has no script. Every text from the mission goes through html.escape.
+REPORT_STYLE = (
+    "body{font-family:sans-serif;max-width:1000px;margin:1em auto} table{border-collapse:collapse}\n"
+    "th,td{border:1px solid #ccc;padding:2px 8px;text-align:left} img{max-width:100%}"
+)
+
+
 def report_html(record: MissionRecord, rows: list[tuple[str, str]]) -> str:
     """The page: figures table, per-buoy table, then the PNGs (by relative name, so the folder is portable)."""
     table = "\n".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows)
@@ -273,8 +281,7 @@ def report_html(record: MissionRecord, rows: list[tuple[str, str]]) -> str:
     images = "\n".join(f'<figure><img src="{name}" alt="{name[:-4]}"></figure>' for name in FIGURES)
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>Mission {record.id} report</title>
-<style>body{{font-family:sans-serif;max-width:1000px;margin:1em auto}} table{{border-collapse:collapse}}
-th,td{{border:1px solid #ccc;padding:2px 8px;text-align:left}} img{{max-width:100%}}</style></head>
+<style>{REPORT_STYLE}</style></head>
 <body>
 <h1>Mission {record.id} report</h1>
 <p>Created {html.escape(record.created_at)}, last updated {html.escape(record.updated_at)}.</p>
@@ -301,7 +308,7 @@ def cached_report(storage: Storage, mission_id: int, cache_root: Path) -> Path:
     Raises ReportError for an unknown mission."""
     record = storage.get_mission(mission_id)
     if record is None:
-        raise ReportError(f"no mission {mission_id} in {storage.path}")
+        raise ReportError(f"no mission {mission_id} in {storage.location}")
     out_dir = cache_root / f"mission-{mission_id}"
     stamp = {"updated_at": record.updated_at, "samples": storage.telemetry_count(mission_id)}
     stamp_path = out_dir / STAMP_FILE

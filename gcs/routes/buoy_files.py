@@ -5,17 +5,18 @@ from __future__ import annotations
 from fastapi import APIRouter, Depends, Query, Request
 
 from gcs.buoy_files import BuoyFileError, buoys_from_file
-from gcs.schemas import ImportOut
+from gcs.routes.responses import WITH_BODY
+from gcs.schemas import MAX_BUOYS, ImportOut
 from gcs.security import require_token
 
 router = APIRouter(tags=["imports"])
-MAX_FILE_BYTES = 2_000_000
 
 
 @router.post(
     "/imports",
     response_model=ImportOut,
     dependencies=[Depends(require_token)],
+    responses=WITH_BODY,
     openapi_extra={
         "requestBody": {
             "content": {
@@ -27,9 +28,9 @@ MAX_FILE_BYTES = 2_000_000
     },
 )
 async def import_buoys(request: Request, filename: str = Query(default="", max_length=255)) -> dict:
-    """The body is the file itself; the format follows `filename`'s extension or the Content-Type."""
-    data = await request.body()
-    if len(data) > MAX_FILE_BYTES:
-        raise BuoyFileError(f"the file is larger than {MAX_FILE_BYTES} bytes")
-    buoys = buoys_from_file(data, filename, request.headers.get("content-type", ""))
+    """The body is the file itself (at most the service's max_body_bytes, 1 MiB by default: 413 beyond); the
+    format follows `filename`'s extension or the Content-Type. At most 500 buoys, as a plan takes."""
+    buoys = buoys_from_file(await request.body(), filename, request.headers.get("content-type", ""))
+    if len(buoys) > MAX_BUOYS:
+        raise BuoyFileError(f"the file has {len(buoys)} buoys; a mission takes at most {MAX_BUOYS}")
     return {"buoys": [b.as_dict() for b in buoys]}

@@ -11,15 +11,39 @@ from fastapi.responses import FileResponse, RedirectResponse
 
 from gcs import exports, report
 from gcs.routes.deps import ServiceDep
+from gcs.routes.responses import CONFLICT, MUTATING, NOT_FOUND, WITH_BODY
 from gcs.schemas import MissionOut, MissionRequest, MissionSummary, TelemetrySample
 from gcs.security import require_token
 from gcs.views import mission_out, mission_summary
 
 router = APIRouter(tags=["missions"])
+# POST /missions answers with links to what can be asked of the new mission (OpenAPI links: clients and
+# schemathesis's stateful tests follow them with the id from the answer).
+_MISSION_LINKS = {
+    name: {"operationId": name, "parameters": {"mission_id": "$response.body#/id"}}
+    for name in (
+        *("get_mission", "get_telemetry", "get_qgc_plan", "get_waypoints", "get_track", "get_report"),
+        *("start_mission", "abort_mission"),
+    )
+}
+CREATED = {201: {"links": _MISSION_LINKS}}
+
+
+def _file(*media_types: str) -> dict:
+    """A download's answer: a file of these media types, or 404."""
+    return {200: {"description": "the file", "content": {kind: {} for kind in media_types}}} | NOT_FOUND
+
+
 MissionId = Annotated[int, Path(ge=1, le=2**63 - 1, description="the mission's id (SQLite integer)")]
 
 
-@router.post("/missions", status_code=201, response_model=MissionOut, dependencies=[Depends(require_token)])
+@router.post(
+    "/missions",
+    status_code=201,
+    response_model=MissionOut,
+    dependencies=[Depends(require_token)],
+    responses=CREATED | WITH_BODY | CONFLICT,
+)
 async def create_mission(request: MissionRequest, service: ServiceDep) -> dict:
     """Plan, store, and (start=true) upload, arm and fly.
 
@@ -36,26 +60,36 @@ def list_missions(service: ServiceDep, limit: Annotated[int, Query(ge=1, le=1000
     return [mission_summary(record) for record in service.list_missions(limit)]
 
 
-@router.get("/missions/{mission_id}", response_model=MissionOut)
+@router.get("/missions/{mission_id}", response_model=MissionOut, responses=NOT_FOUND)
 async def get_mission(mission_id: MissionId, service: ServiceDep) -> dict:
     return mission_out(service.get(mission_id))
 
 
-@router.post("/missions/{mission_id}/start", response_model=MissionOut, dependencies=[Depends(require_token)])
+@router.post(
+    "/missions/{mission_id}/start",
+    response_model=MissionOut,
+    dependencies=[Depends(require_token)],
+    responses=MUTATING | NOT_FOUND | CONFLICT,
+)
 async def start_mission(mission_id: MissionId, service: ServiceDep) -> dict:
     """Fly a mission created with start=false."""
     service.launch(mission_id)
     return mission_out(service.get(mission_id))
 
 
-@router.post("/missions/{mission_id}/abort", response_model=MissionOut, dependencies=[Depends(require_token)])
+@router.post(
+    "/missions/{mission_id}/abort",
+    response_model=MissionOut,
+    dependencies=[Depends(require_token)],
+    responses=MUTATING | NOT_FOUND | CONFLICT,
+)
 async def abort_mission(mission_id: MissionId, service: ServiceDep) -> dict:
     """Return to the depot (NAV_RETURN_TO_LAUNCH); a mission not yet flying simply ends."""
     await service.abort(mission_id)
     return mission_out(service.get(mission_id))
 
 
-@router.get("/missions/{mission_id}/telemetry", response_model=list[TelemetrySample])
+@router.get("/missions/{mission_id}/telemetry", response_model=list[TelemetrySample], responses=NOT_FOUND)
 def get_telemetry(
     mission_id: MissionId, service: ServiceDep, limit: Annotated[int | None, Query(ge=1, le=1_000_000)] = None
 ) -> list[dict]:
@@ -68,27 +102,32 @@ def _download(content: str, media_type: str, filename: str) -> Response:
     )
 
 
-@router.get("/missions/{mission_id}/track.geojson")
+@router.get("/missions/{mission_id}/track.geojson", response_class=Response, responses=_file("application/geo+json"))
 def get_track(mission_id: MissionId, service: ServiceDep) -> Response:
     properties = {"mission": mission_id, "status": service.get(mission_id).status}
     document = exports.track_geojson(service.telemetry(mission_id), properties)
     return _download(json.dumps(document), "application/geo+json", f"mission-{mission_id}-track.geojson")
 
 
-@router.get("/missions/{mission_id}/plan")
+@router.get("/missions/{mission_id}/plan", response_class=Response, responses=_file("application/json"))
 def get_qgc_plan(mission_id: MissionId, service: ServiceDep) -> Response:
     items, home, flight = service.mission_file(mission_id)
     document = exports.qgc_plan(items, home, cruise_speed=flight.speed_m_s, hover_speed=flight.speed_m_s)
     return _download(json.dumps(document, indent=2), "application/json", f"mission-{mission_id}.plan")
 
 
-@router.get("/missions/{mission_id}/waypoints")
+@router.get("/missions/{mission_id}/waypoints", response_class=Response, responses=_file("text/plain"))
 def get_waypoints(mission_id: MissionId, service: ServiceDep) -> Response:
     items, home, _ = service.mission_file(mission_id)
     return _download(exports.waypoints_text(items, home), "text/plain", f"mission-{mission_id}.waypoints")
 
 
-@router.get("/missions/{mission_id}/report", response_class=RedirectResponse)
+@router.get(
+    "/missions/{mission_id}/report",
+    response_class=RedirectResponse,
+    status_code=307,
+    responses={307: {"headers": {"Location": {"required": True, "schema": {"type": "string"}}}}} | NOT_FOUND,
+)
 def get_report(mission_id: MissionId, service: ServiceDep) -> RedirectResponse:
     """The mission report (figures table and PNGs, the paper's Section VI from this flight): redirects to
     its index.html, which names its figures relative to itself."""
@@ -96,7 +135,11 @@ def get_report(mission_id: MissionId, service: ServiceDep) -> RedirectResponse:
     return RedirectResponse(f"/missions/{mission_id}/report/index.html", status_code=307)
 
 
-@router.get("/missions/{mission_id}/report/{name}")
+@router.get(
+    "/missions/{mission_id}/report/{name}",
+    response_class=FileResponse,
+    responses=_file("text/html", "image/png"),
+)
 async def get_report_file(mission_id: MissionId, name: str, service: ServiceDep) -> FileResponse:
     """index.html or one of its figures, drawn on first request and again only after the mission changed."""
     service.get(mission_id)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Depends
 
 from gcs.routes.deps import ServiceDep
+from gcs.routes.responses import WITH_BODY
 from gcs.schemas import PlanOut, PlanRequest
 from gcs.security import require_token
 from gcs.views import plan_out
@@ -12,7 +13,7 @@ from gcs.views import plan_out
 router = APIRouter(tags=["plans"])
 
 
-@router.post("/plans", response_model=PlanOut, dependencies=[Depends(require_token)])
+@router.post("/plans", response_model=PlanOut, dependencies=[Depends(require_token)], responses=WITH_BODY)
 async def create_plan(request: PlanRequest, service: ServiceDep) -> dict:
     plan, _ = await service.plan(request)
     return plan_out(plan)

@@ -86,10 +86,23 @@ export class GcsApi {
     return `/missions/${encodeURIComponent(id)}/${name}`;
   }
 
-  // Calls onMessage with every decoded /ws message; reconnects a second after the stream closes.
+  // The /ws subprotocols: with a token typed, the token itself (base64url), since a browser cannot set an
+  // Authorization header on a WebSocket and a ?token= would land in access logs. The service answers
+  // "buoy-gcs.live" and never echoes the token back.
+  liveProtocols() {
+    const token = this.token();
+    if (!token) return [];
+    const binary = String.fromCharCode(...new TextEncoder().encode(token));
+    const base64url = btoa(binary).replace(/\+/g, "-").replace(/\//g, "_").replace(/=+$/, "");
+    return ["buoy-gcs.live", `bearer.${base64url}`];
+  }
+
+  // Calls onMessage with every decoded /ws message; reconnects a second after the stream closes (with the
+  // token as typed by then: a service with a token refuses the stream until the token is given).
   openLiveStream(onMessage) {
     const connect = () => {
-      const ws = new WebSocket(`${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/ws`);
+      const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/ws`;
+      const ws = new WebSocket(url, this.liveProtocols());
       ws.onmessage = (event) => onMessage(JSON.parse(event.data));
       ws.onclose = () => setTimeout(connect, 1000);
     };

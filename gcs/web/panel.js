@@ -82,4 +82,8 @@ export function showVehicleLink(vehicle) {
   badge.textContent = vehicle.connected ? `vehicle: ${vehicle.armed ? "armed" : "disarmed"}` : "vehicle: disconnected";
   badge.className = vehicle.connected ? "badge" : "badge off";
   byId("mode").textContent = vehicle.connected ? vehicle.mode : "";
+  // the vehicle's latest STATUSTEXT (its own words: text only), the earlier ones on hover
+  const texts = (vehicle.connected && vehicle.status_texts) || [];
+  byId("vehicle-text").textContent = texts.length ? texts[texts.length - 1] : "";
+  byId("vehicle-text").title = texts.join("\n");
 }

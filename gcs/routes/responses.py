@@ -1,0 +1,34 @@
+"""The error answers each route can give, declared once for the OpenAPI document (`responses=` on the routes).
+
+Every error body is `{"detail": text}`, except 422, which lists the problems: `{"detail": [{type, loc, msg}]}`
+(FastAPI declares 422 by itself on every route that takes a parameter or a body).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel
+
+
+class ErrorOut(BaseModel):
+    detail: str
+
+
+def _error(description: str, **extra: Any) -> dict[str, Any]:
+    return {"model": ErrorOut, "description": description, **extra}
+
+
+UNAUTHORIZED = {
+    401: _error(
+        "the service has an API token and the request did not carry it (Authorization: Bearer <token>)",
+        headers={"WWW-Authenticate": {"required": True, "schema": {"type": "string", "const": "Bearer"}}},
+    )
+}
+NOT_FOUND = {404: _error("no mission with this id")}
+CONFLICT = {409: _error("another mission uses the vehicle, or this mission is not in a state that allows it")}
+TOO_LARGE = {413: _error("the request body is larger than the service's max_body_bytes")}
+UNAVAILABLE = {503: _error("this service is on stand-by: another instance owns the vehicle link")}
+
+MUTATING = UNAUTHORIZED | UNAVAILABLE  # every POST: the token, and the stand-by service that may not act
+WITH_BODY = MUTATING | TOO_LARGE  # a POST that takes a body
