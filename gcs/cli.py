@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sqlite3
 import sys
 from pathlib import Path
 
@@ -12,7 +11,7 @@ from pydantic import ValidationError
 
 from gcs.connection import ConnectionStringError, parse_connection
 from gcs.settings import DB_FILENAME, Settings
-from gcs.storage import Storage, StorageError
+from gcs.storage import StorageError, is_postgres_url, open_storage
 from planner.scenario import Weather
 
 # `up` starts its own vehicle on this machine: by default on the port of the default vehicle connection.
@@ -45,6 +44,18 @@ def _add_service_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_database_option(parser: argparse.ArgumentParser, what: str) -> None:
+    """--db: a SQLite file or a PostgreSQL URL (settings_from_args sorts it into db_path or db)."""
+    db_default = f"{Settings.default('data_dir')}/{DB_FILENAME}"
+    parser.add_argument(
+        "--db",
+        dest="database",
+        metavar="FILE|URL",
+        help=f"{what}: a SQLite file (default {db_default}, or ${Settings.env_name('db_path')}) or a PostgreSQL "
+        f"database, postgresql://USER[:PASSWORD]@HOST:PORT/NAME (or ${Settings.env_name('db')})",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="buoy-gcs", description="Ground-control mission service for buoy inspection")
     commands = parser.add_subparsers(dest="command", required=True)
@@ -59,10 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     _add_service_options(serve)
-    db_default = f"{Settings.default('data_dir')}/{DB_FILENAME}"
-    serve.add_argument(
-        "--db", dest="db_path", type=Path, metavar="FILE", help=_help("SQLite file", "db_path", db_default)
-    )
+    _add_database_option(serve, "the service's database")
     serve.add_argument(
         "--vehicle-wait",
         dest="vehicle_wait_s",
@@ -77,13 +85,7 @@ def build_parser() -> argparse.ArgumentParser:
         "track, tracking error, altitude and yaw tracking, ESO estimates.",
     )
     report.add_argument("mission_id", type=int, metavar="MISSION_ID")
-    report.add_argument(
-        "--db",
-        dest="db_path",
-        type=Path,
-        metavar="FILE",
-        help=_help("SQLite file of the service", "db_path", db_default),
-    )
+    _add_database_option(report, "the service's database")
     report.add_argument(
         "--out",
         type=Path,
@@ -145,6 +147,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help=_help("data directory (database, logs, parameters)", "data_dir"),
     )
+    _add_database_option(up, "the service's database (default in the data directory)")
     up.add_argument("--demo", action="store_true", help="fly the paper's reference scenario and print its report")
     up.add_argument("--demo-seed", type=int, default=1, help="which reference scenario the demo flies")
     up.add_argument("--exit-after-demo", action="store_true", help="stop the stack once the demo has flown")
@@ -182,7 +185,16 @@ def settings_from_args(args: argparse.Namespace, **overrides: object) -> Setting
     """The settings with every option given on the command line (options left at None keep the environment's
     value, else the default). Raises pydantic's ValidationError for a value of the wrong type."""
     given = {name: value for name, value in vars(args).items() if name in Settings.model_fields and value is not None}
-    return Settings(**{**given, **overrides})
+    return Settings(**{**given, **_database(getattr(args, "database", None)), **overrides})
+
+
+def _database(option: str | None) -> dict[str, object]:
+    """--db's settings: a PostgreSQL URL is `db`; a file is `db_path` and overrides a $BUOY_GCS_DB URL."""
+    if option is None:
+        return {}
+    if is_postgres_url(option):
+        return {"db": option}
+    return {"db": None, "db_path": Path(option)}
 
 
 def _settings_error(error: ValidationError) -> str:
@@ -201,9 +213,9 @@ def check_serve(settings: Settings) -> str | None:
     if not 0 < settings.port < 65536:
         return f"--port {settings.port} is not a TCP port"
     try:
-        Storage(settings.db_path).close()
-    except (StorageError, OSError) as error:
-        return f"--db {settings.db_path}: {error}"
+        open_storage(settings.database).close()
+    except StorageError as error:
+        return f"--db: {error}"
     return None
 
 
@@ -258,14 +270,13 @@ def report(args: argparse.Namespace) -> int:
     from gcs.report import ReportError, cached_report, write_report
 
     settings = settings_from_args(args)
-    db = settings.db_path
-    if not db.is_file():
-        print(f"buoy-gcs: no database at {db} (give the service's --db file)", file=sys.stderr)
+    if settings.db is None and not settings.db_path.is_file():
+        print(f"buoy-gcs: no database at {settings.db_path} (give the service's --db)", file=sys.stderr)
         return 2
     try:
-        storage = Storage(db)
-    except (StorageError, OSError, sqlite3.Error) as error:
-        print(f"buoy-gcs: --db {db}: {error}", file=sys.stderr)
+        storage = open_storage(settings.database)
+    except StorageError as error:
+        print(f"buoy-gcs: --db: {error}", file=sys.stderr)
         return 2
     try:
         if args.out is None:
@@ -273,7 +284,7 @@ def report(args: argparse.Namespace) -> int:
         else:
             record = storage.get_mission(args.mission_id)
             if record is None:
-                raise ReportError(f"no mission {args.mission_id} in {db}")
+                raise ReportError(f"no mission {args.mission_id} in {storage.location}")
             index = write_report(record, storage.telemetry(args.mission_id), args.out)
     except ReportError as error:
         print(f"buoy-gcs: {error.args[0]}", file=sys.stderr)

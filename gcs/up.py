@@ -150,7 +150,7 @@ def _service(options: UpOptions, vehicle_url: str) -> ChildSpec:
         "--port",
         str(settings.port),
         "--db",
-        str(settings.db_path),
+        str(settings.database),
     ]
     if settings.token:
         gcs_args += ["--token", settings.token]
@@ -251,7 +251,7 @@ def _run_stack(
         supervisor.start_all()
         say(f"map page:   {base}/")
         say(f"API docs:   {base}/docs")
-        say(f"data:       {settings.data_dir.resolve()} (vehicle.params, logs/); database {settings.db_path}")
+        say(f"data:       {settings.data_dir.resolve()} (vehicle.params, logs/); database {settings.database}")
         if demo is not None:
             flight = fly_demo(base, options, demo, supervisor, say)
             flights.append(flight)
@@ -414,7 +414,7 @@ def demo_report(flight: DemoFlight, options: UpOptions, demo: DemoPlan | None = 
         f"  lockstep   {flight.simulated_s:.1f} s simulated in {flight.wall_s:.1f} s wall from POST to landed: "
         f"{flight.simulated_s / flight.wall_s:.1f}x"
     )
-    lines.append(f"  report     python -m gcs report {mission['id']} --db {options.settings.db_path}")
+    lines.append(f"  report     python -m gcs report {mission['id']} --db {options.settings.database}")
     return "\n".join(lines)
 
 

@@ -31,7 +31,7 @@ from udp_relay import LossyUdpRelay
 
 from gcs.lifecycle import REATTACHED, RESTART_NOT_FLYING
 from gcs.planning import make_plan
-from gcs.storage import Storage
+from gcs.storage import open_storage
 from gcs.up import UpOptions, reference_request
 from planner.scenario import reference_scenario
 from uavcore.geodesy import DEFAULT_HOME
@@ -324,7 +324,7 @@ def test_gcs_restarted_mid_flight_reattaches_keeps_recording_and_completes(stack
 
 
 def test_gcs_restarted_while_the_vehicle_flies_nothing_fails_the_unfinished_missions(stack):
-    storage = Storage(stack.dir / "gcs.sqlite")  # what a service killed mid-upload and mid-flight left behind
+    storage = open_storage(stack.dir / "gcs.sqlite")  # what a service killed mid-upload and mid-flight left behind
     request = near_buoys(2)
     plan = make_plan(
         (request["depot"]["lat"], request["depot"]["lon"]),

@@ -19,7 +19,7 @@ from gcs.planning import FIRST_BUOY_SEQ, FlightParams, leg_of_seq, make_plan
 from gcs.report import FIGURES, cached_report, report_series, summary_rows, write_report
 from gcs.results import flight_results
 from gcs.settings import Settings
-from gcs.storage import Storage
+from gcs.storage import SqliteStorage, Storage
 from uavcore.geodesy import DEFAULT_HOME
 
 OFFSET_M = 0.3  # the synthetic vehicle flies this far to the left of every leg
@@ -95,7 +95,7 @@ def synthetic_mission(storage: Storage) -> int:
 
 @pytest.fixture
 def stored(tmp_path):
-    storage = Storage(tmp_path / "gcs.sqlite")
+    storage = SqliteStorage(tmp_path / "gcs.sqlite")
     mission_id = synthetic_mission(storage)
     yield storage, mission_id
     storage.close()
@@ -180,7 +180,7 @@ def test_report_route_serves_the_page_and_its_figures(stored, tmp_path):
 
 
 def test_a_mission_that_never_flew_still_gets_a_report(tmp_path):
-    storage = Storage(tmp_path / "gcs.sqlite")
+    storage = SqliteStorage(tmp_path / "gcs.sqlite")
     depot = DEFAULT_HOME[:2]
     plan = make_plan(depot, [(depot[0] + 0.0005, depot[1])], ["A"], "exact")
     mission_id = storage.create_mission(asdict(FLIGHT), plan.to_dict())

@@ -4,7 +4,8 @@ import sqlite3
 
 import pytest
 
-from gcs.storage import MIGRATIONS, Storage, StorageError
+from gcs.storage import MIGRATIONS, ConstraintError, StorageError
+from gcs.storage import SqliteStorage as Storage
 
 PLAN = {"order": [1, 0], "length_m": 10.0}
 FLIGHT = {"altitude_m": 5.0}
@@ -71,7 +72,7 @@ def test_telemetry_batch_is_all_or_nothing(tmp_path):
     with pytest.raises(ValueError):  # NaN cannot be stored as strict JSON: the whole batch is refused
         storage.add_telemetry(mission_id, [{"t_s": 0.0}, {"t_s": 0.1}, {"t_s": 0.2, "x": float("nan")}])
     assert storage.telemetry_count(mission_id) == 0
-    with pytest.raises(sqlite3.IntegrityError):  # unknown mission: foreign key
+    with pytest.raises(ConstraintError):  # unknown mission: foreign key
         storage.add_telemetry(12345, [{"t_s": 0.0}])
     assert storage.telemetry_count(12345) == 0
 
@@ -79,7 +80,7 @@ def test_telemetry_batch_is_all_or_nothing(tmp_path):
 def test_invalid_status_is_refused_by_the_schema(tmp_path):
     storage = Storage(tmp_path / "gcs.sqlite")
     mission_id = storage.create_mission(FLIGHT, PLAN)
-    with pytest.raises(sqlite3.IntegrityError):
+    with pytest.raises(ConstraintError):
         storage.set_status(mission_id, "exploded")
     record = storage.get_mission(mission_id)
     assert record.status == "planned" and len(record.events) == 1

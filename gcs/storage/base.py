@@ -1,0 +1,270 @@
+"""The storage's SQL, written once for both databases; the dialects (`sqlite`, `postgres`) supply the rest.
+
+`Storage` holds every query the service runs, with `?` placeholders and names for every selected column. A
+dialect subclass says how to reach its database: a connection for reads (`_reading`), a transaction for writes
+(`_begin`), how to serialise migrations and version numbers across service instances, and which driver errors
+mean a broken constraint.
+"""
+
+from __future__ import annotations
+
+import json
+from abc import ABC, abstractmethod
+from collections.abc import Iterable, Iterator, Sequence
+from contextlib import AbstractContextManager, contextmanager
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from typing import Any, ClassVar, Protocol
+
+from gcs.status import UNFINISHED, MissionStatus
+from gcs.storage.migrations import MIGRATIONS
+
+# The next version, taken inside the write's transaction, after the dialect's `_serialise_versions`: writers take
+# it one at a time and commit in that order, so a reader that saw latest_version() == N never later sees a
+# mission appear with a version <= N.
+NEXT_VERSION = "(SELECT COALESCE(MAX(version), 0) + 1 FROM missions)"
+
+
+class StorageError(RuntimeError):
+    """The database cannot be opened, is from a newer version of the service, or refused a write."""
+
+
+class ConstraintError(StorageError):
+    """A write broke one of the schema's rules (an unknown mission, a status that does not exist): nothing of
+    the transaction was written."""
+
+
+class Cursor(Protocol):
+    rowcount: int
+
+    def fetchone(self) -> Any: ...
+
+    def fetchall(self) -> list[Any]: ...
+
+
+class Connection(Protocol):
+    """What `transaction()` yields: sqlite3.Connection's execute/executemany (`?` placeholders). Rows are read
+    by column name."""
+
+    def execute(self, sql: str, parameters: Sequence[Any] = ...) -> Cursor: ...
+
+    def executemany(self, sql: str, rows: Iterable[Sequence[Any]]) -> Any: ...
+
+
+@dataclass
+class MissionRecord:
+    id: int
+    created_at: str
+    updated_at: str
+    status: MissionStatus
+    reason: str | None
+    flight: dict[str, Any]
+    plan: dict[str, Any]
+    progress: dict[str, Any]
+    results: dict[str, Any] | None
+    events: list[dict[str, Any]] = field(default_factory=list)
+
+
+def _now() -> str:
+    return datetime.now(UTC).isoformat(timespec="milliseconds")
+
+
+def _json(value: Any) -> str:
+    # allow_nan=False: a NaN would make the stored document unreadable by strict JSON clients
+    return json.dumps(value, allow_nan=False, separators=(",", ":"))
+
+
+def _record(row: Any, events: list[dict[str, Any]]) -> MissionRecord:
+    return MissionRecord(
+        id=int(row["id"]),
+        created_at=row["created_at"],
+        updated_at=row["updated_at"],
+        status=MissionStatus(row["status"]),
+        reason=row["reason"],
+        flight=json.loads(row["flight"]),
+        plan=json.loads(row["plan"]),
+        progress=json.loads(row["progress"]),
+        results=json.loads(row["results"]) if row["results"] else None,
+        events=events,
+    )
+
+
+class Storage(ABC):
+    """Missions, their status history and their telemetry. Safe to share between threads. Open one with
+    `gcs.storage.open_storage`."""
+
+    dialect: ClassVar[str]  # which SQL of each migration applies: "sqlite" or "postgresql"
+    location: str  # the database for messages: a file name, or a URL without its password
+    constraint_errors: ClassVar[tuple[type[Exception], ...]]  # the driver's errors for a broken constraint
+
+    # ----- what a dialect supplies
+    @abstractmethod
+    def _reading(self) -> AbstractContextManager[Connection]:
+        """A connection for reads (no transaction needed)."""
+
+    @abstractmethod
+    def _begin(self) -> AbstractContextManager[Connection]:
+        """A transaction holding the database's write lock where it has one; commits at the end of the block,
+        rolls back on an error."""
+
+    @abstractmethod
+    def _serialise_migrations(self, db: Connection) -> None:
+        """Called first in the migration's transaction: another instance migrating waits until it commits."""
+
+    @abstractmethod
+    def _serialise_versions(self, db: Connection) -> None:
+        """Called first in every mission write: writers take NEXT_VERSION one at a time, in commit order."""
+
+    @abstractmethod
+    def close(self) -> None: ...
+
+    # ----- plumbing
+    @contextmanager
+    def transaction(self) -> Iterator[Connection]:
+        """All statements inside commit together or not at all."""
+        try:
+            with self._begin() as db:
+                yield db
+        except self.constraint_errors as error:
+            raise ConstraintError(f"{self.location}: {error}") from error
+
+    def schema_version(self) -> int:
+        with self._reading() as db:
+            return self._schema_version(db)
+
+    @staticmethod
+    def _schema_version(db: Connection) -> int:
+        return int(db.execute("SELECT COALESCE(MAX(version), 0) AS version FROM schema_migrations").fetchone()[
+            "version"
+        ])
+
+    def _migrate(self) -> None:
+        """Bring the schema to the newest version, in one transaction: all the missing migrations or none."""
+        with self.transaction() as db:
+            self._serialise_migrations(db)
+            db.execute(
+                "CREATE TABLE IF NOT EXISTS schema_migrations (version INTEGER PRIMARY KEY, applied_at TEXT NOT NULL)"
+            )
+            current = self._schema_version(db)
+            if current > len(MIGRATIONS):
+                raise StorageError(
+                    f"{self.location}: schema version {current} is newer than this service ({len(MIGRATIONS)})"
+                )
+            for version in range(current + 1, len(MIGRATIONS) + 1):
+                for statement in MIGRATIONS[version - 1].statements(self.dialect):
+                    db.execute(statement)
+                db.execute("INSERT INTO schema_migrations (version, applied_at) VALUES (?, ?)", (version, _now()))
+
+    @contextmanager
+    def _mission_write(self) -> Iterator[Connection]:
+        with self.transaction() as db:
+            self._serialise_versions(db)
+            yield db
+
+    # ----- missions
+    def create_mission(
+        self, flight: dict[str, Any], plan: dict[str, Any], status: MissionStatus = MissionStatus.PLANNED
+    ) -> int:
+        now = _now()
+        with self._mission_write() as db:
+            mission_id = int(
+                db.execute(
+                    f"INSERT INTO missions (created_at, updated_at, status, flight, plan, version)"
+                    f" VALUES (?, ?, ?, ?, ?, {NEXT_VERSION}) RETURNING id",
+                    (now, now, status, _json(flight), _json(plan)),
+                ).fetchone()["id"]
+            )
+            db.execute(
+                "INSERT INTO mission_events (mission_id, at, status) VALUES (?, ?, ?)", (mission_id, now, status)
+            )
+        return mission_id
+
+    def set_status(self, mission_id: int, status: MissionStatus, reason: str | None = None) -> None:
+        now = _now()
+        with self._mission_write() as db:
+            cursor = db.execute(
+                f"UPDATE missions SET status = ?, reason = ?, updated_at = ?, version = {NEXT_VERSION} WHERE id = ?",
+                (status, reason, now, mission_id),
+            )
+            if cursor.rowcount != 1:
+                raise KeyError(f"no mission {mission_id}")
+            db.execute(
+                "INSERT INTO mission_events (mission_id, at, status, reason) VALUES (?, ?, ?, ?)",
+                (mission_id, now, status, reason),
+            )
+
+    def set_progress(self, mission_id: int, progress: dict[str, Any]) -> None:
+        self._set_document(mission_id, "progress", progress)
+
+    def set_results(self, mission_id: int, results: dict[str, Any]) -> None:
+        self._set_document(mission_id, "results", results)
+
+    def _set_document(self, mission_id: int, column: str, document: dict[str, Any]) -> None:
+        with self._mission_write() as db:
+            db.execute(
+                f"UPDATE missions SET {column} = ?, updated_at = ?, version = {NEXT_VERSION} WHERE id = ?",
+                (_json(document), _now(), mission_id),
+            )
+
+    def unfinished_missions(self) -> list[int]:
+        """Ids of missions a previous run of the service left uploading, uploaded or flying, oldest first."""
+        with self._reading() as db:
+            rows = db.execute(
+                f"SELECT id FROM missions WHERE status IN ({', '.join('?' * len(UNFINISHED))}) ORDER BY id",
+                [str(status) for status in UNFINISHED],
+            ).fetchall()
+        return [int(row["id"]) for row in rows]
+
+    def get_mission(self, mission_id: int) -> MissionRecord | None:
+        with self._reading() as db:
+            row = db.execute("SELECT * FROM missions WHERE id = ?", (mission_id,)).fetchone()
+            if row is None:
+                return None
+            events = db.execute(
+                "SELECT at, status, reason FROM mission_events WHERE mission_id = ? ORDER BY id", (mission_id,)
+            ).fetchall()
+        return _record(row, [dict(event) for event in events])
+
+    def mission_version(self, mission_id: int) -> int | None:
+        """The mission's change counter (None: no such mission): it grows at every write to the mission."""
+        with self._reading() as db:
+            row = db.execute("SELECT version FROM missions WHERE id = ?", (mission_id,)).fetchone()
+        return None if row is None else int(row["version"])
+
+    def latest_version(self) -> int:
+        """The highest change counter of all missions: it grows whenever any mission is created or changes."""
+        with self._reading() as db:
+            row = db.execute("SELECT COALESCE(MAX(version), 0) AS version FROM missions").fetchone()
+        return int(row["version"])
+
+    def list_missions(self, limit: int = 100) -> list[MissionRecord]:
+        with self._reading() as db:
+            rows = db.execute("SELECT * FROM missions ORDER BY id DESC LIMIT ?", (limit,)).fetchall()
+        return [_record(row, []) for row in rows]
+
+    # ----- telemetry
+    def add_telemetry(self, mission_id: int, samples: list[dict[str, Any]]) -> None:
+        """Store samples (each with a `t_s` key) in one transaction: all of them or none. A sample whose instant
+        is already stored for the mission is skipped (a stand-by taking over may record it again)."""
+        if not samples:
+            return
+        with self.transaction() as db:
+            db.executemany(
+                "INSERT INTO telemetry (mission_id, t_s, sample) VALUES (?, ?, ?) ON CONFLICT (mission_id, t_s) DO NOTHING",
+                [(mission_id, float(s["t_s"]), _json(s)) for s in samples],
+            )
+
+    def telemetry(self, mission_id: int, limit: int | None = None) -> list[dict[str, Any]]:
+        """The mission's samples in time order (the vehicle's clock), the first `limit` of them."""
+        query = "SELECT sample FROM telemetry WHERE mission_id = ? ORDER BY t_s"
+        with self._reading() as db:
+            if limit is None:
+                rows = db.execute(query, (mission_id,)).fetchall()
+            else:
+                rows = db.execute(f"{query} LIMIT ?", (mission_id, limit)).fetchall()
+        return [json.loads(row["sample"]) for row in rows]
+
+    def telemetry_count(self, mission_id: int) -> int:
+        with self._reading() as db:
+            row = db.execute("SELECT COUNT(*) AS samples FROM telemetry WHERE mission_id = ?", (mission_id,)).fetchone()
+        return int(row["samples"])

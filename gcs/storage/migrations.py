@@ -1,0 +1,91 @@
+"""The schema, as a list of migrations: each upgrades it by one version, in both dialects.
+
+Never edit a released migration, append a new one. The status CHECK lists MissionStatus's values: a status added
+later needs a migration that rebuilds the CHECK.
+
+Dialect differences: SQLite's `INTEGER PRIMARY KEY AUTOINCREMENT` is PostgreSQL's `BIGINT GENERATED ALWAYS AS
+IDENTITY`; SQLite's REAL is DOUBLE PRECISION. Timestamps are ISO 8601 text and JSON documents are TEXT in both:
+they are read and written whole, never queried field by field, so both backends hand back the same strings.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from gcs.status import MissionStatus
+
+_STATUSES = ", ".join(f"'{status.value}'" for status in MissionStatus)
+
+
+@dataclass(frozen=True)
+class Migration:
+    sqlite: str
+    postgresql: str
+
+    def statements(self, dialect: str) -> list[str]:
+        script = self.sqlite if dialect == "sqlite" else self.postgresql
+        return [statement for statement in script.split(";") if statement.strip()]
+
+
+def _first_schema(integer: str, key: str, real: str) -> str:
+    """Migration 1: missions, their status history and their telemetry (integer, key and float types per dialect)."""
+    return f"""
+    CREATE TABLE missions (
+        id {key},
+        created_at TEXT NOT NULL,
+        updated_at TEXT NOT NULL,
+        status TEXT NOT NULL CHECK (status IN ({_STATUSES})),
+        reason TEXT,
+        flight TEXT NOT NULL,
+        plan TEXT NOT NULL,
+        progress TEXT NOT NULL DEFAULT '{{}}',
+        results TEXT
+    );
+    CREATE TABLE mission_events (
+        id {key},
+        mission_id {integer} NOT NULL REFERENCES missions(id),
+        at TEXT NOT NULL,
+        status TEXT NOT NULL,
+        reason TEXT
+    );
+    CREATE TABLE telemetry (
+        mission_id {integer} NOT NULL REFERENCES missions(id),
+        t_s {real} NOT NULL,
+        sample TEXT NOT NULL
+    );
+    CREATE INDEX telemetry_by_mission ON telemetry (mission_id, t_s);
+    CREATE INDEX events_by_mission ON mission_events (mission_id, id);
+    """
+
+
+def _change_counter(integer: str) -> str:
+    """Migration 2: a change counter per mission, so readers (a read cache, a stand-by service) can tell cheaply
+    whether a mission or the list changed: every write to a mission sets its version above every other mission's."""
+    return f"""
+    ALTER TABLE missions ADD COLUMN version {integer} NOT NULL DEFAULT 0;
+    CREATE INDEX missions_by_version ON missions (version);
+    """
+
+
+# Migration 3: one sample per mission and instant. A stand-by service taking over a flying mission may record
+# again samples the failed owner already stored; with this index add_telemetry skips them. Duplicates stored
+# before it are removed first, keeping the first stored (PostgreSQL's telemetry has no row id: its table is
+# append-only, so the lowest ctid is the first stored).
+_ONE_SAMPLE_PER_INSTANT = """
+    DROP INDEX telemetry_by_mission;
+    CREATE UNIQUE INDEX telemetry_by_mission ON telemetry (mission_id, t_s);
+"""
+
+MIGRATIONS: list[Migration] = [
+    Migration(
+        sqlite=_first_schema("INTEGER", "INTEGER PRIMARY KEY AUTOINCREMENT", "REAL"),
+        postgresql=_first_schema("BIGINT", "BIGINT GENERATED ALWAYS AS IDENTITY PRIMARY KEY", "DOUBLE PRECISION"),
+    ),
+    Migration(sqlite=_change_counter("INTEGER"), postgresql=_change_counter("BIGINT")),
+    Migration(
+        sqlite="DELETE FROM telemetry WHERE rowid NOT IN (SELECT MIN(rowid) FROM telemetry GROUP BY mission_id, t_s);"
+        + _ONE_SAMPLE_PER_INSTANT,
+        postgresql="DELETE FROM telemetry AS later USING telemetry AS first WHERE later.mission_id = first.mission_id"
+        " AND later.t_s = first.t_s AND later.ctid > first.ctid;" + _ONE_SAMPLE_PER_INSTANT,
+    ),
+]
