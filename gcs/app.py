@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
@@ -19,6 +20,7 @@ from gcs.http_headers import SecurityHeadersMiddleware
 from gcs.lifecycle import MissionConflictError
 from gcs.link import LinkManager
 from gcs.missions import MissionNotFoundError, MissionService
+from gcs.ownership import NotOwnerError, ownership_for
 from gcs.routes import buoy_files, live, missions, plans, vehicle
 from gcs.settings import Settings
 from gcs.storage import open_storage
@@ -62,6 +64,12 @@ def _install_error_handlers(app: FastAPI) -> None:
     async def conflict(_: Request, error: MissionConflictError) -> JSONResponse:
         return JSONResponse({"detail": str(error)}, status_code=409)
 
+    @app.exception_handler(NotOwnerError)
+    async def standby(request: Request, error: NotOwnerError) -> JSONResponse:
+        # a client may retry here (this instance takes over when the owner dies) or go to the owner
+        retry_s = max(1, math.ceil(request.app.state.settings.lease_poll_s))
+        return JSONResponse({"detail": str(error)}, status_code=503, headers={"Retry-After": str(retry_s)})
+
 
 def _operation_id(route: APIRoute) -> str:
     """The OpenAPI operationId of a route: its function's name (get_mission), which the links between
@@ -93,7 +101,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         storage = open_storage(settings.database)
         key = None if settings.signing_key is None else parse_signing_key(settings.signing_key)
         link = LinkManager(settings.vehicle_url, settings.heartbeat_timeout_s, signing_key=key)
-        service = MissionService(settings, storage, link)
+        service = MissionService(settings, storage, link, ownership_for(settings))
         app.state.service = service
         await service.start()
         try:

@@ -39,6 +39,9 @@ from typing import Any, NoReturn, Protocol
 
 import psycopg
 
+from gcs.connection import parse_connection
+from gcs.settings import Settings
+
 log = logging.getLogger(__name__)
 
 # Advisory locks are one namespace per database: our locks use this first key, the vehicle's hash the second.
@@ -255,3 +258,12 @@ class Ownership:
                 log.exception("vehicle lease: taking over the vehicle link failed")
                 self.on_lost()
                 return
+
+
+def ownership_for(settings: Settings) -> Ownership:
+    """On a PostgreSQL database, a lease shared with the other instances there; on SQLite, the sole owner."""
+    if settings.db is None:
+        return Ownership(SoleLease(), settings.instance_name, settings.lease_poll_s)
+    vehicle_name = settings.vehicle_name or str(parse_connection(settings.vehicle_url))
+    lease = PostgresLease(settings.db, vehicle_name, settings.instance_name)
+    return Ownership(lease, settings.instance_name, settings.lease_poll_s)
