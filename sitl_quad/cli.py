@@ -51,6 +51,16 @@ def parse_param(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}") from None
 
 
+def parse_percent(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a percentage, got {text!r}") from None
+    if not 0 <= value <= 100:
+        raise argparse.ArgumentTypeError(f"a percentage is in [0, 100], got {value:g}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="sitl-quad",
@@ -113,6 +123,13 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         metavar="NAME=VALUE",
         help="set one parameter at start, after --params (repeatable)",
+    )
+    p.add_argument(
+        "--battery-percent",
+        type=parse_percent,
+        default=100.0,
+        metavar="PERCENT",
+        help="charge of the pack at start (default 100; MAV_CMD_BATTERY_RESET swaps it on the ground)",
     )
     p.add_argument(
         "--outer-rate",
@@ -188,6 +205,7 @@ def main(argv: list[str] | None = None) -> int:
     vehicle = Vehicle(
         config, home=args.home, seed=args.seed, outer_rate_hz=args.outer_rate, attitude_loops=attitude_loops()
     )
+    vehicle.battery.reset(args.battery_percent / 100.0)
     try:
         link = UdpLink(args.host, args.port, args.out, sysid=args.sysid, signing_key=args.signing_key)
     except OSError as exc:

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 
 from sitl_quad.attitude_pid import PidAttitudeGains
+from sitl_quad.battery import BatteryConfig
 from sitl_quad.disturbances import DisturbanceConfig
 from sitl_quad.navigator import NavigatorConfig
 from sitl_quad.position_control import PidPositionGains
@@ -37,6 +38,15 @@ class GeofenceAction(IntEnum):
     LAND = 5  # land where it is (AUTO.LAND)
 
 
+class LowBatteryAction(IntEnum):
+    """What the vehicle does at the battery's critical and emergency levels (COM_LOW_BAT_ACT, PX4's numbers)."""
+
+    WARNING = 0  # STATUSTEXT warnings only
+    RETURN = 1  # return (AUTO.RTL) at critical and at emergency (PX4 keeps it, no longer lists it)
+    LAND = 2  # land where it is (AUTO.LAND) at critical
+    RETURN_OR_LAND = 3  # return at critical, land where it is at emergency
+
+
 class AttitudeControllerKind(IntEnum):
     """Which inner loop flies the attitude (MC_ATT_CTRL)."""
 
@@ -49,6 +59,8 @@ class FailsafeConfig:
     offboard_loss_timeout_s: float = 0.5  # OFFB_LOSS_T, simulated seconds
     offboard_loss_action: int = FailsafeAction.HOLD  # OFFB_LOSS_ACT
     geofence_action: int = GeofenceAction.HOLD  # GF_ACTION
+    low_battery_action: int = LowBatteryAction.WARNING  # COM_LOW_BAT_ACT (PX4's default: warn only)
+    arm_battery_min: float = -1.0  # COM_ARM_BAT_MIN: no arming below this charge; negative: below BAT_CRIT_THR
 
     def __post_init__(self) -> None:
         if self.geofence_action == GeofenceAction.TERMINATE:
@@ -70,4 +82,5 @@ class VehicleConfig:
     attitude_pid: PidAttitudeGains = field(default_factory=PidAttitudeGains)
     position_pid: PidPositionGains = field(default_factory=PidPositionGains)
     failsafe: FailsafeConfig = field(default_factory=FailsafeConfig)
+    battery: BatteryConfig = field(default_factory=BatteryConfig)
     control: ControlConfig = field(default_factory=ControlConfig)

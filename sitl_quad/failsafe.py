@@ -1,4 +1,5 @@
-"""Failsafes: the offboard setpoint stream and its loss (OFFB_LOSS_T, OFFB_LOSS_ACT); the geofence (GF_ACTION).
+"""Failsafes: the offboard setpoint stream and its loss (OFFB_LOSS_T, OFFB_LOSS_ACT); the geofence (GF_ACTION);
+the battery (BAT_LOW_THR, BAT_CRIT_THR, BAT_EMERGEN_THR, COM_LOW_BAT_ACT).
 
 Offboard setpoints (attitude + thrust from the offboard controller; body rates + thrust; position, velocity,
 acceleration and yaw targets, see sitl_quad.offboard_setpoints) fly the vehicle only in OFFBOARD and only while
@@ -9,13 +10,19 @@ wall clock did.
 
 The geofence (uavcore.geofence, uploaded as a MISSION_TYPE_FENCE list) is checked every tick while flying;
 a breach switches to the mode GF_ACTION names and says so in a STATUSTEXT.
+
+The battery (sitl_quad.battery) is checked every tick while armed. Each warning level its charge falls to is
+announced once per flight, in PX4's words, and at the critical and emergency levels COM_LOW_BAT_ACT picks the
+mode, as PX4's failsafe framework does (Failsafe::fromBatteryWarningActParam): 0 warns only; 1 returns at both;
+2 lands at both; 3 returns at critical and lands at emergency.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sitl_quad.config import FailsafeAction, FailsafeConfig, GeofenceAction
+from sitl_quad.battery import BatteryWarning
+from sitl_quad.config import FailsafeAction, FailsafeConfig, GeofenceAction, LowBatteryAction
 from sitl_quad.offboard_setpoints import PositionTarget, RatesTarget, SetpointKind
 from uavcore.geodesy import LocalFrame
 from uavcore.geofence import Geofence, PlanarFence, Zone
@@ -115,3 +122,58 @@ class GeofenceGuard:
 def geofence_action_mode(action: GeofenceAction) -> FlightMode | None:
     """The mode GF_ACTION switches to on a breach (None: warn only, or nothing)."""
     return GEOFENCE_MODES.get(action)
+
+
+# MAV_SEVERITY of the battery texts: PX4 logs low and critical as critical, emergency as emergency.
+SEVERITY_EMERGENCY, SEVERITY_CRITICAL = 0, 2
+
+
+@dataclass(frozen=True)
+class BatteryFailsafe:
+    """What a battery warning level does: the mode to switch to (None: warn only) and the text that says so."""
+
+    mode: FlightMode | None
+    text: str
+    severity: int
+
+
+def battery_failsafe(level: BatteryWarning, action: LowBatteryAction) -> BatteryFailsafe | None:
+    """The reaction to the charge falling to `level` under COM_LOW_BAT_ACT = action (None for NONE)."""
+    if level == BatteryWarning.LOW:
+        return BatteryFailsafe(None, "Low battery level! Return advised", SEVERITY_CRITICAL)
+    if level == BatteryWarning.CRITICAL:
+        if action in (LowBatteryAction.RETURN, LowBatteryAction.RETURN_OR_LAND):
+            return BatteryFailsafe(FlightMode.AUTO_RTL, "Critical battery level! Executing RTL", SEVERITY_CRITICAL)
+        if action == LowBatteryAction.LAND:
+            return BatteryFailsafe(
+                FlightMode.AUTO_LAND, "Critical battery level! Landing immediately", SEVERITY_CRITICAL
+            )
+        return BatteryFailsafe(None, "Critical battery level! Landing advised", SEVERITY_CRITICAL)
+    if level == BatteryWarning.EMERGENCY:
+        if action == LowBatteryAction.RETURN:
+            return BatteryFailsafe(FlightMode.AUTO_RTL, "Emergency battery level! Executing RTL", SEVERITY_EMERGENCY)
+        if action in (LowBatteryAction.LAND, LowBatteryAction.RETURN_OR_LAND):
+            return BatteryFailsafe(
+                FlightMode.AUTO_LAND, "Emergency battery level! Landing immediately", SEVERITY_EMERGENCY
+            )
+        return BatteryFailsafe(None, "Emergency battery level! Please land", SEVERITY_EMERGENCY)
+    return None
+
+
+class BatteryGuard:
+    """The battery warning levels already announced this flight: each is acted on once, when the charge first falls
+    to it (a later, more severe level acts again), so the operator may take over after a battery failsafe."""
+
+    def __init__(self) -> None:
+        self.announced = BatteryWarning.NONE
+
+    def reset(self) -> None:
+        """A new flight (arming) or a new pack."""
+        self.announced = BatteryWarning.NONE
+
+    def new_level(self, level: BatteryWarning) -> BatteryWarning | None:
+        """`level` if it is more severe than any announced since the reset, else None."""
+        if level <= self.announced:
+            return None
+        self.announced = level
+        return level

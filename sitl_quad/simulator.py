@@ -293,6 +293,11 @@ class Simulator:
         return self._omega_cmd.copy()
 
     @property
+    def rotor_speeds(self) -> list[float]:
+        """The four rotor speeds now (rad/s), as plain floats: what the battery model reads every tick."""
+        return self._state[13:17].tolist()
+
+    @property
     def state(self) -> VehicleState:
         s = self._state
         return VehicleState(

@@ -5,7 +5,9 @@
 - sitl_quad.navigator: the mission and the reference the position loop follows;
 - sitl_quad.arming: armed or not, spool-up, the land detector and its automatic disarms (`ArmingState`);
 - sitl_quad.flight_modes: what each flight mode asks of the navigator;
-- sitl_quad.failsafe: the offboard setpoint stream and its loss (`OffboardStream`), the geofence (`GeofenceGuard`);
+- sitl_quad.failsafe: the offboard setpoint stream and its loss (`OffboardStream`), the geofence (`GeofenceGuard`),
+  the battery's warnings and actions (`BatteryGuard`);
+- sitl_quad.battery: the flight battery, drawn every tick by the rotors' power (`Battery`);
 - sitl_quad.offboard_setpoints: what position/velocity and body-rate setpoints ask of the loops;
 - sitl_quad.orbit: DO_ORBIT's circle;
 - sitl_quad.vehicle_types: command results, events, tick records.
@@ -37,8 +39,16 @@ from sitl_quad.arming import (
     PendingClimb,
     touching_ground,
 )
-from sitl_quad.config import AttitudeControllerKind, GeofenceAction, VehicleConfig
-from sitl_quad.failsafe import GeofenceGuard, OffboardStream, geofence_action_mode, offboard_loss_mode
+from sitl_quad.battery import Battery, electrical_power, rotor_mechanical_power
+from sitl_quad.config import AttitudeControllerKind, GeofenceAction, LowBatteryAction, VehicleConfig
+from sitl_quad.failsafe import (
+    BatteryGuard,
+    GeofenceGuard,
+    OffboardStream,
+    battery_failsafe,
+    geofence_action_mode,
+    offboard_loss_mode,
+)
 from sitl_quad.flight_loop import AttitudeLoopFactory, FlightLoop, builtin_pid_loop, motors_off_target
 from sitl_quad.flight_modes import CLIMB_MODES, flight_navigator, reposition_target, resume_seq, start_activity
 from sitl_quad.navigator import Navigator
@@ -105,7 +115,8 @@ class Vehicle:
         self.target = motors_off_target()
         self.source = "off"
         self.saturated_ticks = 0
-        self.flight_time_s = 0.0  # armed time, drains the battery model
+        self.battery = Battery(config.battery)
+        self.battery_guard = BatteryGuard()
 
     # ----- the parts, by the names the vehicle's users know them
     @property
@@ -158,6 +169,8 @@ class Vehicle:
         self.loop.apply_config(changed)
         if changed == "navigator":
             self.navigator.config = self.config.navigator
+        if changed == "battery":  # the same pack, its charge kept, seen with the new parameters
+            self.battery.config = self.config.battery
 
     # ----- state readers
     @property
@@ -207,7 +220,13 @@ class Vehicle:
         if self._geofence_enforced() and self.geofence.violation(*self._north_east()) is not None:
             self._emit("text", "Arming denied: vehicle outside geofence", 4)
             return CommandResult.DENIED
+        minimum = self._arming_battery_minimum()
+        if self.battery.state_of_charge < minimum:
+            charge = self.battery.state_of_charge
+            self._emit("text", f"Arming denied: battery {charge:.0%}, below {minimum:.0%}", 4)
+            return CommandResult.DENIED
         self.arming.arm(self.t)
+        self.battery_guard.reset()
         self.loop.reset_controllers()
         self._emit("armed", "Armed")
         self._enter(self.mode)
@@ -220,6 +239,25 @@ class Vehicle:
             self._emit("text", "Disarming denied: in the air", 4)
             return CommandResult.DENIED
         self._disarm("Disarmed")
+        return CommandResult.ACCEPTED
+
+    def _arming_battery_minimum(self) -> float:
+        """PX4's battery arming check: COM_ARM_BAT_MIN, or BAT_CRIT_THR while that is negative."""
+        minimum = self.config.failsafe.arm_battery_min
+        return minimum if minimum >= 0 else self.config.battery.critical_threshold
+
+    def replace_battery(self, state_of_charge: float) -> CommandResult:
+        """MAV_CMD_BATTERY_RESET: a fresh pack at state_of_charge (0..1), as a depot crew swaps it; only on the
+        ground and disarmed."""
+        if self.in_air or not self.sim.on_ground:
+            self._emit("text", "Battery swap denied: flying", 4)
+            return CommandResult.TEMPORARILY_REJECTED
+        if self.armed:
+            self._emit("text", "Battery swap denied: armed", 4)
+            return CommandResult.DENIED
+        self.battery.reset(state_of_charge)
+        self.battery_guard.reset()
+        self._emit("text", f"Battery replaced: {state_of_charge:.0%}", 6)
         return CommandResult.ACCEPTED
 
     def _disarm(self, reason: str) -> None:
@@ -477,6 +515,27 @@ class Vehicle:
         if next_mode is not None and next_mode != self.mode:
             self._enter(next_mode)
 
+    def _check_battery(self) -> None:
+        """Each battery warning level once per flight, and COM_LOW_BAT_ACT's mode at critical and emergency
+        (sitl_quad.failsafe). A landing is never turned into a return."""
+        if not self.armed:
+            return
+        level = self.battery_guard.new_level(self.battery.warning)
+        if level is None:
+            return
+        reaction = battery_failsafe(level, LowBatteryAction(self.config.failsafe.low_battery_action))
+        if reaction is None:
+            return
+        self._emit("text", reaction.text, reaction.severity)
+        mode = reaction.mode
+        if mode is not None and self.in_air and mode != self.mode and self.mode != FlightMode.AUTO_LAND:
+            self._enter(mode)
+
+    def _draw_battery(self) -> None:
+        """The tick's electrical load on the pack, from the rotor speeds now (sitl_quad.battery)."""
+        shaft_w = rotor_mechanical_power(self.sim.rotor_speeds, self.config.airframe.kf)
+        self.battery.draw(electrical_power(shaft_w, self.config.battery, self.armed), self.outer_dt)
+
     def _check_offboard_loss(self) -> None:
         """OFFB_LOSS_ACT once the offboard stream is older than OFFB_LOSS_T (sitl_quad.failsafe)."""
         if self.mode != FlightMode.OFFBOARD or self.offboard_fresh():
@@ -511,6 +570,7 @@ class Vehicle:
             self.setpoint = self._hold_here()
         self._check_offboard_loss()
         self._check_geofence()
+        self._check_battery()
         offboard = self._offboard_attitude(est) if self.mode == FlightMode.OFFBOARD else None
         idling = (
             self.armed and self.arming.idling(self.sim.on_ground, self.navigator) and not self._offboard_lifts_off(est)
@@ -519,8 +579,7 @@ class Vehicle:
         self.target, self.source = target, source
         saturated = self.loop.fly(target, source)
         self.saturated_ticks += int(saturated)
-        if self.armed:
-            self.flight_time_s += self.outer_dt
+        self._draw_battery()
         self._update_landed_state()
         return TickRecord(
             t=self.t,

@@ -116,4 +116,26 @@ VEHICLE_PARAMETERS: list[ParamSpec] = [
         "geofence breach action: 0 none, 1 warning, 2 hold, 3 return, 5 land (4 terminate: not simulated)",
     ),
     ParamSpec("MC_ATT_CTRL", "control.attitude_controller", INT32, 0, 1, "attitude loop: 0 PID, 1 ADRC"),
+    # battery (sitl_quad.battery) and its failsafe, PX4's names and ranges
+    ParamSpec("BAT1_N_CELLS", "battery.cells", INT32, 1, 14, "cells in series"),
+    ParamSpec("BAT1_CAPACITY", "battery.capacity_mah", REAL32, 50.0, 100000.0, "pack capacity, mAh"),
+    ParamSpec("BAT1_V_CHARGED", "battery.v_charged", REAL32, 3.0, 5.0, "cell open-circuit voltage full, V"),
+    ParamSpec("BAT1_V_EMPTY", "battery.v_empty", REAL32, 2.5, 4.5, "cell open-circuit voltage empty, V"),
+    ParamSpec("BAT1_R_INTERNAL", "battery.r_internal", REAL32, 0.0, 0.5, "internal resistance per cell, ohm"),
+    ParamSpec("BAT_LOW_THR", "battery.low_threshold", REAL32, 0.12, 0.5, "low battery warning below, fraction"),
+    ParamSpec("BAT_CRIT_THR", "battery.critical_threshold", REAL32, 0.05, 0.25, "critical level below, fraction"),
+    ParamSpec("BAT_EMERGEN_THR", "battery.emergency_threshold", REAL32, 0.03, 0.1, "emergency level below"),
+    ParamSpec("SIM_MOT_EFF", "battery.efficiency", REAL32, 0.2, 1.0, "motor + ESC efficiency, shaft/electric"),
+    ParamSpec("SIM_AVIONICS_W", "battery.avionics_w", REAL32, 0.0, 500.0, "avionics load while armed, W"),
+    ParamSpec(
+        "COM_LOW_BAT_ACT",
+        "failsafe.low_battery_action",
+        INT32,
+        0,
+        3,
+        "battery failsafe: 0 warning, 1 return, 2 land, 3 return at critical, land at emergency",
+    ),
+    ParamSpec(
+        "COM_ARM_BAT_MIN", "failsafe.arm_battery_min", REAL32, -1.0, 0.9, "no arming below; negative: BAT_CRIT_THR"
+    ),
 ]

@@ -24,6 +24,9 @@ POSITIONAL_COMMANDS = {
     mavlink.MAV_CMD_NAV_LAND,
 }
 INT32_MAX = 2**31 - 1  # COMMAND_INT's "unused" x / y
+# Not in the common dialect (ardupilotmega.xml defines it; PX4 and ArduPilot both accept it): param1 the mask of
+# batteries to reset (bit 0: battery 1), param2 the percentage remaining to set.
+MAV_CMD_BATTERY_RESET = 42651
 CommandHandler = Callable[[tuple], CommandResult]
 
 
@@ -48,6 +51,7 @@ class Commands:
             mavlink.MAV_CMD_DO_CHANGE_SPEED: lambda p: self.vehicle.change_speed(p[1]),
             mavlink.MAV_CMD_DO_REPOSITION: self.reposition,
             mavlink.MAV_CMD_DO_ORBIT: self.orbit,
+            MAV_CMD_BATTERY_RESET: self.battery_reset,
         }
 
     def register(self, command: int, handler: CommandHandler) -> None:
@@ -140,3 +144,10 @@ class Commands:
         if not math.isfinite(p[0]):
             return CommandResult.DENIED
         return CommandResult.ACCEPTED if self.vehicle.set_current_item(int(p[0])) else CommandResult.DENIED
+
+    def battery_reset(self, p: tuple) -> CommandResult:
+        """MAV_CMD_BATTERY_RESET: a new pack at param2 percent, for battery 1 (bit 0 of the mask param1)."""
+        mask, percent = p[0], p[1]
+        if not (math.isfinite(mask) and int(mask) & 1 and math.isfinite(percent) and 0 <= percent <= 100):
+            return CommandResult.DENIED
+        return self.vehicle.replace_battery(percent / 100.0)

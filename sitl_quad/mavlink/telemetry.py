@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import time
 
+from sitl_quad.battery import Battery, BatteryWarning
 from sitl_quad.config import GeofenceAction
 from sitl_quad.mavlink.heartbeat import heartbeat_message
 from sitl_quad.vehicle import CommandResult, Vehicle
@@ -46,6 +47,7 @@ SENSORS = (
     | mavlink.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL
     | mavlink.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
     | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+    | mavlink.MAV_SYS_STATUS_SENSOR_BATTERY
     | mavlink.MAV_SYS_STATUS_PREARM_CHECK
 )
 # Without a geofence none is breached: the GEOFENCE health bit alone (not present, not enabled), as ArduPilot
@@ -74,8 +76,7 @@ DEFAULT_RATES_HZ = {
     "SYSTEM_TIME": 1.0,
 }
 
-BATTERY_ENDURANCE_S = 25 * 60  # hover endurance used for the simple battery model
-CELL_FULL_V, CELL_EMPTY_V, CELLS = 4.2, 3.5, 4
+UINT16_MAX, INT16_MAX = 65535, 32767  # BATTERY_STATUS: cell not present, temperature unknown
 
 
 class Telemetry:
@@ -261,26 +262,23 @@ class Telemetry:
             mavlink.MAV_VTOL_STATE_UNDEFINED, int(self.vehicle.landed_state)
         )
 
-    def battery_fraction(self) -> float:
-        v = self.vehicle
-        return max(0.0, 1.0 - v.flight_time_s / BATTERY_ENDURANCE_S)
-
     def sys_status(self):
-        fraction = self.battery_fraction()
-        voltage_mv = int(CELLS * (CELL_EMPTY_V + (CELL_FULL_V - CELL_EMPTY_V) * fraction) * 1000)
+        battery = self.vehicle.battery
         stats = self.link_stats
         dropped = stats.dropped if stats else 0
         received = max(1, stats.messages + dropped) if stats else 1
         drop_rate = min(10000, int(10000 * dropped / received))  # centi-percent
         present, enabled, health = geofence_status_bits(self.vehicle)
+        if battery.warning >= BatteryWarning.CRITICAL:
+            health &= ~mavlink.MAV_SYS_STATUS_SENSOR_BATTERY
         return mavlink.MAVLink_sys_status_message(
             present,
             enabled,
             health,
             250,
-            voltage_mv,
-            800 if self.vehicle.armed else 50,
-            round(fraction * 100),
+            min(UINT16_MAX - 1, round(battery.voltage_v * 1000)),
+            _centiamperes(battery.current_a),
+            _percent(battery),
             drop_rate,
             min(65535, dropped),
             min(65535, stats.malformed if stats else 0),
@@ -290,19 +288,25 @@ class Telemetry:
         )
 
     def battery_status(self):
-        fraction = self.battery_fraction()
-        cell_mv = int((CELL_EMPTY_V + (CELL_FULL_V - CELL_EMPTY_V) * fraction) * 1000)
-        voltages = [cell_mv] * CELLS + [65535] * (10 - CELLS)
+        """The pack as PX4 reports it (MAVSDK's telemetry.battery reads the cell sum and battery_remaining)."""
+        battery = self.vehicle.battery
+        cells = battery.config.cells
+        cell_mv = min(UINT16_MAX - 1, round(battery.voltage_v / cells * 1000))
+        per_cell = [cell_mv] * cells + [UINT16_MAX] * (14 - cells)  # cells 11-14 go in voltages_ext (0: none)
+        remaining_s = battery.time_remaining_s()
         return mavlink.MAVLink_battery_status_message(
             0,
             mavlink.MAV_BATTERY_FUNCTION_ALL,
             mavlink.MAV_BATTERY_TYPE_LIPO,
-            32767,
-            voltages,
-            800 if self.vehicle.armed else 50,
-            int(5000 * (1 - fraction)),
-            -1,
-            round(fraction * 100),
+            INT16_MAX,
+            per_cell[:10],
+            _centiamperes(battery.current_a),
+            round(battery.consumed_mah),
+            round(battery.consumed_wh * 36.0),  # hJ
+            _percent(battery),
+            round(remaining_s) if remaining_s is not None else 0,
+            int(battery.warning) + 1,  # MAV_BATTERY_CHARGE_STATE_OK = PX4's WARNING_NONE + 1, and so on
+            [v if v != UINT16_MAX else 0 for v in per_cell[10:]],
         )
 
     def mission_current(self):
@@ -355,6 +359,15 @@ def geofence_status_bits(vehicle: Vehicle) -> tuple[int, int, int]:
     north, east, _ = (float(c) for c in vehicle.estimate.position)
     health = HEALTH & ~fence if vehicle.geofence.violation(north, east) is not None else HEALTH
     return SENSORS | fence, enabled, health
+
+
+def _centiamperes(current_a: float) -> int:
+    return min(INT16_MAX, round(current_a * 100))
+
+
+def _percent(battery: Battery) -> int:
+    """battery_remaining: whole percent."""
+    return round(battery.state_of_charge * 100)
 
 
 def _cm(metres_per_second: float) -> int:

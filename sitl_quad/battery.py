@@ -1,0 +1,194 @@
+"""The flight battery: electrical power from the rotors' mechanical power, a LiPo pack that delivers it.
+
+Pure computation in simulated time; parameters are data (`BatteryConfig`, named as PX4 names them).
+
+Power. Each rotor turns against its aerodynamic drag torque Q_i = kf * Omega_i^2, so the motors deliver
+P_mech = sum_i Q_i * Omega_i = kf * sum_i Omega_i^3. We take the paper's Table 2 drag coefficient kf
+(7.47e-7) as that per-rotor torque coefficient, its textbook meaning, and not the L * kf the paper's eq. (1)
+applies to the body's yaw (see sitl_quad/rotors.py): kf / kl = 26 mm of torque per newton of thrust is what
+10-12 inch propellers have, and hover then costs 112 W of shaft power, a figure of merit of 0.58 for a
+10 inch propeller (T^1.5 / sqrt(2 rho A) / P_mech), where L * kf would halve it and imply an FM above 1.
+The pack supplies P = P_mech / eta + P_avionics: eta is the motor + ESC efficiency (0.76 = an 80 % motor
+at hover load behind a 95 % ESC), P_avionics the flight controller, GNSS, radios and the inspection
+camera's computer (8 W), drawn while armed. Rotor inertia (spin-up energy) is neglected: at hover it
+averages out.
+
+Pack. n cells in series, each an open-circuit voltage OCV(SOC) behind an internal resistance R: the
+terminal voltage is V = n (OCV - I R), and the current that delivers P solves n R I^2 - n OCV I + P = 0 (the
+smaller root; past the pack's maximum power n OCV^2 / (4 R) the voltage collapses to n OCV / 2). The
+state of charge falls by the coulombs drawn: dSOC = -I dt / capacity. OCV(SOC) has the shape of the usual
+LiPo rest-voltage chart (`OCV_CHART`), stretched to span [BAT1_V_EMPTY, BAT1_V_CHARGED]: PX4 defines those
+two under a 5C load for its voltage-based estimate; here the model knows its charge and reports it as a
+current-integrating PX4 estimate would, so the two only bound the curve. Temperature is not modelled.
+The pack does not limit the motors: flying on past 0 % keeps flying at 0 %, which is what the failsafes
+(COM_LOW_BAT_ACT) are there to prevent.
+
+Defaults and what they give (bench/battery_endurance.py flies the Table 2 vehicle, 1.3 kg, in simulated
+time and writes bench/results/battery_endurance.json): a 4S 4000 mAh pack (~61 Wh, ~420 g, a fair share of
+1.3 kg). Hover draws ~155 W (~10 A, 2.5C) for ~23.5 min to empty; cruising at 10 m/s the Table 2 drag tilts
+the thrust and costs ~4 % more (the rotor model has no translational lift, which on real quadrotors makes
+10 m/s cheaper than hover: a conservative figure). Quadrotors of this mass: a 1.5 kg F450-class frame on
+4S 5000 mAh (74 Wh) hovers 15-20 min; a 1.4 kg DJI Phantom 4 on its 89 Wh pack flies ~28 min; both draw
+110-190 W per kg as this model's ~120 W/kg.
+
+Warnings follow PX4's battery_status: LOW below BAT_LOW_THR, CRITICAL below BAT_CRIT_THR, EMERGENCY below
+BAT_EMERGEN_THR (fractions of charge; sitl_quad.failsafe says what each does under COM_LOW_BAT_ACT).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+from enum import IntEnum
+
+# Rest (open-circuit) voltage of one LiPo cell at 0 %, 5 %, ..., 100 % charge: the widely published LiPo
+# voltage chart. Only its shape is used (normalised, then stretched between BAT1_V_EMPTY and BAT1_V_CHARGED).
+OCV_CHART = (
+    3.27, 3.61, 3.69, 3.71, 3.73, 3.75, 3.77, 3.79, 3.80, 3.82, 3.84,
+    3.85, 3.87, 3.91, 3.95, 3.98, 4.02, 4.08, 4.11, 4.15, 4.20,
+)  # fmt: skip
+_SOC_POINTS = tuple(i / (len(OCV_CHART) - 1) for i in range(len(OCV_CHART)))
+_SHAPE = tuple((v - OCV_CHART[0]) / (OCV_CHART[-1] - OCV_CHART[0]) for v in OCV_CHART)
+
+SECONDS_PER_HOUR = 3600.0
+
+
+class BatteryWarning(IntEnum):
+    """PX4's battery_status warning levels (MAV_BATTERY_CHARGE_STATE is these + 1)."""
+
+    NONE = 0
+    LOW = 1
+    CRITICAL = 2
+    EMERGENCY = 3
+
+
+@dataclass(frozen=True)
+class BatteryConfig:
+    """The pack, its thresholds and the power chain (PX4 parameter names in the comments)."""
+
+    cells: int = 4  # BAT1_N_CELLS, in series
+    capacity_mah: float = 4000.0  # BAT1_CAPACITY
+    v_charged: float = 4.20  # BAT1_V_CHARGED, V per cell: open-circuit voltage full
+    v_empty: float = 3.30  # BAT1_V_EMPTY, V per cell: open-circuit voltage empty
+    r_internal: float = 0.005  # BAT1_R_INTERNAL, ohm per cell
+    low_threshold: float = 0.15  # BAT_LOW_THR, fraction of charge
+    critical_threshold: float = 0.07  # BAT_CRIT_THR
+    emergency_threshold: float = 0.05  # BAT_EMERGEN_THR
+    efficiency: float = 0.76  # SIM_MOT_EFF: motor + ESC, shaft power / electrical power
+    avionics_w: float = 8.0  # SIM_AVIONICS_W: drawn while armed
+
+    def __post_init__(self) -> None:
+        if self.cells < 1 or self.capacity_mah <= 0 or self.r_internal < 0 or self.avionics_w < 0:
+            raise ValueError("the pack needs at least one cell, a positive capacity, R >= 0 and avionics >= 0")
+        if not 0 < self.v_empty < self.v_charged:
+            raise ValueError(f"BAT1_V_EMPTY ({self.v_empty}) must be below BAT1_V_CHARGED ({self.v_charged})")
+        if not 0 < self.efficiency <= 1:
+            raise ValueError(f"efficiency must be in (0, 1], got {self.efficiency}")
+
+    @property
+    def capacity_coulombs(self) -> float:
+        return self.capacity_mah * 3.6
+
+    def cell_ocv(self, state_of_charge: float) -> float:
+        """Open-circuit voltage of one cell (V) at a state of charge in [0, 1] (clipped), from OCV_CHART."""
+        soc = min(max(state_of_charge, 0.0), 1.0)
+        i = min(bisect.bisect_right(_SOC_POINTS, soc), len(_SOC_POINTS) - 1)
+        s0, s1, y0, y1 = _SOC_POINTS[i - 1], _SOC_POINTS[i], _SHAPE[i - 1], _SHAPE[i]
+        shape = y0 + (y1 - y0) * (soc - s0) / (s1 - s0)
+        return self.v_empty + (self.v_charged - self.v_empty) * shape
+
+    def warning(self, state_of_charge: float) -> BatteryWarning:
+        """The most severe threshold the charge is below, as PX4's Battery::determineWarning."""
+        if state_of_charge < self.emergency_threshold:
+            return BatteryWarning.EMERGENCY
+        if state_of_charge < self.critical_threshold:
+            return BatteryWarning.CRITICAL
+        if state_of_charge < self.low_threshold:
+            return BatteryWarning.LOW
+        return BatteryWarning.NONE
+
+
+def rotor_mechanical_power(rotor_speeds: Iterable[float], drag_torque_coefficient: float) -> float:
+    """Shaft power (W) of rotors turning at rotor_speeds (rad/s, >= 0) against Q = k Omega^2: k sum Omega^3."""
+    return drag_torque_coefficient * sum([w * w * w for w in rotor_speeds])
+
+
+def electrical_power(mechanical_w: float, config: BatteryConfig, armed: bool) -> float:
+    """What the pack must deliver (W): the motors' shaft power through the motor + ESC efficiency, plus the
+    avionics while armed."""
+    return mechanical_w / config.efficiency + (config.avionics_w if armed else 0.0)
+
+
+def pack_current(power_w: float, open_circuit_v: float, resistance_ohm: float) -> float:
+    """Current (A) that delivers power_w at the terminals of a source open_circuit_v behind resistance_ohm:
+    the smaller root of R I^2 - OCV I + P = 0; past the source's maximum power, the current at that maximum."""
+    if power_w <= 0.0:
+        return 0.0
+    if resistance_ohm == 0.0:
+        return power_w / open_circuit_v
+    discriminant = open_circuit_v * open_circuit_v - 4.0 * resistance_ohm * power_w
+    return (open_circuit_v - math.sqrt(max(discriminant, 0.0))) / (2.0 * resistance_ohm)
+
+
+class Battery:
+    """The pack's state: charge, the last current and terminal voltage, what has been consumed."""
+
+    def __init__(self, config: BatteryConfig, state_of_charge: float = 1.0) -> None:
+        self.config = config
+        self.state_of_charge = 1.0
+        self.current_a = 0.0
+        self.voltage_v = 0.0
+        self.power_w = 0.0
+        self.consumed_mah = 0.0
+        self.consumed_wh = 0.0
+        self.reset(state_of_charge)
+
+    def reset(self, state_of_charge: float = 1.0) -> None:
+        """A fresh pack at state_of_charge in [0, 1] (a swap at the depot): nothing consumed, no load."""
+        if not (math.isfinite(state_of_charge) and 0.0 <= state_of_charge <= 1.0):
+            raise ValueError(f"state of charge must be in [0, 1], got {state_of_charge}")
+        self.state_of_charge = float(state_of_charge)
+        self.consumed_mah = self.consumed_wh = 0.0
+        self.discharge(0.0, 0.0)
+
+    @property
+    def open_circuit_v(self) -> float:
+        return self.config.cells * self.config.cell_ocv(self.state_of_charge)
+
+    @property
+    def resistance_ohm(self) -> float:
+        return self.config.cells * self.config.r_internal
+
+    @property
+    def remaining_mah(self) -> float:
+        return self.state_of_charge * self.config.capacity_mah
+
+    @property
+    def warning(self) -> BatteryWarning:
+        return self.config.warning(self.state_of_charge)
+
+    def draw(self, power_w: float, dt: float) -> None:
+        """Deliver power_w (W) for dt seconds of simulated time."""
+        open_circuit_v, resistance_ohm = self.open_circuit_v, self.resistance_ohm
+        self._discharge(pack_current(power_w, open_circuit_v, resistance_ohm), dt, open_circuit_v, resistance_ohm)
+
+    def discharge(self, current_a: float, dt: float) -> None:
+        """Deliver current_a (A) for dt seconds: the charge falls by the coulombs drawn (clipped at empty)."""
+        self._discharge(current_a, dt, self.open_circuit_v, self.resistance_ohm)
+
+    def _discharge(self, current_a: float, dt: float, open_circuit_v: float, resistance_ohm: float) -> None:
+        self.current_a = current_a
+        self.voltage_v = open_circuit_v - current_a * resistance_ohm
+        self.power_w = self.voltage_v * current_a
+        coulombs = current_a * dt
+        self.state_of_charge = max(0.0, self.state_of_charge - coulombs / self.config.capacity_coulombs)
+        self.consumed_mah += coulombs / 3.6
+        self.consumed_wh += self.power_w * dt / SECONDS_PER_HOUR
+
+    def time_remaining_s(self) -> float | None:
+        """Seconds to empty at the present current (None while drawing almost nothing)."""
+        if self.current_a < 0.1:
+            return None
+        return self.remaining_mah * 3.6 / self.current_a
