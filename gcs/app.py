@@ -8,11 +8,14 @@ from contextlib import asynccontextmanager
 
 import xstatic.pkg.leaflet as leaflet
 from fastapi import FastAPI, Request
+from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
 from fastapi.middleware.cors import CORSMiddleware
 from fastapi.responses import FileResponse, JSONResponse
 from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.responses import Response
 
 from gcs.body_limit import BodyLimitMiddleware
 from gcs.buoy_files import BuoyFileError
@@ -43,6 +46,12 @@ def _install_error_handlers(app: FastAPI) -> None:
         return _unprocessable(
             [(tuple(e["loc"]), e["msg"]) for e in error.errors()], [e["type"] for e in error.errors()]
         )
+
+    @app.exception_handler(StarletteHTTPException)
+    async def http_error(request: Request, error: StarletteHTTPException) -> Response:
+        if error.status_code == 400:  # FastAPI's answer to a body it cannot decode (not UTF-8): bad input too
+            return _unprocessable([(("body",), "the body is not JSON in UTF-8")], ["json_invalid"])
+        return await http_exception_handler(request, error)
 
     @app.exception_handler(RequestInvalidError)
     async def request_invalid(_: Request, error: RequestInvalidError) -> JSONResponse:
