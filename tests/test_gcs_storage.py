@@ -1,26 +1,65 @@
-"""Storage: migrations, transitions with history, telemetry, restart, and all-or-nothing writes."""
+"""Storage: migrations, transitions with history, telemetry, restart, all-or-nothing writes, and the change
+counter, on both backends (SQLite and a real PostgreSQL server); then what only one of them has."""
+
+from __future__ import annotations
 
 import sqlite3
+import threading
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
+import psycopg
 import pytest
 
-from gcs.storage import MIGRATIONS, ConstraintError, StorageError
-from gcs.storage import SqliteStorage as Storage
+from gcs.storage import MIGRATIONS, ConstraintError, Storage, StorageError, open_storage
+from gcs.storage.postgres import VERSION_LOCK
 
 PLAN = {"order": [1, 0], "length_m": 10.0}
 FLIGHT = {"altitude_m": 5.0}
+THREAD_DEADLINE_S = 120.0  # generous: the machine may be loaded; a correct run takes a second or two
 
 
-def test_fresh_database_is_migrated_and_in_wal_mode(tmp_path):
-    storage = Storage(tmp_path / "sub" / "gcs.sqlite")
+@pytest.fixture(params=["sqlite", "postgresql"])
+def database(request: pytest.FixtureRequest, tmp_path: Path) -> str | Path:
+    """Where a test's database is: a SQLite file, or a fresh database on the test PostgreSQL server."""
+    if request.param == "sqlite":
+        return tmp_path / "gcs.sqlite"
+    return request.getfixturevalue("postgres_url")
+
+
+@pytest.fixture
+def open_db(database: str | Path) -> Iterator[Callable[[], Storage]]:
+    """Opens the test's database (as many times as a test asks); closes them all at the end."""
+    opened: list[Storage] = []
+
+    def open_it() -> Storage:
+        opened.append(open_storage(database))
+        return opened[-1]
+
+    yield open_it
+    for storage in opened:
+        storage.close()
+
+
+@pytest.fixture
+def storage(open_db: Callable[[], Storage]) -> Storage:
+    return open_db()
+
+
+def raw_connection(database: str | Path) -> sqlite3.Connection | psycopg.Connection:
+    """The driver's own connection, in autocommit mode, for setting a database up as another version left it."""
+    if isinstance(database, Path):
+        return sqlite3.connect(database, isolation_level=None)
+    return psycopg.connect(database, autocommit=True)
+
+
+# ----- both backends
+def test_fresh_database_is_migrated(storage):
     assert storage.schema_version() == len(MIGRATIONS)
-    with storage.transaction() as db:
-        assert db.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
-    storage.close()
 
 
-def test_transitions_are_recorded_in_order_with_reasons(tmp_path):
-    storage = Storage(tmp_path / "gcs.sqlite")
+def test_transitions_are_recorded_in_order_with_reasons(storage):
     mission_id = storage.create_mission(FLIGHT, PLAN)
     for status in ("uploading", "uploaded", "flying"):
         storage.set_status(mission_id, status)
@@ -31,12 +70,10 @@ def test_transitions_are_recorded_in_order_with_reasons(tmp_path):
     assert record.events[-1]["reason"] == "link lost"
     with pytest.raises(KeyError):
         storage.set_status(999, "flying")
-    storage.close()
 
 
-def test_history_and_telemetry_survive_a_restart(tmp_path):
-    path = tmp_path / "gcs.sqlite"
-    storage = Storage(path)
+def test_history_and_telemetry_survive_a_restart(open_db):
+    storage = open_db()
     mission_id = storage.create_mission(FLIGHT, PLAN)
     storage.add_telemetry(mission_id, [{"t_s": 0.1 * i, "lat": 1.0} for i in range(25)])
     storage.set_progress(mission_id, {"visited": 2})
@@ -44,7 +81,7 @@ def test_history_and_telemetry_survive_a_restart(tmp_path):
     storage.set_status(mission_id, "completed")
     storage.close()
 
-    reopened = Storage(path)
+    reopened = open_db()
     record = reopened.get_mission(mission_id)
     assert record.status == "completed"
     assert record.plan == PLAN and record.flight == FLIGHT
@@ -53,11 +90,9 @@ def test_history_and_telemetry_survive_a_restart(tmp_path):
     assert reopened.telemetry_count(mission_id) == 25
     assert [s["t_s"] for s in reopened.telemetry(mission_id, limit=3)] == pytest.approx([0.0, 0.1, 0.2])
     assert [m.id for m in reopened.list_missions()] == [mission_id]
-    reopened.close()
 
 
-def test_failed_transaction_leaves_nothing(tmp_path):
-    storage = Storage(tmp_path / "gcs.sqlite")
+def test_failed_transaction_leaves_nothing(storage):
     with pytest.raises(RuntimeError), storage.transaction() as db:
         db.execute(
             "INSERT INTO missions (created_at, updated_at, status, flight, plan) VALUES ('a','a','planned','{}','{}')"
@@ -66,8 +101,7 @@ def test_failed_transaction_leaves_nothing(tmp_path):
     assert storage.list_missions() == []
 
 
-def test_telemetry_batch_is_all_or_nothing(tmp_path):
-    storage = Storage(tmp_path / "gcs.sqlite")
+def test_telemetry_batch_is_all_or_nothing(storage):
     mission_id = storage.create_mission(FLIGHT, PLAN)
     with pytest.raises(ValueError):  # NaN cannot be stored as strict JSON: the whole batch is refused
         storage.add_telemetry(mission_id, [{"t_s": 0.0}, {"t_s": 0.1}, {"t_s": 0.2, "x": float("nan")}])
@@ -77,8 +111,47 @@ def test_telemetry_batch_is_all_or_nothing(tmp_path):
     assert storage.telemetry_count(12345) == 0
 
 
-def test_invalid_status_is_refused_by_the_schema(tmp_path):
-    storage = Storage(tmp_path / "gcs.sqlite")
+def test_a_sample_recorded_again_is_skipped_and_samples_come_in_time_order(storage):
+    mission_id = storage.create_mission(FLIGHT, PLAN)
+    storage.add_telemetry(mission_id, [{"t_s": 0.2, "by": "owner"}, {"t_s": 0.3, "by": "owner"}])
+    # a stand-by taking over records the owner's last instant again, in the same batch as new ones
+    storage.add_telemetry(
+        mission_id, [{"t_s": 0.4, "by": "stand-by"}, {"t_s": 0.3, "by": "stand-by"}, {"t_s": 0.4, "by": "again"}]
+    )
+    storage.add_telemetry(mission_id, [{"t_s": 0.1, "by": "late"}])
+    assert storage.telemetry(mission_id) == [
+        {"t_s": 0.1, "by": "late"},
+        {"t_s": 0.2, "by": "owner"},
+        {"t_s": 0.3, "by": "owner"},
+        {"t_s": 0.4, "by": "stand-by"},
+    ]
+    assert storage.telemetry_count(mission_id) == 4
+
+
+def test_migration_3_removes_duplicate_samples_keeping_the_first(database):
+    connection = raw_connection(database)
+    dialect = "sqlite" if isinstance(database, Path) else "postgresql"
+    connection.execute("CREATE TABLE schema_migrations (version INTEGER PRIMARY KEY, applied_at TEXT NOT NULL)")
+    for version in (1, 2):  # the database as a service of schema version 2 left it
+        for statement in MIGRATIONS[version - 1].statements(dialect):
+            connection.execute(statement)
+        connection.execute(f"INSERT INTO schema_migrations VALUES ({version}, 'then')")
+    connection.execute(
+        "INSERT INTO missions (created_at, updated_at, status, flight, plan) VALUES ('a','a','flying','{}','{}')"
+    )
+    for t_s, sample in ((0.1, "first"), (0.2, "first"), (0.1, "second"), (0.3, "first"), (0.2, "second")):
+        connection.execute(f"""INSERT INTO telemetry VALUES (1, {t_s}, '{{"t_s": {t_s}, "is": "{sample}"}}')""")
+    connection.close()
+
+    storage = open_storage(database)
+    try:
+        assert storage.schema_version() == len(MIGRATIONS)
+        assert [(s["t_s"], s["is"]) for s in storage.telemetry(1)] == [(0.1, "first"), (0.2, "first"), (0.3, "first")]
+    finally:
+        storage.close()
+
+
+def test_invalid_status_is_refused_by_the_schema(storage):
     mission_id = storage.create_mission(FLIGHT, PLAN)
     with pytest.raises(ConstraintError):
         storage.set_status(mission_id, "exploded")
@@ -86,8 +159,7 @@ def test_invalid_status_is_refused_by_the_schema(tmp_path):
     assert record.status == "planned" and len(record.events) == 1
 
 
-def test_unfinished_missions_are_the_ones_left_mid_flight_oldest_first(tmp_path):
-    storage = Storage(tmp_path / "gcs.sqlite")
+def test_unfinished_missions_are_the_ones_left_mid_flight_oldest_first(storage):
     flying = storage.create_mission(FLIGHT, PLAN)
     storage.set_status(flying, "flying")
     done = storage.create_mission(FLIGHT, PLAN)
@@ -98,19 +170,16 @@ def test_unfinished_missions_are_the_ones_left_mid_flight_oldest_first(tmp_path)
     assert storage.unfinished_missions() == [flying, uploading]
 
 
-def test_database_from_a_newer_service_is_refused(tmp_path):
-    path = tmp_path / "gcs.sqlite"
-    Storage(path).close()
-    db = sqlite3.connect(path)
-    db.execute("INSERT INTO schema_migrations VALUES (99, 'later')")
-    db.commit()
-    db.close()
-    with pytest.raises(StorageError, match="newer"):
-        Storage(path)
+def test_database_from_a_newer_service_is_refused(open_db):
+    storage = open_db()
+    with storage.transaction() as db:
+        db.execute("INSERT INTO schema_migrations VALUES (99, 'later')")
+    storage.close()
+    with pytest.raises(StorageError, match="schema version 99 is newer than this service"):
+        open_db()
 
 
-def test_every_write_to_a_mission_raises_its_version_above_all_others(tmp_path):
-    storage = Storage(tmp_path / "gcs.sqlite")
+def test_every_write_to_a_mission_raises_its_version_above_all_others(storage):
     assert storage.latest_version() == 0
     first, second = storage.create_mission(FLIGHT, PLAN), storage.create_mission(FLIGHT, PLAN)
     assert storage.mission_version(first) < storage.mission_version(second) == storage.latest_version()
@@ -124,4 +193,130 @@ def test_every_write_to_a_mission_raises_its_version_above_all_others(tmp_path):
         assert storage.mission_version(first) == storage.latest_version() > seen
         seen = storage.latest_version()
     assert storage.mission_version(999) is None
+
+
+# ----- SQLite only
+def test_sqlite_database_is_in_wal_mode(tmp_path):
+    storage = open_storage(tmp_path / "sub" / "gcs.sqlite")
+    with storage.transaction() as db:
+        assert db.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
     storage.close()
+
+
+# ----- PostgreSQL only: several service instances on one database
+@pytest.fixture
+def two_instances(postgres_url: str) -> Iterator[list[Storage]]:
+    """Two services' storages on one database."""
+    instances = [open_storage(postgres_url), open_storage(postgres_url)]
+    yield instances
+    for storage in instances:
+        storage.close()
+
+
+def _in_threads(*jobs: Callable[[], object]) -> list[object]:
+    """Run the jobs at once, each in its own thread; their results (a job's exception is raised here)."""
+    with ThreadPoolExecutor(max_workers=len(jobs)) as pool:
+        futures = [pool.submit(job) for job in jobs]
+        return [future.result(timeout=THREAD_DEADLINE_S) for future in futures]
+
+
+def test_concurrent_writers_on_one_database_keep_versions_unique_and_visible_in_order(two_instances):
+    writers_done = threading.Event()
+
+    def write_missions(storage: Storage) -> list[int]:
+        """Each write's version, read back at once (only this thread writes these missions)."""
+        versions = []
+        for _ in range(8):
+            mission_id = storage.create_mission(FLIGHT, PLAN)
+            versions.append(storage.mission_version(mission_id))
+            for step in range(4):
+                storage.set_progress(mission_id, {"current_seq": step})
+                versions.append(storage.mission_version(mission_id))
+        return versions
+
+    def watch(storage: Storage) -> int:
+        """A reader (a cache, a stand-by): once it saw latest_version() == N, no mission with a version <= N may
+        appear later that it did not see then."""
+        observations, previous = 0, None
+        while not writers_done.is_set() or observations < 2:
+            latest = storage.latest_version()
+            with storage.transaction() as db:
+                rows = db.execute("SELECT id, version FROM missions").fetchall()
+            seen = {(row["id"], row["version"]) for row in rows}
+            if previous is not None:
+                previous_latest, previous_seen = previous
+                appeared = {pair for pair in seen if pair[1] <= previous_latest} - previous_seen
+                assert not appeared, f"after latest_version() == {previous_latest}, {appeared} appeared"
+            previous, observations = (latest, seen), observations + 1
+        return observations
+
+    watcher = ThreadPoolExecutor(max_workers=1).submit(watch, two_instances[1])
+    try:  # two writing threads per instance, as the lifecycle's worker threads write
+        written = _in_threads(*(lambda s=s: write_missions(s) for s in two_instances for _ in range(2)))
+    finally:
+        writers_done.set()
+    assert watcher.result(timeout=THREAD_DEADLINE_S) >= 2
+    for versions in written:
+        assert versions == sorted(versions)  # each mission's version grows at each write
+    every_version = [version for versions in written for version in versions]
+    assert len(set(every_version)) == len(every_version) == 4 * 8 * 5
+    assert two_instances[0].latest_version() == max(every_version)
+
+
+def test_two_instances_recording_the_same_flight_store_each_sample_once(two_instances):
+    owner, stand_by = two_instances
+    mission_id = owner.create_mission(FLIGHT, PLAN)
+
+    def record(storage: Storage, first_t: int) -> None:  # overlapping batches of ten samples
+        for start in range(first_t, 200, 10):
+            storage.add_telemetry(mission_id, [{"t_s": t / 10} for t in range(start, min(start + 10, 200))])
+
+    _in_threads(lambda: record(owner, 0), lambda: record(stand_by, 5))
+    assert [s["t_s"] for s in stand_by.telemetry(mission_id)] == [t / 10 for t in range(200)]
+    assert owner.telemetry_count(mission_id) == 200
+
+
+def test_instances_starting_at_once_migrate_once(postgres_url):
+    start = threading.Barrier(4, timeout=THREAD_DEADLINE_S)
+
+    def start_service() -> Storage:
+        start.wait()
+        return open_storage(postgres_url)
+
+    instances = _in_threads(*([start_service] * 4))
+    try:
+        assert all(storage.schema_version() == len(MIGRATIONS) for storage in instances)
+        with psycopg.connect(postgres_url) as db:
+            versions = [row[0] for row in db.execute("SELECT version FROM schema_migrations ORDER BY version")]
+        assert versions == list(range(1, len(MIGRATIONS) + 1))
+    finally:
+        for storage in instances:
+            storage.close()
+
+
+def test_a_read_does_not_wait_for_an_open_write(postgres_url):
+    storage = open_storage(postgres_url)
+    try:
+        mission_id = storage.create_mission(FLIGHT, PLAN)
+        with storage.transaction() as db:  # a long write holding the version lock, not yet committed
+            db.execute("SELECT pg_advisory_xact_lock(?)", (VERSION_LOCK,))
+            db.execute("UPDATE missions SET progress = '{\"current_seq\": 9}' WHERE id = ?", (mission_id,))
+            (record,) = _in_threads(lambda: storage.get_mission(mission_id))  # another thread reads meanwhile
+            assert record.progress == {}  # it read the committed state, without waiting for this write
+        assert storage.get_mission(mission_id).progress == {"current_seq": 9}
+    finally:
+        storage.close()
+
+
+@pytest.mark.parametrize(
+    ("url", "message"),
+    [
+        ("postgresql://nobody@127.0.0.1:1/x", "cannot connect to postgresql://nobody@127.0.0.1:1/x: connection failed"),
+        ("postgresql://nobody:secret@127.0.0.1:1/x", "cannot connect to postgresql://nobody:***@127.0.0.1:1/x"),
+        ("postgresql://nobody@127.0.0.1:notaport/x", "cannot connect to postgresql://nobody@127.0.0.1:notaport/x"),
+    ],
+)
+def test_an_unreachable_or_bad_url_is_a_storage_error_naming_it(url, message):
+    with pytest.raises(StorageError) as error:
+        open_storage(url)
+    assert message in str(error.value) and "secret" not in str(error.value)

@@ -134,9 +134,9 @@ class Storage(ABC):
 
     @staticmethod
     def _schema_version(db: Connection) -> int:
-        return int(db.execute("SELECT COALESCE(MAX(version), 0) AS version FROM schema_migrations").fetchone()[
-            "version"
-        ])
+        return int(
+            db.execute("SELECT COALESCE(MAX(version), 0) AS version FROM schema_migrations").fetchone()["version"]
+        )
 
     def _migrate(self) -> None:
         """Bring the schema to the newest version, in one transaction: all the missing migrations or none."""
@@ -211,7 +211,7 @@ class Storage(ABC):
         with self._reading() as db:
             rows = db.execute(
                 f"SELECT id FROM missions WHERE status IN ({', '.join('?' * len(UNFINISHED))}) ORDER BY id",
-                [str(status) for status in UNFINISHED],
+                UNFINISHED,
             ).fetchall()
         return [int(row["id"]) for row in rows]
 
@@ -248,10 +248,13 @@ class Storage(ABC):
         is already stored for the mission is skipped (a stand-by taking over may record it again)."""
         if not samples:
             return
+        # in time order: two instances recording the same instants lock them in the same order, never a deadlock
+        rows = sorted(((mission_id, float(s["t_s"]), _json(s)) for s in samples), key=lambda row: row[1])
         with self.transaction() as db:
             db.executemany(
-                "INSERT INTO telemetry (mission_id, t_s, sample) VALUES (?, ?, ?) ON CONFLICT (mission_id, t_s) DO NOTHING",
-                [(mission_id, float(s["t_s"]), _json(s)) for s in samples],
+                "INSERT INTO telemetry (mission_id, t_s, sample) VALUES (?, ?, ?)"
+                " ON CONFLICT (mission_id, t_s) DO NOTHING",
+                rows,
             )
 
     def telemetry(self, mission_id: int, limit: int | None = None) -> list[dict[str, Any]]:
