@@ -8,6 +8,7 @@ everything and says which child kept failing. SIGINT and SIGTERM stop the childr
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -25,6 +26,7 @@ class ChildSpec:
     argv: list[str]
     ready: Callable[[], bool] | None = None  # polled after start until True (or start_timeout_s)
     start_timeout_s: float = 90.0  # a fresh machine compiles the numba kernels on first start
+    env: dict[str, str] = field(default_factory=dict)  # added to the environment: secrets go here, not in argv
 
 
 @dataclass
@@ -74,7 +76,12 @@ class Supervisor:
             log.write(f"\n--- {time.strftime('%Y-%m-%d %H:%M:%S')} starting: {' '.join(spec.argv)}\n")
             log.flush()
             child.process = subprocess.Popen(
-                spec.argv, cwd=self.cwd, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL
+                spec.argv,
+                cwd=self.cwd,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL,
+                env={**os.environ, **spec.env} if spec.env else None,
             )
         deadline = time.monotonic() + spec.start_timeout_s
         while spec.ready is not None and not spec.ready():

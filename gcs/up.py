@@ -152,11 +152,11 @@ def _service(options: UpOptions, vehicle_url: str) -> ChildSpec:
         "--db",
         str(settings.database),
     ]
-    if settings.token:
-        gcs_args += ["--token", settings.token]
+    # the token goes by the environment: a command line is written to the child's log and shown by ps
+    env = {Settings.env_name("token"): settings.token} if settings.token else {}
     gcs_args += _signing(settings)
     base = options.base_url
-    return ChildSpec("gcs", python_module("gcs", *gcs_args), ready=lambda: _http_ok(f"{base}/vehicle"))
+    return ChildSpec("gcs", python_module("gcs", *gcs_args), ready=lambda: _http_ok(f"{base}/vehicle"), env=env)
 
 
 # ----- the demo's plan and weather, before anything starts

@@ -62,4 +62,6 @@ def test_up_hands_its_settings_to_the_children(tmp_path):
     assert "udpout:127.0.0.1:14600" in controller.argv
     argv = service.argv
     assert argv[argv.index("--db") + 1] == str(tmp_path / DB_FILENAME)
-    assert argv[argv.index("--port") + 1] == "8123" and argv[argv.index("--token") + 1] == "t"
+    assert argv[argv.index("--port") + 1] == "8123"
+    # the token by the environment: a command line shows in ps and in the supervisor's log
+    assert "--token" not in argv and "t" not in argv and service.env == {"BUOY_GCS_TOKEN": "t"}
