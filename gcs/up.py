@@ -34,6 +34,7 @@ from gcs.planning import FIRST_BUOY_SEQ, Plan, make_plan
 from gcs.report import draw_series, report_series
 from gcs.settings import Settings
 from gcs.status import TERMINAL, MissionStatus
+from gcs.storage import redacted
 from gcs.supervisor import ChildSpec, Supervisor, SupervisorError, python_module
 from gcs.tracking import GUST_WINDOW_S, RECOVERED_M, GustEffect, climb_start_s, gust_effect
 from planner.scenario import (
@@ -149,11 +150,14 @@ def _service(options: UpOptions, vehicle_url: str) -> ChildSpec:
         settings.host,
         "--port",
         str(settings.port),
-        "--db",
-        str(settings.database),
     ]
-    # the token goes by the environment: a command line is written to the child's log and shown by ps
+    # the token and a database URL (it may hold a password) go by the environment: a command line is written to
+    # the child's log and shown by ps
     env = {Settings.env_name("token"): settings.token} if settings.token else {}
+    if settings.db is None:
+        gcs_args += ["--db", str(settings.db_path)]
+    else:
+        env[Settings.env_name("db")] = settings.db
     gcs_args += _signing(settings)
     base = options.base_url
     return ChildSpec("gcs", python_module("gcs", *gcs_args), ready=lambda: _http_ok(f"{base}/vehicle"), env=env)
@@ -251,7 +255,8 @@ def _run_stack(
         supervisor.start_all()
         say(f"map page:   {base}/")
         say(f"API docs:   {base}/docs")
-        say(f"data:       {settings.data_dir.resolve()} (vehicle.params, logs/); database {settings.database}")
+        database = redacted(str(settings.database))
+        say(f"data:       {settings.data_dir.resolve()} (vehicle.params, logs/); database {database}")
         if demo is not None:
             flight = fly_demo(base, options, demo, supervisor, say)
             flights.append(flight)
@@ -414,7 +419,7 @@ def demo_report(flight: DemoFlight, options: UpOptions, demo: DemoPlan | None = 
         f"  lockstep   {flight.simulated_s:.1f} s simulated in {flight.wall_s:.1f} s wall from POST to landed: "
         f"{flight.simulated_s / flight.wall_s:.1f}x"
     )
-    lines.append(f"  report     python -m gcs report {mission['id']} --db {options.settings.database}")
+    lines.append(f"  report     python -m gcs report {mission['id']} --db {redacted(str(options.settings.database))}")
     return "\n".join(lines)
 
 

@@ -154,3 +154,13 @@ def test_the_gust_is_found_in_the_telemetry_by_the_climb_and_measured_there():
     assert flight.simulated_s == pytest.approx(39.9) and flight.simulated_s / flight.wall_s == pytest.approx(19.95)
     still = measure_flight("adrc", Weather(), {"status": "completed"}, samples, wall_s=2.0)
     assert still.gust is None and still.gust_onset_t_s is None
+
+
+def test_a_database_url_reaches_the_service_by_the_environment_never_its_command_line(tmp_path):
+    url = "postgresql://pilot:secret@db.example:5432/buoys"  # a password: the command line is logged and in ps
+    settings = Settings(data_dir=tmp_path, db=url, vehicle_url="udpout:127.0.0.1:14600")
+    service = stack(UpOptions(settings=settings))[-1]
+    assert service.env[Settings.env_name("db")] == url
+    assert "--db" not in service.argv and "secret" not in " ".join(service.argv)
+    sqlite_service = stack(_options(tmp_path))[-1]  # a SQLite file goes on the command line, as before
+    assert sqlite_service.argv[sqlite_service.argv.index("--db") + 1] == str(tmp_path / "gcs.sqlite")

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from gcs.storage.base import ConstraintError, MissionRecord, Storage, StorageError
 from gcs.storage.migrations import MIGRATIONS
-from gcs.storage.postgres import PostgresStorage, is_postgres_url
+from gcs.storage.postgres import PostgresStorage, is_postgres_url, redacted
 from gcs.storage.sqlite import SqliteStorage
 
 __all__ = [
@@ -32,6 +32,7 @@ __all__ = [
     "StorageError",
     "is_postgres_url",
     "open_storage",
+    "redacted",
 ]
 
 
