@@ -1,0 +1,334 @@
+"""Fail-over between two service instances on one PostgreSQL database, measured.
+
+    .venv/bin/python -m bench.failover [--runs 5] [--speed 4] [--db postgresql://...]
+    # prints a table, writes bench/results/failover.json
+
+Each run starts the vehicle (`python -m sitl_quad --speed N`: its own position loop flies, paced at N times the
+wall clock) and two `python -m gcs serve --db URL` instances for it on their own HTTP ports: the first owns the
+vehicle link, the second stands by. A short mission (three buoys 30 m apart) is posted to the owner; once it
+flies and the owner has stored samples, the owner is killed (SIGKILL: no goodbye, its lease is released by
+PostgreSQL when its session dies). Per run:
+- take-over: wall seconds from the kill until the stand-by says `role: owner` (GET /vehicle; requirement 5 s);
+- re-attached: wall seconds from the kill until the new owner re-attached the mission (its event's timestamp);
+- the telemetry gap across the kill: the largest step between consecutive stored samples, in simulated seconds
+  and in wall seconds at the vehicle's pace (simulated / N), and the unflushed tail the owner took with it;
+- duplicates (samples with the same t_s) and samples lost beyond the gap (missing 10 Hz samples elsewhere);
+- the mission's end (completed, buoys visited) and the machine's 1-minute load average.
+
+Without --db a throwaway PostgreSQL server is started from the machine's binaries (tests/postgres_server.py),
+with a fresh database per run. tests/test_gcs_failover.py runs the same scenario (`FailoverStack`, `fly_and_kill`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import os
+import signal
+import socket
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+from typing import Any, TypeVar
+
+import httpx
+
+from gcs.lifecycle import REATTACHED
+from uavcore.geodesy import DEFAULT_HOME, LocalFrame
+
+REPO = Path(__file__).resolve().parents[1]
+RESULTS = REPO / "bench" / "results" / "failover.json"
+BUOYS_EN_M = ((30.0, 0.0), (30.0, 30.0), (0.0, 30.0))  # east, north of the depot (the vehicle's home)
+MISSION = {"altitude_m": 5.0, "speed_m_s": 5.0, "dwell_s": 1.0, "acceptance_radius_m": 2.0}
+TELEMETRY_PERIOD_S = 0.1  # the service's default sample spacing (simulated time)
+TAKEOVER_REQUIREMENT_S = 5.0
+START_TIMEOUT_S = 90.0  # a loaded 2-core machine takes long to import numpy, numba and FastAPI
+FLIGHT_TIMEOUT_S = 180.0
+TERMINAL = {"completed", "failed", "aborted"}
+
+T = TypeVar("T")
+
+
+def free_port(kind: int) -> int:
+    with socket.socket(socket.AF_INET, kind) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def close_buoys() -> list[dict[str, float | str]]:
+    """Three buoys around the depot, close together: a flight of about a minute of simulated time."""
+    lat_lon = LocalFrame(*DEFAULT_HOME).unproject(list(BUOYS_EN_M))
+    return [{"id": f"B{i + 1}", "lat": float(lat), "lon": float(lon)} for i, (lat, lon) in enumerate(lat_lon)]
+
+
+def poll(
+    read: Callable[[], T | None], done: Callable[[T], bool], timeout_s: float, what: str, interval_s: float = 0.05
+) -> T:
+    """read() until it answers (not None) with a value that is done; RuntimeError naming `what` after timeout_s."""
+    deadline = time.monotonic() + timeout_s
+    value = None
+    while time.monotonic() < deadline:
+        value = read()
+        if value is not None and done(value):
+            return value
+        time.sleep(interval_s)
+    raise RuntimeError(f"{what}: not within {timeout_s:g} s (last answer: {value})")
+
+
+@dataclass
+class Instance:
+    """One `python -m gcs serve` process and an HTTP client for it."""
+
+    name: str
+    process: subprocess.Popen
+    client: httpx.Client
+
+    def get(self, path: str) -> dict[str, Any] | list[Any] | None:
+        """The JSON of a GET, None while the instance does not answer (starting, or dead)."""
+        try:
+            response = self.client.get(path)
+        except httpx.HTTPError:
+            return None
+        return response.json() if response.status_code == 200 else None
+
+    def vehicle(self) -> dict[str, Any] | None:
+        return self.get("/vehicle")
+
+    def kill(self) -> None:
+        self.process.send_signal(signal.SIGKILL)
+        self.process.wait(10)
+
+
+@dataclass
+class FailoverStack:
+    """The vehicle and two service instances on one database, on free loopback ports; `close()` stops them."""
+
+    db_url: str
+    logs: Path
+    speed: float = 4.0
+    lease_poll_s: float = 0.5
+    processes: list[subprocess.Popen] = field(default_factory=list)
+    instances: list[Instance] = field(default_factory=list)
+
+    def _spawn(self, name: str, args: list[str], env: dict[str, str] | None = None) -> subprocess.Popen:
+        log = open(self.logs / f"{name}.log", "w")  # noqa: SIM115 - the child keeps it; closed with the process
+        process = subprocess.Popen(
+            [sys.executable, "-m", *args], cwd=REPO, stdout=log, stderr=subprocess.STDOUT, env=env
+        )
+        log.close()
+        self.processes.append(process)
+        return process
+
+    def start(self) -> FailoverStack:
+        self.logs.mkdir(parents=True, exist_ok=True)
+        self.vehicle_port = free_port(socket.SOCK_DGRAM)
+        self._spawn("vehicle", ["sitl_quad", "--port", str(self.vehicle_port), "--speed", f"{self.speed:g}"])
+        owner = self._serve("gcs-a")
+        poll(owner.vehicle, owns_a_connected_vehicle, START_TIMEOUT_S, "the first instance owning the vehicle")
+        standby = self._serve("gcs-b")
+        poll(standby.vehicle, lambda v: v["role"] == "standby", START_TIMEOUT_S, "the second instance standing by")
+        return self
+
+    def _serve(self, name: str) -> Instance:
+        port = free_port(socket.SOCK_STREAM)
+        env = {**os.environ, "BUOY_GCS_INSTANCE_NAME": name, "BUOY_GCS_LEASE_POLL_S": str(self.lease_poll_s)}
+        args = ["gcs", "serve", "--vehicle", f"udpout:127.0.0.1:{self.vehicle_port}", "--port", str(port)]
+        process = self._spawn(name, [*args, "--db", self.db_url, "--vehicle-wait", "30"], env)
+        instance = Instance(name, process, httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10.0))
+        self.instances.append(instance)
+        return instance
+
+    def log(self, name: str) -> str:
+        path = self.logs / f"{name}.log"
+        return path.read_text(errors="replace") if path.exists() else ""
+
+    def close(self) -> None:
+        for instance in self.instances:
+            instance.client.close()
+        for process in reversed(self.processes):
+            if process.poll() is None:
+                process.terminate()
+                try:
+                    process.wait(10)
+                except subprocess.TimeoutExpired:
+                    process.kill()
+                    process.wait()
+
+
+def owns_a_connected_vehicle(vehicle: dict[str, Any]) -> bool:
+    """GET /vehicle of an instance that owns the link and hears the vehicle."""
+    return vehicle["role"] == "owner" and vehicle["connected"]
+
+
+def _unix(timestamp: str) -> float:
+    return datetime.fromisoformat(timestamp).timestamp()
+
+
+def telemetry_figures(times: list[float], kill_t_s: float) -> dict[str, Any]:
+    """Duplicates, the gap across the kill (vehicle time kill_t_s) and the 10 Hz samples missing elsewhere."""
+    ordered = sorted(times)
+    steps = [(b - a, a, b) for a, b in itertools.pairwise(ordered)]
+    across = [step for step in steps if step[1] <= kill_t_s < step[2]]
+    gap_s, gap_from, gap_to = across[0] if across else (0.0, kill_t_s, kill_t_s)
+    elsewhere = [step for step in steps if step[1:] != (gap_from, gap_to)]
+    # a step of two periods or more misses a sample (the recorder keeps one per period of the vehicle's stream, so
+    # a stream message a little early makes a step of up to two periods with nothing missed)
+    lost = sum(max(0, math.floor(step / TELEMETRY_PERIOD_S + 0.05) - 1) for step, _, _ in elsewhere)
+    return {
+        "samples": len(times),
+        "duplicates": len(times) - len(set(times)),
+        "gap_s": gap_s,
+        "gap_from_t_s": gap_from,
+        "gap_to_t_s": gap_to,
+        "unflushed_tail_s": max(0.0, kill_t_s - gap_from),  # flown after the owner's last write, before the kill
+        "largest_step_elsewhere_s": max((step for step, _, _ in elsewhere), default=0.0),
+        "lost_beyond_gap": lost,
+    }
+
+
+def fly_and_kill(stack: FailoverStack, victim: str, kill_after_samples: int = 20) -> dict[str, Any]:
+    """Post the mission to the owner, kill `victim` ("owner" or "standby") once the mission flies and the owner
+    has stored kill_after_samples samples, and follow the mission to its end on the instance left. Figures."""
+    owner, standby = stack.instances
+    load_before = os.getloadavg()[0]
+    created = owner.client.post("/missions", json={"buoys": close_buoys(), **MISSION})
+    created.raise_for_status()
+    mission_id = created.json()["id"]
+    poll(lambda: owner.get(f"/missions/{mission_id}"), lambda m: m["status"] == "flying", FLIGHT_TIMEOUT_S, "flying")
+    poll(
+        lambda: owner.get(f"/missions/{mission_id}/telemetry?limit={kill_after_samples}"),
+        lambda samples: len(samples) >= kill_after_samples,
+        FLIGHT_TIMEOUT_S,
+        f"{kill_after_samples} samples stored",
+    )
+    kill_t_s = owner.vehicle()["t_s"]  # the vehicle's time at the kill (to the owner's last message)
+    killed, survivor = (owner, standby) if victim == "owner" else (standby, owner)
+    kill_unix, kill_wall = time.time(), time.monotonic()
+    killed.kill()
+    role = poll(survivor.vehicle, lambda v: v["role"] == "owner", 30.0, f"{survivor.name} owning the link")
+    takeover_s = time.monotonic() - kill_wall
+    mission = poll(
+        lambda: survivor.get(f"/missions/{mission_id}"),
+        lambda m: m["status"] in TERMINAL,
+        FLIGHT_TIMEOUT_S,
+        "the mission ending",
+        interval_s=0.25,
+    )
+    samples = survivor.get(f"/missions/{mission_id}/telemetry") or []
+    reattached = [e for e in mission["events"] if e["reason"] == REATTACHED]
+    figures = telemetry_figures([s["t_s"] for s in samples], kill_t_s)
+    return {
+        "victim": victim,
+        "mission": mission_id,
+        "status": mission["status"],
+        "reason": mission["reason"],
+        "visited": mission["progress"].get("visited"),
+        "buoys": len(BUOYS_EN_M),
+        "owner_after": role["instance"],
+        "takeover_s": takeover_s,
+        "reattached_s": _unix(reattached[0]["at"]) - kill_unix if reattached else None,
+        "kill_t_s": kill_t_s,
+        **figures,
+        "gap_wall_s": figures["gap_s"] / stack.speed,
+        "speed": stack.speed,
+        "load_before": load_before,
+        "load_after": os.getloadavg()[0],
+    }
+
+
+def one_run(db_url: str, logs: Path, speed: float) -> dict[str, Any]:
+    stack = FailoverStack(db_url, logs, speed)
+    try:
+        stack.start()
+        return fly_and_kill(stack, "owner")
+    finally:
+        stack.close()
+
+
+def print_table(runs: list[dict[str, Any]]) -> None:
+    print(
+        f"{'run':>3} {'take-over s':>11} {'re-attach s':>11} {'gap sim s':>9} {'gap wall s':>10} {'tail s':>6} "
+        f"{'dups':>4} {'lost':>4} {'samples':>7} {'status':>9} {'visited':>7} {'load':>9}"
+    )
+    for i, run in enumerate(runs, 1):
+        reattached = "-" if run["reattached_s"] is None else f"{run['reattached_s']:.2f}"
+        print(
+            f"{i:>3} {run['takeover_s']:>11.2f} {reattached:>11} {run['gap_s']:>9.2f} {run['gap_wall_s']:>10.2f} "
+            f"{run['unflushed_tail_s']:>6.2f} {run['duplicates']:>4} {run['lost_beyond_gap']:>4} "
+            f"{run['samples']:>7} {run['status']:>9} {run['visited']:>3}/{run['buoys']:<3} "
+            f"{run['load_before']:>4.1f}-{run['load_after']:<4.1f}"
+        )
+
+
+def summary(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    takeovers = [run["takeover_s"] for run in runs]
+    gaps = [run["gap_s"] for run in runs]
+    return {
+        "runs": len(runs),
+        "completed": sum(run["status"] == "completed" and run["visited"] == run["buoys"] for run in runs),
+        "takeover_s": {"median": statistics.median(takeovers), "max": max(takeovers)},
+        "takeover_within_requirement": sum(t <= TAKEOVER_REQUIREMENT_S for t in takeovers),
+        "gap_s": {"median": statistics.median(gaps), "max": max(gaps)},
+        "duplicates": sum(run["duplicates"] for run in runs),
+        "lost_beyond_gap": sum(run["lost_beyond_gap"] for run in runs),
+    }
+
+
+def rounded(value: Any) -> Any:
+    """Floats to the millisecond (or 3 decimals) for the JSON file."""
+    if isinstance(value, float):
+        return round(value, 3)
+    if isinstance(value, dict):
+        return {key: rounded(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [rounded(item) for item in value]
+    return value
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m bench.failover", description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=5)
+    parser.add_argument("--speed", type=float, default=4.0, help="the vehicle's pace, times the wall clock")
+    parser.add_argument("--db", help="an empty PostgreSQL database (default: a throwaway server, a database per run)")
+    parser.add_argument("--logs", type=Path, default=Path("/tmp/bench-failover"), help="the processes' logs")
+    args = parser.parse_args(argv)
+    server = None
+    if args.db is None:
+        from tests.postgres_server import PostgresServer, postgres_bindir  # test infrastructure, reused
+
+        bindir = postgres_bindir()
+        if bindir is None:
+            print("no PostgreSQL binaries (initdb, pg_ctl): install Debian's postgresql or pass --db URL")
+            return 2
+        server = PostgresServer(bindir).start()
+    runs = []
+    try:
+        for i in range(args.runs):
+            db_url = args.db or server.new_database()
+            runs.append(one_run(db_url, args.logs / f"run-{i + 1}", args.speed))
+    finally:
+        if server is not None:
+            server.stop()
+    print_table(runs)
+    figures = summary(runs)
+    print(
+        f"take-over median {figures['takeover_s']['median']:.2f} s, max {figures['takeover_s']['max']:.2f} s "
+        f"(requirement {TAKEOVER_REQUIREMENT_S:g} s: {figures['takeover_within_requirement']}/{len(runs)}); "
+        f"completed {figures['completed']}/{len(runs)}; cores {os.cpu_count()}"
+    )
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    document = {"speed": args.speed, "cores": os.cpu_count(), "summary": figures, "runs": runs}
+    RESULTS.write_text(json.dumps(rounded(document), indent=2))
+    print(f"written {RESULTS.relative_to(REPO)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

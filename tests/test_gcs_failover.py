@@ -1,0 +1,100 @@
+"""Two service instances on one PostgreSQL database: one owns the vehicle link, the other stands by and takes
+over when the owner is killed mid-flight.
+
+Real processes throughout: the vehicle (`python -m sitl_quad --speed 4`, its own position loop flying), two
+`python -m gcs serve --db postgresql://...` on their own HTTP ports, a throwaway PostgreSQL server
+(tests/postgres_server.py). The scenario and its figures are bench/failover.py's, which runs it N times.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pytest
+from websockets.sync.client import connect
+
+from bench.failover import TAKEOVER_REQUIREMENT_S, TELEMETRY_PERIOD_S, FailoverStack, close_buoys, fly_and_kill
+from gcs.lifecycle import FLUSH_PERIOD_S, REATTACHED
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+
+# Wall seconds a stand-by that owns the link may need before it records again: the vehicle's next heartbeat
+# (1 s), its MISSION_CURRENT (the lifecycle waits up to 3 s) and the mission download, with room for a loaded
+# machine.
+REATTACH_ALLOWANCE_S = 6.0
+
+
+def udp_sockets(pid: int) -> int:
+    """How many UDP sockets the process holds (Linux: its socket descriptors found in /proc/net/udp)."""
+    inodes = {line.split()[9] for line in Path("/proc/net/udp").read_text().splitlines()[1:]}
+    fds = Path(f"/proc/{pid}/fd")
+    links = [os.readlink(fd) for fd in fds.iterdir()]
+    return sum(1 for link in links if link.startswith("socket:[") and link[8:-1] in inodes)
+
+
+@pytest.fixture
+def stack(postgres_url, tmp_path):
+    started = FailoverStack(postgres_url, tmp_path / "logs", speed=4.0)
+    try:
+        yield started.start()
+    finally:
+        started.close()
+    for name in ("gcs-a", "gcs-b"):
+        assert "Traceback" not in started.log(name), started.log(name)
+
+
+def test_the_standby_refuses_to_fly_and_takes_over_the_mission_when_the_owner_is_killed(stack):
+    owner, standby = stack.instances
+    vehicle = standby.vehicle()
+    assert (vehicle["role"], vehicle["instance"], vehicle["owner"]) == ("standby", "gcs-b", "gcs-a")
+    assert vehicle["connected"] is False and udp_sockets(standby.process.pid) == 0  # it never talks to the vehicle
+    assert owner.vehicle()["role"] == "owner" and udp_sockets(owner.process.pid) == 1
+    for path, body in (
+        ("/missions", {"buoys": close_buoys()}),
+        ("/missions/1/start", None),
+        ("/missions/1/abort", None),
+    ):
+        refused = standby.client.post(path, json=body)
+        assert refused.status_code == 503, (path, refused.text)
+        assert "stand-by" in refused.json()["detail"] and "'gcs-a'" in refused.json()["detail"]
+        assert int(refused.headers["Retry-After"]) >= 1
+    assert standby.get("/missions") == []  # reads work
+    with connect(str(standby.client.base_url.copy_with(scheme="ws", path="/ws"))) as live:
+        pushed = json.loads(live.recv(timeout=10))
+    assert (pushed["vehicle"]["role"], pushed["vehicle"]["owner"]) == ("standby", "gcs-a")
+
+    run = fly_and_kill(stack, "owner")
+    print(
+        f"\nfail-over: take-over {run['takeover_s']:.2f} s after the kill, re-attached after "
+        f"{run['reattached_s']:.2f} s; telemetry gap {run['gap_s']:.2f} s simulated "
+        f"({run['gap_from_t_s']:.1f} -> {run['gap_to_t_s']:.1f} s, "
+        f"{run['gap_wall_s']:.2f} s wall at {stack.speed:g}x), "
+        f"of which {run['unflushed_tail_s']:.2f} s before the kill; {run['samples']} samples, "
+        f"{run['duplicates']} duplicated, {run['lost_beyond_gap']} lost beyond the gap; load {run['load_after']:.1f}"
+    )
+    assert run["owner_after"] == "gcs-b"
+    assert run["takeover_s"] < TAKEOVER_REQUIREMENT_S  # the requirement
+    assert (run["status"], run["reason"], run["visited"]) == ("completed", None, run["buoys"])
+    assert run["reattached_s"] is not None and run["reattached_s"] < TAKEOVER_REQUIREMENT_S + REATTACH_ALLOWANCE_S
+    assert run["duplicates"] == 0 and run["lost_beyond_gap"] == 0
+    # the gap is what the vehicle flew between the owner's last write and the re-attachment: at most a flush
+    # period before the kill, and up to the re-attachment after it (the vehicle paced at stack.speed)
+    assert 0 < run["gap_s"] <= stack.speed * (FLUSH_PERIOD_S + run["reattached_s"] + 1.0)
+    assert run["unflushed_tail_s"] <= stack.speed * (FLUSH_PERIOD_S + 1.0)
+    mission = standby.get(f"/missions/{run['mission']}")
+    statuses = [(e["status"], e["reason"]) for e in mission["events"]]
+    assert statuses[-2:] == [("flying", REATTACHED), ("completed", None)]
+    assert standby.vehicle()["connected"] and udp_sockets(standby.process.pid) == 1
+
+
+def test_killing_the_standby_changes_nothing_for_the_owner(stack):
+    owner, _ = stack.instances
+    run = fly_and_kill(stack, "standby")
+    assert run["owner_after"] == "gcs-a" and run["takeover_s"] < 1.0  # the owner never stopped owning
+    assert (run["status"], run["reason"], run["visited"]) == ("completed", None, run["buoys"])
+    assert run["duplicates"] == 0 and run["lost_beyond_gap"] == 0
+    assert run["gap_s"] < 2 * TELEMETRY_PERIOD_S  # no gap: the step across the kill is an ordinary one
+    mission = owner.get(f"/missions/{run['mission']}")
+    assert [e["status"] for e in mission["events"]] == ["planned", "uploading", "uploaded", "flying", "completed"]
