@@ -153,12 +153,18 @@ def test_the_same_seed_gives_the_same_plan():
     assert first.cost == second.cost
 
 
-@pytest.mark.parametrize(("seed", "objective"), [(0, "time"), (1, "time"), (2, "time"), (3, "distance"), (4, "time")])
-def test_tiny_instances_reach_the_exhaustive_optimum(seed, objective):
-    cost = instance(7, 100 + seed, capacity_wh=24.0, size=1200.0)
-    if seed >= 3:
-        cost = asymmetric_instance(7, 100 + seed, capacity_wh=cost.budget_wh / 0.8)
+# Odd seeds are asymmetric instances. The ones after the first three are those (of 120 tried) where the
+# route-first start with its local search alone ends above the optimum: the search itself must close the gap.
+@pytest.mark.parametrize(
+    ("seed", "capacity", "objective"),
+    [(100, 24.0, "time"), (102, 24.0, "distance"), (103, 24.0, "time"), (109, 40.0, "time"), (111, 40.0, "time"),
+     (113, 40.0, "time"), (149, 40.0, "time"), (157, 30.0, "time")],
+)  # fmt: skip
+def test_tiny_instances_reach_the_exhaustive_optimum(seed, capacity, objective):
+    cost = instance(7, seed, capacity_wh=capacity, size=1200.0)
+    if seed % 2:
+        cost = asymmetric_instance(7, seed, capacity_wh=cost.budget_wh / 0.8)
     optimum = exhaustive_optimum(cost, objective)
-    plan = plan_sorties(cost, objective=objective, seed=seed, time_limit_s=30.0, max_iterations=400)
+    plan = plan_sorties(cost, objective=objective, seed=0, time_limit_s=30.0, max_iterations=400)
     assert len(plan.sorties) >= 2  # the battery does force several sorties
     assert plan.cost == pytest.approx(optimum, rel=1e-9)
