@@ -2,10 +2,13 @@
 
 Place four buoys by clicking the map, plan (the route and its length appear), fly against the SITL vehicle
 (`python -m sitl_quad --lockstep`) until the mission completes, and check the live track and the history.
+Then hostile text: a vehicle (the ArduCopter double, real MAVLink over UDP) whose STATUSTEXTs and a buoy file
+whose ids carry markup and script, shown literally on the page and in the report, where nothing of it runs.
 Screenshots go to test-artifacts/.
 """
 
 import json
+import re
 import socket
 import subprocess
 import sys
@@ -14,7 +17,11 @@ import urllib.request
 from pathlib import Path
 
 import pytest
+from ardupilot_double import ArduCopterDouble
 from playwright.sync_api import expect, sync_playwright
+
+from uavcore.geodesy import DEFAULT_HOME
+from uavcore.mavlink import mavlink
 
 pytestmark = [pytest.mark.browser, pytest.mark.integration, pytest.mark.slow]
 
@@ -164,3 +171,83 @@ def test_place_plan_and_fly_in_the_browser(stack):
         expect(page.locator(".buoy-icon")).to_have_count(4)
         browser.close()
     assert errors == []
+
+
+# Each would set window.injected (or log "injected") if the page ever let it become markup and run it.
+IMG_TEXT = "<img src=x onerror=window.injected=1>"
+SCRIPT_TEXT = "<script>window.injected=2;console.log('injected')</script>"
+TOKEN = "page-token-0123456789"
+
+
+@pytest.fixture
+def double_and_service(tmp_path):
+    """`python -m gcs serve --token ...` listening (udpin) for the ArduCopter double; yields (url, double)."""
+    udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
+    logs = open(tmp_path / "service.log", "w")  # noqa: SIM115 - closed below
+    argv = [sys.executable, "-m", "gcs", "serve", "--vehicle", f"udpin://127.0.0.1:{udp}", "--port", str(http)]
+    argv += ["--db", str(tmp_path / "gcs.sqlite"), "--token", TOKEN, "--vehicle-wait", "60"]
+    gcs = subprocess.Popen(argv, stdout=logs, stderr=subprocess.STDOUT)
+    double = ArduCopterDouble(udp).start()
+    url = f"http://127.0.0.1:{http}"
+    deadline = time.monotonic() + 30
+    while True:
+        try:
+            with urllib.request.urlopen(f"{url}/vehicle", timeout=1) as answer:
+                if json.load(answer)["connected"]:
+                    break
+        except OSError:
+            pass
+        if time.monotonic() > deadline:
+            raise AssertionError("the service did not see the double: " + (tmp_path / "service.log").read_text())
+        time.sleep(0.2)
+    yield url, double
+    double.stop()
+    stop(gcs)
+    logs.close()
+
+
+def test_text_from_the_vehicle_and_from_files_shows_literally_and_never_runs(double_and_service):
+    url, double = double_and_service
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        page = browser.new_page(viewport={"width": 1280, "height": 800})
+        # page errors, a Content-Security-Policy violation (Chromium logs each), anything "injected"; not the
+        # other console errors of a machine offline (the OpenStreetMap probe, the favicon)
+        problems: list[str] = []
+        page.on("pageerror", lambda error: problems.append(str(error)))
+        page.on(
+            "console", lambda m: problems.append(m.text) if re.search("Content Security|injected", m.text) else None
+        )
+        page.goto(url)
+        # the service has a token: the live stream opens once the page has it (offered as a subprotocol)
+        page.locator("#token").fill(TOKEN)
+        expect(page.get_by_test_id("link-status")).to_contain_text("disarmed", timeout=15_000)
+
+        # the vehicle's own words, from MAVLink STATUSTEXT over UDP to the service and /ws to the page
+        vehicle_text = page.get_by_test_id("vehicle-text")
+        for text in (IMG_TEXT, SCRIPT_TEXT[:50]):  # a STATUSTEXT carries at most 50 characters
+            double.send(mavlink.MAVLink_statustext_message(mavlink.MAV_SEVERITY_WARNING, text.encode()))
+            expect(vehicle_text).to_have_text(text, timeout=10_000)
+        assert page.locator("header img, header script").count() == 0
+
+        # buoy ids from a file: shown as the markers' titles, flown, and named in the report
+        lat, lon, _ = DEFAULT_HOME
+        rows = f"lat,lon,id\n{lat + 0.0004},{lon},{IMG_TEXT}\n{lat},{lon + 0.0005},{SCRIPT_TEXT}\n"
+        page.locator("#import").set_input_files(csv_file(rows))
+        expect(page.get_by_title(IMG_TEXT)).to_have_count(1)
+        expect(page.get_by_title(SCRIPT_TEXT)).to_have_count(1)
+        page.get_by_role("button", name="Fly").click()
+        expect(page.get_by_test_id("mission-status")).to_contain_text("completed", timeout=120_000)
+        assert page.locator("#panel img, .leaflet-marker-pane img, #panel script").count() == 0
+        assert page.evaluate("window.injected") is None
+        page.screenshot(path=str(ARTIFACTS / "web_hostile_text.png"))
+
+        mission_id = page.evaluate("fetch('/missions?limit=1').then(r => r.json()).then(m => m[0].id)")
+        page.goto(f"{url}/missions/{mission_id}/report/index.html")
+        buoy_table = page.locator("table").nth(1)
+        expect(buoy_table).to_contain_text(IMG_TEXT)
+        expect(buoy_table).to_contain_text(SCRIPT_TEXT)
+        assert page.locator("img[src=x], body script").count() == 0
+        assert page.evaluate("window.injected") is None
+        browser.close()
+    assert problems == []
