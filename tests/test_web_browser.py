@@ -66,6 +66,21 @@ def stop(process: subprocess.Popen) -> None:
             process.wait()
 
 
+def wait_until_connected(url: str, log: Path) -> None:
+    """Until the service at url has heard its vehicle (30 s, then the log says why not)."""
+    deadline = time.monotonic() + 30
+    while True:
+        try:
+            with urllib.request.urlopen(f"{url}/vehicle", timeout=1) as answer:
+                if json.load(answer)["connected"]:
+                    return
+        except OSError:
+            pass
+        if time.monotonic() > deadline:
+            raise AssertionError("the service or the vehicle did not come up: " + log.read_text())
+        time.sleep(0.2)
+
+
 @pytest.fixture
 def stack(tmp_path):
     """The vehicle (lockstep) and `python -m gcs serve` on free ports; yields the page's URL."""
@@ -91,17 +106,7 @@ def stack(tmp_path):
         stderr=subprocess.STDOUT,
     )
     url = f"http://127.0.0.1:{http}"
-    deadline = time.monotonic() + 30
-    while True:
-        try:
-            with urllib.request.urlopen(f"{url}/vehicle", timeout=1) as answer:
-                if b'"connected":true' in answer.read():
-                    break
-        except OSError:
-            pass
-        if time.monotonic() > deadline:
-            raise AssertionError("the service or the vehicle did not come up: " + (tmp_path / "stack.log").read_text())
-        time.sleep(0.2)
+    wait_until_connected(url, tmp_path / "stack.log")
     yield url
     stop(gcs)
     stop(vehicle)
@@ -189,17 +194,7 @@ def double_and_service(tmp_path):
     gcs = subprocess.Popen(argv, stdout=logs, stderr=subprocess.STDOUT)
     double = ArduCopterDouble(udp).start()
     url = f"http://127.0.0.1:{http}"
-    deadline = time.monotonic() + 30
-    while True:
-        try:
-            with urllib.request.urlopen(f"{url}/vehicle", timeout=1) as answer:
-                if json.load(answer)["connected"]:
-                    break
-        except OSError:
-            pass
-        if time.monotonic() > deadline:
-            raise AssertionError("the service did not see the double: " + (tmp_path / "service.log").read_text())
-        time.sleep(0.2)
+    wait_until_connected(url, tmp_path / "service.log")
     yield url, double
     double.stop()
     stop(gcs)

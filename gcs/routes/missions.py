@@ -27,6 +27,12 @@ _MISSION_LINKS = {
     )
 }
 CREATED = {201: {"links": _MISSION_LINKS}}
+# start and abort: what they answer and need
+ACTION = {
+    "response_model": MissionOut,
+    "dependencies": [Depends(require_token)],
+    "responses": MUTATING | NOT_FOUND | CONFLICT,
+}
 
 
 def _file(*media_types: str) -> dict:
@@ -65,24 +71,14 @@ async def get_mission(mission_id: MissionId, service: ServiceDep) -> dict:
     return mission_out(service.get(mission_id))
 
 
-@router.post(
-    "/missions/{mission_id}/start",
-    response_model=MissionOut,
-    dependencies=[Depends(require_token)],
-    responses=MUTATING | NOT_FOUND | CONFLICT,
-)
+@router.post("/missions/{mission_id}/start", **ACTION)
 async def start_mission(mission_id: MissionId, service: ServiceDep) -> dict:
     """Fly a mission created with start=false."""
     service.launch(mission_id)
     return mission_out(service.get(mission_id))
 
 
-@router.post(
-    "/missions/{mission_id}/abort",
-    response_model=MissionOut,
-    dependencies=[Depends(require_token)],
-    responses=MUTATING | NOT_FOUND | CONFLICT,
-)
+@router.post("/missions/{mission_id}/abort", **ACTION)
 async def abort_mission(mission_id: MissionId, service: ServiceDep) -> dict:
     """Return to the depot (NAV_RETURN_TO_LAUNCH); a mission not yet flying simply ends."""
     await service.abort(mission_id)
