@@ -5,9 +5,11 @@ Pure computation in simulated time; parameters are data (`BatteryConfig`, named 
 Power. Each rotor turns against its aerodynamic drag torque Q_i = kf * Omega_i^2, so the motors deliver
 P_mech = sum_i Q_i * Omega_i = kf * sum_i Omega_i^3. We take the paper's Table 2 drag coefficient kf
 (7.47e-7) as that per-rotor torque coefficient, its textbook meaning, and not the L * kf the paper's eq. (1)
-applies to the body's yaw (see sitl_quad/rotors.py): kf / kl = 26 mm of torque per newton of thrust is what
-10-12 inch propellers have, and hover then costs 112 W of shaft power, a figure of merit of 0.58 for a
-10 inch propeller (T^1.5 / sqrt(2 rho A) / P_mech), where L * kf would halve it and imply an FM above 1.
+applies to the body's yaw (see sitl_quad/rotors.py). kf / kl = 26 mm of torque per newton of thrust lies in
+the range of 10-13 inch propellers (about 17 mm for a 10x4.7, 25 mm for a 13 inch), and hover then costs
+112 W of shaft power: a figure of merit T^1.5 / sqrt(2 rho A) / P_mech of 0.58 on 10 inch propellers, 0.44
+on 13 inch, where small propellers reach 0.4-0.65; L * kf would halve the power and put a 10 inch propeller
+above 1, which no propeller reaches.
 The pack supplies P = P_mech / eta + P_avionics: eta is the motor + ESC efficiency (0.76 = an 80 % motor
 at hover load behind a 95 % ESC), P_avionics the flight controller, GNSS, radios and the inspection
 camera's computer (8 W), drawn while armed. Rotor inertia (spin-up energy) is neglected: at hover it
@@ -23,13 +25,15 @@ current-integrating PX4 estimate would, so the two only bound the curve. Tempera
 The pack does not limit the motors: flying on past 0 % keeps flying at 0 %, which is what the failsafes
 (COM_LOW_BAT_ACT) are there to prevent.
 
-Defaults and what they give (bench/battery_endurance.py flies the Table 2 vehicle, 1.3 kg, in simulated
-time and writes bench/results/battery_endurance.json): a 4S 4000 mAh pack (~61 Wh, ~420 g, a fair share of
-1.3 kg). Hover draws ~155 W (~10 A, 2.5C) for ~23.5 min to empty; cruising at 10 m/s the Table 2 drag tilts
-the thrust and costs ~4 % more (the rotor model has no translational lift, which on real quadrotors makes
-10 m/s cheaper than hover: a conservative figure). Quadrotors of this mass: a 1.5 kg F450-class frame on
-4S 5000 mAh (74 Wh) hovers 15-20 min; a 1.4 kg DJI Phantom 4 on its 89 Wh pack flies ~28 min; both draw
-110-190 W per kg as this model's ~120 W/kg.
+Defaults and what they give (`python -m bench.battery_endurance` flies the 1.3 kg Table 2 vehicle in
+simulated time; bench/results/battery_endurance.json): a 4S 4000 mAh pack (59 Wh nominal, 61 Wh delivered
+along the chart; ~420 g, a fair share of 1.3 kg). Hover draws 158 W (10.4 A, 2.6C, 122 W/kg): 23.2 min to
+empty, 21.7 min to BAT_CRIT_THR. Cruising at 10 m/s (back and forth on a 1 km line) draws 165 W: 22.2 min and
+12.2 km to empty. The Table 2 drag tilts the thrust, so cruise costs 4 % more than hover here; the rotor model
+has no translational lift, which on real quadrotors makes 10 m/s cheaper than hover, so the cruise figure is
+conservative. Quadrotors of this mass: a 1.5 kg F450-class frame on 4S 5000 mAh (74 Wh) hovers 15-20 min;
+a 1.38 kg DJI Phantom 4 flies about 28 min on its 89 Wh pack, some 190 W or 138 W/kg. At 122 W/kg this model
+is an efficient but plausible vehicle of the kind (its 0.5 m arms leave room for large propellers).
 
 Warnings follow PX4's battery_status: LOW below BAT_LOW_THR, CRITICAL below BAT_CRIT_THR, EMERGENCY below
 BAT_EMERGEN_THR (fractions of charge; sitl_quad.failsafe says what each does under COM_LOW_BAT_ACT).
