@@ -19,9 +19,13 @@ vehicle when the instances reach it by different connection strings (different h
 
 An owner that finds its lease gone (its connection broke: the database restarted, the network dropped it)
 cannot know whether a stand-by has taken over, so it must stop talking to the vehicle before anyone else
-does. It ends its process at once (`exit_now`), as Kubernetes' leader election does: a graceful shutdown would
-mark the mission in flight failed, and the stand-by that took over must find it unfinished. The process
-supervisor (systemd, `buoy-gcs up`) starts it again, as a stand-by.
+does. It checks once per poll period and ends its process at once (`exit_now`), as Kubernetes' leader
+election does: a graceful shutdown would mark the mission in flight failed, and the stand-by that took over
+must find it unfinished. The process supervisor (systemd, `buoy-gcs up`) starts it again, as a stand-by. A new
+owner waits two poll periods (`TAKEOVER_GRACE_POLLS`) after taking the lease before it opens the link, so
+that an old owner still running has noticed and exited. (An old owner frozen longer than that, e.g. stopped
+by SIGSTOP, could still send a few messages when it wakes before its next check: the lease has no fencing
+token the vehicle could check.)
 
 With SQLite (one file, one service instance) the instance is always the owner (`SoleLease`).
 """
@@ -49,6 +53,10 @@ LEASE_NAMESPACE = int.from_bytes(b"BUOY") & 0x7FFF_FFFF
 QUERY_TIMEOUT_S = 10.0  # wall clock for one lease query; an owner whose check takes longer counts as lost
 CONNECT_TIMEOUT_S = 5  # libpq's connect_timeout (whole seconds)
 LEASE_LOST_EXIT_CODE = 75  # EX_TEMPFAIL: the supervisor restarts the instance (as a stand-by)
+# A new owner waits this many poll periods before it talks to the vehicle: an old owner whose session died while
+# its process lives (the database restarted, an operator ended the session) checks its lease once a period and
+# exits when it is gone, so by then it has stopped talking to the vehicle.
+TAKEOVER_GRACE_POLLS = 2
 APPLICATION_NAME_BYTES = 63  # PostgreSQL keeps this much of application_name (NAMEDATALEN - 1)
 
 
@@ -176,7 +184,11 @@ class PostgresLease:
         return rows[0][0] if rows else None
 
     async def release(self) -> None:
-        """Close the lease connection: PostgreSQL releases the lock with the session."""
+        """Unlock, then close the lease connection (a session's end releases its locks too, but only once the
+        server has noticed: unlocking first frees the lease before this returns)."""
+        if self._connection is not None:
+            with contextlib.suppress(psycopg.Error, OSError, TimeoutError):
+                await self._query("SELECT pg_advisory_unlock(%s::int4, %s::int4)")
         await self._drop()
 
 
@@ -196,8 +208,16 @@ class Ownership:
     serves) and then keeps polling in the background: a stand-by tries to take the lease, an owner checks it
     still holds it and calls `on_lost` when it does not."""
 
-    def __init__(self, lease: Lease, instance: str, poll_s: float, on_lost: Callable[[], None] = exit_now) -> None:
+    def __init__(
+        self,
+        lease: Lease,
+        instance: str,
+        poll_s: float,
+        on_lost: Callable[[], None] = exit_now,
+        grace_s: float = 0.0,
+    ) -> None:
         self.lease, self.instance, self.poll_s, self.on_lost = lease, instance, poll_s, on_lost
+        self.grace_s = grace_s  # wall seconds between taking the lease and the first byte to the vehicle
         self.role = Role.STANDBY
         self.owner: str | None = None  # the owning instance's name, as last read
         self._task: asyncio.Task | None = None
@@ -239,6 +259,7 @@ class Ownership:
         if not await self.lease.try_acquire():
             self.owner = await self.lease.holder()
             return False
+        await asyncio.sleep(self.grace_s)
         await on_acquired()  # the link is up and the mission in flight re-attached before the first request
         self.role, self.owner = Role.OWNER, self.instance
         return True
@@ -266,4 +287,5 @@ def ownership_for(settings: Settings) -> Ownership:
         return Ownership(SoleLease(), settings.instance_name, settings.lease_poll_s)
     vehicle_name = settings.vehicle_name or str(parse_connection(settings.vehicle_url))
     lease = PostgresLease(settings.db, vehicle_name, settings.instance_name)
-    return Ownership(lease, settings.instance_name, settings.lease_poll_s)
+    grace_s = TAKEOVER_GRACE_POLLS * settings.lease_poll_s
+    return Ownership(lease, settings.instance_name, settings.lease_poll_s, grace_s=grace_s)

@@ -12,11 +12,21 @@ import json
 import os
 from pathlib import Path
 
+import psycopg
 import pytest
 from websockets.sync.client import connect
 
-from bench.failover import TAKEOVER_REQUIREMENT_S, TELEMETRY_PERIOD_S, FailoverStack, close_buoys, fly_and_kill
+from bench.failover import (
+    TAKEOVER_REQUIREMENT_S,
+    TELEMETRY_PERIOD_S,
+    FailoverStack,
+    close_buoys,
+    fly_and_kill,
+    owns_a_connected_vehicle,
+    poll,
+)
 from gcs.lifecycle import FLUSH_PERIOD_S, REATTACHED
+from gcs.ownership import LEASE_LOST_EXIT_CODE
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
@@ -98,3 +108,14 @@ def test_killing_the_standby_changes_nothing_for_the_owner(stack):
     assert run["gap_s"] < 2 * TELEMETRY_PERIOD_S  # no gap: the step across the kill is an ordinary one
     mission = owner.get(f"/missions/{run['mission']}")
     assert [e["status"] for e in mission["events"]] == ["planned", "uploading", "uploaded", "flying", "completed"]
+
+
+def test_an_owner_that_loses_its_lease_exits_at_once_and_the_standby_takes_over(stack, postgres_url):
+    """The owner's lease connection dies under it (a database restart, a network cut): it cannot know whether
+    another instance took over, so it ends its process without writing anything, and the stand-by owns the link."""
+    owner, standby = stack.instances
+    with psycopg.connect(postgres_url, autocommit=True) as admin:
+        admin.execute("SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE application_name = 'gcs-a'")
+    assert owner.process.wait(30) == LEASE_LOST_EXIT_CODE
+    assert "vehicle lease lost" in stack.log("gcs-a")
+    poll(standby.vehicle, owns_a_connected_vehicle, 30.0, "the stand-by owning the vehicle")
