@@ -18,12 +18,13 @@ from typing import Any
 
 import numpy as np
 
-from gcs import report
+from gcs import report, views
 from gcs.lifecycle import FlightLifecycle, MissionConflictError
 from gcs.link import LinkError, LinkManager
 from gcs.mission_protocol import MissionTransferError
 from gcs.ownership import Ownership, SoleLease
 from gcs.planning import FlightParams, Plan, fenced_legs, make_plan, mission_items
+from gcs.read_cache import VersionedCache
 from gcs.schemas import MissionRequest, PlanRequest
 from gcs.settings import Settings
 from gcs.storage import MissionRecord, Storage
@@ -55,6 +56,7 @@ class MissionService:
         self._ownership = ownership or Ownership(SoleLease(), settings.instance_name, settings.lease_poll_s)
         self._flights = FlightLifecycle(settings, storage, link)
         self._fence_unanswered: int | None = None  # the vehicle incarnation that did not answer a fence request
+        self._documents = VersionedCache()  # encoded read documents by the version they show (gcs.read_cache)
 
     async def start(self) -> None:
         """Own the vehicle link now, or stand by until the owner is gone (then take it over in the background)."""
@@ -172,6 +174,35 @@ class MissionService:
     def list_missions(self, limit: int) -> list[MissionRecord]:
         """The latest missions, newest first."""
         return self._storage.list_missions(limit)
+
+    def _version(self, mission_id: int) -> int:
+        version = self._storage.mission_version(mission_id)
+        if version is None:
+            raise MissionNotFoundError(mission_id)
+        return version
+
+    # The documents the read routes serve, encoded: built once per version of the mission (or, for the list, of
+    # the newest change to any mission) and served as bytes while the storage's version is unchanged.
+    def mission_json(self, mission_id: int) -> bytes:
+        """GET /missions/{id}: the MissionOut document."""
+        version = self._version(mission_id)
+        return self._documents.get(("mission", mission_id), version, lambda: views.mission_json(self.get(mission_id)))
+
+    def missions_json(self, limit: int) -> bytes:
+        """GET /missions: the latest `limit` MissionSummary documents, newest first."""
+        version = self._storage.latest_version()
+        return self._documents.get(("missions", limit), version, lambda: views.missions_json(self.list_missions(limit)))
+
+    def track_json(self, mission_id: int, max_points: int) -> bytes:
+        """GET /missions/{id}/track: the flown track cut to `max_points` for display (TrackOut). Samples are
+        stored without moving the mission's version, so the track's version also counts them. Reads every
+        sample when it builds: call it from a worker thread."""
+        version = (self._version(mission_id), self._storage.telemetry_count(mission_id))
+        return self._documents.get(
+            ("track", mission_id, max_points),
+            version,
+            lambda: views.track_json(self.get(mission_id), self._storage.telemetry(mission_id), max_points),
+        )
 
     def telemetry(self, mission_id: int, limit: int | None = None) -> list[dict[str, Any]]:
         """A mission's recorded samples (TelemetrySample documents), oldest first."""

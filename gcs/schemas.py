@@ -219,6 +219,19 @@ class TelemetrySample(BaseModel):
     cross_track_m: float | None = Field(default=None, description="distance to the leg being flown")
 
 
+class TrackOut(BaseModel):
+    """A mission's flown track cut down for the page (GET /missions/{id}/track); the exports keep every sample."""
+
+    mission: int
+    samples: int = Field(description="samples recorded (every one is in /telemetry and track.geojson)")
+    tolerance_m: float = Field(description="every recorded position lies within this distance of `points`")
+    points: list[list[float]] = Field(
+        description="[lat, lon] of the kept samples: the first, the last, each buoy arrival, and the ones that "
+        "keep the polyline closest to the recorded track"
+    )
+    series: list[TelemetrySample] = Field(description="samples spread evenly over the flight, for the charts")
+
+
 # The sample's fields the recorder copies from the link's VehicleStatus attribute of the same name.
 TELEMETRY_COMPUTED = ("t_s", "eso", "cross_track_m")
 TELEMETRY_FROM_STATUS = tuple(name for name in TelemetrySample.model_fields if name not in TELEMETRY_COMPUTED)

@@ -1,11 +1,19 @@
-"""Records and plans -> the REST contract's documents (pure)."""
+"""Records and plans -> the REST contract's documents (pure), and those documents encoded as the read routes
+serve them (validated against the response model once, when the read cache builds them)."""
 
 from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+from pydantic import TypeAdapter
+
+from gcs import track_display
 from gcs.planning import Plan
+from gcs.schemas import MissionOut, MissionSummary, TrackOut
 from gcs.storage import MissionRecord
+
+MISSION_SUMMARIES = TypeAdapter(list[MissionSummary])
 
 
 def plan_out(plan: Plan) -> dict[str, Any]:
@@ -65,3 +73,34 @@ def mission_summary(record: MissionRecord) -> dict[str, Any]:
         "length_m": record.plan["length_m"],
         "tracking": record.results["tracking"] if record.results else None,
     }
+
+
+def track_out(record: MissionRecord, samples: list[dict[str, Any]], max_points: int) -> dict[str, Any]:
+    """The flown track for display: at most `max_points` positions (more only if the buoy arrivals alone exceed
+    them) within `tolerance_m` of every recorded one, and as many samples spread over the flight for the charts."""
+    located = [s for s in samples if s["lat"] is not None and s["lon"] is not None]
+    lat_lon = np.array([(s["lat"], s["lon"]) for s in located], dtype=float).reshape(-1, 2)
+    times = np.array([s["t_s"] for s in located], dtype=float)
+    arrivals = (record.progress.get("reached_at") or {}).values()
+    local = Plan.from_dict(record.plan).frame.project(lat_lon) if len(located) else lat_lon
+    track = track_display.simplify_track(local, max_points, track_display.arrival_indices(times, arrivals))
+    return {
+        "mission": record.id,
+        "samples": len(samples),
+        "tolerance_m": track.tolerance_m,
+        "points": lat_lon[track.indices].tolist(),
+        "series": [samples[i] for i in track_display.evenly_spaced(len(samples), max_points)],
+    }
+
+
+# ----- encoded as served: the response model validates the document once, when the read cache builds it
+def mission_json(record: MissionRecord) -> bytes:
+    return MissionOut.model_validate(mission_out(record)).model_dump_json().encode()
+
+
+def missions_json(records: list[MissionRecord]) -> bytes:
+    return MISSION_SUMMARIES.dump_json(MISSION_SUMMARIES.validate_python([mission_summary(r) for r in records]))
+
+
+def track_json(record: MissionRecord, samples: list[dict[str, Any]], max_points: int) -> bytes:
+    return TrackOut.model_validate(track_out(record, samples, max_points)).model_dump_json().encode()

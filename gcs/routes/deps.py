@@ -12,12 +12,13 @@ from gcs.missions import MissionService
 from gcs.settings import Settings
 
 
-def get_service(connection: HTTPConnection) -> MissionService:
+# async: FastAPI runs a plain-def dependency in its thread pool, a hop per request for reading an attribute
+async def get_service(connection: HTTPConnection) -> MissionService:
     """The app's mission service (HTTPConnection: a Request or a WebSocket, so both kinds of route can use it)."""
     return connection.app.state.service
 
 
-def get_settings(connection: HTTPConnection) -> Settings:
+async def get_settings(connection: HTTPConnection) -> Settings:
     return connection.app.state.settings
 
 

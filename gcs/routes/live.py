@@ -5,31 +5,37 @@ Push-only: the service reads nothing a client sends on it. With an API token set
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
+from typing import Annotated
 
-from fastapi import APIRouter, WebSocket, WebSocketDisconnect, status
+from fastapi import APIRouter, Depends, WebSocket, WebSocketDisconnect, status
+from starlette.requests import HTTPConnection
 
+from gcs.live_feed import LiveFeed
 from gcs.routes.deps import ServiceDep, SettingsDep
 from gcs.security import accepted_subprotocol, websocket_refusal
 
 router = APIRouter(tags=["live"])
 
 
+async def live_feed(connection: HTTPConnection, service: ServiceDep, settings: SettingsDep) -> LiveFeed:
+    """The app's one live feed (made with the first client; on the event loop, so made once): every /ws client
+    sends the same encoded states."""
+    state = connection.app.state
+    if getattr(state, "live_feed", None) is None:
+        state.live_feed = LiveFeed(service.live, settings.live_rate_hz)
+    return state.live_feed
+
+
 @router.websocket("/ws")
-async def live(websocket: WebSocket, service: ServiceDep, settings: SettingsDep) -> None:
-    """Each client gets its own paced loop, so a slow client never delays the others; a client that cannot
-    keep up only misses intermediate states, since every message is the whole latest state."""
+async def live(websocket: WebSocket, settings: SettingsDep, feed: Annotated[LiveFeed, Depends(live_feed)]) -> None:
+    """The live state at the service's live rate. One producer encodes each state once for every client; a
+    slow client only misses intermediate states (every message is the whole latest state) and never delays
+    the others (gcs.live_feed)."""
     if (refusal := websocket_refusal(websocket, settings)) is not None:
         # closing before accepting answers the handshake with HTTP 403
         await websocket.close(code=status.WS_1008_POLICY_VIOLATION, reason=refusal)
         return
     await websocket.accept(subprotocol=accepted_subprotocol(websocket))
-    period = 1.0 / settings.live_rate_hz
-    loop = asyncio.get_running_loop()
-    next_time = loop.time()
     with contextlib.suppress(WebSocketDisconnect, RuntimeError):
-        while True:
-            await websocket.send_json(service.live())
-            next_time = max(next_time + period, loop.time())
-            await asyncio.sleep(next_time - loop.time())
+        await feed.stream(websocket.send_text)

@@ -12,9 +12,9 @@ from fastapi.responses import FileResponse, RedirectResponse
 from gcs import exports, report
 from gcs.routes.deps import ServiceDep
 from gcs.routes.responses import CONFLICT, MUTATING, NOT_FOUND, WITH_BODY
-from gcs.schemas import MissionOut, MissionRequest, MissionSummary, TelemetrySample
+from gcs.schemas import MissionOut, MissionRequest, MissionSummary, TelemetrySample, TrackOut
 from gcs.security import require_token
-from gcs.views import mission_out, mission_summary
+from gcs.views import mission_out
 
 router = APIRouter(tags=["missions"])
 # POST /missions answers with links to what can be asked of the new mission (OpenAPI links: clients and
@@ -23,7 +23,7 @@ _MISSION_LINKS = {
     name: {"operationId": name, "parameters": {"mission_id": "$response.body#/id"}}
     for name in (
         *("get_mission", "get_telemetry", "get_qgc_plan", "get_waypoints", "get_track", "get_report"),
-        *("start_mission", "abort_mission"),
+        *("get_display_track", "start_mission", "abort_mission"),
     )
 }
 CREATED = {201: {"links": _MISSION_LINKS}}
@@ -61,14 +61,22 @@ async def create_mission(request: MissionRequest, service: ServiceDep) -> dict:
     return mission_out(service.get(mission_id))
 
 
+def _encoded(body: bytes) -> Response:
+    """A document the service encoded once (gcs.read_cache), served as it is: the route's response_model still
+    tells OpenAPI its shape, and the cache validated it against that model when it built it."""
+    return Response(body, media_type="application/json")
+
+
+# The read routes answer from the service's cache of encoded documents: one version query per request, then
+# the bytes. They run on the event loop (no thread hop): a cache hit is a few microseconds of work.
 @router.get("/missions", response_model=list[MissionSummary])
-def list_missions(service: ServiceDep, limit: Annotated[int, Query(ge=1, le=1000)] = 100) -> list[dict]:
-    return [mission_summary(record) for record in service.list_missions(limit)]
+async def list_missions(service: ServiceDep, limit: Annotated[int, Query(ge=1, le=1000)] = 100) -> Response:
+    return _encoded(service.missions_json(limit))
 
 
 @router.get("/missions/{mission_id}", response_model=MissionOut, responses=NOT_FOUND)
-async def get_mission(mission_id: MissionId, service: ServiceDep) -> dict:
-    return mission_out(service.get(mission_id))
+async def get_mission(mission_id: MissionId, service: ServiceDep) -> Response:
+    return _encoded(service.mission_json(mission_id))
 
 
 @router.post("/missions/{mission_id}/start", **ACTION)
@@ -90,6 +98,18 @@ def get_telemetry(
     mission_id: MissionId, service: ServiceDep, limit: Annotated[int | None, Query(ge=1, le=1_000_000)] = None
 ) -> list[dict]:
     return service.telemetry(mission_id, limit)
+
+
+@router.get("/missions/{mission_id}/track", response_model=TrackOut, responses=NOT_FOUND)
+def get_display_track(
+    mission_id: MissionId,
+    service: ServiceDep,
+    max_points: Annotated[int, Query(ge=2, le=100_000, description="the most positions (and chart samples)")] = 2000,
+) -> Response:
+    """The flown track for the map page: at most `max_points` positions (the first, the last and every buoy
+    arrival always among them) within `tolerance_m` of every recorded one, and samples spread over the flight for
+    the charts. Every sample is in /telemetry and track.geojson."""
+    return _encoded(service.track_json(mission_id, max_points))
 
 
 def _download(content: str, media_type: str, filename: str) -> Response:

@@ -71,8 +71,10 @@ export class GcsApi {
     return this.request("GET", `/missions?limit=${limit}`);
   }
 
-  telemetry(id) {
-    return this.request("GET", `/missions/${encodeURIComponent(id)}/telemetry`);
+  // The flown track cut down for display (GET /missions/{id}/track): {points: [[lat, lon], ...], series: the
+  // samples for the charts, tolerance_m}; /telemetry and track.geojson keep every sample.
+  track(id, maxPoints = 2000) {
+    return this.request("GET", `/missions/${encodeURIComponent(id)}/track?max_points=${maxPoints}`);
   }
 
   // file: a File from <input type=file>, GeoJSON or CSV (told apart by its name, as the service does)

@@ -138,9 +138,9 @@ const displayMission = showingErrors(async (id) => {
   mission.buoys.forEach((b) => addBuoy(b.lat, b.lon, b.id));
   showPlan(mission);
   startWatching(mission);
-  const samples = await api.telemetry(id);
-  map.setTrack(samples.filter((s) => s.lat != null).map((s) => [s.lat, s.lon]));
-  samples.forEach((s) => charts.add(s));
+  const track = await api.track(id);
+  map.setTrack(track.points);
+  track.series.forEach((s) => charts.add(s));
   charts.redraw();
 });
 

@@ -43,7 +43,7 @@ export class FlightCharts {
     this.lastT = null;
   }
 
-  // sample: a telemetry sample (GET /missions/{id}/telemetry or the live stream's mission.sample)
+  // sample: a telemetry sample (the track's series, GET /missions/{id}/track, or the live stream's mission.sample)
   add(sample) {
     if (!sample || sample.t_s == null || (this.lastT !== null && sample.t_s <= this.lastT)) return;
     this.lastT = sample.t_s;

@@ -1,0 +1,74 @@
+"""The read side's maintained view: each document the read routes serve, encoded once per version.
+
+A GET of a mission (or of the list) used to rebuild the document per request: read the row, parse its JSON
+columns, rebuild the plan, validate the document against the response model and encode it, all on the event
+loop. Here the encoded bytes are kept with the storage's change counter they were built at
+(`Storage.mission_version`, `Storage.latest_version`) and served while the counter has not moved: one indexed
+query per request. The counter lives in the database, so a second service instance writing to the same database
+moves it too, and no instance serves a document older than what another one wrote.
+
+Correctness needs one ordering only: read the version *before* building. The document built is then at least as
+new as that version (a write in between only makes it newer, and the next request, seeing the higher version,
+builds again); it can never be older than the version it is filed under.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+from collections.abc import Callable, Hashable
+from dataclasses import dataclass
+
+# What a document's validity is checked against: the storage's change counter, or a tuple of such counters
+# (a track also depends on how many samples are stored, which the mission's version does not count).
+Version = int | tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class CachedDocument:
+    version: Version
+    body: bytes
+
+
+class VersionedCache:
+    """Encoded documents by key, each valid while its version is the current one; least recently used entries
+    go first beyond `max_entries`. Thread-safe (sync routes run in a thread pool)."""
+
+    def __init__(self, max_entries: int = 256) -> None:
+        self.max_entries = max_entries
+        self._entries: OrderedDict[Hashable, CachedDocument] = OrderedDict()
+        self._lock = threading.Lock()
+        self.hits = self.misses = 0  # for tests and the benchmark: how often the cache answered
+
+    def get(self, key: Hashable, version: Version, build: Callable[[], bytes]) -> bytes:
+        """The document for `key` at `version` (read from storage before this call), built by `build` when the
+        cache has none at that version. `build` runs outside the lock: two requests may build the same document
+        at once, which is harmless (same bytes), while one slow build never holds up reads of other keys."""
+        body = self.lookup(key, version)
+        if body is None:
+            body = build()
+            self.store(key, version, body)
+        return body
+
+    def lookup(self, key: Hashable, version: Version) -> bytes | None:
+        """The document for `key` if the cache holds it at exactly `version`."""
+        with self._lock:
+            entry = self._entries.get(key)
+            if entry is None or entry.version != version:
+                self.misses += 1
+                return None
+            self._entries.move_to_end(key)
+            self.hits += 1
+            return entry.body
+
+    def store(self, key: Hashable, version: Version, body: bytes) -> None:
+        # Two builds racing may leave the older one filed last: a lookup needs the exact version, so that only
+        # costs one more build, never a stale answer.
+        with self._lock:
+            self._entries[key] = CachedDocument(version, body)
+            self._entries.move_to_end(key)
+            while len(self._entries) > self.max_entries:
+                self._entries.popitem(last=False)
+
+    def __len__(self) -> int:
+        return len(self._entries)
