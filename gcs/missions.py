@@ -22,7 +22,7 @@ from gcs import report, views
 from gcs.lifecycle import FlightLifecycle, MissionConflictError
 from gcs.link import LinkError, LinkManager
 from gcs.mission_protocol import MissionTransferError
-from gcs.ownership import Ownership, SoleLease
+from gcs.ownership import Ownership, ownership_for
 from gcs.planning import FlightParams, Plan, fenced_legs, make_plan, mission_items
 from gcs.read_cache import VersionedCache
 from gcs.schemas import MissionRequest, PlanRequest
@@ -53,7 +53,7 @@ class MissionService:
     ) -> None:
         self.settings = settings
         self._storage, self._link = storage, link
-        self._ownership = ownership or Ownership(SoleLease(), settings.instance_name, settings.lease_poll_s)
+        self._ownership = ownership or ownership_for(settings)
         self._flights = FlightLifecycle(settings, storage, link)
         self._fence_unanswered: int | None = None  # the vehicle incarnation that did not answer a fence request
         self._documents = VersionedCache()  # encoded read documents by the version they show (gcs.read_cache)
