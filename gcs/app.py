@@ -23,7 +23,7 @@ from gcs.http_headers import SecurityHeadersMiddleware
 from gcs.lifecycle import MissionConflictError
 from gcs.link import LinkManager
 from gcs.missions import MissionNotFoundError, MissionService
-from gcs.ownership import NotOwnerError, ownership_for
+from gcs.ownership import NotOwnerError
 from gcs.routes import buoy_files, live, missions, plans, vehicle
 from gcs.settings import Settings
 from gcs.storage import open_storage
@@ -110,7 +110,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         storage = open_storage(settings.database)
         key = None if settings.signing_key is None else parse_signing_key(settings.signing_key)
         link = LinkManager(settings.vehicle_url, settings.heartbeat_timeout_s, signing_key=key)
-        service = MissionService(settings, storage, link, ownership_for(settings))
+        service = MissionService(settings, storage, link)  # owner or stand-by: gcs.ownership, by the settings
         app.state.service = service
         await service.start()
         try:
