@@ -13,5 +13,7 @@ router = APIRouter(tags=["vehicle"])
 
 @router.get("/vehicle")
 def get_vehicle(service: ServiceDep) -> dict[str, Any]:
-    """`connected` is false until the vehicle's heartbeat is heard; `home` falls back to the default depot."""
+    """`connected` is false until the vehicle's heartbeat is heard; `home` falls back to the default depot.
+    `role` is `owner` when this instance owns the vehicle link, `standby` when another one does (`owner` names
+    it; a stand-by never connects to the vehicle and answers 503 to what would fly)."""
     return service.vehicle()
