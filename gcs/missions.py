@@ -56,7 +56,7 @@ class MissionService:
         self._ownership = ownership or ownership_for(settings)
         self._flights = FlightLifecycle(settings, storage, link)
         self._fence_unanswered: int | None = None  # the vehicle incarnation that did not answer a fence request
-        self._documents = VersionedCache()  # encoded read documents by the version they show (gcs.read_cache)
+        self.documents = VersionedCache()  # the read routes' encoded documents by version (gcs.read_cache)
 
     async def start(self) -> None:
         """Own the vehicle link now, or stand by until the owner is gone (then take it over in the background)."""
@@ -186,19 +186,19 @@ class MissionService:
     def mission_json(self, mission_id: int) -> bytes:
         """GET /missions/{id}: the MissionOut document."""
         version = self._version(mission_id)
-        return self._documents.get(("mission", mission_id), version, lambda: views.mission_json(self.get(mission_id)))
+        return self.documents.get(("mission", mission_id), version, lambda: views.mission_json(self.get(mission_id)))
 
     def missions_json(self, limit: int) -> bytes:
         """GET /missions: the latest `limit` MissionSummary documents, newest first."""
         version = self._storage.latest_version()
-        return self._documents.get(("missions", limit), version, lambda: views.missions_json(self.list_missions(limit)))
+        return self.documents.get(("missions", limit), version, lambda: views.missions_json(self.list_missions(limit)))
 
     def track_json(self, mission_id: int, max_points: int) -> bytes:
         """GET /missions/{id}/track: the flown track cut to `max_points` for display (TrackOut). Samples are
         stored without moving the mission's version, so the track's version also counts them. Reads every
         sample when it builds: call it from a worker thread."""
         version = (self._version(mission_id), self._storage.telemetry_count(mission_id))
-        return self._documents.get(
+        return self.documents.get(
             ("track", mission_id, max_points),
             version,
             lambda: views.track_json(self.get(mission_id), self._storage.telemetry(mission_id), max_points),

@@ -229,7 +229,9 @@ class TrackOut(BaseModel):
         description="[lat, lon] of the kept samples: the first, the last, each buoy arrival, and the ones that "
         "keep the polyline closest to the recorded track"
     )
-    series: list[TelemetrySample] = Field(description="samples spread evenly over the flight, for the charts")
+    series: list[TelemetrySample] = Field(
+        description="samples spread evenly over the flight for the charts (at most max_points, and 1000)"
+    )
 
 
 # The sample's fields the recorder copies from the link's VehicleStatus attribute of the same name.

@@ -21,6 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 
 
+RESOLUTION_M = 0.01  # a point closer than this to the polyline is never worth drawing (nor is rounding noise)
+
+
 @dataclass(frozen=True)
 class SimplifiedTrack:
     indices: np.ndarray  # the kept samples' indices, increasing
@@ -41,7 +44,8 @@ def segment_distances(points: np.ndarray, start: int, end: int) -> np.ndarray:
 
 def simplify_track(points: np.ndarray, max_points: int, keep: Iterable[int] = ()) -> SimplifiedTrack:
     """At most max(max_points, the points that must stay) of `points` (shape (n, 2), local metres), keeping the
-    first, the last and every index in `keep`, chosen to minimise the largest deviation greedily (see above)."""
+    first, the last and every index in `keep`, chosen to minimise the largest deviation greedily (see above); it
+    stops early once every point left out is within RESOLUTION_M."""
     n = len(points)
     if n <= max(max_points, 2):
         return SimplifiedTrack(np.arange(n), 0.0)
@@ -57,7 +61,7 @@ def simplify_track(points: np.ndarray, max_points: int, keep: Iterable[int] = ()
 
     for start, end in itertools.pairwise(anchors):
         push(start, end)
-    while heap and len(kept) < max_points and heap[0][0] < 0.0:
+    while heap and len(kept) < max_points and -heap[0][0] > RESOLUTION_M:
         _, start, end, split = heapq.heappop(heap)
         kept.add(split)
         push(start, split)

@@ -14,6 +14,7 @@ from gcs.schemas import MissionOut, MissionSummary, TrackOut
 from gcs.storage import MissionRecord
 
 MISSION_SUMMARIES = TypeAdapter(list[MissionSummary])
+CHART_SAMPLES = 1000  # the most samples a track sends for the charts (a few hundred pixels wide each)
 
 
 def plan_out(plan: Plan) -> dict[str, Any]:
@@ -77,7 +78,8 @@ def mission_summary(record: MissionRecord) -> dict[str, Any]:
 
 def track_out(record: MissionRecord, samples: list[dict[str, Any]], max_points: int) -> dict[str, Any]:
     """The flown track for display: at most `max_points` positions (more only if the buoy arrivals alone exceed
-    them) within `tolerance_m` of every recorded one, and as many samples spread over the flight for the charts."""
+    them) within `tolerance_m` of every recorded one, and at most as many samples (CHART_SAMPLES at most) spread
+    over the flight for the charts."""
     located = [s for s in samples if s["lat"] is not None and s["lon"] is not None]
     lat_lon = np.array([(s["lat"], s["lon"]) for s in located], dtype=float).reshape(-1, 2)
     times = np.array([s["t_s"] for s in located], dtype=float)
@@ -89,7 +91,7 @@ def track_out(record: MissionRecord, samples: list[dict[str, Any]], max_points: 
         "samples": len(samples),
         "tolerance_m": track.tolerance_m,
         "points": lat_lon[track.indices].tolist(),
-        "series": [samples[i] for i in track_display.evenly_spaced(len(samples), max_points)],
+        "series": [samples[i] for i in track_display.evenly_spaced(len(samples), min(max_points, CHART_SAMPLES))],
     }
 
 

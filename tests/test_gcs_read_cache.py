@@ -1,0 +1,125 @@
+"""The read side's cache of encoded documents (gcs.read_cache) and the routes it serves.
+
+- The cache itself: a document is built once per version, rebuilt when the version moves, evicted least
+  recently used first.
+- GET /missions/{id} and GET /missions answer the same JSON as the response models describe, and never a stale
+  one: a write by another storage object on the same database (as a second service instance would write) shows
+  at the next request, on SQLite and on PostgreSQL.
+"""
+
+from __future__ import annotations
+
+import socket
+from dataclasses import asdict
+
+from fastapi.testclient import TestClient
+
+from gcs.app import create_app
+from gcs.planning import FlightParams, make_plan
+from gcs.read_cache import VersionedCache
+from gcs.schemas import MissionOut, MissionSummary
+from gcs.settings import Settings
+from gcs.status import MissionStatus
+from gcs.storage import open_storage
+from planner.scenario import reference_scenario
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+# ----- the cache
+def test_a_document_is_built_once_per_version():
+    cache, builds = VersionedCache(), []
+
+    def build(text: str):
+        return lambda: builds.append(text) or text.encode()
+
+    assert cache.get("a", 1, build("one")) == b"one"
+    assert cache.get("a", 1, build("again")) == b"one"  # same version: the cached bytes
+    assert cache.get("a", 2, build("two")) == b"two"  # the version moved: built again
+    assert cache.get("a", 1, build("old")) == b"old"  # any other version is a miss, older ones too
+    assert builds == ["one", "two", "old"]
+    assert (cache.hits, cache.misses) == (1, 3)
+
+
+def test_least_recently_used_documents_go_first():
+    cache = VersionedCache(max_entries=2)
+    cache.store("a", 1, b"a")
+    cache.store("b", 1, b"b")
+    assert cache.lookup("a", 1) == b"a"  # a is now the most recently used
+    cache.store("c", 1, b"c")
+    assert cache.lookup("b", 1) is None
+    assert cache.lookup("a", 1) == b"a" and cache.lookup("c", 1) == b"c"
+    assert len(cache) == 2
+
+
+# ----- the routes, with a second storage object on the same database writing behind the service's back
+def store_mission(storage) -> int:
+    scenario = reference_scenario(1)
+    buoys = [(float(lat), float(lon)) for lat, lon in scenario.buoys_lat_lon]
+    plan = make_plan(scenario.home[:2], buoys, [f"B{i + 1}" for i in range(len(buoys))], "exact")
+    return storage.create_mission(asdict(FlightParams(5.0, 10.0, 1.0, 2.0)), plan.to_dict())
+
+
+def check_reads_follow_another_writer(client: TestClient, other) -> None:
+    mission_id = store_mission(other)
+    first = client.get(f"/missions/{mission_id}")
+    assert first.status_code == 200 and first.headers["content-type"] == "application/json"
+    document = first.json()
+    assert MissionOut.model_validate(document).model_dump(mode="json") == document  # the response model's shape
+    assert document["status"] == "planned" and document["progress"]["current_seq"] is None  # defaults filled in
+    assert client.get(f"/missions/{mission_id}").content == first.content
+    listed = client.get("/missions?limit=5").json()
+    assert [m["id"] for m in listed] == [mission_id]
+    assert MissionSummary.model_validate(listed[0]).model_dump(mode="json") == listed[0]
+
+    other.set_status(mission_id, MissionStatus.FAILED, "written by another instance")
+    changed = client.get(f"/missions/{mission_id}").json()
+    assert (changed["status"], changed["reason"]) == ("failed", "written by another instance")
+    assert [e["status"] for e in changed["events"]] == ["planned", "failed"]
+    assert client.get("/missions?limit=5").json()[0]["status"] == "failed"
+
+    other.set_progress(mission_id, {"visited": 3, "buoys": 13, "reached_at": {"4": 12.5}})
+    changed = client.get(f"/missions/{mission_id}").json()
+    assert changed["progress"]["visited"] == 3
+    assert changed["buoy_results"][4]["arrival_s"] == 12.5
+
+    second = store_mission(other)
+    assert [m["id"] for m in client.get("/missions?limit=5").json()] == [second, mission_id]
+    assert [m["id"] for m in client.get("/missions?limit=1").json()] == [second]
+    assert client.get(f"/missions/{second + 1}").status_code == 404
+
+
+def test_reads_follow_another_writer_on_sqlite(tmp_path):
+    settings = Settings(db_path=tmp_path / "gcs.sqlite", vehicle_url=f"udpout:127.0.0.1:{free_udp_port()}")
+    with TestClient(create_app(settings)) as client:
+        other = open_storage(settings.database)
+        try:
+            check_reads_follow_another_writer(client, other)
+        finally:
+            other.close()
+
+
+def test_reads_follow_another_writer_on_postgresql(tmp_path, postgres_url):
+    settings = Settings(db=postgres_url, data_dir=tmp_path, vehicle_url=f"udpout:127.0.0.1:{free_udp_port()}")
+    with TestClient(create_app(settings)) as client:
+        other = open_storage(postgres_url)
+        try:
+            check_reads_follow_another_writer(client, other)
+        finally:
+            other.close()
+
+
+def test_an_unchanged_mission_is_encoded_once(tmp_path):
+    settings = Settings(db_path=tmp_path / "gcs.sqlite", vehicle_url=f"udpout:127.0.0.1:{free_udp_port()}")
+    with TestClient(create_app(settings)) as client:
+        other = open_storage(settings.database)
+        mission_id = store_mission(other)
+        other.close()
+        documents = client.app.state.service.documents
+        before = documents.misses
+        bodies = {client.get(f"/missions/{mission_id}").content for _ in range(5)}
+        assert len(bodies) == 1 and documents.misses == before + 1
