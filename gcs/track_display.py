@@ -20,7 +20,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
 RESOLUTION_M = 0.01  # a point closer than this to the polyline is never worth drawing (nor is rounding noise)
 
 
