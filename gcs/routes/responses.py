@@ -28,7 +28,12 @@ UNAUTHORIZED = {
 NOT_FOUND = {404: _error("no mission with this id")}
 CONFLICT = {409: _error("another mission uses the vehicle, or this mission is not in a state that allows it")}
 TOO_LARGE = {413: _error("the request body is larger than the service's max_body_bytes")}
-UNAVAILABLE = {503: _error("this service is on stand-by: another instance owns the vehicle link")}
+UNAVAILABLE = {
+    503: _error(
+        "this service is on stand-by: another instance owns the vehicle link (the detail names it)",
+        headers={"Retry-After": {"required": True, "schema": {"type": "integer", "minimum": 1}}},
+    )
+}
 
 MUTATING = UNAUTHORIZED | UNAVAILABLE  # every POST: the token, and the stand-by service that may not act
 WITH_BODY = MUTATING | TOO_LARGE  # a POST that takes a body
