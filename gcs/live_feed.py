@@ -38,6 +38,10 @@ class LiveFeed:
     def clients(self) -> int:
         return self._clients
 
+    @property
+    def producing(self) -> bool:
+        return self._producer is not None and not self._producer.done()
+
     async def stream(self, send: Callable[[str], Awaitable[None]]) -> None:
         """Send each new state with `send` until it raises (the client left); never sends one state twice."""
         self._clients += 1
