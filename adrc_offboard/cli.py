@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import os
 import signal
 import sys
 
-from uavcore.mavlink import VEHICLE_UDP_PORT
+from uavcore.mavlink import SIGNING_KEY_ENV, VEHICLE_UDP_PORT
 
 EPILOG = """\
 examples:
@@ -63,7 +64,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="never request OFFBOARD (answer setpoints only, e.g. to keep a lockstep vehicle paced)",
     )
     p.add_argument(
-        "--signing-key", metavar="KEY", help="MAVLink 2 signing key, the vehicle's (64 hex digits, or a passphrase)"
+        "--signing-key",
+        metavar="KEY",
+        default=os.environ.get(SIGNING_KEY_ENV) or None,
+        help=f"MAVLink 2 signing key, the vehicle's (64 hex digits, or a passphrase; default: ${SIGNING_KEY_ENV})",
     )
     p.add_argument("--duration", type=float, metavar="SECONDS", help="exit after this many wall-clock seconds")
     p.add_argument("-v", "--verbose", action="store_true")

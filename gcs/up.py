@@ -47,6 +47,7 @@ from planner.scenario import (
     paper_weather,
     reference_scenario,
 )
+from uavcore.mavlink import SIGNING_KEY_ENV
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -116,28 +117,31 @@ def stack(options: UpOptions) -> list[ChildSpec]:
     vehicle_args += ["--params", str(settings.data_dir / "vehicle.params")]
     vehicle_args += [arg for param in params for arg in ("--param", param)]
     vehicle_args += ["--lockstep"] if options.lockstep else ["--speed", f"{options.speed:g}"]
-    signing = _signing(settings)
-    vehicle_args += signing
+    signing = _signing_env(settings)
     vehicle_log = settings.data_dir / "logs" / "sitl_quad.log"
     children = [
         ChildSpec(
-            "sitl_quad", python_module("sitl_quad", *vehicle_args), ready=lambda: _log_says(vehicle_log, "listening")
+            "sitl_quad",
+            python_module("sitl_quad", *vehicle_args),
+            ready=lambda: _log_says(vehicle_log, "listening"),
+            env=signing,
         )
     ]
     if options.controller != "px4":
         children.append(
             ChildSpec(
                 "adrc_offboard",
-                python_module("adrc_offboard", "--connect", vehicle_url, "--controller", options.controller, *signing),
+                python_module("adrc_offboard", "--connect", vehicle_url, "--controller", options.controller),
+                env=signing,
             )
         )
     children.append(_service(options, vehicle_url))
     return children
 
 
-def _signing(settings: Settings) -> list[str]:
-    """The MAVLink signing option every child gets, or none."""
-    return ["--signing-key", settings.signing_key] if settings.signing_key else []
+def _signing_env(settings: Settings) -> dict[str, str]:
+    """The vehicle's and the offboard controller's MAVLink signing key, by the environment (not argv: see below)."""
+    return {SIGNING_KEY_ENV: settings.signing_key} if settings.signing_key else {}
 
 
 def _service(options: UpOptions, vehicle_url: str) -> ChildSpec:
@@ -151,14 +155,14 @@ def _service(options: UpOptions, vehicle_url: str) -> ChildSpec:
         "--port",
         str(settings.port),
     ]
-    # the token and a database URL (it may hold a password) go by the environment: a command line is written to
-    # the child's log and shown by ps
-    env = {Settings.env_name("token"): settings.token} if settings.token else {}
+    # the token, the signing key and a database URL (it may hold a password) go by the environment: a command line
+    # is written to the child's log and shown by ps
+    secrets = {"token": settings.token, "signing_key": settings.signing_key}
+    env = {Settings.env_name(name): value for name, value in secrets.items() if value}
     if settings.db is None:
         gcs_args += ["--db", str(settings.db_path)]
     else:
         env[Settings.env_name("db")] = settings.db
-    gcs_args += _signing(settings)
     base = options.base_url
     return ChildSpec("gcs", python_module("gcs", *gcs_args), ready=lambda: _http_ok(f"{base}/vehicle"), env=env)
 

@@ -6,12 +6,13 @@ import argparse
 import json
 import logging
 import math
+import os
 import signal
 import sys
 from pathlib import Path
 
 from uavcore.geodesy import DEFAULT_HOME
-from uavcore.mavlink import VEHICLE_UDP_PORT, parse_signing_key
+from uavcore.mavlink import SIGNING_KEY_ENV, VEHICLE_UDP_PORT, parse_signing_key
 
 EPILOG = """\
 examples:
@@ -147,8 +148,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--signing-key",
         type=parse_signing_key,
+        default=os.environ.get(SIGNING_KEY_ENV) or None,
         metavar="KEY",
-        help="MAVLink 2 signing key (64 hex digits, or a passphrase): unsigned messages are refused",
+        help=f"MAVLink 2 signing key (64 hex digits, or a passphrase): unsigned messages are refused (default: "
+        f"${SIGNING_KEY_ENV}, which keeps it out of ps and logs)",
     )
     p.add_argument(
         "--duration",

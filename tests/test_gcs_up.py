@@ -17,6 +17,7 @@ from gcs.cli import _weather, build_parser, main
 from gcs.settings import Settings
 from gcs.up import CONTROLLERS, UpOptions, measure_flight, prepare, stack
 from planner.scenario import GUST_HOLD_S, Weather, compass_bearing_deg
+from uavcore.mavlink import SIGNING_KEY_ENV
 
 
 def _options(tmp_path, **kwargs) -> UpOptions:
@@ -164,3 +165,15 @@ def test_a_database_url_reaches_the_service_by_the_environment_never_its_command
     assert "--db" not in service.argv and "secret" not in " ".join(service.argv)
     sqlite_service = stack(_options(tmp_path))[-1]  # a SQLite file goes on the command line, as before
     assert sqlite_service.argv[sqlite_service.argv.index("--db") + 1] == str(tmp_path / "gcs.sqlite")
+
+
+def test_the_signing_key_reaches_every_child_by_the_environment_never_a_command_line(tmp_path):
+    key = "harbour signing passphrase"
+    settings = Settings(data_dir=tmp_path, signing_key=key, vehicle_url="udpout:127.0.0.1:14600")
+    vehicle, controller, service = stack(UpOptions(settings=settings))
+    assert vehicle.env[SIGNING_KEY_ENV] == controller.env[SIGNING_KEY_ENV] == key
+    assert service.env[Settings.env_name("signing_key")] == key
+    assert all(
+        "--signing-key" not in child.argv and key not in " ".join(child.argv)
+        for child in (vehicle, controller, service)
+    )

@@ -49,6 +49,9 @@ GCS_COMPID = mavlink.MAV_COMP_ID_MISSIONPLANNER  # 190
 # ground-control port vehicles and radios send to.
 VEHICLE_UDP_PORT = 14540
 GCS_UDP_PORT = 14550
+# The vehicle and the offboard controller read their signing key from here when no --signing-key is given: a
+# command line is shown by ps and written to logs, the environment is not.
+SIGNING_KEY_ENV = "MAVLINK_SIGNING_KEY"
 
 SIGNING_EPOCH_S = 1420070400  # MAVLink signing timestamps count 10 us units from 2015-01-01 00:00 UTC
 # Messages a keyed endpoint still accepts unsigned: radio status only, as PX4 does.
