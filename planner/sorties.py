@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planner.api import plan_tour
+from planner.chnn_ga import GAParameters
 from planner.errors import InputError, UnreachableBuoyError
 from planner.local_search import iterated_local_search, local_search, neighbour_lists
 from planner.sortie_cost import SortieCost
@@ -35,6 +36,9 @@ from planner.split import folded_matrices, split_tour
 
 OBJECTIVES = ("time", "distance")
 REOPTIMISE_EXACT_MAX_BUOYS = 11  # Held-Karp on 12 nodes takes a few ms; larger sorties get the CHNN-GA
+# The CHNN's initial population costs ~50 ms per sortie whatever the limit: with less time per sortie than this
+# the same memetic GA runs without the CHNN (planner/README.md: as good, faster), so the limit holds.
+REOPTIMISE_CHNN_MIN_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -50,7 +54,7 @@ class SortieSearchParameters:
     temp_end: float = 0.003
     local_search: bool = True  # local search after every recreate (SISR alone when False)
     chunk_s: float = 0.02  # the numba loop returns to Python to read the clock about this often
-    reoptimise_share: float = 0.1  # share of the time limit kept for the per-sortie re-optimisation
+    reoptimise_share: float = 0.05  # share of the time limit kept for the per-sortie re-optimisation
 
 
 @dataclass
@@ -178,7 +182,7 @@ def _arcs(route: list[int], M: np.ndarray) -> float:
 def _reoptimise(sortie: list[int], C: np.ndarray, E: np.ndarray, cap: float, seed: int, limit_s: float) -> list[int]:
     """The single-sortie planner on one sortie's buoys (Held-Karp when small: exact for asymmetric costs too;
     else the CHNN-GA on the symmetrised costs, then the better direction on the true ones); the planned order
-    is kept only if cheaper and within the budget."""
+    is kept only if cheaper and within the budget. limit_s is this sortie's share of the time."""
     nodes = np.array([0, *sortie])
     if len(sortie) < 3:
         candidates = [sortie, sortie[::-1]]
@@ -187,7 +191,8 @@ def _reoptimise(sortie: list[int], C: np.ndarray, E: np.ndarray, cap: float, see
         if len(sortie) <= REOPTIMISE_EXACT_MAX_BUOYS:
             order = plan_tour(distance=sub, method="exact").order
         else:
-            order = plan_tour(distance=(sub + sub.T) / 2.0, method="chnn-ga", seed=seed, time_limit_s=limit_s).order
+            ga = None if limit_s >= REOPTIMISE_CHNN_MIN_S else GAParameters(use_chnn=False)
+            order = plan_tour(distance=(sub + sub.T) / 2.0, seed=seed, time_limit_s=limit_s, ga=ga).order
         planned = nodes[order[1:]].tolist()
         candidates = [sortie, planned, planned[::-1]]
     feasible = [r for r in candidates if _arcs(r, E) <= cap]
@@ -234,7 +239,7 @@ def plan_sorties(
     mean_arc = max((first - fixed * state.info[0] - services) / (n - 1 + state.info[0]), 1e-9)
     history = [{"elapsed_s": time.perf_counter() - started, "iterations": 0, "best": first}]
     search_end = time_limit_s * (1.0 - params.reoptimise_share if reoptimise else 1.0)
-    iterations, chunk = 0, 8
+    iterations, chunk = 0, 1
     while n > 3 and (max_iterations is None or iterations < max_iterations):
         elapsed = time.perf_counter() - started
         if elapsed >= search_end:
