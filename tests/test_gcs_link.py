@@ -127,24 +127,39 @@ def vehicle():
     v.stop()
 
 
-async def connected_link(vehicle, timeout_s: float = 1.0) -> LinkManager:
+# A deadline for what the scripted vehicle (a thread of this process, sharing its GIL) or the link will do: only
+# reached when the behaviour is wrong, however loaded the machine.
+BACKSTOP_S = 30.0
+
+
+async def connected_link(vehicle, timeout_s: float = 5.0) -> LinkManager:
+    """A link to the scripted vehicle. Its heartbeats come at 10 Hz: the heartbeat timeout is a backstop for a
+    loaded machine's stalls unless a test is about the timeout itself."""
     link = LinkManager(f"udpout:127.0.0.1:{vehicle.port}", heartbeat_timeout_s=timeout_s)
     await link.start()
-    assert await link.wait_connected(3.0)
+    assert await link.wait_connected(BACKSTOP_S)
     return link
+
+
+async def eventually(condition, what: str) -> None:
+    """Poll `condition` on the event loop until it holds (the link works on the same loop meanwhile)."""
+    deadline = time.monotonic() + BACKSTOP_S
+    while not condition():
+        assert time.monotonic() < deadline, f"never: {what}"
+        await asyncio.sleep(0.05)
 
 
 def test_link_connects_identifies_as_gcs_and_tracks_state(vehicle):
     async def scenario():
         link = await connected_link(vehicle)
-        await asyncio.sleep(0.3)
+        await eventually(lambda: (255, 190, mavlink.MAV_TYPE_GCS) in vehicle.gcs_heartbeats, "a GCS heartbeat")
+        await eventually(lambda: link.status.yaw is not None, "an ATTITUDE")
+        await eventually(lambda: mavlink.MAV_CMD_REQUEST_MESSAGE in vehicle.commands_seen, "HOME_POSITION asked for")
         await link.stop()
         return link
 
     link = asyncio.run(scenario())
-    assert (255, 190, mavlink.MAV_TYPE_GCS) in vehicle.gcs_heartbeats
     assert link.status.yaw == pytest.approx(0.5) and link.status.time_boot_ms >= 60_000
-    assert mavlink.MAV_CMD_REQUEST_MESSAGE in vehicle.commands_seen  # asked for HOME_POSITION
 
 
 def test_command_ack_and_three_tries_without_one(vehicle):
@@ -162,6 +177,10 @@ def test_command_ack_and_three_tries_without_one(vehicle):
         return denied
 
     assert asyncio.run(scenario()) == mavlink.MAV_RESULT_DENIED
+    # the link has stopped: the vehicle's thread may still be reading the last try from its socket
+    deadline = time.monotonic() + BACKSTOP_S
+    while vehicle.commands_seen.count(mavlink.MAV_CMD_NAV_LAND) < 3 and time.monotonic() < deadline:
+        time.sleep(0.05)
     assert vehicle.commands_seen.count(mavlink.MAV_CMD_NAV_LAND) == 3
 
 
@@ -171,8 +190,8 @@ def test_upload_retries_a_lost_request_and_download_round_trips(vehicle):
     async def scenario():
         link = await connected_link(vehicle)
         try:
-            await upload_items(link, ITEMS, step_timeout_s=0.2)
-            return await download_items(link, step_timeout_s=0.2)
+            await upload_items(link, ITEMS, step_timeout_s=1.0)  # a loaded machine's late answer is not a loss
+            return await download_items(link, step_timeout_s=1.0)
         finally:
             await link.stop()
 
@@ -187,7 +206,7 @@ def test_upload_refused_and_upload_unanswered(vehicle):
         try:
             vehicle.mission_result = mavlink.MAV_MISSION_NO_SPACE
             with pytest.raises(MissionRejectedError, match="MAV_MISSION_NO_SPACE"):
-                await upload_items(link, ITEMS, step_timeout_s=0.2)
+                await upload_items(link, ITEMS, step_timeout_s=1.0)
             vehicle.mission_result = mavlink.MAV_MISSION_ACCEPTED
             vehicle.ignore_mission = True
             with pytest.raises(MissionTimeoutError, match="after MISSION_COUNT"):
@@ -200,15 +219,13 @@ def test_upload_refused_and_upload_unanswered(vehicle):
 
 def test_reboot_and_heartbeat_loss_are_detected(vehicle):
     async def scenario():
-        link = await connected_link(vehicle, timeout_s=0.5)
+        link = await connected_link(vehicle, timeout_s=2.0)
         try:
             vehicle.boot_start = time.monotonic() + 60.0  # time_boot_ms jumps back by a minute
-            deadline = time.monotonic() + 5.0  # the next ATTITUDE shows it; a loaded machine may take a while
-            while link.status.reboots == 0 and time.monotonic() < deadline:
-                await asyncio.sleep(0.05)
+            await eventually(lambda: link.status.reboots > 0, "the reboot seen (the next ATTITUDE shows it)")
             reboots = link.status.reboots
             vehicle.silent = True
-            await asyncio.sleep(2.0)  # > timeout plus one 1 Hz check
+            await eventually(lambda: not link.status.connected, "the silent vehicle's link lost")
             return reboots, link.status.connected
         finally:
             await link.stop()
@@ -217,9 +234,9 @@ def test_reboot_and_heartbeat_loss_are_detected(vehicle):
 
 
 # ----- lifecycle failure paths through the API
-def fly(tmp_path, vehicle, timeout_s=15.0) -> dict:
+def fly(tmp_path, vehicle, timeout_s=60.0) -> dict:
     settings = Settings(
-        db_path=tmp_path / "gcs.sqlite", vehicle_url=f"udpout:127.0.0.1:{vehicle.port}", vehicle_wait_s=3.0
+        db_path=tmp_path / "gcs.sqlite", vehicle_url=f"udpout:127.0.0.1:{vehicle.port}", vehicle_wait_s=30.0
     )
     with TestClient(create_app(settings)) as client:
         mission_id = client.post("/missions", json={"buoys": [{"lat": 38.9215, "lon": 121.6635}]}).json()["id"]
