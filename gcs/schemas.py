@@ -230,7 +230,8 @@ class TrackOut(BaseModel):
         "keep the polyline closest to the recorded track"
     )
     series: list[TelemetrySample] = Field(
-        description="samples spread evenly over the flight for the charts (at most max_points, and 1000)"
+        description="samples over the whole flight for the charts (at most max_points, and 1000): in each stretch "
+        "of the flight, the ones with the lowest and the highest cross-track error"
     )
 
 

@@ -76,6 +76,25 @@ def evenly_spaced(n: int, count: int) -> np.ndarray:
     return np.unique(np.linspace(0, n - 1, max(count, 2)).round().astype(int))
 
 
+def extremes_per_bucket(values: np.ndarray, count: int) -> np.ndarray:
+    """At most `count` indices of a series for a chart: the first, the last, and the series cut into
+    (count - 2) / 2 consecutive buckets, in each the sample with the lowest and the one with the highest value
+    (NaN: no value; a bucket without any gives its first sample). Taking every k-th sample instead would alias an
+    oscillation faster than k samples into a slow wave of the wrong amplitude; the extremes keep its envelope, as
+    a chart of every sample draws it."""
+    n = len(values)
+    if n <= count or count < 4:
+        return evenly_spaced(n, count)
+    kept = [0, n - 1]
+    for bucket in np.array_split(np.arange(n), (count - 2) // 2):
+        inside = values[bucket]
+        if np.isnan(inside).all():
+            kept.append(int(bucket[0]))
+        else:
+            kept += [int(bucket[np.nanargmin(inside)]), int(bucket[np.nanargmax(inside)])]
+    return np.unique(kept)
+
+
 def arrival_indices(times_s: np.ndarray, arrivals_s: Iterable[float]) -> list[int]:
     """For each arrival time, the index of the first sample at or after it (times_s increasing)."""
     found = np.searchsorted(times_s, np.fromiter(arrivals_s, dtype=float))

@@ -78,20 +78,22 @@ def mission_summary(record: MissionRecord) -> dict[str, Any]:
 
 def track_out(record: MissionRecord, samples: list[dict[str, Any]], max_points: int) -> dict[str, Any]:
     """The flown track for display: at most `max_points` positions (more only if the buoy arrivals alone exceed
-    them) within `tolerance_m` of every recorded one, and at most as many samples (CHART_SAMPLES at most) spread
-    over the flight for the charts."""
+    them) within `tolerance_m` of every recorded one, and at most as many samples (CHART_SAMPLES at most) over
+    the whole flight for the charts."""
     located = [s for s in samples if s["lat"] is not None and s["lon"] is not None]
     lat_lon = np.array([(s["lat"], s["lon"]) for s in located], dtype=float).reshape(-1, 2)
     times = np.array([s["t_s"] for s in located], dtype=float)
     arrivals = (record.progress.get("reached_at") or {}).values()
     local = Plan.from_dict(record.plan).frame.project(lat_lon) if len(located) else lat_lon
+    # the charts' series keeps the cross-track error's envelope (the figure the mission is judged by)
+    cross_track = np.array([np.nan if s.get("cross_track_m") is None else s["cross_track_m"] for s in samples], float)
     track = track_display.simplify_track(local, max_points, track_display.arrival_indices(times, arrivals))
     return {
         "mission": record.id,
         "samples": len(samples),
         "tolerance_m": track.tolerance_m,
         "points": lat_lon[track.indices].tolist(),
-        "series": [samples[i] for i in track_display.evenly_spaced(len(samples), min(max_points, CHART_SAMPLES))],
+        "series": [samples[i] for i in track_display.extremes_per_bucket(cross_track, min(max_points, CHART_SAMPLES))],
     }
 
 

@@ -15,7 +15,7 @@ from gcs.app import create_app
 from gcs.planning import Plan
 from gcs.settings import Settings
 from gcs.storage import open_storage
-from gcs.track_display import arrival_indices, evenly_spaced, simplify_track
+from gcs.track_display import arrival_indices, evenly_spaced, extremes_per_bucket, simplify_track
 
 DISPLAY_TOLERANCE_M = 1.0  # the page draws the 2-hour track within this of every recorded position
 
@@ -72,6 +72,20 @@ def test_a_straight_flight_is_its_two_ends_and_a_short_track_is_kept_whole():
     assert simplify_track(short, 100).indices.tolist() == list(range(50))
 
 
+def test_the_chart_series_keeps_a_fast_oscillation_s_envelope():
+    t = np.arange(72_000) * 0.1
+    wobble = 0.4 * np.sin(2 * np.pi * t / 15.0)  # 150 samples a period, far faster than 72 per chart point
+    kept = extremes_per_bucket(wobble, 1000)
+    assert len(kept) <= 1000 and kept[0] == 0 and kept[-1] == 71_999
+    assert wobble[kept].max() == wobble.max() and wobble[kept].min() == wobble.min()
+    # every stretch of ~144 samples holds a crest and a trough: each is drawn, none aliased away
+    crests = wobble[kept] > 0.39
+    assert crests.sum() >= len(kept) / 2 - 2
+    gaps = np.full(5000, np.nan)
+    gaps[2500:] = 1.0
+    assert len(extremes_per_bucket(gaps, 100)) <= 100
+
+
 def test_evenly_spaced_and_arrival_indices():
     assert evenly_spaced(5, 10).tolist() == [0, 1, 2, 3, 4]
     spread = evenly_spaced(72_000, 1000)
@@ -102,12 +116,16 @@ def test_the_display_track_of_a_two_hour_mission(long_mission):
     assert track["samples"] == SAMPLES
     assert 100 < len(track["points"]) <= 2000
     assert 0.0 < track["tolerance_m"] <= DISPLAY_TOLERANCE_M
-    assert len(track["series"]) == 1000 and track["series"][-1]["t_s"] > track["series"][0]["t_s"]
+    series = track["series"]
+    assert len(series) <= 1000 and series[0]["t_s"] == 0.0 and series[-1]["t_s"] == (SAMPLES - 1) * 0.1
+    assert all(b["t_s"] > a["t_s"] for a, b in itertools.pairwise(series))
 
     # the points are recorded positions, in flight order, and every recorded position lies within the reported
     # tolerance of the polyline they draw
     samples = client.get(f"/missions/{mission_id}/telemetry").json()
     assert len(samples) == SAMPLES  # the export keeps every sample
+    largest_error = max(s["cross_track_m"] for s in samples)
+    assert max(s["cross_track_m"] for s in series) == largest_error  # the charts show the worst of it
     recorded = np.array([(s["lat"], s["lon"]) for s in samples])
     kept, cursor = [], 0
     for point in track["points"]:

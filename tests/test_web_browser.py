@@ -15,11 +15,14 @@ import sys
 import time
 import urllib.request
 from pathlib import Path
+from urllib.parse import urlsplit
 
 import pytest
 from ardupilot_double import ArduCopterDouble
 from playwright.sync_api import expect, sync_playwright
 
+from bench.long_mission import store_long_mission
+from gcs.storage import open_storage
 from uavcore.geodesy import DEFAULT_HOME
 from uavcore.mavlink import mavlink
 
@@ -246,3 +249,57 @@ def test_text_from_the_vehicle_and_from_files_shows_literally_and_never_runs(dou
         assert page.evaluate("window.injected") is None
         browser.close()
     assert problems == []
+
+
+@pytest.fixture
+def service_with_a_long_mission(tmp_path):
+    """`python -m gcs serve` (no vehicle) over a database holding a completed 2-hour mission (72 000 samples);
+    yields (url, mission id)."""
+    storage = open_storage(tmp_path / "gcs.sqlite")
+    mission_id = store_long_mission(storage)
+    storage.close()
+    udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
+    logs = open(tmp_path / "service.log", "w")  # noqa: SIM115 - closed below
+    argv = [sys.executable, "-m", "gcs", "serve", "--vehicle", f"udpout:127.0.0.1:{udp}", "--port", str(http)]
+    gcs = subprocess.Popen([*argv, "--db", str(tmp_path / "gcs.sqlite")], stdout=logs, stderr=subprocess.STDOUT)
+    url = f"http://127.0.0.1:{http}"
+    deadline = time.monotonic() + 30
+    while True:
+        try:
+            with urllib.request.urlopen(f"{url}/vehicle", timeout=1):
+                break
+        except OSError:
+            assert time.monotonic() < deadline, (tmp_path / "service.log").read_text()
+            time.sleep(0.2)
+    yield url, mission_id
+    stop(gcs)
+    logs.close()
+
+
+FLOWN_TRACK = ".leaflet-overlay-pane path[stroke='#c2185b']"  # map.js: the flown track's colour
+TRACK_VERTICES = f"""() => {{
+    const path = document.querySelector("{FLOWN_TRACK}");
+    return path ? (path.getAttribute("d").match(/L/g) || []).length : 0;
+}}"""
+
+
+def test_a_two_hour_mission_opens_with_its_track_drawn(service_with_a_long_mission):
+    url, mission_id = service_with_a_long_mission
+    ARTIFACTS.mkdir(exist_ok=True)
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        page = browser.new_page(viewport={"width": 1280, "height": 800})
+        errors: list[str] = []
+        page.on("pageerror", lambda error: errors.append(str(error)))
+        asked: list[str] = []
+        page.on("request", lambda request: asked.append(urlsplit(request.url).path))
+        page.goto(url)
+        # the page opens on the latest mission: its buoys, and the flown track from the display track endpoint
+        expect(page.locator(".buoy-icon")).to_have_count(13, timeout=30_000)
+        expect(page.locator(FLOWN_TRACK)).to_have_count(1, timeout=30_000)
+        page.wait_for_function(f"() => ({TRACK_VERTICES})() > 100", timeout=60_000)
+        assert f"/missions/{mission_id}/track" in asked
+        assert f"/missions/{mission_id}/telemetry" not in asked  # never the 72 000 samples
+        page.screenshot(path=str(ARTIFACTS / "web_two_hour_track.png"))
+        browser.close()
+    assert errors == []
