@@ -41,6 +41,7 @@ from typing import Any, TypeVar
 import httpx
 
 from gcs.lifecycle import REATTACHED
+from gcs.supervisor import ChildSpec, Supervisor, SupervisorError, python_module
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 
 REPO = Path(__file__).resolve().parents[1]
@@ -49,7 +50,7 @@ BUOYS_EN_M = ((30.0, 0.0), (30.0, 30.0), (0.0, 30.0))  # east, north of the depo
 MISSION = {"altitude_m": 5.0, "speed_m_s": 5.0, "dwell_s": 1.0, "acceptance_radius_m": 2.0}
 TELEMETRY_PERIOD_S = 0.1  # the service's default sample spacing (simulated time)
 TAKEOVER_REQUIREMENT_S = 5.0
-START_TIMEOUT_S = 90.0  # a loaded 2-core machine takes long to import numpy, numba and FastAPI
+START_TIMEOUT_S = 120.0  # a loaded 2-core machine takes long to import numpy, numba and FastAPI
 FLIGHT_TIMEOUT_S = 180.0
 TERMINAL = {"completed", "failed", "aborted"}
 
@@ -84,11 +85,11 @@ def poll(
 
 @dataclass
 class Instance:
-    """One `python -m gcs serve` process and an HTTP client for it."""
+    """One `python -m gcs serve` process (once started) and an HTTP client for it."""
 
     name: str
-    process: subprocess.Popen
     client: httpx.Client
+    process: subprocess.Popen | None = None
 
     def get(self, path: str) -> dict[str, Any] | list[Any] | None:
         """The JSON of a GET, None while the instance does not answer (starting, or dead)."""
@@ -106,44 +107,59 @@ class Instance:
         self.process.wait(10)
 
 
+def owns_a_connected_vehicle(vehicle: dict[str, Any] | None) -> bool:
+    """GET /vehicle of an instance that owns the link and hears the vehicle."""
+    return vehicle is not None and vehicle["role"] == "owner" and vehicle["connected"]
+
+
+def stands_by(vehicle: dict[str, Any] | None) -> bool:
+    return vehicle is not None and vehicle["role"] == "standby"
+
+
 @dataclass
 class FailoverStack:
-    """The vehicle and two service instances on one database, on free loopback ports; `close()` stops them."""
+    """The vehicle and two service instances on one database, on free loopback ports, started in order by
+    `buoy-gcs up`'s supervisor (each waited for: the first owning the vehicle link, the second standing by) and
+    never restarted; `close()` stops what is left."""
 
     db_url: str
     logs: Path
     speed: float = 4.0
     lease_poll_s: float = 0.5
-    processes: list[subprocess.Popen] = field(default_factory=list)
     instances: list[Instance] = field(default_factory=list)
-
-    def _spawn(self, name: str, args: list[str], env: dict[str, str] | None = None) -> subprocess.Popen:
-        log = open(self.logs / f"{name}.log", "w")  # noqa: SIM115 - the child keeps it; closed with the process
-        process = subprocess.Popen(
-            [sys.executable, "-m", *args], cwd=REPO, stdout=log, stderr=subprocess.STDOUT, env=env
-        )
-        log.close()
-        self.processes.append(process)
-        return process
+    supervisor: Supervisor | None = None
 
     def start(self) -> FailoverStack:
-        self.logs.mkdir(parents=True, exist_ok=True)
-        self.vehicle_port = free_port(socket.SOCK_DGRAM)
-        self._spawn("vehicle", ["sitl_quad", "--port", str(self.vehicle_port), "--speed", f"{self.speed:g}"])
-        owner = self._serve("gcs-a")
-        poll(owner.vehicle, owns_a_connected_vehicle, START_TIMEOUT_S, "the first instance owning the vehicle")
-        standby = self._serve("gcs-b")
-        poll(standby.vehicle, lambda v: v["role"] == "standby", START_TIMEOUT_S, "the second instance standing by")
+        vehicle_port = free_port(socket.SOCK_DGRAM)
+        pace = ("--speed", f"{self.speed:g}")
+        specs = [ChildSpec("vehicle", python_module("sitl_quad", "--port", str(vehicle_port), *pace))]
+        for name, ready in (("gcs-a", owns_a_connected_vehicle), ("gcs-b", stands_by)):
+            port = free_port(socket.SOCK_STREAM)
+            instance = Instance(name, httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10.0))
+            self.instances.append(instance)
+            specs.append(
+                ChildSpec(
+                    name,
+                    self._serve(vehicle_port, port),
+                    ready=lambda instance=instance, ready=ready: ready(instance.vehicle()),
+                    start_timeout_s=START_TIMEOUT_S,
+                    env={"BUOY_GCS_INSTANCE_NAME": name, "BUOY_GCS_LEASE_POLL_S": str(self.lease_poll_s)},
+                )
+            )
+        self.supervisor = Supervisor(specs, self.logs, REPO, say=lambda _: None)
+        try:
+            self.supervisor.start_all()
+        except SupervisorError as error:  # say why: the logs' ends
+            tails = "\n".join(f"--- {spec.name}:\n{self.log(spec.name)[-2000:]}" for spec in specs)
+            raise SupervisorError(f"{error}\n{tails}") from None
+        for instance, child in zip(self.instances, self.supervisor.children[1:], strict=True):
+            instance.process = child.process
         return self
 
-    def _serve(self, name: str) -> Instance:
-        port = free_port(socket.SOCK_STREAM)
-        env = {**os.environ, "BUOY_GCS_INSTANCE_NAME": name, "BUOY_GCS_LEASE_POLL_S": str(self.lease_poll_s)}
-        args = ["gcs", "serve", "--vehicle", f"udpout:127.0.0.1:{self.vehicle_port}", "--port", str(port)]
-        process = self._spawn(name, [*args, "--db", self.db_url, "--vehicle-wait", "30"], env)
-        instance = Instance(name, process, httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10.0))
-        self.instances.append(instance)
-        return instance
+    def _serve(self, vehicle_port: int, port: int) -> list[str]:
+        """`python -m gcs serve` for the vehicle on vehicle_port, on the shared database, HTTP on port."""
+        vehicle = ("--vehicle", f"udpout:127.0.0.1:{vehicle_port}", "--vehicle-wait", "30")  # 30 s: a loaded machine
+        return python_module("gcs", "serve", *vehicle, "--db", self.db_url, "--port", str(port))
 
     def log(self, name: str) -> str:
         path = self.logs / f"{name}.log"
@@ -152,19 +168,8 @@ class FailoverStack:
     def close(self) -> None:
         for instance in self.instances:
             instance.client.close()
-        for process in reversed(self.processes):
-            if process.poll() is None:
-                process.terminate()
-                try:
-                    process.wait(10)
-                except subprocess.TimeoutExpired:
-                    process.kill()
-                    process.wait()
-
-
-def owns_a_connected_vehicle(vehicle: dict[str, Any]) -> bool:
-    """GET /vehicle of an instance that owns the link and hears the vehicle."""
-    return vehicle["role"] == "owner" and vehicle["connected"]
+        if self.supervisor is not None:
+            self.supervisor.stop_all()
 
 
 def _unix(timestamp: str) -> float:
