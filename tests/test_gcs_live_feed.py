@@ -6,16 +6,12 @@ from __future__ import annotations
 import asyncio
 import itertools
 import json
-import os
-import socket
-import subprocess
-import sys
 import time
-import urllib.request
 from collections.abc import Awaitable, Callable
 
 import pytest
 import websockets
+from service_process import serving
 
 from gcs.live_feed import LiveFeed
 
@@ -129,33 +125,10 @@ def test_a_state_that_cannot_be_read_is_skipped_and_the_feed_goes_on():
 
 
 # ----- /ws of a real service
-def free_port(kind: int) -> int:
-    with socket.socket(socket.AF_INET, kind) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
 @pytest.fixture
 def service_url(tmp_path):
-    """`python -m gcs serve` with no vehicle on free ports; its http:// URL."""
-    http, udp = free_port(socket.SOCK_STREAM), free_port(socket.SOCK_DGRAM)
-    log = open(tmp_path / "serve.log", "w")  # noqa: SIM115 - closed below
-    command = [sys.executable, "-m", "gcs", "serve", "--vehicle", f"udpout:127.0.0.1:{udp}", "--port", str(http)]
-    command += ["--db", str(tmp_path / "gcs.sqlite")]
-    server = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=os.environ | {"PYTHONUNBUFFERED": "1"})
-    url = f"http://127.0.0.1:{http}"
-    deadline = time.monotonic() + 60
-    while True:
-        try:
-            with urllib.request.urlopen(f"{url}/vehicle", timeout=2):
-                break
-        except OSError:
-            assert server.poll() is None and time.monotonic() < deadline, (tmp_path / "serve.log").read_text()
-            time.sleep(0.2)
-    yield url
-    server.terminate()
-    server.wait(30)
-    log.close()
+    with serving(tmp_path / "gcs.sqlite", tmp_path / "serve.log") as url:
+        yield url
 
 
 @pytest.mark.integration

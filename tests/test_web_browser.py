@@ -19,7 +19,8 @@ from urllib.parse import urlsplit
 
 import pytest
 from ardupilot_double import ArduCopterDouble
-from playwright.sync_api import expect, sync_playwright
+from playwright.sync_api import Browser, Page, Playwright, expect, sync_playwright
+from service_process import serving
 
 from bench.long_mission import store_long_mission
 from gcs.storage import open_storage
@@ -116,13 +117,19 @@ def stack(tmp_path):
     logs.close()
 
 
-def test_place_plan_and_fly_in_the_browser(stack):
+def open_page(p: Playwright, errors: list[str]) -> tuple[Browser, Page]:
+    """Headless Chromium with one desktop-sized page; the page's uncaught errors go to `errors`."""
     ARTIFACTS.mkdir(exist_ok=True)
+    browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+    page = browser.new_page(viewport={"width": 1280, "height": 800})
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    return browser, page
+
+
+def test_place_plan_and_fly_in_the_browser(stack):
+    errors: list[str] = []
     with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-        page = browser.new_page(viewport={"width": 1280, "height": 800})
-        errors: list[str] = []
-        page.on("pageerror", lambda error: errors.append(str(error)))
+        browser, page = open_page(p, errors)
         page.goto(stack)
         expect(page.get_by_test_id("link-status")).to_contain_text("disarmed", timeout=10_000)
         # the mission states come from the service's OpenAPI enum; a name it does not define throws
@@ -258,22 +265,8 @@ def service_with_a_long_mission(tmp_path):
     storage = open_storage(tmp_path / "gcs.sqlite")
     mission_id = store_long_mission(storage)
     storage.close()
-    udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
-    logs = open(tmp_path / "service.log", "w")  # noqa: SIM115 - closed below
-    argv = [sys.executable, "-m", "gcs", "serve", "--vehicle", f"udpout:127.0.0.1:{udp}", "--port", str(http)]
-    gcs = subprocess.Popen([*argv, "--db", str(tmp_path / "gcs.sqlite")], stdout=logs, stderr=subprocess.STDOUT)
-    url = f"http://127.0.0.1:{http}"
-    deadline = time.monotonic() + 30
-    while True:
-        try:
-            with urllib.request.urlopen(f"{url}/vehicle", timeout=1):
-                break
-        except OSError:
-            assert time.monotonic() < deadline, (tmp_path / "service.log").read_text()
-            time.sleep(0.2)
-    yield url, mission_id
-    stop(gcs)
-    logs.close()
+    with serving(tmp_path / "gcs.sqlite", tmp_path / "service.log") as url:
+        yield url, mission_id
 
 
 FLOWN_TRACK = ".leaflet-overlay-pane path[stroke='#c2185b']"  # map.js: the flown track's colour
@@ -285,12 +278,9 @@ TRACK_VERTICES = f"""() => {{
 
 def test_a_two_hour_mission_opens_with_its_track_drawn(service_with_a_long_mission):
     url, mission_id = service_with_a_long_mission
-    ARTIFACTS.mkdir(exist_ok=True)
+    errors: list[str] = []
     with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-        page = browser.new_page(viewport={"width": 1280, "height": 800})
-        errors: list[str] = []
-        page.on("pageerror", lambda error: errors.append(str(error)))
+        browser, page = open_page(p, errors)
         asked: list[str] = []
         page.on("request", lambda request: asked.append(urlsplit(request.url).path))
         page.goto(url)
