@@ -102,9 +102,10 @@ class Instance:
     def vehicle(self) -> dict[str, Any] | None:
         return self.get("/vehicle")
 
-    def kill(self) -> None:
-        self.process.send_signal(signal.SIGKILL)
-        self.process.wait(10)
+    def kill(self, how: signal.Signals = signal.SIGKILL) -> None:
+        """SIGKILL: the instance dies where it stands; SIGTERM: it stops, handing a flying mission over."""
+        self.process.send_signal(how)
+        self.process.wait(30)
 
 
 def owns_a_connected_vehicle(vehicle: dict[str, Any] | None) -> bool:
@@ -177,11 +178,13 @@ def _unix(timestamp: str) -> float:
 
 
 def telemetry_figures(times: list[float], kill_t_s: float) -> dict[str, Any]:
-    """Duplicates, the gap across the kill (vehicle time kill_t_s) and the 10 Hz samples missing elsewhere."""
+    """Duplicates, the gap the kill made (the largest step ending after vehicle time kill_t_s: across the kill
+    for SIGKILL, a little after it for SIGTERM, when the owner stores what it recorded while it stops) and the
+    10 Hz samples missing elsewhere."""
     ordered = sorted(times)
     steps = [(b - a, a, b) for a, b in itertools.pairwise(ordered)]
-    across = [step for step in steps if step[1] <= kill_t_s < step[2]]
-    gap_s, gap_from, gap_to = across[0] if across else (0.0, kill_t_s, kill_t_s)
+    after_kill = [step for step in steps if step[2] > kill_t_s]
+    gap_s, gap_from, gap_to = max(after_kill) if after_kill else (0.0, kill_t_s, kill_t_s)
     elsewhere = [step for step in steps if step[1:] != (gap_from, gap_to)]
     # a step of two periods or more misses a sample (the recorder keeps one per period of the vehicle's stream, so
     # a stream message a little early makes a step of up to two periods with nothing missed)
@@ -198,7 +201,9 @@ def telemetry_figures(times: list[float], kill_t_s: float) -> dict[str, Any]:
     }
 
 
-def fly_and_kill(stack: FailoverStack, victim: str, kill_after_samples: int = 20) -> dict[str, Any]:
+def fly_and_kill(
+    stack: FailoverStack, victim: str, kill_after_samples: int = 20, how: signal.Signals = signal.SIGKILL
+) -> dict[str, Any]:
     """Post the mission to the owner, kill `victim` ("owner" or "standby") once the mission flies and the owner
     has stored kill_after_samples samples, and follow the mission to its end on the instance left. Figures."""
     owner, standby = stack.instances
@@ -216,7 +221,7 @@ def fly_and_kill(stack: FailoverStack, victim: str, kill_after_samples: int = 20
     kill_t_s = owner.vehicle()["t_s"]  # the vehicle's time at the kill (to the owner's last message)
     killed, survivor = (owner, standby) if victim == "owner" else (standby, owner)
     kill_unix, kill_wall = time.time(), time.monotonic()
-    killed.kill()
+    killed.kill(how)
     role = poll(survivor.vehicle, lambda v: v["role"] == "owner", 30.0, f"{survivor.name} owning the link")
     takeover_s = time.monotonic() - kill_wall
     mission = poll(

@@ -91,6 +91,7 @@ class FlightLifecycle:
         self._abort_requested: set[int] = set()
         self._recorders: dict[int, MissionRecorder] = {}
         self._statuses: dict[int, MissionStatus] = {}  # last status of missions run here, for the live view
+        self._handing_over = False  # stop() leaves flying missions for the next owner of the vehicle link
 
     def reattach(self, unfinished: list[int]) -> None:
         """At start-up, with the ids of the missions a previous run left unfinished (oldest first)."""
@@ -102,8 +103,11 @@ class FlightLifecycle:
             log.warning("mission %s was unfinished at start-up: re-attaching if the vehicle still flies it", mission_id)
             self._start_task(mission_id, resume=True)
 
-    async def stop(self) -> None:
-        """Cancel every running mission (each ends failed: "the service stopped during the mission")."""
+    async def stop(self, hand_over: bool = False) -> None:
+        """Cancel every running mission: each ends failed ("the service stopped during the mission"), or with
+        `hand_over` a mission in flight is left as it is, its samples and progress stored, for the instance that
+        owns the vehicle link next (a stand-by on the shared database, or this one restarted) to re-attach."""
+        self._handing_over = hand_over
         for task in list(self._tasks.values()):
             task.cancel()
         for task in list(self._tasks.values()):
@@ -180,6 +184,9 @@ class FlightLifecycle:
         except (MissionTransferError, LinkError) as error:  # refused commands and transfers say why themselves
             reason = str(error)
         except asyncio.CancelledError:
+            if self._handing_over and self.storage.get_mission(mission_id).status == MissionStatus.FLYING:
+                self._detach(mission_id, recorder)
+                raise
             status, reason = MissionStatus.FAILED, "the service stopped during the mission"
             if mission_id in self._abort_requested:
                 status, reason = MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF
@@ -214,6 +221,14 @@ class FlightLifecycle:
         if samples:
             self.storage.set_results(mission_id, flight_results(plan, flight, samples, progress))
         self._transition(mission_id, status, reason)
+
+    def _detach(self, mission_id: int, recorder: MissionRecorder) -> None:
+        """Stop recording a mission that goes on flying, keeping all it recorded (see `stop(hand_over=True)`)."""
+        self.link.remove_listener(recorder, recorder.end_of_chunk)
+        self._recorders.pop(mission_id, None)
+        self.storage.add_telemetry(mission_id, recorder.take())
+        self.storage.set_progress(mission_id, recorder.progress())
+        log.warning("mission %s handed over in flight: the next owner of the vehicle link re-attaches it", mission_id)
 
     def _transition(self, mission_id: int, status: MissionStatus, reason: str | None = None) -> None:
         self.storage.set_status(mission_id, status, reason)

@@ -69,8 +69,10 @@ class MissionService:
         self._flights.reattach(unfinished)
 
     async def stop(self) -> None:
+        """Stop. On a shared database a mission in flight is handed over, not failed: a stand-by takes the link
+        as soon as this instance releases the lease (and this instance, restarted, would re-attach it)."""
         await self._ownership.stop()
-        await self._flights.stop()
+        await self._flights.stop(hand_over=self._ownership.shared)
         await self._link.stop()
         await self._ownership.release()  # only now may a stand-by talk to the vehicle
 

@@ -223,6 +223,11 @@ class Ownership:
         self._task: asyncio.Task | None = None
 
     @property
+    def shared(self) -> bool:
+        """Whether other instances can take the vehicle link over (the lease lives in a shared database)."""
+        return not isinstance(self.lease, SoleLease)
+
+    @property
     def is_owner(self) -> bool:
         return self.role == Role.OWNER
 

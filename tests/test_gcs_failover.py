@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 from pathlib import Path
 
 import psycopg
@@ -119,3 +120,17 @@ def test_an_owner_that_loses_its_lease_exits_at_once_and_the_standby_takes_over(
     assert owner.process.wait(30) == LEASE_LOST_EXIT_CODE
     assert "vehicle lease lost" in stack.log("gcs-a")
     poll(standby.vehicle, owns_a_connected_vehicle, 30.0, "the stand-by owning the vehicle")
+
+
+def test_an_owner_stopped_in_flight_hands_the_mission_over_instead_of_failing_it(stack):
+    """SIGTERM (a rolling upgrade, a host shutdown): the owner stores what it recorded, leaves the mission flying
+    and releases the lease; the stand-by re-attaches and the mission completes, never marked failed."""
+    _, standby = stack.instances
+    run = fly_and_kill(stack, "owner", how=signal.SIGTERM)
+    assert run["owner_after"] == "gcs-b" and run["takeover_s"] < TAKEOVER_REQUIREMENT_S
+    assert (run["status"], run["reason"], run["visited"]) == ("completed", None, run["buoys"])
+    assert run["duplicates"] == 0 and run["lost_beyond_gap"] == 0
+    mission = standby.get(f"/missions/{run['mission']}")
+    statuses = [(e["status"], e["reason"]) for e in mission["events"]]
+    assert statuses[-3:] == [("flying", None), ("flying", REATTACHED), ("completed", None)]
+    assert "handed over in flight" in stack.log("gcs-a")
