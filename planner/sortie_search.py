@@ -228,6 +228,19 @@ def _try_swap(u, v, C, E, cap, routes, rlen, info, route_of, pos, pref, stamp):
 
 
 @njit(cache=True)
+def _join(out, routes, head_route, head_end, tail_route, tail_start, tail_end):
+    """out = routes[head_route, 0..head_end] followed by routes[tail_route, tail_start..tail_end]; its length."""
+    k = 0
+    for t in range(head_end + 1):
+        out[k] = routes[head_route, t]
+        k += 1
+    for t in range(tail_start, tail_end + 1):
+        out[k] = routes[tail_route, t]
+        k += 1
+    return k
+
+
+@njit(cache=True)
 def _try_two_opt_star(ru, i, rv, j, C, E, fixed, cap, routes, rlen, info, route_of, pos, pref, stamp, buf):
     """2-opt*: route ru keeps its positions 0..i and takes rv's tail after j; rv keeps 0..j and takes ru's
     tail after i (no stretch is reversed, so the asymmetric costs need only the forward prefix sums)."""
@@ -245,25 +258,10 @@ def _try_two_opt_star(ru, i, rv, j, C, E, fixed, cap, routes, rlen, info, route_
         return False
     if pref[2, rv, j] + E[c, b] + pref[2, ru, end_r] - pref[2, ru, i + 1] > cap:
         return False
-    first, second = buf[0], buf[1]
-    k1 = 0
-    for t in range(i + 1):
-        first[k1] = routes[ru, t]
-        k1 += 1
-    for t in range(j + 1, end_s + 1):
-        first[k1] = routes[rv, t]
-        k1 += 1
-    k2 = 0
-    for t in range(j + 1):
-        second[k2] = routes[rv, t]
-        k2 += 1
-    for t in range(i + 1, end_r + 1):
-        second[k2] = routes[ru, t]
-        k2 += 1
-    for t in range(k1):
-        routes[ru, t] = first[t]
-    for t in range(k2):
-        routes[rv, t] = second[t]
+    k1 = _join(buf[0], routes, ru, i, rv, j + 1, end_s)
+    k2 = _join(buf[1], routes, rv, j, ru, i + 1, end_r)
+    routes[ru, :k1] = buf[0, :k1]
+    routes[rv, :k2] = buf[1, :k2]
     rlen[ru], rlen[rv] = k1, k2
     for r in (ru, rv):
         refresh(r, routes, rlen, route_of, pos, pref, C, E)

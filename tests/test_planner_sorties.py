@@ -10,7 +10,7 @@ import pytest
 from planner.api import plan_tour
 from planner.errors import UnreachableBuoyError
 from planner.sortie_cost import EnergyBudget, FlightEnergyModel, SortieCost, default_sortie_cost, ground_speed
-from planner.sorties import objective_matrices, plan_sorties
+from planner.sorties import SortieSearchParameters, objective_matrices, plan_sorties
 from planner.split import split_tour
 
 WINDY = FlightEnergyModel(wind_east_m_s=4.0, wind_north_m_s=-3.0, dwell_s=20.0)
@@ -168,3 +168,47 @@ def test_tiny_instances_reach_the_exhaustive_optimum(seed, capacity, objective):
     plan = plan_sorties(cost, objective=objective, seed=0, time_limit_s=30.0, max_iterations=400)
     assert len(plan.sorties) >= 2  # the battery does force several sorties
     assert plan.cost == pytest.approx(optimum, rel=1e-9)
+
+
+def test_the_local_search_leaves_no_improving_feasible_relocate_swap_or_reversal():
+    """Brute force over every single-buoy relocation, swap and within-sortie reversal of the plan the local
+    search ends on (full candidate lists, no ruin-and-recreate): none is both feasible and improving, so every
+    move was priced right under asymmetric costs."""
+    cost = asymmetric_instance(24, 8, capacity_wh=30.0)
+    C, E, fixed, cap = objective_matrices(cost, "time")
+    params = SortieSearchParameters(neighbours=24, ruin_neighbours=24)
+    plan = plan_sorties(cost, seed=0, time_limit_s=30.0, max_iterations=0, reoptimise=False, params=params)
+    assert len(plan.sorties) >= 3
+
+    def total(sorties) -> float:
+        return sum(route_cost(s, C) + fixed for s in sorties if s)
+
+    def feasible(sorties) -> bool:
+        return all(route_cost(s, E) <= cap for s in sorties if s)
+
+    base = total(plan.sorties)
+    assert base == pytest.approx(plan.cost, rel=1e-12)
+    tried = 0
+    for r, sortie in enumerate(plan.sorties):
+        for k, buoy in enumerate(sortie):
+            without = [list(s) for s in plan.sorties]
+            del without[r][k]
+            for s in range(len(without)):  # relocate
+                for place in range(len(without[s]) + 1):
+                    moved = [list(x) for x in without]
+                    moved[s].insert(place, buoy)
+                    tried += 1
+                    assert not (feasible(moved) and total(moved) < base - 1e-6), (buoy, s, place)
+        for i in range(len(sortie)):  # reversal of sortie[i..j]
+            for j in range(i + 1, len(sortie)):
+                turned = [list(s) for s in plan.sorties]
+                turned[r][i : j + 1] = turned[r][i : j + 1][::-1]
+                assert not (feasible(turned) and total(turned) < base - 1e-6), (r, i, j)
+    for (r, a), (s, b) in itertools.combinations(
+        [(r, k) for r, sortie in enumerate(plan.sorties) for k in range(len(sortie))], 2
+    ):
+        if r != s:  # swap
+            swapped = [list(x) for x in plan.sorties]
+            swapped[r][a], swapped[s][b] = swapped[s][b], swapped[r][a]
+            assert not (feasible(swapped) and total(swapped) < base - 1e-6), (r, a, s, b)
+    assert tried > 500
