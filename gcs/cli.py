@@ -78,6 +78,22 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="SECONDS",
         help=_help("seconds a mission waits for a vehicle", "vehicle_wait_s"),
     )
+    serve.add_argument(
+        "--instance-name",
+        dest="instance_name",
+        metavar="NAME",
+        help=_help("this instance's name, shown to the others on a shared database", "instance_name", "HOST:PID"),
+    )
+    serve.add_argument(
+        "--vehicle-name",
+        dest="vehicle_name",
+        metavar="NAME",
+        help=_help(
+            "the vehicle's name for the link lease, when instances reach it by different connection strings",
+            "vehicle_name",
+            "the --vehicle string",
+        ),
+    )
     report = commands.add_parser(
         "report",
         help="draw a mission's report (PNG figures + index.html)",

@@ -54,3 +54,9 @@ def test_settings_from_the_documented_options(tmp_path, monkeypatch):
 def test_module_entry_point_without_a_command_shows_usage():
     result = subprocess.run([sys.executable, "-m", "gcs"], capture_output=True, text=True, timeout=60)
     assert result.returncode == 2 and "usage: buoy-gcs" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_serve_names_the_instance_and_the_vehicle_for_a_shared_database():
+    args = build_parser().parse_args(["serve", "--instance-name", "tower-2", "--vehicle-name", "harbour-drone-1"])
+    settings = settings_from_args(args)
+    assert (settings.instance_name, settings.vehicle_name) == ("tower-2", "harbour-drone-1")
