@@ -32,11 +32,13 @@ class CachedDocument:
 
 class VersionedCache:
     """Encoded documents by key, each valid while its version is the current one; least recently used entries
-    go first beyond `max_entries`. Thread-safe (sync routes run in a thread pool)."""
+    go first beyond `max_entries` or `max_bytes` (a track with a large max_points is megabytes: the byte budget
+    bounds the memory whatever keys clients ask for). Thread-safe (sync routes run in a thread pool)."""
 
-    def __init__(self, max_entries: int = 256) -> None:
-        self.max_entries = max_entries
+    def __init__(self, max_entries: int = 256, max_bytes: int = 64 * 2**20) -> None:
+        self.max_entries, self.max_bytes = max_entries, max_bytes
         self._entries: OrderedDict[Hashable, CachedDocument] = OrderedDict()
+        self._bytes = 0
         self._lock = threading.Lock()
         self.hits = self.misses = 0  # for tests and the benchmark: how often the cache answered
 
@@ -65,10 +67,17 @@ class VersionedCache:
         # Two builds racing may leave the older one filed last: a lookup needs the exact version, so that only
         # costs one more build, never a stale answer.
         with self._lock:
+            if (previous := self._entries.pop(key, None)) is not None:
+                self._bytes -= len(previous.body)
             self._entries[key] = CachedDocument(version, body)
-            self._entries.move_to_end(key)
-            while len(self._entries) > self.max_entries:
-                self._entries.popitem(last=False)
+            self._bytes += len(body)
+            while len(self._entries) > 1 and (len(self._entries) > self.max_entries or self._bytes > self.max_bytes):
+                _, evicted = self._entries.popitem(last=False)
+                self._bytes -= len(evicted.body)
 
     def __len__(self) -> int:
         return len(self._entries)
+
+    @property
+    def size_bytes(self) -> int:
+        return self._bytes

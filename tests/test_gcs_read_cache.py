@@ -56,6 +56,18 @@ def test_least_recently_used_documents_go_first():
     assert len(cache) == 2
 
 
+def test_the_byte_budget_bounds_the_memory_and_keeps_the_newest():
+    cache = VersionedCache(max_bytes=100)
+    for key in "abcd":
+        cache.store(key, 1, bytes(40))
+    assert cache.size_bytes <= 100 and len(cache) == 2
+    assert cache.lookup("d", 1) is not None and cache.lookup("a", 1) is None
+    cache.store("d", 2, bytes(10))  # a new version replaces the old body in the count
+    assert cache.size_bytes == 50
+    cache.store("huge", 1, bytes(500))  # larger than the budget alone: kept (it was just asked for), the rest go
+    assert len(cache) == 1 and cache.lookup("huge", 1) is not None
+
+
 # ----- the routes, with a second storage object on the same database writing behind the service's back
 def store_mission(storage) -> int:
     scenario = reference_scenario(1)
