@@ -30,6 +30,9 @@ REPO = Path(__file__).resolve().parent.parent
 VEHICLE_SYSID, VEHICLE_COMPID = 1, 1
 GCS_SYSID, GCS_COMPID = 255, 190
 START_TIMEOUT_S = 60.0  # a loaded 2-core machine can take long to import numpy/numba
+# A wait's deadline: only reached when the behaviour is wrong, however loaded the machine (a paced vehicle covers
+# less simulated time per wall second when it is, and a lockstep one runs at the CPU's pace).
+WAIT_S = 60.0
 
 
 def free_udp_port() -> int:
