@@ -18,6 +18,7 @@ from sitl_process import (
     GCS_SYSID,
     VEHICLE_COMPID,
     VEHICLE_SYSID,
+    WAIT_S,
     GroundStation,
     mavlink,
     mission_item,
@@ -28,7 +29,7 @@ from udp_relay import LossyUdpRelay
 from uavcore.geodesy import DEFAULT_HOME
 from uavcore.modes import FlightMode
 
-pytestmark = [pytest.mark.integration, pytest.mark.timeout(60)]
+pytestmark = [pytest.mark.integration, pytest.mark.timeout(240)]  # the first test also starts the vehicle
 
 INT32, REAL32 = mavlink.MAV_PARAM_TYPE_INT32, mavlink.MAV_PARAM_TYPE_REAL32
 ACCEPTED = mavlink.MAV_RESULT_ACCEPTED
@@ -82,7 +83,7 @@ def test_param_list_sends_every_index_once_with_the_count(gcs):
     assert first is not None
     count = first.param_count
     seen = {first.param_index: first.param_id}
-    deadline = time.monotonic() + 15
+    deadline = time.monotonic() + WAIT_S
     while len(seen) < count and time.monotonic() < deadline:
         value = gcs.recv("PARAM_VALUE", timeout=1)
         if value is not None:
@@ -211,12 +212,12 @@ def test_disarm_in_the_air_is_denied(start_sitl):
     assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == ACCEPTED
     ack = gcs.command(mavlink.MAV_CMD_NAV_TAKEOFF, *[math.nan] * 6, DEFAULT_HOME[2] + 5.0)
     assert ack.result == ACCEPTED
-    airborne = gcs.recv("GLOBAL_POSITION_INT", timeout=15, condition=lambda m: m.relative_alt > 2000)
+    airborne = gcs.recv("GLOBAL_POSITION_INT", timeout=WAIT_S, condition=lambda m: m.relative_alt > 2000)
     assert airborne is not None, "the vehicle did not climb above 2 m"
     assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0).result == mavlink.MAV_RESULT_DENIED
-    assert gcs.wait_heartbeat(armed, timeout=3) is not None
+    assert gcs.wait_heartbeat(armed, timeout=WAIT_S) is not None
     assert gcs.command(mavlink.MAV_CMD_NAV_LAND).result == ACCEPTED
-    assert gcs.wait_heartbeat(lambda hb: not armed(hb), timeout=20) is not None, "no disarm after landing"
+    assert gcs.wait_heartbeat(lambda hb: not armed(hb), timeout=WAIT_S) is not None, "no disarm after landing"
     gcs.close()
 
 
@@ -439,7 +440,7 @@ def test_upload_aborted_half_way_leaves_the_next_upload_working(start_sitl):
 
     # Abandoned for good: the vehicle gives up after its timeout, says so, and takes the next upload.
     assert gcs.upload_mission(items, stop_after=len(items) // 2, timeout=10) is None
-    cancelled = gcs.recv("MISSION_ACK", timeout=15)
+    cancelled = gcs.recv("MISSION_ACK", timeout=WAIT_S)
     assert cancelled is not None and cancelled.type == mavlink.MAV_MISSION_OPERATION_CANCELLED
     assert gcs.upload_mission(items).type == mavlink.MAV_MISSION_ACCEPTED
     assert len(gcs.download_mission()) == len(items)
@@ -500,9 +501,9 @@ def test_garbage_datagrams_are_counted_and_the_vehicle_keeps_answering(start_sit
         if n % 200 == 0:
             time.sleep(0.005)  # let the vehicle drain its socket buffer: we test parsing, not buffer size
     assert sitl.alive()
-    gcs.connect(timeout=10)
+    gcs.connect(timeout=WAIT_S)
     assert gcs.read_param("SIM_MASS") is not None
-    deadline = time.monotonic() + 10
+    deadline = time.monotonic() + WAIT_S
     after = sys_status(gcs)
     while after.errors_comm <= before.errors_comm and time.monotonic() < deadline:
         after = sys_status(gcs)
@@ -526,7 +527,7 @@ def test_wrong_target_is_ignored_and_counted(gcs):
     assert late is None
     assert not armed(gcs.recv("HEARTBEAT", timeout=5))
     after = sys_status(gcs)
-    deadline = time.monotonic() + 10
+    deadline = time.monotonic() + WAIT_S
     while after.errors_count3 < before.errors_count3 + 2 and time.monotonic() < deadline:
         after = sys_status(gcs)
     assert after.errors_count3 >= before.errors_count3 + 2
@@ -542,7 +543,7 @@ def test_unknown_message_id_is_counted_and_ignored(gcs):
         gcs.conn.write(frame)
     assert gcs.read_param("SIM_MASS") is not None  # still answering
     after = sys_status(gcs)
-    deadline = time.monotonic() + 10
+    deadline = time.monotonic() + WAIT_S
     while after.errors_comm <= before.errors_comm and time.monotonic() < deadline:
         after = sys_status(gcs)
     assert after.errors_comm > before.errors_comm
