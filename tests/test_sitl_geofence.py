@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from sitl_process import GroundStation, mission_item
+from sitl_process import WAIT_S, GroundStation, mission_item
 from test_sitl_vehicle import FRAME, HOME, fly_until, item
 
 from sitl_quad.config import FailsafeConfig, GeofenceAction, VehicleConfig
@@ -184,9 +184,9 @@ def test_fence_upload_download_and_sys_status_over_udp(start_sitl):
             for i, (lat, lon) in enumerate(corners)
         ]
         bad = [*fence[:3]]  # three of four announced vertices
-        ack = gcs.upload_mission(bad, mission_type=mavlink.MAV_MISSION_TYPE_FENCE, timeout=5)
+        ack = gcs.upload_mission(bad, mission_type=mavlink.MAV_MISSION_TYPE_FENCE, timeout=WAIT_S)
         assert ack is not None and ack.type == mavlink.MAV_MISSION_INVALID_PARAM1
-        ack = gcs.upload_mission(fence, mission_type=mavlink.MAV_MISSION_TYPE_FENCE, timeout=5)
+        ack = gcs.upload_mission(fence, mission_type=mavlink.MAV_MISSION_TYPE_FENCE, timeout=WAIT_S)
         assert ack is not None and ack.type == mavlink.MAV_MISSION_ACCEPTED
         stored = gcs.download_mission(mission_type=mavlink.MAV_MISSION_TYPE_FENCE)
         assert [(i.command, i.param1, i.x, i.y) for i in stored] == [(f.command, 4.0, f.x, f.y) for f in fence]
@@ -203,9 +203,9 @@ def test_fence_upload_download_and_sys_status_over_udp(start_sitl):
         assert gcs.upload_mission(mission).type == mavlink.MAV_MISSION_ACCEPTED
         assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == mavlink.MAV_RESULT_ACCEPTED
         assert gcs.command(mavlink.MAV_CMD_MISSION_START).result == mavlink.MAV_RESULT_ACCEPTED
-        text = gcs.recv("STATUSTEXT", timeout=60, condition=lambda m: m.text.startswith("Geofence breached"))
+        text = gcs.recv("STATUSTEXT", timeout=2 * WAIT_S, condition=lambda m: m.text.startswith("Geofence breached"))
         assert text is not None and text.severity == mavlink.MAV_SEVERITY_CRITICAL
-        assert gcs.wait_heartbeat(lambda m: FlightMode.from_custom_mode(m.custom_mode) == FlightMode.AUTO_RTL)
+        assert gcs.wait_heartbeat(lambda m: FlightMode.from_custom_mode(m.custom_mode) == FlightMode.AUTO_RTL, WAIT_S)
         unhealthy = gcs.recv(
             "SYS_STATUS", timeout=5, condition=lambda m: not m.onboard_control_sensors_health & GEOFENCE_BIT
         )

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from sitl_process import GroundStation
+from sitl_process import WAIT_S, GroundStation
 from test_sitl_vehicle import FRAME, HOME, fly_until
 
 from sitl_quad.config import VehicleConfig
@@ -101,22 +101,22 @@ def test_do_orbit_over_udp_reports_posctl_orbit(start_sitl):
         gcs.connect()
         assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == mavlink.MAV_RESULT_ACCEPTED
         assert gcs.command(mavlink.MAV_CMD_NAV_TAKEOFF).result == mavlink.MAV_RESULT_ACCEPTED
-        landed = gcs.recv("EXTENDED_SYS_STATE", timeout=30, condition=lambda m: m.landed_state == 2)  # in air
+        landed = gcs.recv("EXTENDED_SYS_STATE", timeout=WAIT_S, condition=lambda m: m.landed_state == 2)  # in air
         assert landed is not None
         lat, lon, _ = FRAME.from_ned(*CENTRE_NE, 0.0)
         ack = gcs.command(mavlink.MAV_CMD_DO_ORBIT, 10.0, 2.0, 0, math.nan, float(lat), float(lon), HOME[2] + 10.0)
         assert ack.result == mavlink.MAV_RESULT_ACCEPTED
-        heartbeat = gcs.wait_heartbeat(lambda m: m.custom_mode >> 16 & 0xFF == Px4MainMode.POSCTL, timeout=5)
+        heartbeat = gcs.wait_heartbeat(lambda m: m.custom_mode >> 16 & 0xFF == Px4MainMode.POSCTL, timeout=WAIT_S)
         assert heartbeat is not None and heartbeat.custom_mode >> 24 == Px4PosctlSubMode.ORBIT
         on_circle = gcs.recv(
             "LOCAL_POSITION_NED",
-            timeout=30,
+            timeout=WAIT_S,
             condition=lambda m: (
                 abs(math.hypot(m.x - CENTRE_NE[0], m.y - CENTRE_NE[1]) - 10.0) < 0.5 and abs(m.z + 10.0) < 0.5
             ),
         )
         assert on_circle is not None
         assert gcs.command(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH).result == mavlink.MAV_RESULT_ACCEPTED
-        assert gcs.wait_heartbeat(lambda m: FlightMode.from_custom_mode(m.custom_mode) == FlightMode.AUTO_RTL)
+        assert gcs.wait_heartbeat(lambda m: FlightMode.from_custom_mode(m.custom_mode) == FlightMode.AUTO_RTL, WAIT_S)
     finally:
         gcs.close()
