@@ -83,7 +83,7 @@ def percentiles(seconds: list[float]) -> dict[str, float]:
 
 # ----- a minimal keep-alive HTTP/1.1 client: what a fast client costs, so the figures are the service's
 class RawHttp:
-    """One keep-alive connection; GET only, answers with a Content-Length (every route measured here has one)."""
+    """One keep-alive connection; GET only, answers with a Content-Length or chunked (a streamed one)."""
 
     def __init__(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         self.reader, self.writer = reader, writer
@@ -102,9 +102,17 @@ class RawHttp:
         lines = head.decode("latin-1").split("\r\n")
         if lines[0].split(" ")[1] != "200":
             raise RuntimeError(f"GET {path}: {lines[0]}")
-        length = next(int(line.split(":")[1]) for line in lines if line.lower().startswith("content-length:"))
-        body = await self.reader.readexactly(length)
+        lengths = [int(line.split(":")[1]) for line in lines if line.lower().startswith("content-length:")]
+        body = await self.reader.readexactly(lengths[0]) if lengths else await self._chunked()
         return ttfb, time.perf_counter() - started, body
+
+    async def _chunked(self) -> bytes:
+        parts = []
+        while size := int((await self.reader.readuntil(b"\r\n"))[:-2], 16):
+            parts.append(await self.reader.readexactly(size))
+            await self.reader.readexactly(2)
+        await self.reader.readexactly(2)  # the empty trailer
+        return b"".join(parts)
 
     def close(self) -> None:
         self.writer.close()

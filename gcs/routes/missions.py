@@ -7,14 +7,14 @@ import json
 from typing import Annotated
 
 from fastapi import APIRouter, Depends, HTTPException, Path, Query, Response
-from fastapi.responses import FileResponse, RedirectResponse
+from fastapi.responses import FileResponse, RedirectResponse, StreamingResponse
 
 from gcs import exports, report
 from gcs.routes.deps import ServiceDep
 from gcs.routes.responses import CONFLICT, MUTATING, NOT_FOUND, WITH_BODY
 from gcs.schemas import MissionOut, MissionRequest, MissionSummary, TelemetrySample, TrackOut
 from gcs.security import require_token
-from gcs.views import mission_out
+from gcs.views import mission_out, telemetry_chunks
 
 router = APIRouter(tags=["missions"])
 # POST /missions answers with links to what can be asked of the new mission (OpenAPI links: clients and
@@ -96,8 +96,10 @@ async def abort_mission(mission_id: MissionId, service: ServiceDep) -> dict:
 @router.get("/missions/{mission_id}/telemetry", response_model=list[TelemetrySample], responses=NOT_FOUND)
 def get_telemetry(
     mission_id: MissionId, service: ServiceDep, limit: Annotated[int | None, Query(ge=1, le=1_000_000)] = None
-) -> list[dict]:
-    return service.telemetry(mission_id, limit)
+) -> StreamingResponse:
+    """Every recorded sample, oldest first (the first `limit`): streamed in chunks, so a long flight's megabytes
+    never hold up the other requests."""
+    return StreamingResponse(telemetry_chunks(service.telemetry(mission_id, limit)), media_type="application/json")
 
 
 @router.get("/missions/{mission_id}/track", response_model=TrackOut, responses=NOT_FOUND)
