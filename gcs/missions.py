@@ -208,7 +208,7 @@ class MissionService:
 
     def telemetry(self, mission_id: int, limit: int | None = None) -> list[dict[str, Any]]:
         """A mission's recorded samples (TelemetrySample documents), oldest first."""
-        self.get(mission_id)
+        self._version(mission_id)  # 404 for no such mission: the one-row index lookup, not the whole record
         return self._storage.telemetry(mission_id, limit)
 
     def mission_file(self, mission_id: int) -> tuple[list[MissionItem], tuple[float, float, float], FlightParams]:
