@@ -203,7 +203,12 @@ class MissionService:
         return self.documents.get(
             ("track", mission_id, max_points),
             version,
-            lambda: views.track_json(self.get(mission_id), self._storage.telemetry(mission_id), max_points),
+            lambda: views.track_json(
+                self.get(mission_id),
+                self._storage.track_columns(mission_id),
+                lambda times: self._storage.telemetry_at(mission_id, times),
+                max_points,
+            ),
         )
 
     def telemetry(self, mission_id: int, limit: int | None = None) -> list[dict[str, Any]]:

@@ -4,7 +4,7 @@ serve them (validated against the response model once, when the read cache build
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
@@ -79,24 +79,30 @@ def mission_summary(record: MissionRecord) -> dict[str, Any]:
     }
 
 
-def track_out(record: MissionRecord, samples: list[dict[str, Any]], max_points: int) -> dict[str, Any]:
-    """The flown track for display: at most `max_points` positions (more only if the buoy arrivals alone exceed
-    them) within `tolerance_m` of every recorded one, and at most as many samples (CHART_SAMPLES at most) over
-    the whole flight for the charts."""
-    located = [s for s in samples if s["lat"] is not None and s["lon"] is not None]
-    lat_lon = np.array([(s["lat"], s["lon"]) for s in located], dtype=float).reshape(-1, 2)
-    times = np.array([s["t_s"] for s in located], dtype=float)
+def track_out(
+    record: MissionRecord,
+    columns: list[tuple[float, float | None, float | None, float | None]],
+    samples_at: Callable[[list[float]], list[dict[str, Any]]],
+    max_points: int,
+) -> dict[str, Any]:
+    """The flown track for display, from every sample's (t_s, lat, lon, cross_track_m): at most `max_points`
+    positions (more only if the buoy arrivals alone exceed them) within `tolerance_m` of every recorded one, and
+    at most as many whole samples (CHART_SAMPLES at most, read by `samples_at(times)`) for the charts."""
+    table = np.array(columns, dtype=float).reshape(-1, 4)  # None -> NaN
+    times, cross_track = table[:, 0], table[:, 3]
+    located = ~np.isnan(table[:, 1]) & ~np.isnan(table[:, 2])
+    lat_lon = table[located][:, 1:3]
     arrivals = (record.progress.get("reached_at") or {}).values()
-    local = Plan.from_dict(record.plan).frame.project(lat_lon) if len(located) else lat_lon
+    local = Plan.from_dict(record.plan).frame.project(lat_lon) if len(lat_lon) else lat_lon
+    track = track_display.simplify_track(local, max_points, track_display.arrival_indices(times[located], arrivals))
     # the charts' series keeps the cross-track error's envelope (the figure the mission is judged by)
-    cross_track = np.array([np.nan if s.get("cross_track_m") is None else s["cross_track_m"] for s in samples], float)
-    track = track_display.simplify_track(local, max_points, track_display.arrival_indices(times, arrivals))
+    charted = track_display.extremes_per_bucket(cross_track, min(max_points, CHART_SAMPLES))
     return {
         "mission": record.id,
-        "samples": len(samples),
+        "samples": len(table),
         "tolerance_m": track.tolerance_m,
         "points": lat_lon[track.indices].tolist(),
-        "series": [samples[i] for i in track_display.extremes_per_bucket(cross_track, min(max_points, CHART_SAMPLES))],
+        "series": samples_at([float(times[i]) for i in charted]),
     }
 
 
@@ -109,8 +115,13 @@ def missions_json(records: list[MissionRecord]) -> bytes:
     return MISSION_SUMMARIES.dump_json(MISSION_SUMMARIES.validate_python([mission_summary(r) for r in records]))
 
 
-def track_json(record: MissionRecord, samples: list[dict[str, Any]], max_points: int) -> bytes:
-    return TrackOut.model_validate(track_out(record, samples, max_points)).model_dump_json().encode()
+def track_json(
+    record: MissionRecord,
+    columns: list[tuple[float, float | None, float | None, float | None]],
+    samples_at: Callable[[list[float]], list[dict[str, Any]]],
+    max_points: int,
+) -> bytes:
+    return TrackOut.model_validate(track_out(record, columns, samples_at, max_points)).model_dump_json().encode()
 
 
 def telemetry_chunks(samples: list[dict[str, Any]]) -> Iterator[bytes]:

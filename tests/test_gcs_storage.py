@@ -151,6 +151,45 @@ def test_migration_3_removes_duplicate_samples_keeping_the_first(database):
         storage.close()
 
 
+def test_migration_4_copies_each_stored_samples_position_into_the_track_columns(database):
+    connection = raw_connection(database)
+    dialect = "sqlite" if isinstance(database, Path) else "postgresql"
+    connection.execute("CREATE TABLE schema_migrations (version INTEGER PRIMARY KEY, applied_at TEXT NOT NULL)")
+    for version in (1, 2, 3):  # the database as a service of schema version 3 left it
+        for statement in MIGRATIONS[version - 1].statements(dialect):
+            connection.execute(statement)
+        connection.execute(f"INSERT INTO schema_migrations VALUES ({version}, 'then')")
+    connection.execute(
+        "INSERT INTO missions (created_at, updated_at, status, flight, plan) VALUES ('a','a','flying','{}','{}')"
+    )
+    connection.execute("""INSERT INTO telemetry VALUES (1, 0.1, '{"t_s": 0.1, "lat": 55.5, "lon": 12.25}')""")
+    connection.execute(
+        """INSERT INTO telemetry VALUES (1, 0.2, '{"t_s": 0.2, "lat": null, "lon": null, "cross_track_m": 0.75}')"""
+    )
+    connection.close()
+
+    storage = open_storage(database)
+    try:
+        assert storage.schema_version() == len(MIGRATIONS)
+        assert storage.track_columns(1) == [(0.1, 55.5, 12.25, None), (0.2, None, None, 0.75)]
+    finally:
+        storage.close()
+
+
+def test_track_columns_and_samples_at_instants_read_what_add_telemetry_stored(storage):
+    mission_id = storage.create_mission(FLIGHT, PLAN)
+    samples = [
+        {"t_s": round(0.1 * k, 1), "lat": 55.0 + k * 1e-5, "lon": None if k == 3 else 12.0, "cross_track_m": k / 10}
+        for k in range(1200)
+    ]
+    storage.add_telemetry(mission_id, samples[::-1])
+    expected = [(s["t_s"], s["lat"], s["lon"], s["cross_track_m"]) for s in samples]
+    assert storage.track_columns(mission_id) == expected  # doubles both ways: exact
+    wanted = [samples[k]["t_s"] for k in (0, 3, 501, 1000, 1199)]  # more than one IN-list chunk apart
+    assert storage.telemetry_at(mission_id, wanted) == [samples[k] for k in (0, 3, 501, 1000, 1199)]
+    assert storage.track_columns(999) == [] and storage.telemetry_at(999, wanted) == []
+
+
 def test_invalid_status_is_refused_by_the_schema(storage):
     mission_id = storage.create_mission(FLIGHT, PLAN)
     with pytest.raises(ConstraintError):

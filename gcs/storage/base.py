@@ -17,7 +17,7 @@ from datetime import UTC, datetime
 from typing import Any, ClassVar, Protocol
 
 from gcs.status import UNFINISHED, MissionStatus
-from gcs.storage.migrations import MIGRATIONS
+from gcs.storage.migrations import MIGRATIONS, TRACK_COLUMNS
 
 # The next version, taken inside the write's transaction, after the dialect's `_serialise_versions`: writers take
 # it one at a time and commit in that order, so a reader that saw latest_version() == N never later sees a
@@ -249,11 +249,14 @@ class Storage(ABC):
         if not samples:
             return
         # in time order: two instances recording the same instants lock them in the same order, never a deadlock
-        rows = sorted(((mission_id, float(s["t_s"]), _json(s)) for s in samples), key=lambda row: row[1])
+        rows = sorted(
+            ((mission_id, float(s["t_s"]), _json(s), *(s.get(c) for c in TRACK_COLUMNS)) for s in samples),
+            key=lambda row: row[1],
+        )
         with self.transaction() as db:
             db.executemany(
-                "INSERT INTO telemetry (mission_id, t_s, sample) VALUES (?, ?, ?)"
-                " ON CONFLICT (mission_id, t_s) DO NOTHING",
+                f"INSERT INTO telemetry (mission_id, t_s, sample, {', '.join(TRACK_COLUMNS)})"
+                f" VALUES (?, ?, ?, {', '.join('?' * len(TRACK_COLUMNS))}) ON CONFLICT (mission_id, t_s) DO NOTHING",
                 rows,
             )
 
@@ -266,6 +269,30 @@ class Storage(ABC):
             else:
                 rows = db.execute(f"{query} LIMIT ?", (mission_id, limit)).fetchall()
         return [json.loads(row["sample"]) for row in rows]
+
+    def track_columns(self, mission_id: int) -> list[tuple[float, float | None, float | None, float | None]]:
+        """(t_s, lat, lon, cross_track_m) of every sample in time order: what a display track needs, read
+        without decoding the samples' documents."""
+        with self._reading() as db:
+            rows = db.execute(
+                f"SELECT t_s, {', '.join(TRACK_COLUMNS)} FROM telemetry WHERE mission_id = ? ORDER BY t_s",
+                (mission_id,),
+            ).fetchall()
+        return [(row["t_s"], *(row[column] for column in TRACK_COLUMNS)) for row in rows]
+
+    def telemetry_at(self, mission_id: int, times_s: list[float]) -> list[dict[str, Any]]:
+        """The samples recorded at these instants (each a t_s of `track_columns`), in time order."""
+        samples: list[dict[str, Any]] = []
+        with self._reading() as db:
+            for start in range(0, len(times_s), 500):  # a bounded IN list per query
+                chunk = times_s[start : start + 500]
+                rows = db.execute(
+                    f"SELECT sample FROM telemetry WHERE mission_id = ? AND t_s IN ({', '.join('?' * len(chunk))})"
+                    " ORDER BY t_s",
+                    (mission_id, *chunk),
+                ).fetchall()
+                samples += [json.loads(row["sample"]) for row in rows]
+        return samples
 
     def telemetry_count(self, mission_id: int) -> int:
         with self._reading() as db:

@@ -76,6 +76,18 @@ _ONE_SAMPLE_PER_INSTANT = """
     CREATE UNIQUE INDEX telemetry_by_mission ON telemetry (mission_id, t_s);
 """
 
+
+TRACK_COLUMNS = ("lat", "lon", "cross_track_m")  # the sample fields migration 4 copies into columns
+
+
+def _track_columns(real: str, field: str) -> str:
+    """Migration 4: the position and cross-track error of each sample as columns beside its document, so the
+    display track of a long mission (72 000 samples for 2 hours) is read without decoding every document."""
+    added = "".join(f"ALTER TABLE telemetry ADD COLUMN {column} {real};" for column in TRACK_COLUMNS)
+    filled = ", ".join(f"{column} = {field.format(column)}" for column in TRACK_COLUMNS)
+    return f"{added} UPDATE telemetry SET {filled};"
+
+
 MIGRATIONS: list[Migration] = [
     Migration(
         sqlite=_first_schema("INTEGER", "INTEGER PRIMARY KEY AUTOINCREMENT", "REAL"),
@@ -87,5 +99,9 @@ MIGRATIONS: list[Migration] = [
         + _ONE_SAMPLE_PER_INSTANT,
         postgresql="DELETE FROM telemetry AS later USING telemetry AS first WHERE later.mission_id = first.mission_id"
         " AND later.t_s = first.t_s AND later.ctid > first.ctid;" + _ONE_SAMPLE_PER_INSTANT,
+    ),
+    Migration(
+        sqlite=_track_columns("REAL", "json_extract(sample, '$.{}')"),
+        postgresql=_track_columns("DOUBLE PRECISION", "(sample::jsonb ->> '{}')::double precision"),
     ),
 ]
