@@ -14,12 +14,12 @@ from mavsdk.plugins.action import Action
 from mavsdk.plugins.mission_raw import MissionItem, MissionRaw, MissionRawError, MissionRawResult
 from mavsdk.plugins.param import Param
 from mavsdk.plugins.telemetry import LandedState, Telemetry
-from sitl_process import short_mission
+from sitl_process import WAIT_S, short_mission
 from udp_relay import LossyUdpRelay
 
 from uavcore.geodesy import DEFAULT_HOME
 
-pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.timeout(120)]
+pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.timeout(300)]
 
 FIELDS = (
     "seq",
@@ -51,7 +51,7 @@ def mavsdk_system(port: int) -> Iterator:
     sdk = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
     try:
         assert sdk.add_any_connection(f"udpout://127.0.0.1:{port}").name == "SUCCESS"
-        found = sdk.first_autopilot(20.0)
+        found = sdk.first_autopilot(WAIT_S)
         assert found is not None, "MAVSDK discovered no autopilot"
         yield found
     finally:
@@ -95,14 +95,14 @@ def test_mavsdk_reads_parameters_flies_a_mission_and_sees_it_land(system):
 
     telemetry = Telemetry(system)
     action = Action(system)
-    wait_until(lambda: telemetry.health().is_armable, 15, "is_armable (SYS_STATUS pre-arm bit)")
-    wait_until(lambda: telemetry.health().is_home_position_ok, 15, "a home position")
+    wait_until(lambda: telemetry.health().is_armable, WAIT_S, "is_armable (SYS_STATUS pre-arm bit)")
+    wait_until(lambda: telemetry.health().is_home_position_ok, WAIT_S, "a home position")
     action.arm()
-    wait_until(telemetry.armed, 5, "armed")
+    wait_until(telemetry.armed, WAIT_S, "armed")
     mission_raw.start_mission()
 
     seen_current, max_altitude, was_in_air = set(), 0.0, False
-    deadline = time.monotonic() + 60
+    deadline = time.monotonic() + 3 * WAIT_S
     while time.monotonic() < deadline:
         progress = mission_raw.mission_progress()
         seen_current.add(progress.current)
