@@ -17,7 +17,7 @@ from mavsdk.plugins.mission_raw import MissionItem as MavsdkItem
 from mavsdk.plugins.mission_raw import MissionRaw
 from mavsdk.plugins.param import Param
 from mavsdk.plugins.telemetry import FlightMode, Telemetry
-from sitl_process import free_udp_port
+from sitl_process import WAIT_S, free_udp_port
 from test_sitl_mavsdk import FIELDS, mavsdk_system, wait_until
 
 from gcs.app import create_app
@@ -131,7 +131,7 @@ def test_the_vehicles_own_fence_refuses_a_mission_through_it(start_sitl, tmp_pat
     buoys = [{"id": "west", **lat_lon(300, -100)}, {"id": "east", **lat_lon(300, 100)}]
     settings = Settings(db_path=tmp_path / "gcs.sqlite", vehicle_url=f"udpout://127.0.0.1:{vehicle.port}")
     with TestClient(create_app(settings)) as client:
-        deadline = time.monotonic() + 30
+        deadline = time.monotonic() + WAIT_S
         while not client.get("/vehicle").json().get("connected"):
             assert time.monotonic() < deadline, "the service never heard the vehicle"
             time.sleep(0.1)
@@ -186,8 +186,8 @@ def test_mavsdk_flying_through_the_fence_anyway_meets_gf_action_return(start_sit
         subscription = telemetry.subscribe_status_text(lambda status, _: texts.append(status.text))
         Action(system).arm()
         MissionRaw(system).start_mission()
-        wait_until(lambda: telemetry.flight_mode() == FlightMode.MISSION, 30, "the mission to start")
-        wait_until(lambda: telemetry.flight_mode() == FlightMode.RETURN_TO_LAUNCH, 120, "GF_ACTION's return")
+        wait_until(lambda: telemetry.flight_mode() == FlightMode.MISSION, WAIT_S, "the mission to start")
+        wait_until(lambda: telemetry.flight_mode() == FlightMode.RETURN_TO_LAUNCH, 3 * WAIT_S, "GF_ACTION's return")
         telemetry.unsubscribe_status_text(subscription)
         north, east, _ = FRAME.to_ned(telemetry.position().latitude_deg, telemetry.position().longitude_deg, 0.0)
         # turned back at the wall (x = 280..320 m north, |east| <= 20 m), not after the eastern buoy
