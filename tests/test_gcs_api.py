@@ -40,7 +40,7 @@ def client(tmp_path):
         yield c
 
 
-def wait_status(client, mission_id, statuses, timeout_s=10.0):
+def wait_status(client, mission_id, statuses, timeout_s=60.0):  # a backstop on a loaded machine
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         body = client.get(f"/missions/{mission_id}").json()
