@@ -1,8 +1,10 @@
-"""SQLite, the embedded default: one file, one connection shared by the service's threads under a lock.
+"""SQLite, the embedded default: one file; writes on one connection shared by the service's threads under a lock,
+reads on a connection of each thread's own.
 
-WAL mode, so readers in other processes never wait for this one's writes. Writes are `BEGIN IMMEDIATE`
-transactions: they take the file's write lock at once, which serialises writers across processes, so
-migrations and version numbers need nothing more.
+WAL mode, so readers (other processes, and this one's other threads) never wait for a write, nor for another
+read: a 2-hour mission's telemetry read in a worker thread does not hold up the event loop's version lookups.
+Writes are `BEGIN IMMEDIATE` transactions: they take the file's write lock at once, which serialises writers
+across processes, so migrations and version numbers need nothing more.
 """
 
 from __future__ import annotations
@@ -34,14 +36,26 @@ class SqliteStorage(Storage):
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute("PRAGMA foreign_keys=ON")
             self._db.execute("PRAGMA synchronous=NORMAL")
+            self._readers = threading.local()
+            self._reader_connections: list[sqlite3.Connection] = []
             self._migrate()
         except (sqlite3.Error, OSError) as error:
             raise StorageError(f"cannot open database {path}: {error}") from None
 
     @contextmanager
     def _reading(self) -> Iterator[Connection]:
-        with self._lock:
-            yield self._db
+        if str(self.path) == ":memory:":  # one in-memory database per connection: share the writer's
+            with self._lock:
+                yield self._db
+            return
+        reader = getattr(self._readers, "connection", None)
+        if reader is None:
+            reader = sqlite3.connect(str(self.path), check_same_thread=False, isolation_level=None)
+            reader.row_factory = sqlite3.Row
+            self._readers.connection = reader
+            with self._lock:
+                self._reader_connections.append(reader)
+        yield reader
 
     @contextmanager
     def _begin(self) -> Iterator[Connection]:
@@ -62,4 +76,6 @@ class SqliteStorage(Storage):
 
     def close(self) -> None:
         with self._lock:
+            for reader in self._reader_connections:
+                reader.close()
             self._db.close()
