@@ -280,8 +280,9 @@ def draw(train: list[dict], held_out: list[dict], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, (scatter, errors) = plt.subplots(1, 2, figsize=(12, 5.2))
-    top = 1.05 * max(max(r["measured_wh"], r["predicted_wh"]) for r in train + held_out)
-    line = np.array([0.0, top])
+    values = [v for r in train + held_out for v in (r["measured_wh"], r["predicted_wh"])]
+    bottom, top = 0.9 * min(values), 1.05 * max(values)
+    line = np.array([bottom, top])
     scatter.fill_between(line, 0.9 * line, 1.1 * line, color="0.92", label="+-10 %")
     scatter.fill_between(line, 0.95 * line, 1.05 * line, color="0.82", label="+-5 %")
     scatter.plot(line, line, "k-", lw=0.8)
@@ -289,7 +290,9 @@ def draw(train: list[dict], held_out: list[dict], path: Path) -> None:
         scatter.scatter(
             [r["measured_wh"] for r in rows], [r["predicted_wh"] for r in rows], marker=marker, label=label, alpha=0.8
         )
-    scatter.set(xlim=(0, top), ylim=(0, top), xlabel="measured (simulated battery), Wh", ylabel="predicted, Wh")
+    scatter.set(
+        xlim=(bottom, top), ylim=(bottom, top), xlabel="measured (simulated battery), Wh", ylabel="predicted, Wh"
+    )
     scatter.set_title("Route energy: predicted vs measured (start to disarm)")
     scatter.legend(loc="upper left")
     for rows, marker, label in ((train, "o", "training"), (held_out, "s", "held-out")):
@@ -351,7 +354,11 @@ def compare_controllers(cases: list[FlightCase], adrc: dict[str, dict], model: E
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="python -m bench.energy_model", description=__doc__.split("\n\n")[0])
-    p.add_argument("--quick", action="store_true", help="4 + 4 short flights (at most 6 buoys); writes *_quick files")
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="4 + 4 flights of at most 6 buoys, 1 re-flown by the PIDs; writes *_quick results, not the parameters",
+    )
     p.add_argument(
         "--validate-only", action="store_true", help="no fit: the committed planner/energy_params.json on held-out"
     )
@@ -384,6 +391,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parse_args(argv)
     started = time.perf_counter()
     n_train, n_held, max_buoys = (4, 4, 6) if args.quick else (args.train, args.held_out, 15)
+    n_controllers = min(args.controllers, 1) if args.quick else args.controllers
     suffix = "_quick" if args.quick else ""
     config = vehicle_config(draw_cases("t", 1, 1, TRAIN_DIRECTIONS, max_buoys)[0])
     train_cases = draw_cases("t", n_train, 1, TRAIN_DIRECTIONS, max_buoys)
@@ -405,7 +413,7 @@ def main(argv: list[str] | None = None) -> None:
     held = fly_all(held_cases, "held-out")
     train_rows, held_rows = evaluate(model, train), evaluate(model, held)
     prior_rows = evaluate(prior.with_fitted(mean_turn_deg=model.fitted.mean_turn_deg), held)
-    controllers = compare_controllers(held_cases[: args.controllers], {c.name: m for c, m in held}, model)
+    controllers = compare_controllers(held_cases[:n_controllers], {c.name: m for c, m in held}, model)
     print()
     if train_rows:
         print(table("TRAINING (fitted on these)", train_rows))

@@ -3,8 +3,8 @@
 The multi-sortie planner (planner.sorties) reads only a ``SortieCost``: leg matrices (asymmetric allowed:
 with wind, A->B and B->A differ), per-buoy dwell, a fixed per-sortie part (take-off, climb, descent, landing)
 and the usable energy of one battery. How those numbers come about is this module's default model, a
-simple physical one with its parameters as data; a calibrated energy model replaces ``default_sortie_cost``
-and hands the planner the same object.
+simple physical one with its parameters as data; the calibrated energy model (planner.energy, fitted on
+simulated flights: ``calibrated_sortie_cost``) hands the planner the same object.
 
 Default model (``FlightEnergyModel``):
 - a leg i->j is flown at the commanded air speed V_a with a constant wind w. The ground velocity must point
