@@ -6,8 +6,9 @@ interrupts a moving reference. Each piece is precomputed once and evaluated in c
 plain floats: the vehicle samples the reference at 50 Hz and must run many times faster than real time.
 
 The one-dimensional motion along a piece is a `Profile1D`: a chain of constant-jerk spans, so position is a
-cubic in time. A rest-to-rest leg is the classic seven-span jerk-limited S-curve (jerk +J, 0, -J, cruise, -J,
-0, +J); with an infinite jerk limit the same code gives a trapezoidal velocity profile. Frames are NED metres
+cubic in time. The spans come from uavcore.motion_profiles, which the route energy model (planner.energy) shares.
+A rest-to-rest leg is the classic seven-span jerk-limited S-curve (jerk +J, 0, -J, cruise, -J, 0, +J); with an
+infinite jerk limit the same code gives a trapezoidal velocity profile. Frames are NED metres
 (z down) and yaw is atan2(east, north) in [-pi, pi), as in uavcore.state.
 """
 
@@ -18,13 +19,14 @@ from bisect import bisect_right
 from dataclasses import dataclass
 from typing import NamedTuple, Protocol
 
+from uavcore.motion_profiles import MIN_DISTANCE_M, Span, descent_spans, rest_to_rest_spans
 from uavcore.rotation import wrap_pi
 
 Vector3 = tuple[float, float, float]
 ZERO3: Vector3 = (0.0, 0.0, 0.0)
 
 # Below this length a leg is "no motion" and below this horizontal length a leg has no heading to turn to.
-MIN_LEG_LENGTH_M = 1e-6
+MIN_LEG_LENGTH_M = MIN_DISTANCE_M
 MIN_HEADING_LENGTH_M = 0.5
 
 
@@ -66,41 +68,6 @@ class MotionLimits:
         return speed
 
 
-def _ramp_spans(v_from: float, v_to: float, acceleration: float, jerk: float) -> list[tuple[float, float, float]]:
-    """Constant-jerk spans (duration, start acceleration, jerk) taking the speed from v_from to v_to.
-
-    Acceleration starts and ends at zero and never exceeds `acceleration`; the profile is symmetric, so the
-    distance covered is the mean speed times the duration.
-    """
-    dv = abs(v_to - v_from)
-    if dv <= 0.0:
-        return []
-    sign = 1.0 if v_to > v_from else -1.0
-    if math.isinf(jerk):
-        return [(dv / acceleration, sign * acceleration, 0.0)]
-    if dv >= acceleration * acceleration / jerk:
-        # reaches the acceleration limit: jerk up, hold, jerk down
-        jerk_time = acceleration / jerk
-        hold_time = dv / acceleration - jerk_time
-        spans = [(jerk_time, 0.0, sign * jerk)]
-        if hold_time > 0.0:
-            spans.append((hold_time, sign * acceleration, 0.0))
-        spans.append((jerk_time, sign * acceleration, -sign * jerk))
-        return spans
-    # too small a change to reach the acceleration limit: a triangle in acceleration
-    jerk_time = math.sqrt(dv / jerk)
-    peak = jerk * jerk_time
-    return [(jerk_time, 0.0, sign * jerk), (jerk_time, sign * peak, -sign * jerk)]
-
-
-def _ramp_time(dv: float, acceleration: float, jerk: float) -> float:
-    return sum(span[0] for span in _ramp_spans(0.0, dv, acceleration, jerk))
-
-
-def _ramp_distance(v_from: float, v_to: float, acceleration: float, jerk: float) -> float:
-    return 0.5 * (v_from + v_to) * _ramp_time(abs(v_to - v_from), acceleration, jerk)
-
-
 class Profile1D:
     """Distance along a path as a function of time: a chain of constant-jerk spans, evaluated in closed form.
 
@@ -111,7 +78,7 @@ class Profile1D:
 
     def __init__(
         self,
-        spans: list[tuple[float, float, float]],
+        spans: list[Span],
         initial_speed: float = 0.0,
         distance: float | None = None,
     ) -> None:
@@ -133,23 +100,7 @@ class Profile1D:
     @classmethod
     def rest_to_rest(cls, distance: float, max_speed: float, acceleration: float, jerk: float) -> Profile1D:
         """The time-optimal jerk-limited S-curve covering `distance` from rest to rest."""
-        if distance <= MIN_LEG_LENGTH_M:
-            return cls([], distance=max(distance, 0.0))
-        peak = max_speed
-        if peak * _ramp_time(peak, acceleration, jerk) > distance:
-            # cannot reach max_speed: the peak speed whose up and down ramps exactly cover the distance
-            a2_over_j = 0.0 if math.isinf(jerk) else acceleration * acceleration / jerk
-            # the distance at which the ramps just touch the acceleration limit: 2 A^3 / J^2
-            if distance >= 2.0 * a2_over_j * a2_over_j / acceleration:
-                # v^2/A + v A/J = distance  (ramps reach the acceleration limit)
-                peak = (-a2_over_j + math.sqrt(a2_over_j * a2_over_j + 4.0 * acceleration * distance)) / 2.0
-            else:
-                # v * 2 sqrt(v/J) = distance  (acceleration triangles)
-                peak = (distance * math.sqrt(jerk) / 2.0) ** (2.0 / 3.0)
-        ramp = _ramp_spans(0.0, peak, acceleration, jerk)
-        cruise = (distance - peak * sum(span[0] for span in ramp)) / peak
-        spans = [*ramp, (cruise, 0.0, 0.0), *_ramp_spans(peak, 0.0, acceleration, jerk)]
-        return cls(spans, distance=distance)
+        return cls(rest_to_rest_spans(distance, max_speed, acceleration, jerk), distance=max(distance, 0.0))
 
     @classmethod
     def brake(cls, speed: float, acceleration: float) -> Profile1D:
@@ -167,33 +118,11 @@ class Profile1D:
         acceleration: float,
         jerk: float,
     ) -> Profile1D:
-        """A landing: fast_speed down to `slow_below` metres, then slow_speed on to `depth` under the ground.
-
-        Never stops at the slow-down height: the speed ramps from fast to slow on the way. If the height is
-        too small for the fast part, the whole descent runs at slow_speed.
-        """
+        """A landing: fast_speed down to `slow_below` metres, then slow_speed on to `depth` under the ground,
+        never stopping on the way (uavcore.motion_profiles.descent_spans)."""
         total = max(height, 0.0) + depth
-        if height > slow_below and fast_speed > slow_speed:
-            up = _ramp_spans(0.0, fast_speed, acceleration, jerk)
-            slow_down = _ramp_spans(fast_speed, slow_speed, acceleration, jerk)
-            stop = _ramp_spans(slow_speed, 0.0, acceleration, jerk)
-            fast_cruise = (
-                height
-                - slow_below
-                - _ramp_distance(0.0, fast_speed, acceleration, jerk)
-                - _ramp_distance(fast_speed, slow_speed, acceleration, jerk)
-            )
-            slow_cruise = slow_below + depth - _ramp_distance(slow_speed, 0.0, acceleration, jerk)
-            if fast_cruise >= 0.0 and slow_cruise >= 0.0:
-                spans = [
-                    *up,
-                    (fast_cruise / fast_speed, 0.0, 0.0),
-                    *slow_down,
-                    (slow_cruise / slow_speed, 0.0, 0.0),
-                    *stop,
-                ]
-                return cls(spans, distance=total)
-        return cls.rest_to_rest(total, slow_speed, acceleration, jerk)
+        spans = descent_spans(height, depth, fast_speed, slow_speed, slow_below, acceleration, jerk)
+        return cls(spans, distance=max(total, 0.0))
 
     def sample(self, t: float) -> tuple[float, float, float]:
         """(distance, speed, acceleration) at time t from the profile's start."""
