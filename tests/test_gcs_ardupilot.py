@@ -34,7 +34,7 @@ from uavcore.mission import MavCmd, MissionItem
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.timeout(600)]
 
-CONNECT_S = 30.0
+CONNECT_S = 60.0  # the service hearing the double, or a mission reaching "flying": a backstop on a loaded machine
 FLIGHT_S = 300.0
 ACCEPTANCE_RADIUS_M = 2.0
 DWELL_S = 0.5
