@@ -368,8 +368,13 @@ def test_the_token_never_reaches_the_log(served):
         assert json.loads(ws.recv(timeout=30))["type"] == "state"
     with pytest.raises(InvalidStatus), ws_connect(f"ws://{host}/ws", subprotocols=token_subprotocols("guess")):
         pass
-    time.sleep(0.5)  # the access log is written as each request ends
-    output = log.read_text()
+    # the access log is written as each request ends: wait until every line is there (a backstop deadline)
+    deadline, output = time.monotonic() + 60, ""
+    while time.monotonic() < deadline:
+        output = log.read_text()
+        if output.count('"POST /plans HTTP/1.1"') >= 4 and output.count("/ws") >= 2:
+            break
+        time.sleep(0.1)
     assert '"POST /plans HTTP/1.1" 401' in output and '"POST /plans HTTP/1.1" 422' in output, output
     assert "/ws" in output  # the WebSocket handshakes were logged too
     encoded = token_subprotocols(TOKEN)[1].removeprefix("bearer.")

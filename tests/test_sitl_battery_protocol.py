@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 
-from sitl_process import GroundStation, mission_item
+from sitl_process import WAIT_S, GroundStation, mission_item
 
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 from uavcore.mavlink import mavlink
@@ -85,7 +85,7 @@ def test_battery_status_warnings_return_and_swap_over_udp(start_sitl):
     gcs = NotingStation(vehicle.port)
     try:
         gcs.connect()
-        before = gcs.recv("BATTERY_STATUS", timeout=10)
+        before = gcs.recv("BATTERY_STATUS", timeout=WAIT_S)
         assert before.battery_remaining == 20 and before.current_consumed == 0
         assert before.charge_state == mavlink.MAV_BATTERY_CHARGE_STATE_OK
         assert before.type == mavlink.MAV_BATTERY_TYPE_LIPO and before.voltages[4] == 65535  # a 4S pack
@@ -94,32 +94,32 @@ def test_battery_status_warnings_return_and_swap_over_udp(start_sitl):
         assert gcs.command(ARM, 1).result == ACCEPTED
         assert gcs.command(MAV_CMD_BATTERY_RESET, BATTERY_1, 100).result == DENIED  # armed
         assert gcs.command(mavlink.MAV_CMD_MISSION_START).result == ACCEPTED
-        flying = gcs.recv("EXTENDED_SYS_STATE", timeout=30, condition=lambda m: m.landed_state == 2)
+        flying = gcs.recv("EXTENDED_SYS_STATE", timeout=WAIT_S, condition=lambda m: m.landed_state == 2)
         assert flying is not None
         assert gcs.command(MAV_CMD_BATTERY_RESET, BATTERY_1, 100).result == TEMPORARILY_REJECTED
 
-        drawing = gcs.recv("BATTERY_STATUS", timeout=10, condition=lambda m: m.current_consumed > 0)
+        drawing = gcs.recv("BATTERY_STATUS", timeout=WAIT_S, condition=lambda m: m.current_consumed > 0)
         assert drawing is not None and drawing.current_battery > 500  # > 5 A in the air
         assert sum(drawing.voltages[:4]) < sum(before.voltages[:4])  # the pack sags under load
-        status = gcs.recv("SYS_STATUS", timeout=10)
+        status = gcs.recv("SYS_STATUS", timeout=WAIT_S)
         assert 12000 < status.voltage_battery < 17000 and status.current_battery > 500
         assert status.battery_remaining <= 20
 
-        low = gcs.text_starting("Low battery level", timeout=60)
+        low = gcs.text_starting("Low battery level", timeout=2 * WAIT_S)
         assert low == (mavlink.MAV_SEVERITY_CRITICAL, "Low battery level! Return advised")
-        critical = gcs.text_starting("Critical battery level", timeout=60)
+        critical = gcs.text_starting("Critical battery level", timeout=2 * WAIT_S)
         assert critical == (mavlink.MAV_SEVERITY_CRITICAL, "Critical battery level! Executing RTL")
-        assert gcs.saw_mode(FlightMode.AUTO_RTL, timeout=10)
+        assert gcs.saw_mode(FlightMode.AUTO_RTL, timeout=WAIT_S)
         assert FlightMode.AUTO_MISSION in gcs.modes[: gcs.modes.index(FlightMode.AUTO_RTL)]
-        state = gcs.recv("BATTERY_STATUS", timeout=10)
+        state = gcs.recv("BATTERY_STATUS", timeout=WAIT_S)
         assert state.charge_state == mavlink.MAV_BATTERY_CHARGE_STATE_CRITICAL and state.battery_remaining <= 18
 
-        assert gcs.wait_heartbeat(lambda m: not armed(m), timeout=120) is not None  # home, landed, disarmed
+        assert gcs.wait_heartbeat(lambda m: not armed(m), timeout=4 * WAIT_S) is not None  # home, landed, disarmed
         assert gcs.command(ARM, 1).result == DENIED  # below BAT_CRIT_THR
-        assert gcs.text_starting("Arming denied: battery", timeout=5) is not None
+        assert gcs.text_starting("Arming denied: battery", timeout=WAIT_S) is not None
         assert gcs.command(MAV_CMD_BATTERY_RESET, 0, 100).result == DENIED  # no battery 1 in the mask
         assert gcs.command(MAV_CMD_BATTERY_RESET, BATTERY_1, 100).result == ACCEPTED
-        fresh = gcs.recv("BATTERY_STATUS", timeout=10, condition=lambda m: m.battery_remaining == 100)
+        fresh = gcs.recv("BATTERY_STATUS", timeout=WAIT_S, condition=lambda m: m.battery_remaining == 100)
         assert fresh is not None and fresh.current_consumed == 0
         assert fresh.charge_state == mavlink.MAV_BATTERY_CHARGE_STATE_OK
         assert gcs.command(ARM, 1).result == ACCEPTED

@@ -71,8 +71,9 @@ def stop(process: subprocess.Popen) -> None:
 
 
 def wait_until_connected(url: str, log: Path) -> None:
-    """Until the service at url has heard its vehicle (30 s, then the log says why not)."""
-    deadline = time.monotonic() + 30
+    """Until the service at url has heard its vehicle (a 120 s backstop for a loaded machine, then the log says
+    why not)."""
+    deadline = time.monotonic() + 120
     while True:
         try:
             with urllib.request.urlopen(f"{url}/vehicle", timeout=1) as answer:
