@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-EPS = 1e-9  # improvements smaller than this are rounding noise
+EPS = 1e-7  # improvements smaller than this (s or m) are rounding noise of the prefix sums: no move cycles
 
 
 # ----- the solution's bookkeeping

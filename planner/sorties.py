@@ -29,7 +29,7 @@ from planner.api import plan_tour
 from planner.chnn_ga import GAParameters
 from planner.errors import InputError, UnreachableBuoyError
 from planner.local_search import iterated_local_search, local_search, neighbour_lists
-from planner.sortie_cost import SortieCost
+from planner.sortie_cost import EnergyBudget, SortieCost, default_sortie_cost
 from planner.sortie_search import copy_solution, refresh, search, seed_rng, total_cost
 from planner.sortie_search import local_search as sortie_local_search
 from planner.split import folded_matrices, split_tour
@@ -264,6 +264,15 @@ def plan_sorties(
         share = max(1e-3, time_limit_s - (time.perf_counter() - started)) / max(1, len(best))
         best = [_reoptimise(s, C, E, cap, seed, share) for s in best]
     return _plan(cost, best, objective, C, fixed, split_cost, iterations, history, started)
+
+
+def warm_up() -> None:
+    """Compile (or load from the on-disk cache) every kernel of the search on a tiny instance: the first call
+    otherwise spends its time limit compiling."""
+    rng = np.random.default_rng(0)
+    points = np.vstack([[0.0, 0.0], rng.uniform(-500.0, 500.0, (12, 2))])
+    cost = default_sortie_cost(points, EnergyBudget(12.0, reserve=0.0))
+    plan_sorties(cost, seed=0, time_limit_s=600.0, max_iterations=3)
 
 
 def buoy_neighbours(C: np.ndarray, k: int) -> np.ndarray:
