@@ -26,8 +26,12 @@ class UnreachableBuoyError(PlannerError, ValueError):
         self.shortfall_pct = [100.0 * short / budget_wh for short in self.shortfall_wh]
         named = ", ".join(
             f"buoy {b} (needs {need:.1f} Wh, short by {short:.1f} Wh = {pct:.1f} %)"
-            for b, need, short, pct in zip(self.buoys, needed_wh, self.shortfall_wh, self.shortfall_pct, strict=True)
+            for b, need, short, pct in list(
+                zip(self.buoys, needed_wh, self.shortfall_wh, self.shortfall_pct, strict=True)
+            )[:5]
         )
+        if len(self.buoys) > 5:
+            named += f" and {len(self.buoys) - 5} more buoys"
         super().__init__(
             f"cannot reach and return from {named} within the usable {budget_wh:.1f} Wh of one battery, even alone"
         )
