@@ -56,6 +56,8 @@ bench: $(STAMP)
 	$(BIN)/python -m bench.planner_bench
 	$(BIN)/python -m bench.sitl
 	$(BIN)/python -m bench.gcs_bench
+	$(BIN)/python -m bench.sorties
+	$(BIN)/python -m bench.failover
 
 clean:
 	rm -rf $(VENV) $(MAVSDK3_VENV) .pytest_cache .ruff_cache
