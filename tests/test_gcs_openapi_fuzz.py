@@ -10,11 +10,13 @@ The stateful run follows the links POST /missions declares (get_mission, get_tel
 start, abort, each with the new mission's id), so the operations on a mission are reached with ids that exist,
 not only with the random ids the stateless run tries (which mostly answer 404). Its POST /missions sends a
 mission the service accepts (a generated one almost never is: buoy spacing, range, airframe limits; the
-stateless run fuzzes that operation) and not flying yet: its creation always succeeds, so the scenarios
-do not depend on the timing of other missions (a mission flown by its start link fails "no vehicle" at once).
+stateless run fuzzes that operation) and not flying yet. Each scenario has a service and database of its own
+and waits for a started mission to end ("no vehicle"), so a replayed scenario gets the same answers however
+loaded the machine.
 """
 
 import socket
+import time
 
 import pytest
 import schemathesis
@@ -31,6 +33,7 @@ from schemathesis.specs.openapi.checks import (
 
 from gcs.app import create_app
 from gcs.settings import Settings
+from gcs.status import TERMINAL
 from uavcore.geodesy import DEFAULT_HOME
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
@@ -55,14 +58,18 @@ APP_FOR_SCHEMA = create_app(Settings(db_path=":memory:"))
 schema = schemathesis.openapi.from_dict(APP_FOR_SCHEMA.openapi())
 
 
-@pytest.fixture(scope="module")
-def client(tmp_path_factory):
-    settings_ = Settings(
+def fuzz_settings(tmp_path_factory) -> Settings:
+    """A service with a database of its own and no vehicle at its link's port (missions wait 0.05 s for one)."""
+    return Settings(
         db_path=tmp_path_factory.mktemp("fuzz") / "gcs.sqlite",
         vehicle_url=f"udpout:127.0.0.1:{_free_udp_port()}",
         vehicle_wait_s=0.05,
     )
-    with TestClient(create_app(settings_), raise_server_exceptions=False) as c:
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    with TestClient(create_app(fuzz_settings(tmp_path_factory)), raise_server_exceptions=False) as c:
         yield c
 
 
@@ -70,6 +77,13 @@ def acceptable_mission() -> dict:
     lat, lon, _ = DEFAULT_HOME
     buoys = [{"id": f"B{i}", "lat": lat + 0.001 * i, "lon": lon + 0.0007 * (i % 2)} for i in range(1, 4)]
     return {"buoys": buoys, "start": False}
+
+
+def wait_until_ended(client: TestClient, mission_id: int, backstop_s: float = 60.0) -> None:
+    deadline = time.monotonic() + backstop_s
+    while client.get(f"/missions/{mission_id}").json()["status"] not in TERMINAL:
+        assert time.monotonic() < deadline, f"mission {mission_id} never ended"
+        time.sleep(0.01)
 
 
 def send(client: TestClient, case) -> Response:
@@ -92,12 +106,27 @@ def test_the_schema_declares_links_from_a_created_mission():
     assert {link["operationId"] for link in links.values()} <= operation_ids
 
 
-def test_stateful_scenarios_follow_the_links(client):
+def test_stateful_scenarios_follow_the_links(tmp_path_factory):
     class Scenarios(schema.as_state_machine()):
+        # each scenario talks to a service of its own (a fresh database): Hypothesis replays a scenario to shrink
+        # it and needs the same answers to draw the same steps, which missions left by earlier scenarios (their
+        # ids, their states) would change
+        def setup(self):
+            self.service = TestClient(create_app(fuzz_settings(tmp_path_factory)), raise_server_exceptions=False)
+            self.service.__enter__()
+
+        def teardown(self):
+            self.service.__exit__(None, None, None)
+
         def call(self, case, **kwargs):
             if case.operation.label == "POST /missions":
-                return Response.from_any(client.post("/missions", json=acceptable_mission()))
-            return send(client, case)
+                return Response.from_any(self.service.post("/missions", json=acceptable_mission()))
+            response = send(self.service, case)
+            if case.operation.label == "POST /missions/{mission_id}/start" and response.status_code == 200:
+                # the started mission fails "no vehicle" in the background: wait for it, so the next step finds
+                # the same state however loaded the machine
+                wait_until_ended(self.service, case.path_parameters["mission_id"])
+            return response
 
         def validate_response(self, response, case, additional_checks=None, **kwargs):
             case.validate_response(response, checks=CHECKS)
