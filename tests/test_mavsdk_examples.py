@@ -49,6 +49,7 @@ ON_GROUND = mavlink.MAV_LANDED_STATE_ON_GROUND
 # both cores beside the suite) the flight took over 180 s of wall clock
 EXAMPLE_BACKSTOP_S = 600.0
 ARMED_FLAG = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+CTRL_C_REPEAT_S = 5.0  # a Ctrl-C the example did not exit on is pressed again after this long
 EXCEPTION_GRACE_S = 5.0  # for an example that raised to exit by itself
 SETTLE_TIMEOUT_S = 180.0  # for the vehicle to finish what the example started (wall clock, a loaded machine)
 # For the observer's thread to have read what the vehicle sent before the example exited (a loaded machine's
@@ -199,7 +200,8 @@ def run_example(
 ) -> ExampleRun:
     """Run tests/mavsdk_examples/<name>.py listening on udp://:mavlink_port until it exits (or the deadline).
 
-    With interrupt_when, press Ctrl-C once it says True: SIGINT to the example's process group, as a terminal
+    With interrupt_when, press Ctrl-C once it says True (and again every CTRL_C_REPEAT_S while the example runs):
+    SIGINT to the example's process group, as a terminal
     sends it to the example and the mavsdk_server it started. An example whose run() raised does not exit by
     itself (MAVSDK-Python's thread reading mavsdk_server's output keeps it alive): once its traceback is out,
     it is given EXCEPTION_GRACE_S and then counted as failed. At the end anything left of the example's
@@ -212,13 +214,20 @@ def run_example(
     start = time.monotonic()
     with open(out_path, "w") as out, open(err_path, "w") as err:
         process = subprocess.Popen(args, cwd=cwd, stdout=out, stderr=err, env=env, start_new_session=True)
-    interrupted = False
+    interrupted_at: float | None = None
     deadline = start + timeout
     try:
         while process.poll() is None and time.monotonic() < deadline:
-            if interrupt_when is not None and not interrupted and interrupt_when():
+            # Ctrl-C, and again every CTRL_C_REPEAT_S while it is still running, as a user would press it: a
+            # KeyboardInterrupt that lands while MAVSDK-Python's reader thread is busy can leave the
+            # interpreter waiting for that thread at exit
+            if interrupted_at is not None:
+                press = time.monotonic() - interrupted_at > CTRL_C_REPEAT_S
+            else:
+                press = interrupt_when is not None and interrupt_when()
+            if press:
                 os.killpg(process.pid, signal.SIGINT)
-                interrupted = True
+                interrupted_at = time.monotonic()
             if "Traceback (most recent call last)" in err_path.read_text():
                 deadline = min(deadline, time.monotonic() + EXCEPTION_GRACE_S)
             time.sleep(0.1)
