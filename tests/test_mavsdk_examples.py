@@ -309,12 +309,19 @@ def test_goto(flight, tmp_path):
     def arrived(record: FlightRecord) -> bool:
         return bool(record.track) and record.passed_near(float(north), float(east), 20.0, tolerance_m=2.0)
 
-    run = run_example(
-        "goto", f.mavlink_port, tmp_path, timeout=EXAMPLE_BACKSTOP_S, interrupt_when=lambda: f.observer.check(arrived)
-    )
+    started, there_after_s = time.monotonic(), []
+
+    def there() -> bool:  # also notes when the vehicle was first seen there (Ctrl-C is pressed then)
+        if f.observer.check(arrived):
+            there_after_s[:] = there_after_s or [time.monotonic() - started]
+            return True
+        return False
+
+    run = run_example("goto", f.mavlink_port, tmp_path, timeout=EXAMPLE_BACKSTOP_S, interrupt_when=there)
     assert f.observer.check(arrived), f"{run.describe()}\n{f.observer.summary()}"
     assert "Staying connected" in run.stdout, run.describe()
-    assert run.returncode == -signal.SIGINT, run.describe()  # the example ends by Ctrl-C only
+    # the example ends by Ctrl-C only
+    assert run.returncode == -signal.SIGINT, f"{run.describe()}\nthere after {there_after_s} s; {f.observer.summary()}"
 
 
 ORBIT_CENTRE = (47.398036222362471, 8.5450146439425509)
