@@ -190,6 +190,13 @@ class ExampleRun:
         )
 
 
+def _ctrl_c_as_in_a_terminal() -> None:
+    """In the example's process: Ctrl-C (SIGINT) does what it does in a terminal. A test run started in the
+    background of a shell (`make test &`, a CI runner) inherits SIGINT ignored, and Python then never raises
+    KeyboardInterrupt: the goto example, which ends only by Ctrl-C, ran to the test's backstop."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def run_example(
     name: str,
     mavlink_port: int,
@@ -213,7 +220,9 @@ def run_example(
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     start = time.monotonic()
     with open(out_path, "w") as out, open(err_path, "w") as err:
-        process = subprocess.Popen(args, cwd=cwd, stdout=out, stderr=err, env=env, start_new_session=True)
+        process = subprocess.Popen(
+            args, cwd=cwd, stdout=out, stderr=err, env=env, start_new_session=True, preexec_fn=_ctrl_c_as_in_a_terminal
+        )
     interrupted_at: float | None = None
     deadline = start + timeout
     try:
