@@ -1,4 +1,4 @@
-"""The REST contract as pydantic models (field names fixed by ARCHITECTURE.md, section REST).
+"""The REST contract as pydantic models (field names fixed by docs/architecture.md, section REST).
 
 Only structural checks live here (types, finite numbers, lat/lon ranges, 1..500 buoys); the checks that depend
 on settings (airframe limits, spacing, range) are in `gcs.validation`, which answers in the same 422 shape.
