@@ -54,6 +54,21 @@ def raw_connection(database: str | Path) -> sqlite3.Connection | psycopg.Connect
     return psycopg.connect(database, autocommit=True)
 
 
+def database_at_version(database: str | Path, schema_version: int) -> sqlite3.Connection | psycopg.Connection:
+    """The database as a service of `schema_version` left it, with one flying mission (id 1): a raw connection."""
+    connection = raw_connection(database)
+    dialect = "sqlite" if isinstance(database, Path) else "postgresql"
+    connection.execute("CREATE TABLE schema_migrations (version INTEGER PRIMARY KEY, applied_at TEXT NOT NULL)")
+    for version in range(1, schema_version + 1):
+        for statement in MIGRATIONS[version - 1].statements(dialect):
+            connection.execute(statement)
+        connection.execute(f"INSERT INTO schema_migrations VALUES ({version}, 'then')")
+    connection.execute(
+        "INSERT INTO missions (created_at, updated_at, status, flight, plan) VALUES ('a','a','flying','{}','{}')"
+    )
+    return connection
+
+
 # ----- both backends
 def test_fresh_database_is_migrated(storage):
     assert storage.schema_version() == len(MIGRATIONS)
@@ -129,16 +144,7 @@ def test_a_sample_recorded_again_is_skipped_and_samples_come_in_time_order(stora
 
 
 def test_migration_3_removes_duplicate_samples_keeping_the_first(database):
-    connection = raw_connection(database)
-    dialect = "sqlite" if isinstance(database, Path) else "postgresql"
-    connection.execute("CREATE TABLE schema_migrations (version INTEGER PRIMARY KEY, applied_at TEXT NOT NULL)")
-    for version in (1, 2):  # the database as a service of schema version 2 left it
-        for statement in MIGRATIONS[version - 1].statements(dialect):
-            connection.execute(statement)
-        connection.execute(f"INSERT INTO schema_migrations VALUES ({version}, 'then')")
-    connection.execute(
-        "INSERT INTO missions (created_at, updated_at, status, flight, plan) VALUES ('a','a','flying','{}','{}')"
-    )
+    connection = database_at_version(database, 2)
     for t_s, sample in ((0.1, "first"), (0.2, "first"), (0.1, "second"), (0.3, "first"), (0.2, "second")):
         connection.execute(f"""INSERT INTO telemetry VALUES (1, {t_s}, '{{"t_s": {t_s}, "is": "{sample}"}}')""")
     connection.close()
@@ -152,16 +158,7 @@ def test_migration_3_removes_duplicate_samples_keeping_the_first(database):
 
 
 def test_migration_4_copies_each_stored_samples_position_into_the_track_columns(database):
-    connection = raw_connection(database)
-    dialect = "sqlite" if isinstance(database, Path) else "postgresql"
-    connection.execute("CREATE TABLE schema_migrations (version INTEGER PRIMARY KEY, applied_at TEXT NOT NULL)")
-    for version in (1, 2, 3):  # the database as a service of schema version 3 left it
-        for statement in MIGRATIONS[version - 1].statements(dialect):
-            connection.execute(statement)
-        connection.execute(f"INSERT INTO schema_migrations VALUES ({version}, 'then')")
-    connection.execute(
-        "INSERT INTO missions (created_at, updated_at, status, flight, plan) VALUES ('a','a','flying','{}','{}')"
-    )
+    connection = database_at_version(database, 3)
     connection.execute("""INSERT INTO telemetry VALUES (1, 0.1, '{"t_s": 0.1, "lat": 55.5, "lon": 12.25}')""")
     connection.execute(
         """INSERT INTO telemetry VALUES (1, 0.2, '{"t_s": 0.2, "lat": null, "lon": null, "cross_track_m": 0.75}')"""
