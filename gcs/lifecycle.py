@@ -186,6 +186,7 @@ class FlightLifecycle:
         except asyncio.CancelledError:
             if self._handing_over and self.storage.get_mission(mission_id).status == MissionStatus.FLYING:
                 self._detach(mission_id, recorder)
+                log.warning("mission %s handed over in flight: the next owner of the link re-attaches it", mission_id)
                 raise
             status, reason = MissionStatus.FAILED, "the service stopped during the mission"
             if mission_id in self._abort_requested:
@@ -211,24 +212,22 @@ class FlightLifecycle:
         status: MissionStatus,
         reason: str | None,
     ) -> None:
-        self.link.remove_listener(recorder, recorder.end_of_chunk)
-        self._recorders.pop(mission_id, None)
         self._abort_requested.discard(mission_id)
-        self.storage.add_telemetry(mission_id, recorder.take())
-        progress = recorder.progress()
-        self.storage.set_progress(mission_id, progress)
+        progress = self._detach(mission_id, recorder)
         samples = self.storage.telemetry(mission_id)
         if samples:
             self.storage.set_results(mission_id, flight_results(plan, flight, samples, progress))
         self._transition(mission_id, status, reason)
 
-    def _detach(self, mission_id: int, recorder: MissionRecorder) -> None:
-        """Stop recording a mission that goes on flying, keeping all it recorded (see `stop(hand_over=True)`)."""
+    def _detach(self, mission_id: int, recorder: MissionRecorder) -> dict[str, Any]:
+        """Stop recording a mission, storing all it recorded: its samples and progress (returned). A mission
+        that goes on flying (`stop(hand_over=True)`) is left there; `_finish` goes on to end it."""
         self.link.remove_listener(recorder, recorder.end_of_chunk)
         self._recorders.pop(mission_id, None)
         self.storage.add_telemetry(mission_id, recorder.take())
-        self.storage.set_progress(mission_id, recorder.progress())
-        log.warning("mission %s handed over in flight: the next owner of the vehicle link re-attaches it", mission_id)
+        progress = recorder.progress()
+        self.storage.set_progress(mission_id, progress)
+        return progress
 
     def _transition(self, mission_id: int, status: MissionStatus, reason: str | None = None) -> None:
         self.storage.set_status(mission_id, status, reason)
