@@ -6,7 +6,8 @@ What differs between them and is handled here, so the ground station's mission l
   planned items move up by one; PX4 stores them as they are);
 - how a mission starts (PX4: AUTO.MISSION mode, or MAV_CMD_MISSION_START; ArduPilot: a takeoff in GUIDED, then
   AUTO with MAV_CMD_MISSION_START) and how the vehicle is sent home;
-- how telemetry rates are asked for (SET_MESSAGE_INTERVAL; ArduPilot also understands REQUEST_DATA_STREAM).
+- how telemetry rates are asked for (SET_MESSAGE_INTERVAL; ArduPilot also understands REQUEST_DATA_STREAM);
+- how an integer parameter travels in PARAM_VALUE's float (PX4: its bytes; ArduPilot: its value cast to float).
 """
 
 from __future__ import annotations
@@ -20,6 +21,11 @@ from uavcore.mission import MavCmd, MavFrame, MissionItem
 from uavcore.modes import FlightMode, Px4AutoSubMode, Px4MainMode, px4_custom_mode, px4_mode_name
 
 CUSTOM_MODE_ENABLED = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+# The two ways an autopilot puts an integer parameter into PARAM_VALUE.param_value (a float), as its
+# AUTOPILOT_VERSION.capabilities announce them: the integer's bytes copied into the float's four, or the integer
+# converted to a float (exact up to 2**24).
+PARAM_ENCODE_BYTEWISE = mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+PARAM_ENCODE_C_CAST = mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
 
 
 class Autopilot:
@@ -29,6 +35,7 @@ class Autopilot:
     mission_offset = 0  # planned item k is stored as item k + mission_offset
     takes_off_before_mission = False
     streams_by_data_stream_request = False
+    param_encoding = PARAM_ENCODE_C_CAST  # PARAM_ENCODE_BYTEWISE or PARAM_ENCODE_C_CAST
 
     def mode_name(self, custom_mode: int) -> str:
         return f"custom {custom_mode}"
@@ -54,6 +61,7 @@ class Autopilot:
 
 class Px4(Autopilot):
     name = "PX4"
+    param_encoding = PARAM_ENCODE_BYTEWISE  # PX4's mavlink_parameters.cpp copies an INT32's bytes into the float
     _modes: ClassVar[dict[str, tuple[int, int]]] = {
         "mission": (Px4MainMode.AUTO, Px4AutoSubMode.MISSION),
         "return": (Px4MainMode.AUTO, Px4AutoSubMode.RTL),
@@ -81,6 +89,7 @@ class ArduCopter(Autopilot):
     mission_offset = 1
     takes_off_before_mission = True
     streams_by_data_stream_request = True
+    param_encoding = PARAM_ENCODE_C_CAST  # ArduPilot sends every parameter's value as a float number
     MODES: ClassVar[dict[int, str]] = {
         0: "STABILIZE",
         1: "ACRO",

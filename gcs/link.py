@@ -15,8 +15,11 @@ What it does, as QGroundControl and MAVSDK do:
   constant through one boot) as well as by `time_boot_ms` going back;
 - asks for the streams it needs with SET_MESSAGE_INTERVAL (and REQUEST_DATA_STREAM for ArduPilot), and never
   assumes one datagram is one vehicle tick or that messages come at any particular rate;
-- offers typed actions (`arm`, `start_mission`, `return_to_launch`, `upload_mission`, `download_mission`) that
-  raise typed errors, as MAVSDK's Action and MissionRaw plugins do, so callers hold no MAVLink numbers;
+- offers typed actions (`arm`, `start_mission`, `return_to_launch`, `reset_battery`, `upload_mission`,
+  `download_mission`, `read_parameters`) that raise typed errors, as MAVSDK's Action, MissionRaw and Param
+  plugins do, so callers hold no MAVLink numbers;
+- keeps the first battery's state (BATTERY_STATUS id 0; SYS_STATUS's battery fields from an autopilot that
+  sends no BATTERY_STATUS);
 - hands chosen messages to subscribers through queues and listeners. With a signing key it signs every message
   and accepts only signed ones (`uavcore.mavlink`).
 """
@@ -39,6 +42,7 @@ from uavcore.geofence import Geofence
 from uavcore.mavlink import (
     GCS_COMPID,
     GCS_SYSID,
+    MAV_CMD_BATTERY_RESET,
     VEHICLE_UDP_PORT,
     Encoder,
     mavlink,
@@ -87,8 +91,21 @@ STREAMS = {
     "EXTENDED_SYS_STATE": 2.0,
     "MISSION_CURRENT": 2.0,
     "SYS_STATUS": 1.0,
+    "BATTERY_STATUS": 1.0,
     "SYSTEM_TIME": 1.0,
 }
+
+FIRST_BATTERY_MASK = 1  # MAV_CMD_BATTERY_RESET's param1: bit 0 is the first battery (BATTERY_STATUS id 0)
+UINT16_MAX = 65535  # BATTERY_STATUS.voltages: no such cell; SYS_STATUS.voltage_battery: unknown
+# Charge states in which the pack must not fly on (PX4: critical and emergency land or return at once)
+BATTERY_CRITICAL_STATES = frozenset(
+    {
+        mavlink.MAV_BATTERY_CHARGE_STATE_CRITICAL,
+        mavlink.MAV_BATTERY_CHARGE_STATE_EMERGENCY,
+        mavlink.MAV_BATTERY_CHARGE_STATE_FAILED,
+        mavlink.MAV_BATTERY_CHARGE_STATE_UNHEALTHY,
+    }
+)
 
 
 class LinkError(RuntimeError):
@@ -166,6 +183,13 @@ class VehicleStatus:
     mission_seq: int | None = None
     mission_total: int | None = None
     mission_state: int | None = None
+    # the first battery (BATTERY_STATUS id 0, else SYS_STATUS); None: not reported
+    battery_remaining_pct: float | None = None
+    battery_voltage_v: float | None = None  # the pack: sum of its cells
+    battery_current_a: float | None = None  # drawn from the pack
+    battery_consumed_wh: float | None = None  # since the pack was put in (or the vehicle booted)
+    battery_charge_state: int | None = None  # MAV_BATTERY_CHARGE_STATE (OK 1, LOW 2, CRITICAL 3, ...)
+    battery_status_seen: bool = field(default=False, repr=False)  # then SYS_STATUS's battery fields are ignored
     home: tuple[float, float, float] | None = None
     estimates: dict[str, Any] = field(default_factory=dict)  # a companion controller's ESO outputs by name
     status_texts: list[str] = field(default_factory=list)  # the vehicle's latest STATUSTEXTs, oldest first
@@ -183,9 +207,16 @@ class VehicleStatus:
         """MISSION_CURRENT.mission_state says COMPLETE (autopilots that report it: PX4, recent ArduPilot)."""
         return self.mission_state == mavlink.MISSION_STATE_COMPLETE
 
+    @property
+    def battery_critical(self) -> bool:
+        """The autopilot says the pack is at its critical or emergency level, failed or unhealthy."""
+        return self.battery_charge_state in BATTERY_CRITICAL_STATES
+
     def as_dict(self) -> dict[str, Any]:
         age = None if self.last_heartbeat is None else time.monotonic() - self.last_heartbeat
-        data = {k: v for k, v in self.__dict__.items() if k not in ("last_heartbeat", "home")}
+        hidden = ("last_heartbeat", "home", "battery_status_seen")
+        data = {k: v for k, v in self.__dict__.items() if k not in hidden}
+        data["battery_critical"] = self.battery_critical
         data["heartbeat_age_s"] = age
         data["mode"] = self.mode if self.connected else None
         data["home"] = None if self.home is None else {"lat": self.home[0], "lon": self.home[1], "alt": self.home[2]}
@@ -195,6 +226,20 @@ class VehicleStatus:
 
 def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
+
+
+def _known(value: int, unknown: int, per_unit: float = 1.0) -> float | None:
+    """An integer field in units (value / per_unit: mV / 1000 is V), or None where it holds its "unknown" marker."""
+    return None if value == unknown else value / per_unit
+
+
+def _pack_voltage_v(m: Any) -> float | None:
+    """BATTERY_STATUS's pack voltage: the sum of the cells present. voltages[] marks an absent cell UINT16_MAX,
+    voltages_ext[] (cells 11-14) 0; a pack measured only as a whole comes as cell 1 (above 65.534 V spread over
+    the next cells), so the sum is right in every case."""
+    cells = [v for v in m.voltages if v != UINT16_MAX]
+    cells += [v for v in m.voltages_ext if v not in (0, UINT16_MAX)]
+    return sum(cells) / 1000.0 if cells else None
 
 
 class LinkManager:
@@ -376,6 +421,21 @@ class LinkManager:
     async def return_to_launch(self) -> None:
         await self._command("return to launch", mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
 
+    async def reset_battery(self, percent: float = 100.0) -> None:
+        """Tell the autopilot a fresh pack is in (the first battery, at `percent` charge): MAV_CMD_BATTERY_RESET.
+        Autopilots take it only landed and disarmed; a refusal raises CommandDeniedError."""
+        if not 0.0 <= percent <= 100.0:
+            raise ValueError(f"battery charge must be 0 to 100 %, got {percent}")
+        await self._command(f"reset the battery to {percent:g} %", MAV_CMD_BATTERY_RESET, [FIRST_BATTERY_MASK, percent])
+
+    # ----- parameters (MAVSDK's Param plugin)
+    async def read_parameters(self, names: Sequence[str], timeout_s: float = 3.0) -> dict[str, float]:
+        """{name: value} read from the vehicle, integers decoded as its autopilot encodes them; raises
+        ParameterError (a LinkError) naming the parameters that did not answer within timeout_s."""
+        from gcs.parameters import read_parameters  # imported here: gcs.parameters' error derives from LinkError
+
+        return await read_parameters(self, names, timeout_s)
+
     # ----- missions (MAVSDK's MissionRaw plugin)
     async def upload_mission(self, items: Sequence[MissionItem], home: tuple[float, float, float]) -> None:
         await upload_items(self, self.autopilot.items_for_vehicle(items, home))
@@ -514,6 +574,17 @@ class LinkManager:
             s.ref_yaw = _finite(m.yaw)
         elif kind == "EXTENDED_SYS_STATE":
             s.landed_state = m.landed_state
+        elif kind == "BATTERY_STATUS" and m.id == 0:
+            s.battery_status_seen = True
+            s.battery_remaining_pct = _known(m.battery_remaining, -1)
+            s.battery_voltage_v = _pack_voltage_v(m)
+            s.battery_current_a = _known(m.current_battery, -1, 100)  # cA
+            s.battery_consumed_wh = _known(m.energy_consumed, -1, 36)  # hJ: 36 hJ = 1 Wh
+            s.battery_charge_state = m.charge_state or None  # 0: MAV_BATTERY_CHARGE_STATE_UNDEFINED
+        elif kind == "SYS_STATUS" and not s.battery_status_seen:
+            s.battery_remaining_pct = _known(m.battery_remaining, -1)
+            s.battery_voltage_v = _known(m.voltage_battery, UINT16_MAX, 1000)  # mV
+            s.battery_current_a = _known(m.current_battery, -1, 100)  # cA
         elif kind == "MISSION_CURRENT":
             s.mission_seq = self.autopilot.planned_seq(m.seq)
             s.mission_total = m.total  # MAVLink: "a home stored as part of the mission is excluded from the total"

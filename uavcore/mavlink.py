@@ -24,6 +24,7 @@ __all__ = [
     "AUTOPILOT_COMPID",
     "GCS_COMPID",
     "GCS_SYSID",
+    "MAV_CMD_BATTERY_RESET",
     "ONBOARD_COMPUTER_COMPID",
     "VEHICLE_SYSID",
     "Encoder",
@@ -44,6 +45,11 @@ AUTOPILOT_COMPID = mavlink.MAV_COMP_ID_AUTOPILOT1  # 1
 ONBOARD_COMPUTER_COMPID = mavlink.MAV_COMP_ID_ONBOARD_COMPUTER  # 191: the offboard controller
 GCS_SYSID = 255  # QGroundControl's and MAVProxy's default ground-station system id
 GCS_COMPID = mavlink.MAV_COMP_ID_MISSIONPLANNER  # 190
+
+# Command ids the common dialect lacks. MAV_CMD_BATTERY_RESET is ardupilotmega.xml's (PX4 and ArduPilot both accept
+# it): param1 the mask of batteries to reset (bit 0: the first battery, BATTERY_STATUS id 0), param2 the percentage
+# remaining to set.
+MAV_CMD_BATTERY_RESET = 42651
 
 # Ports, as PX4 SITL uses them: the vehicle's API/offboard port (our vehicle listens here by default) and the
 # ground-control port vehicles and radios send to.

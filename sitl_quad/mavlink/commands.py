@@ -11,7 +11,7 @@ import math
 from collections.abc import Callable
 
 from sitl_quad.vehicle import FORCE_DISARM_MAGIC, CommandResult, Vehicle
-from uavcore.mavlink import mavlink
+from uavcore.mavlink import MAV_CMD_BATTERY_RESET, mavlink
 from uavcore.modes import FlightMode
 
 log = logging.getLogger(__name__)
@@ -24,9 +24,6 @@ POSITIONAL_COMMANDS = {
     mavlink.MAV_CMD_NAV_LAND,
 }
 INT32_MAX = 2**31 - 1  # COMMAND_INT's "unused" x / y
-# Not in the common dialect (ardupilotmega.xml defines it; PX4 and ArduPilot both accept it): param1 the mask of
-# batteries to reset (bit 0: battery 1), param2 the percentage remaining to set.
-MAV_CMD_BATTERY_RESET = 42651
 CommandHandler = Callable[[tuple], CommandResult]
 
 
