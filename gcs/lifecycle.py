@@ -48,6 +48,8 @@ ABORTED_BEFORE_TAKEOFF = "aborted by the operator before takeoff"
 RESTART_NOT_FLYING = "GCS restarted; vehicle no longer flying this mission"
 REATTACHED = "GCS restarted; re-attached to the vehicle flying this mission"
 MISSION_CURRENT_WAIT_S = 3.0  # wall clock a re-attaching service waits for the vehicle's MISSION_CURRENT
+BATTERY_REPORT_WAIT_S = 5.0  # wall clock for the vehicle's battery report (BATTERY_STATUS comes at 1 Hz)
+BATTERY_SETTLE_MS = 1500.0  # vehicle time after a landing before its battery report counts (one report after it)
 
 
 class MissionConflictError(RuntimeError):
@@ -66,6 +68,23 @@ def flight_budget_s(plan: Plan, flight: FlightParams, margin_s: float) -> float:
     """Simulated seconds a mission may take before it is declared failed."""
     cruise = plan.length_m / flight.speed_m_s
     return cruise + len(plan.order) * flight.dwell_s + 2 * flight.altitude_m / CLIMB_RATE_M_S + margin_s
+
+
+def ended_early(recorder: MissionRecorder) -> MissionEndError:
+    """How a mission ends when the vehicle disarmed before completing it: aborted after a battery failsafe (the
+    vehicle reported its battery critical and came down: returned or landed, as its COM_LOW_BAT_ACT /
+    BATT_FS_CRT_ACT says), with the buoys not inspected; failed after anything else."""
+    progress = recorder.progress()
+    if recorder.battery_failsafe:
+        texts = [e["text"] for e in recorder.vehicle_events if "battery" in e["text"].lower()]
+        said = f" ({texts[-1]})" if texts else ""
+        return MissionEndError(
+            MissionStatus.ABORTED,
+            f"battery failsafe{said}: the vehicle came down with {progress['visited']} of {progress['buoys']} buoys "
+            f"inspected; not inspected: {', '.join(recorder.not_inspected())}",
+        )
+    reason = ended_early_reason(recorder.vehicle_events, progress["visited"], progress["buoys"])
+    return MissionEndError(MissionStatus.FAILED, reason)
 
 
 def ended_early_reason(events: list[dict[str, Any]], visited: int, buoys: int) -> str:
@@ -236,17 +255,86 @@ class FlightLifecycle:
     async def _fly(self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder) -> None:
         if not await self.link.wait_connected(self.settings.vehicle_wait_s):
             raise MissionEndError(MissionStatus.FAILED, "no vehicle")
+        for sortie in range(len(plan.sortie_orders())):
+            await self._fly_sortie(mission_id, plan, flight, recorder, sortie)
+        raise MissionEndError(MissionStatus.COMPLETED, None)
+
+    async def _fly_sortie(
+        self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder, sortie: int
+    ) -> None:
+        """Upload, arm, start and watch one sortie to its landing at the depot. Between sorties the mission stays
+        flying, its events saying which sortie is on; before each one the vehicle gets a fresh battery."""
+        sorties = len(plan.sortie_orders())
+        on = f"sortie {sortie + 1} of {sorties}" if sorties > 1 else None
+        self._check_abort_between_sorties(mission_id, sortie)
         incarnation = self.link.status.incarnation
-        self._transition(mission_id, MissionStatus.UPLOADING)
+        self._transition(mission_id, MissionStatus.UPLOADING if sortie == 0 else MissionStatus.FLYING, on)
+        if plan.energy is not None:
+            await self._battery_for(plan, sortie)
         vehicle_home = self.link.status.home
-        items = mission_items(plan, flight, None if vehicle_home is None else vehicle_home[:2])
+        sortie_plan = plan.sortie_plan(sortie)
+        items = mission_items(sortie_plan, flight, None if vehicle_home is None else vehicle_home[:2])
         await self.link.upload_mission(items, vehicle_home or self.settings.home)
-        self._transition(mission_id, MissionStatus.UPLOADED)
-        self._record_with(mission_id, recorder)
+        if sortie == 0:
+            self._transition(mission_id, MissionStatus.UPLOADED, on)
+            self._record_with(mission_id, recorder)
+        else:
+            recorder.begin_sortie(sortie)
+        self._check_abort_between_sorties(mission_id, sortie)
+        recorder.sortie_took_off()
         await self.link.arm()
         await self.link.start_mission(items)
-        self._transition(mission_id, MissionStatus.FLYING)
-        await self._monitor(mission_id, plan, flight, recorder, incarnation, len(items))
+        if sortie == 0:
+            self._transition(mission_id, MissionStatus.FLYING, on)
+        await self._monitor(mission_id, sortie_plan, flight, recorder, incarnation, len(items))
+        await self._landed(recorder)
+
+    def _check_abort_between_sorties(self, mission_id: int, sortie: int) -> None:
+        if sortie > 0 and mission_id in self._abort_requested:
+            raise MissionEndError(
+                MissionStatus.ABORTED, f"aborted by the operator at the depot before sortie {sortie + 1}"
+            )
+
+    async def _battery_for(self, plan: Plan, sortie: int) -> None:
+        """A pack with the charge the sortie needs (its predicted energy and the reserve). Between sorties the
+        crew swaps the pack, which MAV_CMD_BATTERY_RESET tells the vehicle (the simulator puts a full pack in;
+        ArduPilot resets its consumed-energy count); before the first, only a pack short of the need is swapped.
+        A vehicle still reporting too little charge afterwards ends the mission: it would land early."""
+        needed = min(plan.energy["sorties"][sortie]["needed_charge_pct"], 100.0)
+        remaining = await self._battery_remaining()
+        if sortie > 0 or remaining is None or remaining < needed:
+            await self.link.reset_battery(100.0)
+            deadline = time.monotonic() + BATTERY_REPORT_WAIT_S
+            while time.monotonic() < deadline and ((remaining := self.link.status.battery_remaining_pct) or 0) < needed:
+                await asyncio.sleep(0.1)
+        if remaining is None or remaining < needed:
+            charge = "no charge reported" if remaining is None else f"{remaining:.0f} % charge"
+            raise MissionEndError(
+                MissionStatus.ABORTED,
+                f"battery not ready for sortie {sortie + 1}: {charge}, the sortie needs {needed:.0f} %; "
+                f"buoys not inspected: {', '.join(self._recorders_not_inspected(plan))}",
+            )
+
+    async def _battery_remaining(self) -> float | None:
+        deadline = time.monotonic() + BATTERY_REPORT_WAIT_S
+        while self.link.status.battery_remaining_pct is None and time.monotonic() < deadline:
+            await asyncio.sleep(0.1)
+        return self.link.status.battery_remaining_pct
+
+    def _recorders_not_inspected(self, plan: Plan) -> list[str]:
+        for recorder in self._recorders.values():
+            if recorder.mission_plan is plan:
+                return recorder.not_inspected()
+        return [plan.buoy_ids[b] for b in plan.order]
+
+    async def _landed(self, recorder: MissionRecorder) -> None:
+        """The sortie is down: its battery figures once the vehicle has reported its battery after the disarm."""
+        s = self.link.status
+        since_ms = s.time_boot_ms or 0
+        deadline = time.monotonic() + BATTERY_REPORT_WAIT_S
+        while (s.time_boot_ms or 0) - since_ms < BATTERY_SETTLE_MS and time.monotonic() < deadline:
+            await asyncio.sleep(0.1)
+        recorder.sortie_landed()
 
     async def _resume(self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder) -> None:
         """Re-attach to a mission a previous run of the service left unfinished, or end it (see the module doc)."""
@@ -257,7 +345,9 @@ class FlightLifecycle:
         while s.mission_total is None and time.monotonic() < deadline:
             await asyncio.sleep(0.1)
         home = s.home
-        expected = mission_items(plan, flight, None if home is None else (home[0], home[1]))
+        sortie = recorder.sortie
+        sortie_plan = plan.sortie_plan(sortie)
+        expected = mission_items(sortie_plan, flight, None if home is None else (home[0], home[1]))
         on_board = await self.link.download_mission()
         same = len(on_board) == len(expected) and all(
             (a.command, a.x, a.y) == (b.command, b.x, b.y) for a, b in zip(on_board, expected, strict=True)
@@ -266,12 +356,15 @@ class FlightLifecycle:
             raise MissionEndError(MissionStatus.FAILED, f"{RESTART_NOT_FLYING} (another mission is on board)")
         self._record_with(mission_id, recorder)
         if not s.armed:
-            finished = s.mission_complete and s.on_ground
-            if finished:
-                raise MissionEndError(MissionStatus.COMPLETED, None)
-            raise MissionEndError(MissionStatus.FAILED, RESTART_NOT_FLYING)
-        self._transition(mission_id, MissionStatus.FLYING, REATTACHED)
-        await self._monitor(mission_id, plan, flight, recorder, s.incarnation, len(expected))
+            if not (s.mission_complete and s.on_ground):
+                raise MissionEndError(MissionStatus.FAILED, RESTART_NOT_FLYING)
+        else:
+            self._transition(mission_id, MissionStatus.FLYING, REATTACHED)
+            await self._monitor(mission_id, sortie_plan, flight, recorder, s.incarnation, len(expected))
+        await self._landed(recorder)
+        for later in range(sortie + 1, len(plan.sortie_orders())):
+            await self._fly_sortie(mission_id, plan, flight, recorder, later)
+        raise MissionEndError(MissionStatus.COMPLETED, None)
 
     async def _monitor(
         self,
@@ -287,6 +380,7 @@ class FlightLifecycle:
         budget_s = flight_budget_s(plan, flight, self.settings.mission_timeout_margin_s)
         start_s = (s.time_boot_ms or 0) / 1000.0
         disarmed_since: float | None = None
+        was_armed = False  # "finished" counts only after the vehicle flew this sortie (not a stale report)
         aborting = False
         last_progress: dict[str, Any] | None = None
         while True:
@@ -308,17 +402,17 @@ class FlightLifecycle:
                 aborting = True
                 await self.link.return_to_launch()
                 self._transition(mission_id, MissionStatus.ABORTED, "aborted by the operator: returning to the depot")
+            was_armed = was_armed or s.armed
             on_ground_disarmed = not s.armed and s.on_ground
             finished = s.mission_complete or (n_items - 1) in recorder.reached_seqs
             if on_ground_disarmed and aborting:
                 raise MissionEndError(MissionStatus.ABORTED, "aborted by the operator: returned to the depot")
-            if on_ground_disarmed and finished:
-                raise MissionEndError(MissionStatus.COMPLETED, None)
+            if on_ground_disarmed and finished and was_armed:
+                return
             if not s.armed:
                 disarmed_since = disarmed_since or time.monotonic()
                 if time.monotonic() - disarmed_since > DISARM_GRACE_S:
-                    reason = ended_early_reason(recorder.vehicle_events, progress["visited"], len(plan.order))
-                    raise MissionEndError(MissionStatus.FAILED, reason)
+                    raise ended_early(recorder)
             else:
                 disarmed_since = None
             elapsed = (s.time_boot_ms or 0) / 1000.0 - start_s

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from gcs import report, views
+from gcs.energy_planning import battery_plan, energy_plan
 from gcs.lifecycle import FlightLifecycle, MissionConflictError
 from gcs.link import LinkError, LinkManager
 from gcs.mission_protocol import MissionTransferError
@@ -35,6 +36,8 @@ from gcs.validation import (
     validate_request,
     validate_route_length,
 )
+from planner.energy import EnergyModel
+from uavcore.battery_pack import PACK_PARAMETERS, PackSpec
 from uavcore.geofence import FenceError, Geofence
 from uavcore.mission import MissionItem
 
@@ -56,6 +59,7 @@ class MissionService:
         self._ownership = ownership or ownership_for(settings)
         self._flights = FlightLifecycle(settings, storage, link)
         self._fence_unanswered: int | None = None  # the vehicle incarnation that did not answer a fence request
+        self.energy_model = EnergyModel.load()  # planner/energy_params.json: the calibrated route energy model
         self.documents = VersionedCache()  # the read routes' encoded documents by version (gcs.read_cache)
 
     async def start(self) -> None:
@@ -82,10 +86,21 @@ class MissionService:
         return home[0], home[1]
 
     async def plan(self, request: PlanRequest) -> tuple[Plan, FlightParams]:
-        """Validate and plan against the request's geofence, else the one the vehicle holds (read now).
-        Raises RequestInvalidError or InputError."""
+        """Validate and plan against the request's geofence, else the one the vehicle holds (read now), and with
+        battery options against the vehicle's pack (read now). Raises RequestInvalidError or InputError."""
         fence = fence_from_request(request.geofence) if request.geofence else await self._vehicle_fence()
-        return await asyncio.to_thread(self._plan, request, fence)
+        pack = await self._vehicle_pack() if request.battery is not None else None
+        return await asyncio.to_thread(self._plan, request, fence, pack)
+
+    async def _vehicle_pack(self) -> PackSpec | None:
+        """The vehicle's pack and warning thresholds from its parameters; None when it has no such parameters
+        (an ArduPilot names them otherwise) or does not answer."""
+        if not self._link.status.connected:
+            return None
+        try:
+            return PackSpec.from_parameters(await self._link.read_parameters(list(PACK_PARAMETERS)))
+        except (LinkError, TimeoutError, ValueError):
+            return None
 
     async def _vehicle_fence(self) -> Geofence | None:
         """The vehicle's current geofence; what was read at connection if it does not answer in time (an
@@ -99,7 +114,7 @@ class MissionService:
             self._fence_unanswered = link.status.incarnation
             return link.fence
 
-    def _plan(self, request: PlanRequest, fence: Geofence | None) -> tuple[Plan, FlightParams]:
+    def _plan(self, request: PlanRequest, fence: Geofence | None, pack: PackSpec | None) -> tuple[Plan, FlightParams]:
         """The CPU-bound part of `plan` (runs in a worker thread)."""
         depot = (request.depot.lat, request.depot.lon) if request.depot else self.default_depot()
         validate_request(request, depot, self.settings.limits)
@@ -109,18 +124,16 @@ class MissionService:
         if fence is not None and not fence.empty:
             validate_fence_points(depot, buoys, fence)
             fenced = fenced_legs(depot, np.asarray(buoys), fence)
-        plan = make_plan(
-            depot,
-            buoys,
-            ids,
-            request.planner.method,
-            request.planner.seed,
-            request.planner.time_limit_s,
-            fenced,
-        )
-        validate_fenced_route(plan, fenced)
-        validate_route_length(plan.length_m, self.settings.limits)
         flight = FlightParams(request.altitude_m, request.speed_m_s, request.dwell_s, request.acceptance_radius_m)
+        options = request.planner
+        if request.battery is None:
+            plan = make_plan(depot, buoys, ids, options.method, options.seed, options.time_limit_s, fenced)
+            validate_route_length(plan.length_m, self.settings.limits)
+        else:
+            battery = battery_plan(request, pack, self.energy_model)
+            plan = energy_plan(depot, buoys, ids, flight, battery, options.seed, options.time_limit_s, fenced,
+                               options.method, self.energy_model)  # fmt: skip
+        validate_fenced_route(plan, fenced)
         return plan, flight
 
     # ----- the lifecycle

@@ -7,7 +7,7 @@ depot's tangent plane (uavcore.geodesy) so the planner works in metres.
 from __future__ import annotations
 
 import itertools
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -46,6 +46,21 @@ class Plan:
     input_order_length_m: float
     method: str
     elapsed_s: float
+    # Multi-sortie missions (a battery cannot cover every buoy): the buoy indices of each sortie in flying order
+    # (their concatenation is `order`); None for one tour. `energy` is the battery budget and each sortie's
+    # predicted energy (gcs.energy_planning), None when the request asked for no energy planning.
+    sorties: list[list[int]] | None = None
+    energy: dict[str, Any] | None = None
+
+    def sortie_orders(self) -> list[list[int]]:
+        """Each sortie's buoys in flying order: one sortie (the whole tour) unless the plan splits it."""
+        return [list(s) for s in self.sorties] if self.sorties else [list(self.order)]
+
+    def sortie_plan(self, k: int) -> Plan:
+        """Sortie k as a plan of its own (the same buoys and depot, its order and length): what the vehicle
+        flies, and what its progress and tracking are measured against."""
+        single = replace(self, order=self.sortie_orders()[k], sorties=None, energy=None)
+        return replace(single, length_m=float(np.hypot(*np.diff(single.route_local(), axis=0).T).sum()))
 
     @property
     def improvement_pct(self) -> float:
@@ -58,15 +73,22 @@ class Plan:
     def frame(self) -> LocalFrame:
         return LocalFrame(self.depot[0], self.depot[1], 0.0)
 
+    def route_nodes(self) -> list[int | None]:
+        """The route as buoy indices, None for the depot: depot, each sortie's buoys and the depot again."""
+        return [None, *(node for sortie in self.sortie_orders() for node in [*sortie, None])]
+
     def route_local(self) -> np.ndarray:
-        """[east, north] of the depot, the buoys in visiting order, and the depot again: (n + 2, 2)."""
-        local = np.asarray(self.buoys_local, dtype=float)
-        return np.vstack([[0.0, 0.0], local[self.order], [0.0, 0.0]])
+        """[east, north] of the route_nodes: (n + sorties + 1, 2); leg k runs from point k to point k + 1."""
+        local = np.asarray(self.buoys_local, dtype=float).reshape(-1, 2)
+        return np.array([[0.0, 0.0] if node is None else local[node] for node in self.route_nodes()])
 
     def route_lat_lon(self) -> list[list[float]]:
-        buoys = [self.buoys_lat_lon[i] for i in self.order]
         depot = [self.depot[0], self.depot[1]]
-        return [depot, *buoys, depot]
+        return [depot if node is None else list(self.buoys_lat_lon[node]) for node in self.route_nodes()]
+
+    def first_leg_of_sortie(self, sortie: int) -> int:
+        """The route's leg on which sortie `sortie` starts (each sortie has its buoys' legs and the way home)."""
+        return sum(len(order) + 1 for order in self.sortie_orders()[:sortie])
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -88,6 +110,15 @@ def fenced_legs(depot: tuple[float, float], lat_lon: np.ndarray, fence: Geofence
     return broken
 
 
+def _nodes(depot: tuple[float, float], buoys: list[tuple[float, float]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The buoys' [lat, lon] (n, 2), their local [east, north] (n, 2), and the distances between the n + 1 nodes
+    (node 0 the depot)."""
+    frame = LocalFrame(depot[0], depot[1], 0.0)
+    lat_lon = np.asarray(buoys, dtype=float).reshape(-1, 2)
+    local = frame.project(lat_lon)
+    return lat_lon, local, euclidean_matrix(np.vstack([[0.0, 0.0], local]))
+
+
 def make_plan(
     depot: tuple[float, float],
     buoys: list[tuple[float, float]],
@@ -101,28 +132,42 @@ def make_plan(
 
     fenced: legs the fence forbids (`fenced_legs`); the planner sees them as very long, so it takes one only when
     no tour avoids them (the caller then refuses the plan), and the plan's length is the true one."""
-    frame = LocalFrame(depot[0], depot[1], 0.0)
-    lat_lon = np.asarray(buoys, dtype=float).reshape(-1, 2)
-    local = frame.project(lat_lon)
-    points = np.vstack([[0.0, 0.0], local])
-    distance = euclidean_matrix(points)
+    _, local, distance = _nodes(depot, buoys)
     penalised = None
     if fenced:
         penalised = distance.copy()
         for i, j in fenced:
             penalised[i, j] = penalised[j, i] = distance[i, j] + FENCED_LEG_PENALTY_M
+    points = np.vstack([[0.0, 0.0], local])
     result = plan_tour(points, method=method, seed=seed, time_limit_s=time_limit_s, distance=penalised)
-    input_order_length = closed_tour_length(np.arange(len(points)), distance)
+    order = [int(node) - 1 for node in result.order[1:]]
+    return sorties_plan(depot, buoys, buoy_ids, [order], str(result.method), float(result.elapsed_s))
+
+
+def sorties_plan(
+    depot: tuple[float, float],
+    buoys: list[tuple[float, float]],
+    buoy_ids: list[str],
+    sorties: list[list[int]],
+    method: str,
+    elapsed_s: float,
+    energy: dict[str, Any] | None = None,
+) -> Plan:
+    """The Plan of given sorties (buoy indices, 0-based, in flying order; one sortie: a single tour)."""
+    lat_lon, local, distance = _nodes(depot, buoys)
+    length = sum(closed_tour_length(np.array([0, *(b + 1 for b in sortie)]), distance) for sortie in sorties)
     return Plan(
         depot=(float(depot[0]), float(depot[1])),
         buoy_ids=list(buoy_ids),
         buoys_lat_lon=lat_lon.tolist(),
         buoys_local=local.tolist(),
-        order=[int(node) - 1 for node in result.order[1:]],
-        length_m=float(closed_tour_length(np.asarray(result.order), distance)),
-        input_order_length_m=float(input_order_length),
-        method=str(result.method),
-        elapsed_s=float(result.elapsed_s),
+        order=[b for sortie in sorties for b in sortie],
+        length_m=float(length),
+        input_order_length_m=float(closed_tour_length(np.arange(len(distance)), distance)),
+        method=method,
+        elapsed_s=elapsed_s,
+        sorties=[list(sortie) for sortie in sorties] if len(sorties) > 1 else None,
+        energy=energy,
     )
 
 

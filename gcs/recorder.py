@@ -4,6 +4,12 @@ A link listener: it sees every message the vehicle sends while the mission flies
 state at most every `period_s` of the vehicle's (simulated) time, collects the items the vehicle reached and
 sequenced past (the mission's progress: buoys visited and when), and the vehicle's own events (STATUSTEXTs and
 mode changes), which name a failsafe when the vehicle ends a mission early.
+
+A mission of several sorties is recorded sortie by sortie (`begin_sortie`): the items the vehicle reports are
+those of the sortie on board, so seq -> buoy goes through that sortie's plan; the buoys visited, the samples
+(tagged with their sortie) and the events run on across sorties. Each sortie's battery figures (the energy the
+vehicle reports consumed from take-off to after landing, the charge left, the worst battery state it reported)
+are kept for the report of predicted against used energy.
 """
 
 from __future__ import annotations
@@ -19,31 +25,95 @@ from gcs.schemas import TELEMETRY_FROM_STATUS, TelemetrySample
 from uavcore.mavlink import statustext
 
 VEHICLE_EVENTS_KEPT = 50  # STATUSTEXTs and mode changes kept in a mission's progress
+# MAV_BATTERY_CHARGE_STATE by value, as the mission's battery figures name them
+CHARGE_STATES = {2: "low", 3: "critical", 4: "emergency", 5: "failed", 6: "unhealthy"}
+CHARGE_STATE_CRITICAL = 3
 
 
 class MissionRecorder:
     """Samples the vehicle's status at most every `period_s` of simulated time, and collects progress."""
 
     def __init__(self, link: LinkManager, plan: Plan, period_s: float) -> None:
-        self.link, self.plan, self.period_ms = link, plan, period_s * 1000.0
+        self.link, self.mission_plan, self.period_ms = link, plan, period_s * 1000.0
+        self.sortie = 0
+        self.plan = plan.sortie_plan(0)  # the sortie on board
+        self.done_before: set[int] = set()  # buoys visited in earlier sorties
+        self.sorties_flown: list[dict[str, Any]] = []  # each flown sortie's battery figures
+        self.consumed_at_start: float | None = None
+        self.worst_charge_state = 0
         self.samples: list[dict[str, Any]] = []
         self.last_ms: float | None = None
         self.reached_seqs: list[int] = []
         self.reached_at: dict[int, float] = {}  # buoy index -> vehicle time
         self.highest_seq = -1  # the vehicle moved past every item below this one
         self.latest: dict[str, Any] | None = None
-        self.route = plan.route_local()
+        self.route = self.plan.route_local()
         self.vehicle_events: list[dict[str, Any]] = []  # {t_s, text}: the vehicle's STATUSTEXTs, mode changes
         self.custom_mode: int | None = None
         self.sample_due = False
 
     def restore(self, progress: dict[str, Any]) -> None:
         """Continue from the progress a previous run of the service stored (re-attaching after a restart)."""
+        self._on_board(int(progress.get("sortie") or 0))
+        self.done_before = set(progress.get("visited_buoys") or []) - set(self.plan.order)
+        self.sorties_flown = list(progress.get("sorties_flown") or [])
         self.reached_seqs = list(progress.get("reached_seqs") or [])
         self.reached_at = {int(k): float(v) for k, v in (progress.get("reached_at") or {}).items()}
         current = progress.get("current_seq")
         self.highest_seq = -1 if current is None else int(current)
         self.vehicle_events = list(progress.get("vehicle_events") or [])
+
+    def _on_board(self, sortie: int) -> None:
+        self.sortie, self.plan = sortie, self.mission_plan.sortie_plan(sortie)
+        self.route = self.plan.route_local()
+
+    def begin_sortie(self, sortie: int) -> None:
+        """The vehicle now flies `sortie` (its items replaced the last one's on board)."""
+        self.done_before |= self._done_buoys()
+        self._on_board(sortie)
+        self.reached_seqs, self.highest_seq = [], -1
+
+    def sortie_took_off(self) -> None:
+        """Before arming for the sortie: what the battery has delivered so far (the swap zeroes it)."""
+        self.consumed_at_start = self.link.status.battery_consumed_wh
+        self.worst_charge_state = 0
+
+    def sortie_landed(self) -> None:
+        """After the landing: the sortie's battery figures, from the vehicle's latest BATTERY_STATUS."""
+        s = self.link.status
+        used = None
+        if s.battery_consumed_wh is not None and self.consumed_at_start is not None:
+            used = s.battery_consumed_wh - self.consumed_at_start
+        self.sorties_flown = [
+            *(entry for entry in self.sorties_flown if entry["sortie"] != self.sortie),
+            {
+                "sortie": self.sortie,
+                "used_energy_wh": used,
+                "landing_charge_pct": s.battery_remaining_pct,
+                "battery_warning": CHARGE_STATES.get(self.worst_charge_state),
+            },
+        ]
+
+    @property
+    def battery_failsafe(self) -> bool:
+        """The vehicle reported its battery critical (or worse) in this sortie: the level of PX4's and
+        ArduPilot's battery failsafes (return or land)."""
+        return self.worst_charge_state >= CHARGE_STATE_CRITICAL
+
+    def _done_buoys(self) -> set[int]:
+        # a buoy counts as visited when the vehicle reported it reached or sequenced past it (a lost
+        # MISSION_ITEM_REACHED datagram must not leave a buoy unvisited)
+        done = set(self.reached_seqs) | set(range(FIRST_BUOY_SEQ, self.highest_seq))
+        return {buoy for seq in done if (buoy := buoy_of_seq(seq, self.plan)) is not None}
+
+    def visited_buoys(self) -> set[int]:
+        """Buoy indices visited so far, every sortie included."""
+        return self.done_before | self._done_buoys()
+
+    def not_inspected(self) -> list[str]:
+        """The ids of the mission's buoys not visited (so far), in the planned order."""
+        visited = self.visited_buoys()
+        return [self.mission_plan.buoy_ids[b] for b in self.mission_plan.order if b not in visited]
 
     def _event(self, text: str) -> None:
         t_ms = self.link.status.time_boot_ms
@@ -68,6 +138,8 @@ class MissionRecorder:
             buoy = buoy_of_seq(seq, self.plan)
             if buoy is not None and status.time_boot_ms is not None:
                 self.reached_at.setdefault(buoy, status.time_boot_ms / 1000.0)
+        elif kind == "BATTERY_STATUS" and from_autopilot and message.id == 0:
+            self.worst_charge_state = max(self.worst_charge_state, message.charge_state)
         elif kind == "MISSION_CURRENT" and from_autopilot:
             self.highest_seq = max(self.highest_seq, self.link.autopilot.planned_seq(message.seq))
         elif kind == "LOCAL_POSITION_NED" and from_autopilot:
@@ -89,6 +161,7 @@ class MissionRecorder:
             t_s=(s.time_boot_ms or 0) / 1000.0,
             eso=dict(s.estimates) or None,
             cross_track_m=self._cross_track(s),
+            sortie=self.sortie,
             **{name: getattr(s, name) for name in TELEMETRY_FROM_STATUS},
         )
         return sample.model_dump()
@@ -102,19 +175,20 @@ class MissionRecorder:
 
     def progress(self) -> dict[str, Any]:
         s = self.link.status
-        # a buoy counts as visited when the vehicle reported it reached or sequenced past it (a lost
-        # MISSION_ITEM_REACHED datagram must not leave a buoy unvisited)
-        done = set(self.reached_seqs) | set(range(FIRST_BUOY_SEQ, self.highest_seq))
-        visited = sum(1 for seq in done if buoy_of_seq(seq, self.plan) is not None)
+        visited = self.visited_buoys()
         return {
             "current_seq": s.mission_seq,
             "total": s.mission_total,
             "mission_state": s.mission_state,
             "reached_seqs": list(self.reached_seqs),
-            "visited": visited,
-            "buoys": len(self.plan.order),
+            "visited": len(visited),
+            "buoys": len(self.mission_plan.order),
             "reached_at": {str(k): v for k, v in self.reached_at.items()},
             "vehicle_events": list(self.vehicle_events),
+            "sortie": self.sortie,
+            "sorties": len(self.mission_plan.sortie_orders()),
+            "visited_buoys": sorted(visited),
+            "sorties_flown": list(self.sorties_flown),
         }
 
     def take(self) -> list[dict[str, Any]]:

@@ -25,6 +25,7 @@ def _airborne(sample: dict[str, Any]) -> bool:
 def flight_results(plan: Plan, flight: FlightParams, samples: list[dict[str, Any]], progress: dict[str, Any]) -> dict:
     """Tracking and per-buoy figures of a recorded flight (pure given its inputs)."""
     located = [s for s in samples if s.get("lat") is not None]
+    sortie_sizes = [len(order) for order in plan.sortie_orders()]
     en = plan.frame.project(np.array([[s["lat"], s["lon"]] for s in located]).reshape(-1, 2))
     track = [
         tracking.TrackPoint(
@@ -32,7 +33,7 @@ def flight_results(plan: Plan, flight: FlightParams, samples: list[dict[str, Any
             east=float(e),
             north=float(n),
             airborne=_airborne(s),
-            leg=leg_of_seq(s.get("mission_seq"), len(plan.order)),
+            leg=_leg(plan, sortie_sizes, s.get("sortie") or 0, s.get("mission_seq")),
         )
         for s, (e, n) in zip(located, en, strict=True)
     ]
@@ -42,4 +43,20 @@ def flight_results(plan: Plan, flight: FlightParams, samples: list[dict[str, Any
     )
     for result in buoys:
         result["id"] = plan.buoy_ids[result["index"]]
-    return {"tracking": tracking.tracking_figures(plan.route_local(), plan.length_m, track), "buoys": buoys}
+    figures = tracking.tracking_figures(plan.route_local(), plan.length_m, track)
+    # several sorties: the time on the ground between them is no flight time
+    sortie_times = [
+        tracking.flight_time_s([p for p, s in zip(track, located, strict=True) if (s.get("sortie") or 0) == k])
+        for k in range(len(sortie_sizes))
+    ]
+    if len(sortie_sizes) > 1:
+        figures["flight_time_s"] = sum(t for t in sortie_times if t is not None) if any(sortie_times) else None
+    return {"tracking": figures, "buoys": buoys}
+
+
+def _leg(plan: Plan, sortie_sizes: list[int], sortie: int, seq: int | None) -> int | None:
+    """The route's leg (Plan.route_local) a sample of `sortie` flew while item `seq` of that sortie was current."""
+    if sortie >= len(sortie_sizes):
+        return None
+    leg = leg_of_seq(seq, sortie_sizes[sortie])
+    return None if leg is None else plan.first_leg_of_sortie(sortie) + leg

@@ -6,7 +6,7 @@ on settings (airframe limits, spacing, range) are in `gcs.validation`, which ans
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
@@ -58,6 +58,34 @@ class PlannerOptions(Strict):
     time_limit_s: float = Field(default=2.0, gt=0.0, description="the planner's wall-clock budget")
 
 
+class WindIn(Strict):
+    """The forecast wind the energy prediction flies against."""
+
+    speed_m_s: float = Field(ge=0.0, le=30.0, description="mean wind speed")
+    from_deg: float = Field(ge=0.0, le=360.0, description="compass direction the wind blows from")
+    turbulence_w20_m_s: float | None = Field(
+        default=None, ge=0.0, le=30.0, description="Dryden intensity (wind at 20 ft); default: the mean wind speed"
+    )
+
+
+class BatteryIn(Strict):
+    """Energy planning: split the buoys into sorties that each fit one battery, and predict each one's energy."""
+
+    reserve_pct: Annotated[float, Field(ge=0.0, le=90.0)] | Literal["vehicle"] = Field(
+        default="vehicle",
+        description="charge left at landing, % of the pack; 'vehicle': the vehicle's BAT_LOW_THR (read from it), "
+        "so a sortie flown as predicted lands before the low-battery warning",
+    )
+    capacity_mah: float | None = Field(
+        default=None, gt=0.0, le=100_000.0, description="the pack's capacity; default: the vehicle's BAT1_CAPACITY"
+    )
+    margin_pct: float = Field(
+        default=5.0, ge=0.0, le=50.0, description="energy kept free in every sortie for prediction errors, %"
+    )
+    split: bool = Field(default=True, description="false: one sortie whatever the prediction (flown at your risk)")
+    objective: Literal["time", "distance"] = Field(default="time", description="what the sorties minimise in total")
+
+
 class PlanRequest(Strict):
     depot: LatLon | None = Field(default=None, description="default: the vehicle's home")
     buoys: list[BuoyIn] = Field(
@@ -75,6 +103,17 @@ class PlanRequest(Strict):
         max_length=MAX_FENCE_ZONES,
         description="zones the route must respect; default: the fence the vehicle holds, if any",
     )
+    battery: BatteryIn | Literal["vehicle"] | None = Field(
+        default=None,
+        description="plan sorties within one battery each ('vehicle': every option from the vehicle); default: "
+        "one tour, no energy planning",
+    )
+    wind: WindIn | None = Field(default=None, description="the forecast wind, for the energy prediction; default: calm")
+
+    @field_validator("battery", mode="after")
+    @classmethod
+    def _battery_shorthand(cls, value: Any) -> Any:
+        return BatteryIn() if value == "vehicle" else value
 
     @field_validator("buoys", mode="before")
     @classmethod
@@ -101,6 +140,39 @@ class Buoy(BaseModel):
     north_m: float
 
 
+class SortieOut(BaseModel):
+    """One sortie: take-off at the depot, its buoys, back and land; predicted, and once flown, measured."""
+
+    index: int
+    order: list[int] = Field(description="its buoys' input indices in visiting order")
+    route: list[list[float]] = Field(description="[lat, lon] from the depot through its buoys back to it")
+    length_m: float
+    predicted_energy_wh: float | None = Field(description="the energy model's prediction (null: no energy planning)")
+    predicted_time_s: float | None
+    margin_wh: float | None = Field(description="budget left after the predicted energy (negative: over budget)")
+    margin_pct: float | None = Field(description="margin_wh in % of the budget")
+    predicted_landing_charge_pct: float | None = Field(description="charge predicted at landing, on a full pack")
+    used_energy_wh: float | None = Field(description="measured: the vehicle's BATTERY_STATUS energy consumed")
+    landing_charge_pct: float | None = Field(description="measured: the vehicle's remaining charge after landing")
+    battery_warning: str | None = Field(description="the worst battery state the vehicle reported in the sortie")
+
+
+class EnergyOut(BaseModel):
+    """The battery a multi-sortie plan was made for."""
+
+    capacity_wh: float = Field(description="a full pack's energy at the terminals")
+    usable_wh: float = Field(description="down to the reserve")
+    budget_wh: float = Field(description="what a sortie may be planned to use: usable less the margin")
+    reserve_pct: float
+    reserve_source: str
+    margin_pct: float
+    pack: dict[str, float]
+    pack_source: str = Field(description="'vehicle' (its parameters) or 'energy model' (the pack it was fitted on)")
+    wind: dict[str, float | None]
+    objective: str
+    split: bool
+
+
 class PlanOut(BaseModel):
     order: list[int] = Field(description="the buoys' input indices in visiting order")
     length_m: float
@@ -111,6 +183,8 @@ class PlanOut(BaseModel):
     depot: LatLon
     buoys: list[Buoy]
     route: list[list[float]] = Field(description="[lat, lon] from the depot through the buoys back to it")
+    sorties: list[SortieOut] = Field(description="one for a single tour")
+    energy: EnergyOut | None = Field(description="the battery and budget (null: no energy planning)")
 
 
 class BuoyResult(BaseModel):
@@ -152,6 +226,8 @@ class Progress(BaseModel):
     visited: int = 0
     buoys: int = 0
     vehicle_events: list[VehicleEvent] = []
+    sortie: int | None = Field(default=None, description="the sortie being flown (0-based)")
+    sorties: int = 1
 
 
 class MissionOut(BaseModel):
@@ -173,6 +249,8 @@ class MissionOut(BaseModel):
     depot: LatLon
     buoys: list[Buoy]
     route: list[list[float]]
+    sorties: list[SortieOut]
+    energy: EnergyOut | None
     progress: Progress
     buoy_results: list[BuoyResult]
     tracking: TrackingFigures | None
@@ -217,6 +295,7 @@ class TelemetrySample(BaseModel):
     armed: bool
     eso: dict[str, Any] | None = Field(description="the offboard controller's ESO estimates, by name")
     cross_track_m: float | None = Field(default=None, description="distance to the leg being flown")
+    sortie: int | None = Field(default=None, description="the sortie being flown (0-based)")
 
 
 class TrackOut(BaseModel):
@@ -236,7 +315,7 @@ class TrackOut(BaseModel):
 
 
 # The sample's fields the recorder copies from the link's VehicleStatus attribute of the same name.
-TELEMETRY_COMPUTED = ("t_s", "eso", "cross_track_m")
+TELEMETRY_COMPUTED = ("t_s", "eso", "cross_track_m", "sortie")
 TELEMETRY_FROM_STATUS = tuple(name for name in TelemetrySample.model_fields if name not in TELEMETRY_COMPUTED)
 
 

@@ -127,10 +127,10 @@ def validate_fence_points(depot: tuple[float, float], buoys: list[tuple[float, f
 
 def validate_fenced_route(plan: Plan, fenced: dict[tuple[int, int], str]) -> None:
     """A planned tour that still uses a leg the fence forbids (no tour avoids it): 422 naming the buoy pair."""
-    nodes = [0, *(i + 1 for i in plan.order), 0]
+    legs = [leg for sortie in plan.sortie_orders() for leg in itertools.pairwise([0, *(i + 1 for i in sortie), 0])]
     names = ["the depot", *plan.buoy_ids]
     errors: list[tuple[Location, str]] = []
-    for a, b in itertools.pairwise(nodes):
+    for a, b in legs:
         kind = fenced.get((min(a, b), max(a, b)))
         if kind is not None:
             errors.append(

@@ -34,7 +34,38 @@ def plan_out(plan: Plan) -> dict[str, Any]:
             for i, (ident, ll, en) in enumerate(zip(plan.buoy_ids, plan.buoys_lat_lon, plan.buoys_local, strict=True))
         ],
         "route": plan.route_lat_lon(),
+        "sorties": sorties_out(plan),
+        "energy": {k: v for k, v in plan.energy.items() if k != "sorties"} if plan.energy else None,
     }
+
+
+def sorties_out(plan: Plan, flown: list[dict[str, Any]] | None = None) -> list[dict[str, Any]]:
+    """Each sortie as planned (with its prediction when the plan has an energy section) and, for the sorties
+    flown (`flown`, the recorder's per-sortie battery figures in the mission's progress), as measured."""
+    predicted = plan.energy["sorties"] if plan.energy else []
+    measured = {entry["sortie"]: entry for entry in flown or []}
+    out = []
+    for k in range(len(plan.sortie_orders())):
+        sortie = plan.sortie_plan(k)
+        prediction = predicted[k] if k < len(predicted) else {}
+        flight = measured.get(k, {})
+        out.append(
+            {
+                "index": k,
+                "order": sortie.order,
+                "route": sortie.route_lat_lon(),
+                "length_m": sortie.length_m,
+                "predicted_energy_wh": prediction.get("energy_wh"),
+                "predicted_time_s": prediction.get("time_s"),
+                "margin_wh": prediction.get("margin_wh"),
+                "margin_pct": prediction.get("margin_pct"),
+                "predicted_landing_charge_pct": prediction.get("landing_charge_pct"),
+                "used_energy_wh": flight.get("used_energy_wh"),
+                "landing_charge_pct": flight.get("landing_charge_pct"),
+                "battery_warning": flight.get("battery_warning"),
+            }
+        )
+    return out
 
 
 def _buoy_results(record: MissionRecord, plan: Plan) -> list[dict[str, Any]]:
@@ -49,8 +80,9 @@ def _buoy_results(record: MissionRecord, plan: Plan) -> list[dict[str, Any]]:
 
 def mission_out(record: MissionRecord) -> dict[str, Any]:
     plan = Plan.from_dict(record.plan)
-    progress = {k: v for k, v in record.progress.items() if k != "reached_at"}
+    progress = {k: v for k, v in record.progress.items() if k not in ("reached_at", "sorties_flown")}
     progress.setdefault("buoys", len(plan.order))
+    progress.setdefault("sorties", len(plan.sortie_orders()))
     return {
         "id": record.id,
         "status": record.status,
@@ -58,6 +90,7 @@ def mission_out(record: MissionRecord) -> dict[str, Any]:
         "created_at": record.created_at,
         "updated_at": record.updated_at,
         **plan_out(plan),
+        "sorties": sorties_out(plan, record.progress.get("sorties_flown")),
         **record.flight,
         "progress": progress,
         "buoy_results": _buoy_results(record, plan),

@@ -19,8 +19,8 @@ Pack. n cells in series, each an open-circuit voltage OCV(SOC) behind an interna
 terminal voltage is V = n (OCV - I R), and the current that delivers P solves n R I^2 - n OCV I + P = 0 (the
 smaller root; past the pack's maximum power n OCV^2 / (4 R) the voltage collapses to n OCV / 2). The
 state of charge falls by the coulombs drawn: dSOC = -I dt / capacity. OCV(SOC) has the shape of the usual
-LiPo rest-voltage chart (`OCV_CHART`), stretched to span [BAT1_V_EMPTY, BAT1_V_CHARGED]: PX4 defines those
-two under a 5C load for its voltage-based estimate; here the model knows its charge and reports it as a
+LiPo rest-voltage chart (uavcore.battery_pack.OCV_CHART), stretched to span [BAT1_V_EMPTY, BAT1_V_CHARGED]: PX4
+defines those two under a 5C load for its voltage-based estimate; here the model knows its charge and reports it as a
 current-integrating PX4 estimate would, so the two only bound the curve. Temperature is not modelled.
 The pack does not limit the motors: flying on past 0 % keeps flying at 0 %, which is what the failsafes
 (COM_LOW_BAT_ACT) are there to prevent.
@@ -41,20 +41,12 @@ BAT_EMERGEN_THR (fractions of charge; sitl_quad.failsafe says what each does und
 
 from __future__ import annotations
 
-import bisect
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 from enum import IntEnum
 
-# Rest (open-circuit) voltage of one LiPo cell at 0 %, 5 %, ..., 100 % charge: the widely published LiPo
-# voltage chart. Only its shape is used (normalised, then stretched between BAT1_V_EMPTY and BAT1_V_CHARGED).
-OCV_CHART = (
-    3.27, 3.61, 3.69, 3.71, 3.73, 3.75, 3.77, 3.79, 3.80, 3.82, 3.84,
-    3.85, 3.87, 3.91, 3.95, 3.98, 4.02, 4.08, 4.11, 4.15, 4.20,
-)  # fmt: skip
-_SOC_POINTS = tuple(i / (len(OCV_CHART) - 1) for i in range(len(OCV_CHART)))
-_SHAPE = tuple((v - OCV_CHART[0]) / (OCV_CHART[-1] - OCV_CHART[0]) for v in OCV_CHART)
+from uavcore.battery_pack import cell_ocv
 
 SECONDS_PER_HOUR = 3600.0
 
@@ -97,11 +89,7 @@ class BatteryConfig:
 
     def cell_ocv(self, state_of_charge: float) -> float:
         """Open-circuit voltage of one cell (V) at a state of charge in [0, 1] (clipped), from OCV_CHART."""
-        soc = min(max(state_of_charge, 0.0), 1.0)
-        i = min(bisect.bisect_right(_SOC_POINTS, soc), len(_SOC_POINTS) - 1)
-        s0, s1, y0, y1 = _SOC_POINTS[i - 1], _SOC_POINTS[i], _SHAPE[i - 1], _SHAPE[i]
-        shape = y0 + (y1 - y0) * (soc - s0) / (s1 - s0)
-        return self.v_empty + (self.v_charged - self.v_empty) * shape
+        return cell_ocv(state_of_charge, self.v_empty, self.v_charged)
 
     def warning(self, state_of_charge: float) -> BatteryWarning:
         """The most severe threshold the charge is below, as PX4's Battery::determineWarning."""
