@@ -76,8 +76,7 @@ def ended_early(recorder: MissionRecorder) -> MissionEndError:
     BATT_FS_CRT_ACT says), with the buoys not inspected; failed after anything else."""
     progress = recorder.progress()
     if recorder.battery_failsafe:
-        texts = [e["text"] for e in recorder.vehicle_events if "battery" in e["text"].lower()]
-        said = f" ({texts[-1]})" if texts else ""
+        said = f" ({battery_failsafe_text([e['text'] for e in recorder.vehicle_events])})"
         return MissionEndError(
             MissionStatus.ABORTED,
             f"battery failsafe{said}: the vehicle came down with {progress['visited']} of {progress['buoys']} buoys "
@@ -85,6 +84,16 @@ def ended_early(recorder: MissionRecorder) -> MissionEndError:
         )
     reason = ended_early_reason(recorder.vehicle_events, progress["visited"], progress["buoys"])
     return MissionEndError(MissionStatus.FAILED, reason)
+
+
+def battery_failsafe_text(texts: list[str]) -> str:
+    """What the vehicle said of its battery failsafe: the first battery text followed by a mode change (the
+    action taken: "Critical battery level! Executing RTL; mode OFFBOARD -> AUTO.RTL"), else its last battery text."""
+    said = [i for i, text in enumerate(texts) if "battery" in text.lower()]
+    for i in said:
+        if i + 1 < len(texts) and texts[i + 1].startswith("mode "):
+            return f"{texts[i]}; {texts[i + 1]}"
+    return texts[said[-1]] if said else "battery critical"
 
 
 def ended_early_reason(events: list[dict[str, Any]], visited: int, buoys: int) -> str:
@@ -406,12 +415,14 @@ class FlightLifecycle:
             on_ground_disarmed = not s.armed and s.on_ground
             finished = s.mission_complete or (n_items - 1) in recorder.reached_seqs
             if on_ground_disarmed and aborting:
+                recorder.sortie_landed()
                 raise MissionEndError(MissionStatus.ABORTED, "aborted by the operator: returned to the depot")
             if on_ground_disarmed and finished and was_armed:
                 return
             if not s.armed:
                 disarmed_since = disarmed_since or time.monotonic()
                 if time.monotonic() - disarmed_since > DISARM_GRACE_S:
+                    recorder.sortie_landed()  # the sortie's battery figures, as far as it flew
                     raise ended_early(recorder)
             else:
                 disarmed_since = None

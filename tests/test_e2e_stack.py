@@ -34,7 +34,7 @@ from gcs.planning import make_plan
 from gcs.storage import open_storage
 from gcs.up import UpOptions, reference_request
 from planner.scenario import reference_scenario
-from uavcore.geodesy import DEFAULT_HOME
+from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.timeout(1500)]  # FLIGHT_S: two flights each
 
@@ -551,3 +551,93 @@ def test_signed_stack_flies_with_the_adrc_offboard_controller(stack):
     mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
     assert (mission["status"], mission["reason"]) == ("completed", None), mission
     assert any(e["text"].endswith("-> OFFBOARD") for e in mission["progress"]["vehicle_events"])
+
+
+# ----- energy: missions that need more than one battery (issue 12)
+# A small pack (500 mAh, 4S: 7.7 Wh) and nine buoys on a 150 m ring around the depot with 5 s inspections, in a
+# 3 m/s wind the forecast knows: about 2.5 batteries of flying, planned as 3 sorties that each land near 30 %.
+# COM_LOW_BAT_ACT=1: at the critical level the vehicle returns (PX4's "return" battery failsafe).
+SMALL_PACK_VEHICLE = ("--param", "BAT1_CAPACITY=500", "--param", "COM_LOW_BAT_ACT=1", "--param", "SIM_WIND_SPD=3",
+                      "--param", "SIM_WIND_DIR=250", "--param", "SIM_TURB_W20=3")  # fmt: skip
+RING_BUOYS, RING_RADIUS_M, RING_DWELL_S = 9, 150.0, 5.0
+
+
+def ring_request(**battery: object) -> dict:
+    angles = np.linspace(0.0, 2.0 * np.pi, RING_BUOYS, endpoint=False) + 0.3
+    local = RING_RADIUS_M * np.column_stack([np.cos(angles), np.sin(angles)])
+    lat_lon = LocalFrame(*DEFAULT_HOME).unproject(local)
+    return {
+        **REFERENCE,
+        "buoys": [{"id": f"R{i + 1}", "lat": float(a), "lon": float(b)} for i, (a, b) in enumerate(lat_lon)],
+        "dwell_s": RING_DWELL_S,
+        "wind": {"speed_m_s": 3.0, "from_deg": 250.0},
+        "battery": battery,
+    }
+
+
+def test_a_mission_of_two_and_a_half_batteries_flies_three_sorties_with_battery_swaps(stack):
+    stack.start_vehicle(*SMALL_PACK_VEHICLE)
+    stack.start_offboard()
+    stack.start_gcs()
+    stack.wait_connected()
+    mission_id = stack.fly(ring_request())
+    planned = stack.mission(mission_id)
+    energy, sorties = planned["energy"], planned["sorties"]
+    # the budget comes from the vehicle's own parameters: its pack and its low-battery threshold as the reserve
+    assert (energy["pack_source"], energy["pack"]["capacity_mah"]) == ("vehicle", 500.0), energy
+    assert (energy["reserve_source"], energy["reserve_pct"]) == ("vehicle", pytest.approx(15.0)), energy
+    assert len(sorties) == 3, sorties
+    assert 2.2 <= sum(s["predicted_energy_wh"] for s in sorties) / energy["usable_wh"] <= 2.8  # about 2.5 batteries
+    assert all(s["margin_wh"] >= 0 for s in sorties), sorties
+    assert sorted(b for s in sorties for b in s["order"]) == list(range(RING_BUOYS))
+
+    mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
+    assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
+    events = [(e["status"], e["reason"]) for e in mission["events"]]
+    assert events == [
+        ("planned", None),
+        ("uploading", "sortie 1 of 3"),
+        ("uploaded", "sortie 1 of 3"),
+        ("flying", "sortie 1 of 3"),
+        ("flying", "sortie 2 of 3"),
+        ("flying", "sortie 3 of 3"),
+        ("completed", None),
+    ]
+    assert mission["progress"]["visited"] == RING_BUOYS
+    assert all(result["reached"] for result in mission["buoy_results"]), mission["buoy_results"]
+    for sortie in mission["sorties"]:
+        # each sortie flew on a fresh pack, drew what the model predicted and landed above the reserve, warning-free
+        used, predicted = sortie["used_energy_wh"], sortie["predicted_energy_wh"]
+        assert used is not None and abs(used - predicted) / used <= 0.10, sortie
+        assert sortie["battery_warning"] is None and sortie["landing_charge_pct"] > energy["reserve_pct"], sortie
+    texts = [e["text"] for e in mission["progress"]["vehicle_events"]]
+    assert texts.count("Battery replaced: 100%") == 2, texts  # the vehicle's word for each swap
+    assert not [text for text in texts if "battery level" in text.lower()], texts  # no low/critical warning
+    samples = stack.api.get(f"/missions/{mission_id}/telemetry").json()
+    assert sorted({s["sortie"] for s in samples}) == [0, 1, 2]
+    assert_landed_at_depot(stack, REFERENCE["acceptance_radius_m"])
+
+
+def test_the_same_mission_forced_into_one_sortie_returns_on_the_battery_failsafe_and_ends_aborted(stack):
+    stack.start_vehicle(*SMALL_PACK_VEHICLE)
+    stack.start_offboard()
+    stack.start_gcs()
+    stack.wait_connected()
+    mission_id = stack.fly(ring_request(split=False))
+    planned = stack.mission(mission_id)
+    assert len(planned["sorties"]) == 1 and planned["sorties"][0]["margin_wh"] < 0, planned["sorties"]
+    mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
+    assert mission["status"] == "aborted", mission
+    not_reached = [r["id"] for r in mission["buoy_results"] if not r["reached"]]
+    assert 0 < len(not_reached) < RING_BUOYS, mission["buoy_results"]
+    failsafe = "battery failsafe (Critical battery level! Executing RTL; mode OFFBOARD -> AUTO.RTL): "
+    assert mission["reason"].startswith(failsafe), mission["reason"]
+    assert mission["reason"].endswith(f"not inspected: {', '.join(sorted(not_reached, key=planned_position(planned)))}")
+    assert mission["sorties"][0]["battery_warning"] in ("critical", "emergency"), mission["sorties"]
+    assert_landed_at_depot(stack, REFERENCE["acceptance_radius_m"])
+
+
+def planned_position(mission: dict) -> Callable[[str], int]:
+    """Sort key: a buoy id's place in the mission's visiting order."""
+    ids = [mission["buoys"][i]["id"] for i in mission["order"]]
+    return ids.index
