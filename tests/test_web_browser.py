@@ -1,10 +1,12 @@
 """The map page in a real browser (headless Chromium via Playwright) against the real service and vehicle.
 
 Place four buoys by clicking the map, plan (the route and its length appear), fly against the SITL vehicle
-(`python -m sitl_quad --lockstep`) until the mission completes, and check the live track and the history.
-Then hostile text: a vehicle (the ArduCopter double, real MAVLink over UDP) whose STATUSTEXTs and a buoy file
-whose ids carry markup and script, shown literally on the page and in the report, where nothing of it runs.
-Screenshots go to test-artifacts/.
+(`python -m sitl_quad --lockstep`) until the mission completes, and check the live track and the history; the
+battery gauge shows the vehicle's charge live. Then hostile text: a vehicle (the ArduCopter double, real MAVLink
+over UDP) whose STATUSTEXTs and a buoy file whose ids carry markup and script, shown literally on the page and
+in the report, where nothing of it runs. A multi-sortie mission (the energy model's pack at 1000 mAh splits the
+reference buoys in three) shows each sortie in its own colour with a legend, and its predicted against used
+energy per sortie. Screenshots go to test-artifacts/.
 """
 
 import json
@@ -24,6 +26,7 @@ from service_process import serving
 
 from bench.long_mission import store_long_mission
 from gcs.storage import open_storage
+from gcs.up import UpOptions, reference_request
 from uavcore.geodesy import DEFAULT_HOME
 from uavcore.mavlink import mavlink
 
@@ -86,13 +89,28 @@ def wait_until_connected(url: str, log: Path) -> None:
         time.sleep(0.2)
 
 
+BATTERY_PERCENT = 60  # the simulated vehicle's charge at start
+
+
 @pytest.fixture
 def stack(tmp_path):
-    """The vehicle (lockstep) and `python -m gcs serve` on free ports; yields the page's URL."""
+    """The vehicle (lockstep, its pack at BATTERY_PERCENT) and `python -m gcs serve` on free ports; yields the
+    page's URL."""
     udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
     logs = open(tmp_path / "stack.log", "w")  # noqa: SIM115 - closed below
     vehicle = subprocess.Popen(
-        [sys.executable, "-m", "sitl_quad", "--port", str(udp), "--lockstep"], stdout=logs, stderr=subprocess.STDOUT
+        [
+            sys.executable,
+            "-m",
+            "sitl_quad",
+            "--port",
+            str(udp),
+            "--lockstep",
+            "--battery-percent",
+            str(BATTERY_PERCENT),
+        ],
+        stdout=logs,
+        stderr=subprocess.STDOUT,
     )
     gcs = subprocess.Popen(
         [
@@ -136,6 +154,7 @@ def test_place_plan_and_fly_in_the_browser(stack):
         # the mission states come from the service's OpenAPI enum; a name it does not define throws
         statuses = page.evaluate(STATUS_PROBE)
         assert statuses == {"flying": "flying", "unknown": "unknown MissionStatus.no_such_status"}
+        check_battery_gauge(page, stack)
 
         box = page.locator("#map").bounding_box()
         centre_x, centre_y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
@@ -187,6 +206,22 @@ def test_place_plan_and_fly_in_the_browser(stack):
         expect(page.locator(".buoy-icon")).to_have_count(4)
         browser.close()
     assert errors == []
+
+
+def check_battery_gauge(page: Page, url: str) -> None:
+    """The gauge shows the vehicle's first battery as /vehicle reports it: the pack put in at BATTERY_PERCENT,
+    standing disarmed (it may have drawn a little for the avionics since)."""
+    charge = page.get_by_test_id("battery-charge")
+    expect(charge).to_have_text(re.compile(r"^\d+ %$"), timeout=15_000)
+    with urllib.request.urlopen(f"{url}/vehicle", timeout=5) as answer:
+        vehicle = json.load(answer)
+    shown = page.locator("#battery-meter").evaluate("meter => meter.value")
+    assert BATTERY_PERCENT - 5 <= shown <= BATTERY_PERCENT
+    assert abs(shown - vehicle["battery_remaining_pct"]) <= 2
+    assert vehicle["battery_charge_state"] == 1
+    expect(page.get_by_test_id("battery-state")).to_have_text("ok")
+    expect(page.locator("#battery-state.charge-ok")).to_have_count(1)
+    expect(page.locator("#battery-figures")).to_contain_text(re.compile(r"\d+\.\d\d V, -?\d+\.\d A, \d+\.\d\d Wh used"))
 
 
 # Each would set window.injected (or log "injected") if the page ever let it become markup and run it.
@@ -294,5 +329,154 @@ def test_a_two_hour_mission_opens_with_its_track_drawn(service_with_a_long_missi
         assert f"/missions/{mission_id}/track" in asked
         assert f"/missions/{mission_id}/telemetry" not in asked  # never the 72 000 samples
         page.screenshot(path=str(ARTIFACTS / "web_two_hour_track.png"))
+        browser.close()
+    assert errors == []
+
+
+# What the vehicle reported after each flown sortie (gcs.recorder's sorties_flown): the third never flew.
+SORTIES_FLOWN = [
+    {"sortie": 0, "used_energy_wh": 10.4, "landing_charge_pct": 34.0, "battery_warning": None},
+    {"sortie": 1, "used_energy_wh": 12.9, "landing_charge_pct": 14.0, "battery_warning": "low"},
+]
+
+
+def post_json(url: str, body: dict) -> dict:
+    request = urllib.request.Request(url, json.dumps(body).encode(), {"Content-Type": "application/json"})
+    with urllib.request.urlopen(request, timeout=60) as answer:
+        return json.load(answer)
+
+
+def aborted_in_third_sortie(storage_path: Path, mission: dict) -> None:
+    """Store what the recorder and the lifecycle leave of the mission after two sorties flown and a battery
+    failsafe early in the third: the progress (as gcs.recorder stores it) and the status."""
+    first_two = [b for sortie in mission["sorties"][:2] for b in sortie["order"]]
+    storage = open_storage(storage_path)
+    storage.set_progress(
+        mission["id"],
+        {
+            "current_seq": None,
+            "total": None,
+            "mission_state": None,
+            "reached_seqs": [],
+            "visited": len(first_two),
+            "buoys": len(mission["order"]),
+            "reached_at": {str(b): 100.0 + k for k, b in enumerate(first_two)},
+            "vehicle_events": [],
+            "sortie": 2,
+            "sorties": 3,
+            "visited_buoys": sorted(first_two),
+            "sorties_flown": SORTIES_FLOWN,
+        },
+    )
+    storage.set_status(mission["id"], "aborted", "battery critical in sortie 3 of 3")
+    storage.close()
+
+
+@pytest.fixture
+def service_with_a_multi_sortie_mission(tmp_path):
+    """`python -m gcs serve` (no vehicle: the energy model's pack stands in) with the reference buoys planned in
+    sorties of a 1000 mAh pack, two of them flown; yields (url, the mission as GET /missions/{id} answers)."""
+    with serving(tmp_path / "gcs.sqlite", tmp_path / "service.log") as url:
+        request = {**reference_request(UpOptions()), "battery": {"capacity_mah": 1000}, "start": False}
+        created = post_json(f"{url}/missions", request)
+        aborted_in_third_sortie(tmp_path / "gcs.sqlite", created)
+        with urllib.request.urlopen(f"{url}/missions/{created['id']}", timeout=10) as answer:
+            yield url, json.load(answer)
+
+
+# Each buoy marker's sortie colour: the fill of one not visited, the ring of one visited (style.css .in-sortie).
+MARKER_COLOURS = """() => [...document.querySelectorAll(".buoy-icon")].map((icon) => {
+    const style = getComputedStyle(icon);
+    const visited = icon.classList.contains("visited");
+    return { label: Number(icon.textContent), visited, colour: visited ? style.borderTopColor : style.backgroundColor };
+})"""
+
+
+def one_decimal(value: float | None) -> str:
+    return "–" if value is None else f"{value:.1f}"
+
+
+def test_a_multi_sortie_mission_shows_its_sorties_and_their_energy(service_with_a_multi_sortie_mission):
+    url, mission = service_with_a_multi_sortie_mission
+    sorties = mission["sorties"]
+    assert len(sorties) == 3 and mission["energy"]["pack_source"] == "energy model"
+    assert [s["used_energy_wh"] for s in sorties] == [10.4, 12.9, None]
+    errors: list[str] = []
+    with sync_playwright() as p:
+        browser, page = open_page(p, errors)
+        page.goto(url)
+        expect(page.locator(".buoy-icon")).to_have_count(13, timeout=30_000)
+
+        # each sortie's route dashed in its own colour, and the legend naming each one's buoys and energy
+        routes = page.locator(".leaflet-overlay-pane path[stroke-dasharray]")
+        expect(routes).to_have_count(3)
+        route_colours = [routes.nth(k).get_attribute("stroke") for k in range(3)]
+        assert len(set(route_colours)) == 3
+        legend = page.get_by_test_id("sortie-legend").locator("li")
+        expect(legend).to_have_text(
+            [
+                f"sortie {k + 1}: {len(s['order'])} buoys, predicted {s['predicted_energy_wh']:.1f} Wh"
+                for k, s in enumerate(sorties)
+            ]
+        )
+        swatches = [legend.nth(k).locator("line").get_attribute("stroke") for k in range(3)]
+        assert swatches == route_colours
+
+        # the markers in their sortie's colour: the two flown sorties' buoys visited (ringed), the third's filled
+        page.wait_for_function("() => document.querySelectorAll('.buoy-icon.visited').length === 10")
+        markers = page.evaluate(MARKER_COLOURS)
+        sortie_of = {b: s["index"] for s in sorties for b in s["order"]}
+        colour_of_sortie: dict[int, set[str]] = {}
+        for marker in markers:
+            buoy = mission["order"][marker["label"] - 1]
+            assert marker["visited"] == (sortie_of[buoy] < 2)
+            colour_of_sortie.setdefault(sortie_of[buoy], set()).add(marker["colour"])
+        assert all(len(colours) == 1 for colours in colour_of_sortie.values())
+        assert len({colour for colours in colour_of_sortie.values() for colour in colours}) == 3
+
+        # predicted against used, sortie by sortie; error = (used - predicted) / used
+        expect(page.get_by_test_id("sortie-progress")).to_have_text("sortie 3 of 3")
+        rows = page.get_by_test_id("sortie-table").locator("tbody tr")
+        expect(rows).to_have_count(3)
+        warnings = ["none", "low", "–"]
+        for k, s in enumerate(sorties):
+            used = s["used_energy_wh"]
+            error = None if used is None else 100 * (used - s["predicted_energy_wh"]) / used
+            landing = "–" if s["landing_charge_pct"] is None else f"{s['landing_charge_pct']:.0f}"
+            expected = [
+                str(k + 1),
+                str(len(s["order"])),
+                one_decimal(s["predicted_energy_wh"]),
+                one_decimal(used),
+                one_decimal(error),
+                f"{s['margin_pct']:.0f}",
+                f"{s['predicted_landing_charge_pct']:.0f} / {landing}",
+                warnings[k],
+            ]
+            expect(rows.nth(k).locator("td")).to_have_text(expected)
+        # no vehicle: the gauge says so
+        expect(page.get_by_test_id("battery-charge")).to_have_text("no battery report")
+
+        # the form's battery options: a pack too small for any buoy is the service's 422, shown as its text
+        page.locator("#plan-sorties").check()
+        page.locator("#capacity").fill("10")
+        page.get_by_role("button", name="Plan").click()
+        message = page.locator("#message")
+        expect(message).to_contain_text("422: buoys.0: buoy B1 cannot be reached and flown back", timeout=30_000)
+        # a real pack and a forecast wind: sorties planned again, each in the legend
+        page.locator("#capacity").fill("1000")
+        page.locator("#wind-speed").fill("5")
+        page.locator("#wind-from").fill("270")
+        page.get_by_role("button", name="Plan").click()
+        expect(message).to_have_text("route planned", timeout=30_000)
+        summary = page.get_by_test_id("plan-summary")
+        expect(summary).to_contain_text("1000 mAh pack (energy model)")
+        planned = int(re.search(r"(\d+) sorties,", summary.inner_text()).group(1))
+        assert planned >= 2  # about 30 Wh of buoys for 12.5 Wh a sortie
+        expect(page.get_by_test_id("sortie-legend").locator("li")).to_have_count(planned)
+        expect(page.locator(".leaflet-overlay-pane path[stroke-dasharray]")).to_have_count(planned)
+        page.screenshot(path=str(ARTIFACTS / "web_sorties.png"), full_page=True)
+        rows.first.scroll_into_view_if_needed()
+        page.locator("#panel").screenshot(path=str(ARTIFACTS / "web_sortie_table.png"))
         browser.close()
     assert errors == []

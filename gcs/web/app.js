@@ -77,7 +77,7 @@ function flightRequest() {
 
 function showPlan(plan) {
   state.plan = plan;
-  map.showRoute(plan.route);
+  map.showRoute(plan);
   panel.showPlanSummary(plan);
   relabelBuoys();
 }
@@ -93,7 +93,8 @@ function startWatching(mission) {
 function showMission(mission) {
   state.mission = mission;
   state.progress = mission.progress;
-  if (!state.plan || state.plan.route.length !== mission.route.length) showPlan(mission);
+  // redrawn when the mission's route is not the one shown (e.g. its sorties were planned anew when it was created)
+  if (!state.plan || JSON.stringify(state.plan.route) !== JSON.stringify(mission.route)) showPlan(mission);
   panel.showMission(mission);
   relabelBuoys();
 }
@@ -110,6 +111,7 @@ const pollMission = showingErrors(async () => {
 function onLiveMessage(message) {
   const vehicle = message.vehicle;
   panel.showVehicleLink(vehicle);
+  panel.showBattery(vehicle);
   if (vehicle.connected && vehicle.lat != null) {
     map.showVehicle(vehicle.lat, vehicle.lon, ((vehicle.yaw ?? 0) * 180) / Math.PI);
   }
@@ -146,6 +148,7 @@ const displayMission = showingErrors(async (id) => {
 
 // ----- controls
 function wireControls() {
+  panel.wireBatteryOptions();
   map.onClick((point) => (panel.placing() === "depot" ? setDepot(point) : addBuoy(point.lat, point.lon)));
 
   byId("plan").addEventListener(

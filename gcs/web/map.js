@@ -1,14 +1,18 @@
 // The Leaflet map: base layers (offline metric grid, OpenStreetMap when reachable), the depot, the buoys,
-// the planned route (dashed), the flown track and the vehicle. Icons are built as DOM elements, never HTML.
-import { h } from "./dom.js";
+// the planned route (dashed; one colour per sortie, with a legend, when the plan has several), the flown track
+// and the vehicle. Icons and the legend are built as DOM elements, never HTML.
+import { h, svg } from "./dom.js";
 import { metricGridLayer, tilesReachable } from "./grid.js";
+import { hasSortieFigures, isMultiSortie, routeLook, sortieLabel, sortieLook, swatch } from "./sorties.js";
 
 const L = window.L;
 const OSM_URL = "https://tile.openstreetmap.org/{z}/{x}/{y}.png";
-const SVG_NS = "http://www.w3.org/2000/svg";
 
-function buoyIcon(label, cls) {
-  const html = h("div", { class: `buoy-icon ${cls}` }, String(label));
+// look: {label, cls, colour}; colour (a sortie's, or null) fills the marker through a CSS variable set on the
+// element (CSSOM, which the page's Content-Security-Policy allows, unlike a style attribute)
+function buoyIcon(look) {
+  const html = h("div", { class: `buoy-icon ${look.cls}${look.colour ? " in-sortie" : ""}` }, String(look.label));
+  if (look.colour) html.style.setProperty("--sortie-colour", look.colour);
   return L.divIcon({ className: "", html, iconSize: [22, 22], iconAnchor: [11, 11] });
 }
 
@@ -19,17 +23,24 @@ function depotIcon() {
 
 // An arrow pointing along the vehicle's heading.
 function vehicleIcon(yawDeg) {
-  const svg = document.createElementNS(SVG_NS, "svg");
-  for (const [name, value] of Object.entries({ width: 28, height: 28, viewBox: "-14 -14 28 28" })) {
-    svg.setAttribute(name, value);
-  }
-  svg.style.transform = `rotate(${yawDeg}deg)`;
-  const arrow = document.createElementNS(SVG_NS, "path");
   const shape = { d: "M0,-12 L8,10 L0,5 L-8,10 Z", fill: "#c2185b", stroke: "#fff", "stroke-width": 1.5 };
-  for (const [name, value] of Object.entries(shape)) arrow.setAttribute(name, value);
-  svg.append(arrow);
-  return L.divIcon({ className: "vehicle-icon", html: svg, iconSize: [28, 28], iconAnchor: [14, 14] });
+  const arrow = svg("svg", { width: 28, height: 28, viewBox: "-14 -14 28 28" }, svg("path", shape));
+  arrow.style.transform = `rotate(${yawDeg}deg)`;
+  return L.divIcon({ className: "vehicle-icon", html: arrow, iconSize: [28, 28], iconAnchor: [14, 14] });
 }
+
+// The legend of a plan's sorties, bottom right: a swatch and "sortie k: n buoys, predicted X Wh" for each.
+const SortieLegend = L.Control.extend({
+  options: { position: "bottomright" },
+  onAdd() {
+    this.list = h("ul", {});
+    return h("div", { class: "sortie-legend", "data-testid": "sortie-legend" }, this.list);
+  },
+  show(plan) {
+    const line = (sortie) => h("li", {}, swatch(routeLook(plan, sortie.index)), sortieLabel(sortie));
+    this.list.replaceChildren(...plan.sorties.map(line));
+  },
+});
 
 export class MissionMap {
   constructor(elementId) {
@@ -37,7 +48,8 @@ export class MissionMap {
     this.buoyLayer = L.layerGroup().addTo(this.map);
     this.buoyMarkers = new Map(); // buoy object -> marker
     this.buoyLooks = new Map(); // marker -> "label class" it shows, so an unchanged icon is not rebuilt
-    this.route = L.polyline([], { color: "#1f6fb2", weight: 3, dashArray: "8 6" }).addTo(this.map);
+    this.routeLayer = L.featureGroup().addTo(this.map); // one dashed polyline per sortie
+    this.legend = new SortieLegend();
     this.track = L.polyline([], { color: "#c2185b", weight: 3 }).addTo(this.map);
     this.depotMarker = null;
     this.vehicleMarker = null;
@@ -76,7 +88,7 @@ export class MissionMap {
   // buoy: {id, lat, lon}; onClick(buoy) when its marker is clicked. The marker's title (a DOM property) is
   // the buoy's name.
   addBuoy(buoy, onClick) {
-    const icon = buoyIcon(this.buoyMarkers.size + 1, "");
+    const icon = buoyIcon({ label: this.buoyMarkers.size + 1, cls: "", colour: null });
     const marker = L.marker([buoy.lat, buoy.lon], { icon, title: buoy.id || "buoy" });
     marker.on("click", () => onClick(buoy));
     marker.addTo(this.buoyLayer);
@@ -99,13 +111,17 @@ export class MissionMap {
   // markings: state.buoyMarkings(), parallel to buoys. An icon is replaced only when its look changes.
   markBuoys(buoys, markings) {
     buoys.forEach((buoy, index) => {
-      const { label, visited, current } = markings[index];
-      const cls = visited ? "visited" : current ? "current" : "";
+      const { label, visited, current, sortie } = markings[index];
+      const look = {
+        label,
+        cls: visited ? "visited" : current ? "current" : "",
+        colour: sortie == null ? null : sortieLook(sortie).colour,
+      };
       const marker = this.buoyMarkers.get(buoy);
-      const look = `${label} ${cls}`;
-      if (this.buoyLooks.get(marker) === look) return;
-      this.buoyLooks.set(marker, look);
-      marker.setIcon(buoyIcon(label, cls));
+      const key = `${look.label} ${look.cls} ${look.colour}`;
+      if (this.buoyLooks.get(marker) === key) return;
+      this.buoyLooks.set(marker, key);
+      marker.setIcon(buoyIcon(look));
     });
   }
 
@@ -113,14 +129,25 @@ export class MissionMap {
     if (buoys.length) this.map.fitBounds(L.latLngBounds(buoys.map((b) => [b.lat, b.lon])).pad(0.2));
   }
 
-  // route: [[lat, lon], ...] from the depot round the buoys and back
-  showRoute(route) {
-    this.route.setLatLngs(route);
-    if (route.length) this.map.fitBounds(this.route.getBounds(), { padding: [30, 30] });
+  // plan: a POST /plans answer or a mission. Its route ([[lat, lon], ...] from the depot round the buoys and
+  // back) dashed as it always was, or, for several sorties, each sortie's route in its own look.
+  showRoute(plan) {
+    this.clearRoute();
+    // each sortie's own route (a single tour's is the plan's route)
+    for (const sortie of isMultiSortie(plan) ? plan.sorties : [{ index: 0, route: plan.route }]) {
+      const look = routeLook(plan, sortie.index);
+      L.polyline(sortie.route, { color: look.colour, weight: 3, dashArray: look.dash }).addTo(this.routeLayer);
+    }
+    if (hasSortieFigures(plan)) {
+      this.legend.addTo(this.map);
+      this.legend.show(plan);
+    }
+    if (plan.route.length) this.map.fitBounds(this.routeLayer.getBounds(), { padding: [30, 30] });
   }
 
   clearRoute() {
-    this.route.setLatLngs([]);
+    this.routeLayer.clearLayers();
+    this.legend.remove();
   }
 
   setTrack(points) {

@@ -1,6 +1,9 @@
-// The side panel and header: the flight settings form, messages, the plan summary, the watched mission's
-// status, progress and tracking figures, and the vehicle badge. Every text from the service goes in as text.
+// The side panel and header: the battery gauge, the flight settings form (with the battery options), messages,
+// the plan summary, the watched mission's status, progress, tracking figures and per-sortie energy table, and the
+// vehicle badge. Every text from the service or the vehicle goes in as text.
 import { byId, h } from "./dom.js";
+import { energyErrorPct, hasFlown, hasSortieFigures, routeLook, swatch } from "./sorties.js";
+import { MissionStatus } from "./status.js";
 
 export const formatNumber = (value, digits = 1) => (value == null ? "–" : Number(value).toFixed(digits));
 const km = (metres) => (metres / 1000).toFixed(3);
@@ -24,7 +27,35 @@ export function flightSettings() {
     dwell_s: number("dwell"),
     acceptance_radius_m: number("radius"),
     planner: { method: byId("method").value, seed: 0, time_limit_s: 2.0 },
+    ...batterySettings(),
   };
+}
+
+// A field left empty: null (the service's default), else its number as typed (the service checks the range
+// and answers a 422 naming the field).
+function optionalNumber(id) {
+  const text = byId(id).value.trim();
+  return text === "" ? null : Number(text);
+}
+
+// With "plan sorties" ticked: battery (reserve empty: the vehicle's low-battery threshold; capacity empty: the
+// vehicle's pack) and, with a wind speed, the forecast wind. Unticked: one tour, no energy planning.
+function batterySettings() {
+  if (!byId("plan-sorties").checked) return {};
+  const reserve = optionalNumber("reserve");
+  const capacity = optionalNumber("capacity");
+  const battery = { reserve_pct: reserve ?? "vehicle", ...(capacity == null ? {} : { capacity_mah: capacity }) };
+  const windSpeed = optionalNumber("wind-speed");
+  if (windSpeed == null) return { battery };
+  return { battery, wind: { speed_m_s: windSpeed, from_deg: optionalNumber("wind-from") ?? 0 } };
+}
+
+// The battery fields are editable only with "plan sorties" ticked.
+export function wireBatteryOptions() {
+  const box = byId("plan-sorties");
+  const sync = () => byId("battery-fields").toggleAttribute("disabled", !box.checked);
+  box.addEventListener("change", sync);
+  sync();
 }
 
 // Which kind of point a click on the map places: "buoy" or "depot".
@@ -45,7 +76,22 @@ export function showPlanSummary(plan) {
     h("br"),
     `input order ${km(plan.input_order_length_m)} km: `,
     h("b", {}, `${plan.improvement_pct.toFixed(1)} % shorter`),
+    ...energySummary(plan),
   );
+}
+
+// With energy planning: how many sorties, their predicted total and the battery they were planned for.
+function energySummary(plan) {
+  const e = plan.energy;
+  if (!e) return [];
+  const total = plan.sorties.reduce((sum, s) => sum + (s.predicted_energy_wh ?? 0), 0);
+  const pack = `${formatNumber(e.pack.capacity_mah, 0)} mAh pack (${e.pack_source})`;
+  return [
+    h("br"),
+    h("b", {}, `${plan.sorties.length} ${plan.sorties.length === 1 ? "sortie" : "sorties"}`),
+    `, ${formatNumber(total)} Wh predicted; budget ${formatNumber(e.budget_wh)} Wh a sortie, ` +
+      `reserve ${formatNumber(e.reserve_pct, 0)} %, margin ${formatNumber(e.margin_pct, 0)} %, ${pack}`,
+  ];
 }
 
 export function clearPlanSummary() {
@@ -72,8 +118,83 @@ export function showMission(mission) {
   const progress = mission.progress || {};
   byId("progress").max = Math.max(1, progress.buoys || mission.order.length);
   byId("progress").value = progress.visited || 0;
+  byId("sortie-progress").textContent = sortieProgress(mission);
   const lines = figureLines(mission);
   byId("figures").replaceChildren(...lines.flatMap((line, i) => (i ? [h("br"), line] : [line])));
+  showSortieTable(mission);
+}
+
+// "sortie 2 of 3" while one flies (or flew last); "3 sorties" before; nothing for a single tour.
+function sortieProgress(mission) {
+  const { sortie, sorties } = mission.progress || {};
+  if (!(sorties > 1)) return "";
+  return sortie == null ? `${sorties} sorties` : `sortie ${sortie + 1} of ${sorties}`;
+}
+
+// [heading, what it means (the heading's tooltip)]
+const SORTIE_COLUMNS = [
+  ["#", "sortie"],
+  ["buoys", "the sortie's buoys"],
+  ["pred. Wh", "energy predicted by the energy model"],
+  ["used Wh", "energy the vehicle reported consumed (BATTERY_STATUS)"],
+  ["err. %", "(used - predicted) / used"],
+  ["margin %", "budget left after the predicted energy"],
+  ["landing %", "charge at landing: predicted / measured"],
+  ["warning", "the worst battery state the vehicle reported in the sortie"],
+];
+
+// Predicted against used energy, a row per sortie (none for a plain single tour). Error: (used - predicted) / used.
+function showSortieTable(mission) {
+  const table = byId("sortie-table");
+  if (!hasSortieFigures(mission)) return table.replaceChildren();
+  const onBoard = mission.status === MissionStatus.flying ? mission.progress.sortie : null;
+  const row = (s) => {
+    const cells = [
+      h("td", {}, swatch(routeLook(mission, s.index)), String(s.index + 1)),
+      ...[
+        String(s.order.length),
+        formatNumber(s.predicted_energy_wh),
+        formatNumber(s.used_energy_wh),
+        formatNumber(energyErrorPct(s)),
+        formatNumber(s.margin_pct, 0),
+        `${formatNumber(s.predicted_landing_charge_pct, 0)} / ${formatNumber(s.landing_charge_pct, 0)}`,
+        s.battery_warning ?? (hasFlown(s) ? "none" : "–"),
+      ].map((text) => h("td", {}, text)),
+    ];
+    return h("tr", s.index === onBoard ? { class: "on-board" } : {}, ...cells);
+  };
+  const head = h("thead", {}, h("tr", {}, ...SORTIE_COLUMNS.map(([name, title]) => h("th", { title }, name))));
+  table.replaceChildren(head, h("tbody", {}, ...mission.sorties.map(row)));
+}
+
+// MAV_BATTERY_CHARGE_STATE by value: the name shown and the look (style.css .charge-*)
+const CHARGE_STATES = {
+  1: ["ok", "ok"],
+  2: ["low", "low"],
+  3: ["critical", "critical"],
+  4: ["emergency", "emergency"],
+  5: ["battery failed", "emergency"],
+  6: ["unhealthy", "critical"],
+  7: ["charging", "ok"],
+};
+
+// vehicle: the live stream's vehicle part; its first battery's state, or "no battery report".
+export function showBattery(vehicle) {
+  const v = vehicle.connected ? vehicle : {};
+  const reported = [v.battery_remaining_pct, v.battery_voltage_v, v.battery_current_a].some((x) => x != null);
+  const [name, look] = CHARGE_STATES[v.battery_charge_state] ?? ["state unknown", "unknown"];
+  const meter = byId("battery-meter");
+  meter.hidden = v.battery_remaining_pct == null;
+  meter.value = v.battery_remaining_pct ?? 0;
+  const charge = byId("battery-charge");
+  charge.textContent = reported ? `${formatNumber(v.battery_remaining_pct, 0)} %` : "no battery report";
+  const state = byId("battery-state");
+  state.textContent = reported ? name : "";
+  state.className = `badge charge-${look}`;
+  byId("battery-figures").textContent = reported
+    ? `${formatNumber(v.battery_voltage_v, 2)} V, ${formatNumber(v.battery_current_a)} A, ` +
+      `${formatNumber(v.battery_consumed_wh, 2)} Wh used`
+    : "";
 }
 
 // vehicle: the live stream's vehicle part (connected, armed, mode)

@@ -1,5 +1,6 @@
 // What the page is looking at: the placed depot and buoys, the plan, and the mission being watched.
 // Plain data; map.js draws it and app.js changes it.
+import { sortieOfBuoy } from "./sorties.js";
 import { isUnderway } from "./status.js";
 
 export const state = {
@@ -17,26 +18,39 @@ export function buoysEditable() {
   return !(state.missionId && state.mission && isUnderway(state.mission.status));
 }
 
-// How each buoy is drawn: its label (visiting rank when planned, else placing order) and whether the
-// vehicle has visited it or is heading to it. Returns [{label, visited, current}] parallel to state.buoys.
+// The buoys the vehicle has visited and the one it heads for. The progress counts the items of the sortie on
+// board (its seqs from that sortie's first buoy); the buoys of earlier sorties come from the live stream's
+// visited_buoys and the mission's buoy_results.
+function visitedAndCurrent(plan, progress) {
+  const onBoard = progress.sortie ?? 0;
+  const order = plan.sorties && plan.sorties.length > onBoard ? plan.sorties[onBoard].order : plan.order;
+  const visited = new Set(progress.visited_buoys || []);
+  const results = (state.mission && state.mission.id === state.missionId && state.mission.buoy_results) || [];
+  results.filter((b) => b.reached).forEach((b) => visited.add(b.index));
+  for (const seq of progress.reached_seqs || []) {
+    const rank = seq - state.firstBuoySeq;
+    if (rank >= 0 && rank < order.length) visited.add(order[rank]);
+  }
+  const rank = (progress.current_seq ?? -1) - state.firstBuoySeq;
+  // the vehicle sequences past an item only after reaching it
+  order.slice(0, Math.max(0, rank)).forEach((index) => visited.add(index));
+  const current = rank >= 0 && rank < order.length ? order[rank] : null;
+  return { visited, current };
+}
+
+// How each buoy is drawn: its label (visiting rank when planned, else placing order), whether the vehicle has
+// visited it or is heading to it, and its sortie (0-based; null for a single tour, whose buoys keep their look).
+// Returns [{label, visited, current, sortie}] parallel to state.buoys.
 export function buoyMarkings() {
   const order = state.plan ? state.plan.order : [];
   const visitRank = new Map(order.map((index, rank) => [index, rank]));
-  const visited = new Set();
-  let current = null;
-  if (state.progress && state.plan) {
-    for (const seq of state.progress.reached_seqs || []) {
-      const rank = seq - state.firstBuoySeq;
-      if (rank >= 0 && rank < order.length) visited.add(order[rank]);
-    }
-    const rank = (state.progress.current_seq ?? -1) - state.firstBuoySeq;
-    if (rank >= 0 && rank < order.length) current = order[rank];
-    // the vehicle sequences past an item only after reaching it
-    order.slice(0, Math.max(0, rank)).forEach((index) => visited.add(index));
-  }
+  const sortieOf = sortieOfBuoy(state.plan);
+  const nothingYet = { visited: new Set(), current: null };
+  const { visited, current } = state.progress && state.plan ? visitedAndCurrent(state.plan, state.progress) : nothingYet;
   return state.buoys.map((_buoy, index) => ({
     label: visitRank.has(index) ? visitRank.get(index) + 1 : index + 1,
     visited: visited.has(index),
     current: !visited.has(index) && index === current,
+    sortie: sortieOf.get(index) ?? null,
   }));
 }
