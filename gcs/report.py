@@ -1,5 +1,7 @@
 """The mission report: the paper's Section VI (route, flown track, tracking error, altitude and yaw tracking,
-ESO estimates) drawn from one recorded mission, as PNG figures and an index.html with the figures table.
+ESO estimates) drawn from one recorded mission, as PNG figures and an index.html with the figures table. A
+mission of several sorties draws each sortie's route in its own colour; one planned for a battery (issue 12) adds
+a per-sortie table and a chart of the energy predicted against the energy the vehicle reported using.
 
 `report_series` turns the stored samples into time series (pure); `write_report` draws them into a folder;
 `cached_report` keeps one folder per mission under a cache root and redraws it only when the mission changed
@@ -20,8 +22,14 @@ import numpy as np
 
 from gcs.planning import Plan
 from gcs.storage import MissionRecord, Storage
+from gcs.views import sorties_out
 
 FIGURES = ("route.png", "tracking_error.png", "cross_track.png", "altitude.png", "yaw.png", "eso.png")
+ENERGY_FIGURE = "energy.png"  # drawn only for a mission planned with energy figures
+# Okabe & Ito's colour-blind-safe palette less its yellow and black, as the map page draws sorties
+# (gcs/web/sorties.js); past six sorties the colours repeat with another dash.
+SORTIE_COLOURS = ("#0072b2", "#e69f00", "#009e73", "#cc79a7", "#d55e00", "#56b4e9")
+SORTIE_DASHES = ((0, (5, 3)), (0, (1, 3)), (0, (7, 2, 1, 2)))
 STAMP_FILE = "stamp.json"
 DPI = 110
 
@@ -118,6 +126,7 @@ def summary_rows(record: MissionRecord, series: ReportSeries) -> list[tuple[str,
     return [
         ("status", record.status + (f" ({record.reason})" if record.reason else "")),
         ("buoys", str(len(plan.order))),
+        *_battery_rows(plan),
         ("planner", f"{plan.method}, {plan.elapsed_s:.2f} s"),
         ("planned route", f"{plan.length_m:.1f} m ({plan.improvement_pct:.1f} % shorter than the input order)"),
         ("flown (horizontal)", metres(tracking.get("distance_flown_m"), 1)),
@@ -133,6 +142,21 @@ def summary_rows(record: MissionRecord, series: ReportSeries) -> list[tuple[str,
         ("yaw error RMS (on legs)", _degrees(_rms(_yaw_error_deg(series)[in_flight]))),
         ("samples", str(len(series.t_s))),
     ]
+
+
+def _battery_rows(plan: Plan) -> list[tuple[str, str]]:
+    """The sorties and the battery they were planned for (none for a single tour without energy planning)."""
+    rows = [("sorties", str(len(plan.sortie_orders())))] if plan.sorties or plan.energy else []
+    if plan.energy:
+        e = plan.energy
+        rows.append(
+            (
+                "battery",
+                f"{e['pack']['capacity_mah']:.0f} mAh pack ({e['pack_source']}), reserve {e['reserve_pct']:.0f} % "
+                f"({e['reserve_source']}), margin {e['margin_pct']:g} %: {e['budget_wh']:.2f} Wh a sortie",
+            )
+        )
+    return rows
 
 
 def _seconds(value: float | None) -> str:
@@ -158,16 +182,41 @@ def _save(figure, path: Path) -> None:
     figure.savefig(path)
 
 
+def _sortie_style(sortie: int) -> dict[str, Any]:
+    """Sortie k's line colour and dash (matplotlib keywords)."""
+    return {
+        "color": SORTIE_COLOURS[sortie % len(SORTIE_COLOURS)],
+        "linestyle": SORTIE_DASHES[sortie // len(SORTIE_COLOURS) % len(SORTIE_DASHES)],
+    }
+
+
+def sortie_label(sortie: dict[str, Any]) -> str:
+    """'sortie 2: 5 buoys, predicted 12.1 Wh' (the map page's legend says the same)."""
+    predicted = sortie["predicted_energy_wh"]
+    energy = "" if predicted is None else f", predicted {predicted:.1f} Wh"
+    return f"sortie {sortie['index'] + 1}: {len(sortie['order'])} buoys{energy}"
+
+
 def _draw_route(plan: Plan, radius_m: float, series: ReportSeries, path: Path) -> None:
     figure, ax = _figure(6.0)
-    route = plan.route_local()
-    ax.plot(route[:, 0], route[:, 1], "--", color="0.5", lw=1, label="planned route")
-    ax.plot(series.east, series.north, color="tab:blue", lw=1.2, label="flown track")
     buoys = np.asarray(plan.buoys_local)
-    ax.scatter(buoys[:, 0], buoys[:, 1], marker="o", color="tab:orange", zorder=3, label="buoys")
+    colour_of = {index: "tab:orange" for index in plan.order}  # a single tour: as it always looked
+    if plan.sorties:
+        for sortie in sorties_out(plan):
+            style = _sortie_style(sortie["index"])
+            route = plan.sortie_plan(sortie["index"]).route_local()
+            ax.plot(route[:, 0], route[:, 1], lw=1.4, label=sortie_label(sortie), **style)
+            colour_of.update(dict.fromkeys(sortie["order"], style["color"]))
+        ax.plot(series.east, series.north, color="k", lw=1, alpha=0.8, label="flown track")
+    else:
+        route = plan.route_local()
+        ax.plot(route[:, 0], route[:, 1], "--", color="0.5", lw=1, label="planned route")
+        ax.plot(series.east, series.north, color="tab:blue", lw=1.2, label="flown track")
+    colours = [colour_of[index] for index in range(len(buoys))]
+    ax.scatter(buoys[:, 0], buoys[:, 1], marker="o", color=colours, zorder=3, label="buoys")
     for visit, index in enumerate(plan.order, start=1):
         east, north = buoys[index]
-        ax.add_patch(_circle((east, north), radius_m))
+        ax.add_patch(_circle((east, north), radius_m, colour_of[index]))
         ax.annotate(
             f"{plan.buoy_ids[index]} ({visit})", (east, north), textcoords="offset points", xytext=(5, 5), fontsize=8
         )
@@ -178,10 +227,50 @@ def _draw_route(plan: Plan, radius_m: float, series: ReportSeries, path: Path) -
     _save(figure, path)
 
 
-def _circle(centre: tuple[float, float], radius: float):
+def _circle(centre: tuple[float, float], radius: float, colour: str):
     from matplotlib.patches import Circle
 
-    return Circle(centre, radius, fill=False, color="tab:orange", lw=0.8)
+    return Circle(centre, radius, fill=False, color=colour, lw=0.8)
+
+
+def energy_error_pct(sortie: dict[str, Any]) -> float | None:
+    """The energy model's error on a flown sortie, in % of the energy used: (used - predicted) / used."""
+    used, predicted = sortie["used_energy_wh"], sortie["predicted_energy_wh"]
+    if used is None or predicted is None or used <= 0.0:
+        return None
+    return 100.0 * (used - predicted) / used
+
+
+def _draw_energy(sorties: list[dict[str, Any]], budget_wh: float, path: Path) -> None:
+    """Per sortie: the predicted energy (pale) beside the energy used (with the error in %), against the budget."""
+    from matplotlib.patches import Patch
+
+    figure, ax = _figure()
+    width = 0.38
+    for s in sorties:
+        colour, x = _sortie_style(s["index"])["color"], s["index"]
+        if s["predicted_energy_wh"] is not None:
+            ax.bar(x - width / 2, s["predicted_energy_wh"], width, color=colour, alpha=0.4, edgecolor=colour)
+        used, error = s["used_energy_wh"], energy_error_pct(s)
+        if used is not None:
+            ax.bar(x + width / 2, used, width, color=colour, edgecolor="k")
+        text = "not flown" if used is None else "–" if error is None else f"{error:+.1f} %"
+        ax.annotate(text, (x + width / 2, used or 0.0), textcoords="offset points", xytext=(0, 3), ha="center",
+                    fontsize=8)  # fmt: skip
+    ax.axhline(budget_wh, color="0.3", ls="--", lw=1)
+    ax.set_xticks(range(len(sorties)), [f"sortie {s['index'] + 1}" for s in sorties])
+    ax.set_xlim(-0.6, len(sorties) - 0.4)  # room for every used bar, flown or not
+    ax.margins(y=0.25)  # and above them for the legend
+    ax.set(ylabel="Wh", title="Energy per sortie: predicted and used (error = (used − predicted) / used)")
+    ax.grid(alpha=0.3, axis="y")
+    handles = [
+        Patch(facecolor="0.6", alpha=0.4, edgecolor="0.6", label="predicted (energy model)"),
+        Patch(facecolor="0.6", edgecolor="k", label="used (the vehicle's BATTERY_STATUS)"),
+        ax.get_lines()[-1],
+    ]
+    handles[-1].set_label(f"budget a sortie ({budget_wh:.1f} Wh)")
+    ax.legend(handles=handles, loc="upper left", ncols=3, fontsize=8)
+    _save(figure, path)
 
 
 def _draw_lines(path: Path, title: str, ylabel: str, t_s: np.ndarray, lines: list[tuple[np.ndarray, str]]) -> None:
@@ -256,21 +345,40 @@ def write_report(record: MissionRecord, samples: list[dict[str, Any]], out_dir: 
         [(series.ref_yaw_deg, "desired"), (series.yaw_deg, "actual")],
     )
     _draw_eso(series, out_dir / "eso.png")
+    sorties = sorties_out(plan, record.progress.get("sorties_flown"))
+    figures = FIGURES
+    if plan.energy:
+        _draw_energy(sorties, plan.energy["budget_wh"], out_dir / ENERGY_FIGURE)
+        figures = (*FIGURES, ENERGY_FIGURE)
     index = out_dir / "index.html"
-    index.write_text(report_html(record, summary_rows(record, series)))
+    shown = sorties if plan.sorties or plan.energy else []
+    index.write_text(report_html(record, summary_rows(record, series), shown, figures))
     return index
 
 
 # The report's only inline content: the service's Content-Security-Policy allows it by its hash
-# (gcs.http_headers); the page has no script. Every text from the mission goes through html.escape.
+# (gcs.http_headers); the page has no script. Every text from the mission goes through html.escape. The sortie
+# table's swatches are classes (.sortie-k), since a style attribute would need the policy to allow it too.
 REPORT_STYLE = (
     "body{font-family:sans-serif;max-width:1000px;margin:1em auto} table{border-collapse:collapse}\n"
-    "th,td{border:1px solid #ccc;padding:2px 8px;text-align:left} img{max-width:100%}"
+    "th,td{border:1px solid #ccc;padding:2px 8px;text-align:left} img{max-width:100%}\n"
+    ".swatch{display:inline-block;width:1.5em;height:.6em;margin-right:.4em}\n"
+    + "\n".join(f".sortie-{k}{{background:{colour}}}" for k, colour in enumerate(SORTIE_COLOURS))
 )
+SORTIE_COLUMNS = (
+    "sortie", "buoys (in order)", "length m", "predicted Wh", "predicted time s", "margin Wh", "margin %",
+    "used Wh", "error %", "predicted landing %", "measured landing %", "battery warning",
+)  # fmt: skip
 
 
-def report_html(record: MissionRecord, rows: list[tuple[str, str]]) -> str:
-    """The page: figures table, per-buoy table, then the PNGs (by relative name, so the folder is portable)."""
+def report_html(
+    record: MissionRecord,
+    rows: list[tuple[str, str]],
+    sorties: list[dict[str, Any]] | None = None,
+    figures: tuple[str, ...] = FIGURES,
+) -> str:
+    """The page: figures table, per-sortie table (for `sorties`, SortieOut documents), per-buoy table, then the
+    PNGs (by relative name, so the folder is portable)."""
     table = "\n".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows)
     buoys = (record.results or {}).get("buoys") or []
     buoy_rows = "\n".join(
@@ -278,7 +386,7 @@ def report_html(record: MissionRecord, rows: list[tuple[str, str]]) -> str:
         f"<td>{_cell(b.get('closest_m'), 2)}</td><td>{_cell(b.get('arrival_s'), 1)}</td></tr>"
         for b in buoys
     )
-    images = "\n".join(f'<figure><img src="{name}" alt="{name[:-4]}"></figure>' for name in FIGURES)
+    images = "\n".join(f'<figure><img src="{name}" alt="{name[:-4]}"></figure>' for name in figures)
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>Mission {record.id} report</title>
 <style>{REPORT_STYLE}</style></head>
@@ -289,6 +397,7 @@ def report_html(record: MissionRecord, rows: list[tuple[str, str]]) -> str:
 <table data-testid="figures">
 {table}
 </table>
+{_sortie_table(record, sorties or [])}
 <h2>Buoys</h2>
 <table><thead><tr><th>buoy</th><th>reached</th><th>closest m</th><th>arrival s</th></tr></thead>
 <tbody>
@@ -297,6 +406,40 @@ def report_html(record: MissionRecord, rows: list[tuple[str, str]]) -> str:
 {images}
 </body></html>
 """
+
+
+def _sortie_table(record: MissionRecord, sorties: list[dict[str, Any]]) -> str:
+    """The sorties, predicted against used energy ("" without sorties)."""
+    if not sorties:
+        return ""
+    ids = Plan.from_dict(record.plan).buoy_ids
+
+    def row(s: dict[str, Any]) -> str:
+        flown = s["used_energy_wh"] is not None or s["landing_charge_pct"] is not None
+        warning = s["battery_warning"] or ("none" if flown else "–")
+        swatch = f'<span class="swatch sortie-{s["index"] % len(SORTIE_COLOURS)}"></span>'
+        cells = [
+            ", ".join(ids[b] for b in s["order"]),
+            _cell(s["length_m"], 0),
+            _cell(s["predicted_energy_wh"], 2),
+            _cell(s["predicted_time_s"], 0),
+            _cell(s["margin_wh"], 2),
+            _cell(s["margin_pct"], 1),
+            _cell(s["used_energy_wh"], 2),
+            _cell(energy_error_pct(s), 1),
+            _cell(s["predicted_landing_charge_pct"], 0),
+            _cell(s["landing_charge_pct"], 0),
+            warning,
+        ]
+        return f"<tr><td>{swatch}{s['index'] + 1}</td>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>"
+
+    head = "".join(f"<th>{html.escape(name)}</th>" for name in SORTIE_COLUMNS)
+    body = "\n".join(row(s) for s in sorties)
+    return (
+        "<h2>Sorties</h2>\n<p>Energy predicted by the energy model against the energy the vehicle reported using "
+        "(BATTERY_STATUS); error = (used − predicted) / used.</p>\n"
+        f'<table data-testid="sorties"><thead><tr>{head}</tr></thead>\n<tbody>\n{body}\n</tbody></table>'
+    )
 
 
 def _cell(value: float | None, digits: int) -> str:

@@ -1,10 +1,13 @@
 """The mission report: series from samples, the drawn folder, its cache, the CLI and the HTTP route.
 
 The flight here is synthetic (a vehicle flying the planned legs with a known lateral offset and a known lag
-behind its reference), so every figure in the table has a value the test can compute by hand.
+behind its reference), so every figure in the table has a value the test can compute by hand. A mission planned
+in sorties for a battery (through the service, as a client asks for it) gets the per-sortie table and the chart
+of predicted against used energy, the used energies being the ones stored in its progress.
 """
 
 import math
+import re
 import socket
 import sqlite3
 from dataclasses import asdict
@@ -16,10 +19,11 @@ from fastapi.testclient import TestClient
 from gcs.app import create_app
 from gcs.cli import main
 from gcs.planning import FIRST_BUOY_SEQ, FlightParams, leg_of_seq, make_plan
-from gcs.report import FIGURES, cached_report, report_series, summary_rows, write_report
+from gcs.report import ENERGY_FIGURE, FIGURES, cached_report, report_series, summary_rows, write_report
 from gcs.results import flight_results
 from gcs.settings import Settings
 from gcs.storage import SqliteStorage, Storage
+from gcs.up import UpOptions, reference_request
 from uavcore.geodesy import DEFAULT_HOME
 
 OFFSET_M = 0.3  # the synthetic vehicle flies this far to the left of every leg
@@ -157,12 +161,17 @@ def test_cli_writes_the_report_and_refuses_bad_input(stored, tmp_path, capsys):
     assert "--db" in capsys.readouterr().err
 
 
-def test_report_route_serves_the_page_and_its_figures(stored, tmp_path):
-    storage, mission_id = stored
+def settings_without_vehicle(db_path) -> Settings:
+    """The service's settings over db_path, its vehicle a UDP port nobody holds."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
         sock.bind(("127.0.0.1", 0))
         port = sock.getsockname()[1]
-    settings = Settings(db_path=storage.path, vehicle_url=f"udpout:127.0.0.1:{port}")
+    return Settings(db_path=db_path, vehicle_url=f"udpout:127.0.0.1:{port}")
+
+
+def test_report_route_serves_the_page_and_its_figures(stored, tmp_path):
+    storage, mission_id = stored
+    settings = settings_without_vehicle(storage.path)
     with TestClient(create_app(settings)) as client:
         response = client.get(f"/missions/{mission_id}/report")
         assert response.status_code == 200 and response.url.path.endswith("/report/index.html")
@@ -171,6 +180,7 @@ def test_report_route_serves_the_page_and_its_figures(stored, tmp_path):
             figure = client.get(f"/missions/{mission_id}/report/{name}")
             assert figure.status_code == 200 and figure.headers["content-type"] == "image/png"
         assert client.get(f"/missions/{mission_id}/report/secrets.txt").status_code == 404
+        assert client.get(f"/missions/{mission_id}/report/{ENERGY_FIGURE}").status_code == 404  # no energy planned
         assert client.get(f"/missions/{mission_id}/report/..%2Fgcs.sqlite").status_code == 404
         assert client.get("/missions/42/report").status_code == 404
         assert client.get("/missions/42/report/index.html").status_code == 404
@@ -190,3 +200,54 @@ def test_a_mission_that_never_flew_still_gets_a_report(tmp_path):
     assert "failed (no vehicle)" in page and "<th>samples</th><td>0</td>" in page
     assert all((index.parent / name).stat().st_size > 0 for name in FIGURES)
     storage.close()
+
+
+# What the vehicle reported after each sortie (gcs.recorder's sorties_flown), the last sortie not flown.
+SORTIES_FLOWN = [
+    {"sortie": 0, "used_energy_wh": 10.4, "landing_charge_pct": 34.0, "battery_warning": None},
+    {"sortie": 1, "used_energy_wh": 12.9, "landing_charge_pct": 14.0, "battery_warning": "low"},
+]
+
+
+def test_a_mission_in_sorties_gets_its_sortie_table_and_energy_chart(tmp_path):
+    settings = settings_without_vehicle(tmp_path / "gcs.sqlite")
+    request = {**reference_request(UpOptions()), "battery": {"capacity_mah": 1000}, "start": False}
+    with TestClient(create_app(settings)) as client:
+        created = client.post("/missions", json=request)
+        assert created.status_code == 201, created.text
+        mission = created.json()
+        sorties = mission["sorties"]
+        assert len(sorties) == 3  # the energy model's pack at 1000 mAh (no vehicle to ask)
+        storage = SqliteStorage(settings.db_path)
+        storage.set_progress(mission["id"], {"sortie": 2, "sorties": 3, "sorties_flown": SORTIES_FLOWN})
+        storage.set_status(mission["id"], "aborted", "battery critical in sortie 3 of 3")
+        storage.close()
+        chart = client.get(f"/missions/{mission['id']}/report/{ENERGY_FIGURE}")
+        assert chart.status_code == 200 and chart.headers["content-type"] == "image/png"
+        page = client.get(f"/missions/{mission['id']}/report/index.html").text
+
+    assert f'src="{ENERGY_FIGURE}"' in page
+    assert "<tr><th>sorties</th><td>3</td></tr>" in page
+    assert "1000 mAh pack (energy model), reserve 15 % (energy model), margin 5 %" in page
+    table = page[page.index('<table data-testid="sorties">') :]
+    rows = re.findall(r"<tr><td>.*?</tr>", table[: table.index("</table>")])
+    assert len(rows) == 3
+    ids = [b["id"] for b in mission["buoys"]]
+    for k, (row, sortie) in enumerate(zip(rows, sorties, strict=True)):
+        flown = SORTIES_FLOWN[k] if k < len(SORTIES_FLOWN) else None
+        assert f'<span class="swatch sortie-{k}"></span>{k + 1}</td>' in row
+        assert f"<td>{', '.join(ids[b] for b in sortie['order'])}</td>" in row
+        assert f"<td>{sortie['predicted_energy_wh']:.2f}</td>" in row
+        # used, error, landing predicted and measured, warning: the row's last cells
+        landing = f"<td>{sortie['predicted_landing_charge_pct']:.0f}</td>"
+        if flown is None:
+            assert row.endswith(f"<td>–</td><td>–</td>{landing}<td>–</td><td>–</td></tr>")
+            continue
+        used = flown["used_energy_wh"]
+        error = 100 * (used - sortie["predicted_energy_wh"]) / used  # (used - predicted) / used
+        measured = f"<td>{flown['landing_charge_pct']:.0f}</td><td>{flown['battery_warning'] or 'none'}</td>"
+        assert row.endswith(f"<td>{used:.2f}</td><td>{error:.1f}</td>{landing}{measured}</tr>")
+    report_dir = settings.reports_dir / f"mission-{mission['id']}"
+    for name in (*FIGURES, ENERGY_FIGURE):
+        png = report_dir / name
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000, name
