@@ -57,6 +57,7 @@ class MissionRecorder:
         self._on_board(int(progress.get("sortie") or 0))
         self.done_before = set(progress.get("visited_buoys") or []) - set(self.plan.order)
         self.sorties_flown = list(progress.get("sorties_flown") or [])
+        self.consumed_at_start = progress.get("consumed_at_start")
         self.reached_seqs = list(progress.get("reached_seqs") or [])
         self.reached_at = {int(k): float(v) for k, v in (progress.get("reached_at") or {}).items()}
         current = progress.get("current_seq")
@@ -189,6 +190,7 @@ class MissionRecorder:
             "sorties": len(self.mission_plan.sortie_orders()),
             "visited_buoys": sorted(visited),
             "sorties_flown": list(self.sorties_flown),
+            "consumed_at_start": self.consumed_at_start,
         }
 
     def take(self) -> list[dict[str, Any]]:

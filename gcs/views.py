@@ -17,6 +17,8 @@ from gcs.storage import MissionRecord
 
 MISSION_SUMMARIES = TypeAdapter(list[MissionSummary])
 TELEMETRY_CHUNK = 1000  # samples encoded at a time when streaming a mission's telemetry
+# what the recorder keeps in a mission's progress for itself (a restart restores it); the API shows it otherwise
+RECORDER_ONLY_PROGRESS = ("reached_at", "sorties_flown", "consumed_at_start")
 CHART_SAMPLES = 1000  # the most samples a track sends for the charts (a few hundred pixels wide each)
 
 
@@ -80,7 +82,7 @@ def _buoy_results(record: MissionRecord, plan: Plan) -> list[dict[str, Any]]:
 
 def mission_out(record: MissionRecord) -> dict[str, Any]:
     plan = Plan.from_dict(record.plan)
-    progress = {k: v for k, v in record.progress.items() if k not in ("reached_at", "sorties_flown")}
+    progress = {k: v for k, v in record.progress.items() if k not in RECORDER_ONLY_PROGRESS}
     progress.setdefault("buoys", len(plan.order))
     progress.setdefault("sorties", len(plan.sortie_orders()))
     return {
