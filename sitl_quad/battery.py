@@ -46,7 +46,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from enum import IntEnum
 
-from uavcore.battery_pack import cell_ocv
+from uavcore.battery_pack import PackSpec
 
 SECONDS_PER_HOUR = 3600.0
 
@@ -61,35 +61,23 @@ class BatteryWarning(IntEnum):
 
 
 @dataclass(frozen=True)
-class BatteryConfig:
-    """The pack, its thresholds and the power chain (PX4 parameter names in the comments)."""
+class BatteryConfig(PackSpec):
+    """The pack and its thresholds (uavcore.battery_pack.PackSpec, PX4's BAT1_* and BAT_*_THR: what a ground
+    station can read) and the power chain behind it, which only the simulation knows."""
 
-    cells: int = 4  # BAT1_N_CELLS, in series
-    capacity_mah: float = 4000.0  # BAT1_CAPACITY
-    v_charged: float = 4.20  # BAT1_V_CHARGED, V per cell: open-circuit voltage full
-    v_empty: float = 3.30  # BAT1_V_EMPTY, V per cell: open-circuit voltage empty
-    r_internal: float = 0.005  # BAT1_R_INTERNAL, ohm per cell
-    low_threshold: float = 0.15  # BAT_LOW_THR, fraction of charge
-    critical_threshold: float = 0.07  # BAT_CRIT_THR
-    emergency_threshold: float = 0.05  # BAT_EMERGEN_THR
     efficiency: float = 0.76  # SIM_MOT_EFF: motor + ESC, shaft power / electrical power
     avionics_w: float = 8.0  # SIM_AVIONICS_W: drawn while armed
 
     def __post_init__(self) -> None:
-        if self.cells < 1 or self.capacity_mah <= 0 or self.r_internal < 0 or self.avionics_w < 0:
-            raise ValueError("the pack needs at least one cell, a positive capacity, R >= 0 and avionics >= 0")
-        if not 0 < self.v_empty < self.v_charged:
-            raise ValueError(f"BAT1_V_EMPTY ({self.v_empty}) must be below BAT1_V_CHARGED ({self.v_charged})")
+        super().__post_init__()
+        if self.avionics_w < 0:
+            raise ValueError(f"the avionics load must be >= 0, got {self.avionics_w}")
         if not 0 < self.efficiency <= 1:
             raise ValueError(f"efficiency must be in (0, 1], got {self.efficiency}")
 
     @property
     def capacity_coulombs(self) -> float:
         return self.capacity_mah * 3.6
-
-    def cell_ocv(self, state_of_charge: float) -> float:
-        """Open-circuit voltage of one cell (V) at a state of charge in [0, 1] (clipped), from OCV_CHART."""
-        return cell_ocv(state_of_charge, self.v_empty, self.v_charged)
 
     def warning(self, state_of_charge: float) -> BatteryWarning:
         """The most severe threshold the charge is below, as PX4's Battery::determineWarning."""
