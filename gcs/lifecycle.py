@@ -276,10 +276,10 @@ class FlightLifecycle:
         sorties = len(plan.sortie_orders())
         on = f"sortie {sortie + 1} of {sorties}" if sorties > 1 else None
         self._check_abort_between_sorties(mission_id, sortie)
-        incarnation = self.link.status.incarnation
         self._transition(mission_id, MissionStatus.UPLOADING if sortie == 0 else MissionStatus.FLYING, on)
         if plan.energy is not None:
             await self._battery_for(plan, sortie)
+        incarnation = self.link.status.incarnation  # after the swap: a pack swapped by hand reboots the vehicle
         vehicle_home = self.link.status.home
         sortie_plan = plan.sortie_plan(sortie)
         items = mission_items(sortie_plan, flight, None if vehicle_home is None else vehicle_home[:2])
@@ -312,8 +312,13 @@ class FlightLifecycle:
         needed = min(plan.energy["sorties"][sortie]["needed_charge_pct"], 100.0)
         remaining = await self._battery_remaining()
         if sortie > 0 or remaining is None or remaining < needed:
-            await self.link.reset_battery(100.0)
-            deadline = time.monotonic() + BATTERY_REPORT_WAIT_S
+            wait_s = BATTERY_REPORT_WAIT_S
+            try:
+                await self.link.reset_battery(100.0)
+            except LinkError as error:  # refused or unknown: the crew swaps the pack by hand, the vehicle reports it
+                wait_s = self.settings.battery_swap_wait_s
+                log.warning("%s; waiting %.0f s for a fresh pack to be reported", error, wait_s)
+            deadline = time.monotonic() + wait_s
             while time.monotonic() < deadline and ((remaining := self.link.status.battery_remaining_pct) or 0) < needed:
                 await asyncio.sleep(0.1)
         if remaining is None or remaining < needed:
