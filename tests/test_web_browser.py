@@ -470,11 +470,15 @@ def test_a_multi_sortie_mission_shows_its_sorties_and_their_energy(service_with_
         page.get_by_role("button", name="Plan").click()
         expect(message).to_have_text("route planned", timeout=30_000)
         summary = page.get_by_test_id("plan-summary")
-        expect(summary).to_contain_text("1000 mAh pack (energy model)")
+        expect(summary).to_contain_text("1000 mAh pack (energy model), wind 5.0 m/s from 270°")
         planned = int(re.search(r"(\d+) sorties,", summary.inner_text()).group(1))
         assert planned >= 2  # about 30 Wh of buoys for 12.5 Wh a sortie
         expect(page.get_by_test_id("sortie-legend").locator("li")).to_have_count(planned)
         expect(page.locator(".leaflet-overlay-pane path[stroke-dasharray]")).to_have_count(planned)
+        # the stored mission, still polled, leaves the new plan on the map and in the summary
+        page.wait_for_timeout(2_000)
+        expect(summary).to_contain_text("wind 5.0 m/s from 270°")
+        expect(page.locator(".buoy-icon.visited")).to_have_count(0)  # a new plan has not flown
         page.screenshot(path=str(ARTIFACTS / "web_sorties.png"), full_page=True)
         rows.first.scroll_into_view_if_needed()
         page.locator("#panel").screenshot(path=str(ARTIFACTS / "web_sortie_table.png"))

@@ -83,18 +83,19 @@ function showPlan(plan) {
 }
 
 // ----- a mission: planned route, status, figures
+// Watch a mission: its own route (not the plan shown before: the service plans the mission's sorties anew when
+// it creates it), then its status as it changes.
 function startWatching(mission) {
   state.missionId = mission.id;
   map.setTrack([]);
   charts.clear();
+  showPlan(mission);
   showMission(mission);
 }
 
 function showMission(mission) {
   state.mission = mission;
   state.progress = mission.progress;
-  // redrawn when the mission's route is not the one shown (e.g. its sorties were planned anew when it was created)
-  if (!state.plan || JSON.stringify(state.plan.route) !== JSON.stringify(mission.route)) showPlan(mission);
   panel.showMission(mission);
   relabelBuoys();
 }
@@ -138,7 +139,6 @@ const displayMission = showingErrors(async (id) => {
   clearBuoys();
   setDepot(mission.depot);
   mission.buoys.forEach((b) => addBuoy(b.lat, b.lon, b.id));
-  showPlan(mission);
   startWatching(mission);
   const track = await api.track(id);
   map.setTrack(track.points);

@@ -86,11 +86,13 @@ function energySummary(plan) {
   if (!e) return [];
   const total = plan.sorties.reduce((sum, s) => sum + (s.predicted_energy_wh ?? 0), 0);
   const pack = `${formatNumber(e.pack.capacity_mah, 0)} mAh pack (${e.pack_source})`;
+  const { speed_m_s: speed, from_deg: from } = e.wind;
+  const wind = speed ? `wind ${formatNumber(speed)} m/s from ${formatNumber(from, 0)}°` : "calm";
   return [
     h("br"),
     h("b", {}, `${plan.sorties.length} ${plan.sorties.length === 1 ? "sortie" : "sorties"}`),
     `, ${formatNumber(total)} Wh predicted; budget ${formatNumber(e.budget_wh)} Wh a sortie, ` +
-      `reserve ${formatNumber(e.reserve_pct, 0)} %, margin ${formatNumber(e.margin_pct, 0)} %, ${pack}`,
+      `reserve ${formatNumber(e.reserve_pct, 0)} %, margin ${formatNumber(e.margin_pct, 0)} %, ${pack}, ${wind}`,
   ];
 }
 
@@ -140,7 +142,7 @@ const SORTIE_COLUMNS = [
   ["err. %", "(used - predicted) / used"],
   ["margin %", "budget left after the predicted energy"],
   ["landing %", "charge at landing: predicted / measured"],
-  ["warning", "the worst battery state the vehicle reported in the sortie"],
+  ["warn.", "battery warning: the worst battery state the vehicle reported in the sortie"],
 ];
 
 // Predicted against used energy, a row per sortie (none for a plain single tour). Error: (used - predicted) / used.

@@ -55,6 +55,6 @@ export const hasFlown = (sortie) => sortie.used_energy_wh != null || sortie.land
 // page's Content-Security-Policy has nothing to allow).
 export function swatch(look) {
   const stroke = { stroke: look.colour, "stroke-width": 3, "stroke-dasharray": look.dash };
-  const line = svg("line", { x1: 1, y1: 5, x2: 17, y2: 5, ...stroke });
-  return svg("svg", { width: 18, height: 10, class: "swatch" }, line);
+  const line = svg("line", { x1: 1, y1: 5, x2: 15, y2: 5, ...stroke });
+  return svg("svg", { width: 16, height: 10, class: "swatch" }, line);
 }

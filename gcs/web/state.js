@@ -25,7 +25,7 @@ function visitedAndCurrent(plan, progress) {
   const onBoard = progress.sortie ?? 0;
   const order = plan.sorties && plan.sorties.length > onBoard ? plan.sorties[onBoard].order : plan.order;
   const visited = new Set(progress.visited_buoys || []);
-  const results = (state.mission && state.mission.id === state.missionId && state.mission.buoy_results) || [];
+  const results = (state.mission && state.mission.buoy_results) || [];
   results.filter((b) => b.reached).forEach((b) => visited.add(b.index));
   for (const seq of progress.reached_seqs || []) {
     const rank = seq - state.firstBuoySeq;
@@ -45,8 +45,9 @@ export function buoyMarkings() {
   const order = state.plan ? state.plan.order : [];
   const visitRank = new Map(order.map((index, rank) => [index, rank]));
   const sortieOf = sortieOfBuoy(state.plan);
-  const nothingYet = { visited: new Set(), current: null };
-  const { visited, current } = state.progress && state.plan ? visitedAndCurrent(state.plan, state.progress) : nothingYet;
+  // progress only on the watched mission's own plan (a plan made since, which has no id, has not flown)
+  const flown = state.progress && state.plan && state.plan.id != null && state.plan.id === state.missionId;
+  const { visited, current } = flown ? visitedAndCurrent(state.plan, state.progress) : { visited: new Set() };
   return state.buoys.map((_buoy, index) => ({
     label: visitRank.has(index) ? visitRank.get(index) + 1 : index + 1,
     visited: visited.has(index),
