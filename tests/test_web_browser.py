@@ -404,6 +404,8 @@ def test_a_multi_sortie_mission_shows_its_sorties_and_their_energy(service_with_
     errors: list[str] = []
     with sync_playwright() as p:
         browser, page = open_page(p, errors)
+        # the sortie colours are CSSOM and SVG attributes, which the Content-Security-Policy lets through
+        page.on("console", lambda m: errors.append(m.text) if "Content Security" in m.text else None)
         page.goto(url)
         expect(page.locator(".buoy-icon")).to_have_count(13, timeout=30_000)
 
