@@ -228,6 +228,7 @@ class Progress(BaseModel):
     vehicle_events: list[VehicleEvent] = []
     sortie: int | None = Field(default=None, description="the sortie being flown (0-based)")
     sorties: int = 1
+    visited_buoys: list[int] = Field(default=[], description="input indices of the buoys visited, every sortie")
 
 
 class MissionOut(BaseModel):
