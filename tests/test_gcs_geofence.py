@@ -188,6 +188,8 @@ def test_mavsdk_flying_through_the_fence_anyway_meets_gf_action_return(start_sit
         MissionRaw(system).start_mission()
         wait_until(lambda: telemetry.flight_mode() == FlightMode.MISSION, WAIT_S, "the mission to start")
         wait_until(lambda: telemetry.flight_mode() == FlightMode.RETURN_TO_LAUNCH, 3 * WAIT_S, "GF_ACTION's return")
+        # the text comes with the mode change, but MAVSDK may hand it over a little after the new mode
+        wait_until(lambda: any(t.startswith("Geofence breached") for t in texts), WAIT_S, "the breach's STATUSTEXT")
         telemetry.unsubscribe_status_text(subscription)
         north, east, _ = FRAME.to_ned(telemetry.position().latitude_deg, telemetry.position().longitude_deg, 0.0)
         # turned back at the wall (x = 280..320 m north, |east| <= 20 m), not after the eastern buoy
