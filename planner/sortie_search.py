@@ -127,7 +127,8 @@ def restore(src_routes, src_rlen, src_info, routes, rlen, info, route_of, pos, p
 
 @njit(cache=True)
 def _apply_relocate(ru, start, length, rv, after, rev, routes, rlen, info, route_of, pos, pref, stamp, buf, C, E):
-    """Move the stretch routes[ru, start:start+length] to just after position ``after`` of route rv."""
+    """Move the stretch routes[ru, start:start+length] to just after position ``after`` of route rv (a route
+    left empty stays in its slot: the caller drops it, or keeps it as an idle vehicle of planner.fleet)."""
     last = start + length - 1
     seg = buf[1]
     for s in range(length):
@@ -154,8 +155,6 @@ def _apply_relocate(ru, start, length, rv, after, rev, routes, rlen, info, route
         rlen[ru] -= length
         refresh(ru, routes, rlen, route_of, pos, pref, C, E)
         _touch(ru, stamp, info)
-        if rlen[ru] == 2:
-            _drop_route(ru, routes, rlen, info, route_of, pos, pref, stamp, C, E)
 
 
 @njit(cache=True)
@@ -200,6 +199,8 @@ def _try_relocate(u, v, C, E, fixed, cap, routes, rlen, info, route_of, pos, pre
                     _apply_relocate(
                         ru, iu, length, rv, after, rev == 1, routes, rlen, info, route_of, pos, pref, stamp, buf, C, E
                     )
+                    if emptied:
+                        _drop_route(ru, routes, rlen, info, route_of, pos, pref, stamp, C, E)
                     return True
     return False
 
@@ -345,16 +346,18 @@ def local_search(C, E, fixed, cap, neigh, routes, rlen, info, route_of, pos, pre
 
 
 @njit(cache=True)
-def _ruin(adj, mean_removed, max_string, routes, rlen, info, route_of, pos, pref, stamp, removed, is_removed, C, E):
+def ruin(buoys, adj, mean_removed, max_string, drop_empty, routes, rlen, info, route_of, pos, pref, stamp, removed,
+         is_removed, C, E):  # fmt: skip
     """SISR's string removal around a random seed buoy (Christiaens & Vanden Berghe 2020, Section 4.1): at most
-    one string per route, k_s routes, each string of length <= l_s_max. Returns how many buoys were removed."""
-    n = C.shape[0]
+    one string per route, k_s routes, each string of length <= l_s_max. ``buoys`` lists the buoy nodes, ``adj``
+    each buoy's nearest buoys; routes left empty are dropped when drop_empty (sorties) or kept (a fleet's idle
+    vehicles). Returns how many buoys were removed."""
     nr = info[0]
-    l_s_max = min(float(max_string), (n - 1) / nr)
+    l_s_max = min(float(max_string), len(buoys) / nr)
     k_s_max = 4.0 * mean_removed / (1.0 + l_s_max) - 1.0
     k_s = int(np.random.random() * k_s_max) + 1
     ruined = np.zeros(nr, dtype=np.bool_)
-    seed = 1 + np.random.randint(n - 1)
+    seed = buoys[np.random.randint(len(buoys))]
     count = 0
     strings = 0
     for t in range(-1, adj.shape[1]):
@@ -381,7 +384,8 @@ def _ruin(adj, mean_removed, max_string, routes, rlen, info, route_of, pos, pref
         _touch(r, stamp, info)
         ruined[r] = True
         strings += 1
-    _drop_empty_routes(routes, rlen, info, route_of, pos, pref, stamp, C, E)
+    if drop_empty:
+        _drop_empty_routes(routes, rlen, info, route_of, pos, pref, stamp, C, E)
     return count
 
 
@@ -448,10 +452,11 @@ def search(
     n = C.shape[0]
     removed = np.empty(n, dtype=np.int64)
     is_removed = np.zeros(n, dtype=np.bool_)
+    buoys = np.arange(1, n)
     for it in range(iterations):
         temperature = temp_start * (temp_end / temp_start) ** (it / max(1, iterations))
-        count = _ruin(adj, mean_removed, max_string, routes, rlen, info, route_of, pos, pref, stamp, removed,
-                      is_removed, C, E)  # fmt: skip
+        count = ruin(buoys, adj, mean_removed, max_string, True, routes, rlen, info, route_of, pos, pref, stamp,
+                     removed, is_removed, C, E)  # fmt: skip
         _recreate(count, blink, fixed, cap, routes, rlen, info, route_of, pos, pref, stamp, removed, is_removed, C, E)
         if with_local_search:
             local_search(C, E, fixed, cap, neigh, routes, rlen, info, route_of, pos, pref, stamp, tested, buf)

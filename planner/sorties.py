@@ -179,7 +179,9 @@ def _arcs(route: list[int], M: np.ndarray) -> float:
     return float(sum(M[a, b] for a, b in itertools.pairwise([0, *route, 0])))
 
 
-def _reoptimise(sortie: list[int], C: np.ndarray, E: np.ndarray, cap: float, seed: int, limit_s: float) -> list[int]:
+def reoptimise_sortie(
+    sortie: list[int], C: np.ndarray, E: np.ndarray, cap: float, seed: int, limit_s: float
+) -> list[int]:
     """The single-sortie planner on one sortie's buoys (Held-Karp when small: exact for asymmetric costs too;
     else the CHNN-GA on the symmetrised costs, then the better direction on the true ones); the planned order
     is kept only if cheaper and within the budget. limit_s is this sortie's share of the time."""
@@ -240,8 +242,27 @@ def plan_sorties(
     history = [{"elapsed_s": time.perf_counter() - started, "iterations": 0, "best": first}]
     kept = params.reoptimise_s_per_sortie * state.info[0] if reoptimise else 0.0
     search_end = max(time_limit_s - kept, 0.5 * time_limit_s)
+    iterations = 0
+    if n > 3:
+        iterations = run_rounds(state.anneal, lambda: float(state.costs[1]), started, search_end, max_iterations,
+                                mean_arc, params, history)  # fmt: skip
+    best = state.best_sorties()
+    # 4: each sortie's order by the single-sortie planner
+    if reoptimise:
+        share = max(1e-3, time_limit_s - (time.perf_counter() - started)) / max(1, len(best))
+        best = [reoptimise_sortie(s, C, E, cap, seed, share) for s in best]
+    return _plan(cost, best, objective, C, fixed, split_cost, iterations, history, started)
+
+
+def run_rounds(anneal, best_cost, started: float, search_end: float, max_iterations: int | None, mean_arc: float,
+               params: SortieSearchParameters, history: list[dict]) -> int:  # fmt: skip
+    """Ruin-and-recreate rounds until ``search_end`` seconds after ``started`` or ``max_iterations`` rounds,
+    whichever comes first; returns the rounds run. ``anneal(rounds, temp_from, temp_to)`` runs a chunk of rounds
+    (a numba kernel), ``best_cost()`` reads the best objective so far: each improvement is appended to history.
+    With max_iterations the annealing schedule follows the rounds (reproducible), else the clock; the chunk
+    aims at params.chunk_s per call, so the clock is read often enough."""
     iterations, chunk = 0, 1
-    while n > 3 and (max_iterations is None or iterations < max_iterations):
+    while max_iterations is None or iterations < max_iterations:
         elapsed = time.perf_counter() - started
         if elapsed >= search_end:
             break
@@ -251,19 +272,14 @@ def plan_sorties(
         else:  # the schedule follows the clock
             progress, progress_end = elapsed / search_end, min(1.0, (elapsed + params.chunk_s) / search_end)
         tick = time.perf_counter()
-        state.anneal(chunk, *_temperatures(mean_arc, params, progress, progress_end))
+        anneal(chunk, *_temperatures(mean_arc, params, progress, progress_end))
         iterations += chunk
         if max_iterations is None:  # aim at chunk_s per call
             chunk = max(1, int(chunk * min(2.0, params.chunk_s / max(time.perf_counter() - tick, 1e-6))))
-        if state.costs[1] < history[-1]["best"] - 1e-9:
+        if best_cost() < history[-1]["best"] - 1e-9:
             now = time.perf_counter() - started
-            history.append({"elapsed_s": now, "iterations": iterations, "best": float(state.costs[1])})
-    best = state.best_sorties()
-    # 4: each sortie's order by the single-sortie planner
-    if reoptimise:
-        share = max(1e-3, time_limit_s - (time.perf_counter() - started)) / max(1, len(best))
-        best = [_reoptimise(s, C, E, cap, seed, share) for s in best]
-    return _plan(cost, best, objective, C, fixed, split_cost, iterations, history, started)
+            history.append({"elapsed_s": now, "iterations": iterations, "best": best_cost()})
+    return iterations
 
 
 def warm_up() -> None:
