@@ -15,9 +15,9 @@ from functools import partial
 import numpy as np
 
 from uavcore import motion_profiles
-from uavcore.motion_profiles import Span, rest_to_rest_spans
+from uavcore.motion_profiles import Span, ramp_duration, rest_to_rest_spans
 
-__all__ = ["Span", "descent_spans", "rest_to_rest_spans", "sample_spans"]
+__all__ = ["Span", "descent_spans", "ramp_duration", "rest_to_rest_spans", "sample_spans"]
 
 # The landing as the energy model prices it: up to touchdown (the reference goes on under the ground).
 descent_spans = partial(motion_profiles.descent_spans, to_touchdown=True)

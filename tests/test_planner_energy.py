@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from planner import energy as energy_module
 from planner.energy import (
     EnergyModel,
     RouteFlight,
@@ -177,3 +178,17 @@ def test_one_simulated_flight_uses_the_predicted_energy():
     predicted = route_energy(case.route_en(), case.flight, case.forecast, MODEL)
     assert predicted.energy_wh == pytest.approx(measured["energy_wh"], rel=0.05)
     assert predicted.time_s == pytest.approx(measured["time_s"], rel=0.05)
+
+
+def test_many_legs_from_the_bearing_table_cost_what_each_leg_evaluated_alone_costs(monkeypatch):
+    """Past EXACT_LEGS_MAX legs the cost comes from a table of bearings, exact in the length: the same numbers as
+    one evaluation per leg, to 1e-4, in a wind that makes every bearing cost differently."""
+    rng = np.random.default_rng(3)
+    points = np.vstack([[0.0, 0.0], rng.uniform(-600.0, 600.0, (40, 2)), [[5.0, 3.0], [12.0, -20.0]]])  # short legs too
+    args = (points, EnergyBudget(50.0, reserve=0.0), RouteFlight(), WindForecast(6.0, 250.0))
+    assert len(points) ** 2 > energy_module.EXACT_LEGS_MAX  # the table is used
+    tabled = calibrated_sortie_cost(*args)
+    monkeypatch.setattr(energy_module, "EXACT_LEGS_MAX", 10**9)
+    exact = calibrated_sortie_cost(*args)
+    np.testing.assert_allclose(tabled.leg_energy_wh, exact.leg_energy_wh, rtol=1e-4)
+    np.testing.assert_allclose(tabled.leg_time_s, exact.leg_time_s, rtol=1e-9)
