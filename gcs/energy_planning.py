@@ -161,6 +161,7 @@ def split_into_sorties(
     points_en: the depot then the buoys, [east, north] metres. Raises planner.errors.UnreachableBuoyError."""
     target = budget(battery, model)["budget_wh"]
     limit = target
+    deadline = time.perf_counter() + time_limit_s  # every round shares the request's time limit
     for _ in range(REPLAN_ROUNDS):
         cost = calibrated_sortie_cost(points_en, EnergyBudget(limit, reserve=0.0), flight, battery.wind, model)
         if fenced:
@@ -169,7 +170,8 @@ def split_into_sorties(
                 penalty[i, j] = penalty[j, i] = FENCED_LEG_PENALTY_S
             cost = dataclasses.replace(cost, leg_time_s=cost.leg_time_s + penalty)
         rounds = SEARCH_ROUNDS_BASE + SEARCH_ROUNDS_PER_BUOY * (len(points_en) - 1)
-        plan = plan_sorties(cost, battery.objective, seed, time_limit_s, max_iterations=rounds)
+        remaining_s = max(deadline - time.perf_counter(), 0.1 * time_limit_s)
+        plan = plan_sorties(cost, battery.objective, seed, remaining_s, max_iterations=rounds)
         sorties = [[node - 1 for node in sortie] for sortie in plan.sorties]
         worst = max(sortie_energy(points_en, s, flight, battery.wind, model)[0] for s in sorties)
         if worst <= target:
