@@ -278,7 +278,7 @@ class FlightLifecycle:
         self._check_abort_between_sorties(mission_id, sortie)
         self._transition(mission_id, MissionStatus.UPLOADING if sortie == 0 else MissionStatus.FLYING, on)
         if plan.energy is not None:
-            await self._battery_for(plan, sortie)
+            await self._battery_for(plan, sortie, recorder)
         incarnation = self.link.status.incarnation  # after the swap: a pack swapped by hand reboots the vehicle
         vehicle_home = self.link.status.home
         sortie_plan = plan.sortie_plan(sortie)
@@ -304,7 +304,7 @@ class FlightLifecycle:
                 MissionStatus.ABORTED, f"aborted by the operator at the depot before sortie {sortie + 1}"
             )
 
-    async def _battery_for(self, plan: Plan, sortie: int) -> None:
+    async def _battery_for(self, plan: Plan, sortie: int, recorder: MissionRecorder) -> None:
         """A pack with the charge the sortie needs (its predicted energy and the reserve). Between sorties the
         crew swaps the pack, which MAV_CMD_BATTERY_RESET tells the vehicle (the simulator puts a full pack in;
         ArduPilot resets its consumed-energy count); before the first, only a pack short of the need is swapped.
@@ -326,7 +326,7 @@ class FlightLifecycle:
             raise MissionEndError(
                 MissionStatus.ABORTED,
                 f"battery not ready for sortie {sortie + 1}: {charge}, the sortie needs {needed:.0f} %; "
-                f"buoys not inspected: {', '.join(self._recorders_not_inspected(plan))}",
+                f"buoys not inspected: {', '.join(recorder.not_inspected())}",
             )
 
     async def _battery_remaining(self) -> float | None:
@@ -334,12 +334,6 @@ class FlightLifecycle:
         while self.link.status.battery_remaining_pct is None and time.monotonic() < deadline:
             await asyncio.sleep(0.1)
         return self.link.status.battery_remaining_pct
-
-    def _recorders_not_inspected(self, plan: Plan) -> list[str]:
-        for recorder in self._recorders.values():
-            if recorder.mission_plan is plan:
-                return recorder.not_inspected()
-        return [plan.buoy_ids[b] for b in plan.order]
 
     async def _landed(self, recorder: MissionRecorder) -> None:
         """The sortie is down: its battery figures once the vehicle has reported its battery after the disarm."""
