@@ -277,6 +277,8 @@ class FlightLifecycle:
         on = f"sortie {sortie + 1} of {sorties}" if sorties > 1 else None
         self._check_abort_between_sorties(mission_id, sortie)
         self._transition(mission_id, MissionStatus.UPLOADING if sortie == 0 else MissionStatus.FLYING, on)
+        if sortie == 0:
+            self._record_with(mission_id, recorder)  # from here: the battery swap's text is the mission's too
         if plan.energy is not None:
             await self._battery_for(plan, sortie, recorder)
         incarnation = self.link.status.incarnation  # after the swap: a pack swapped by hand reboots the vehicle
@@ -286,7 +288,6 @@ class FlightLifecycle:
         await self.link.upload_mission(items, vehicle_home or self.settings.home)
         if sortie == 0:
             self._transition(mission_id, MissionStatus.UPLOADED, on)
-            self._record_with(mission_id, recorder)
         else:
             recorder.begin_sortie(sortie)
         self._check_abort_between_sorties(mission_id, sortie)
