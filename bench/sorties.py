@@ -127,8 +127,20 @@ def solve_pyvrp(cost: SortieCost, time_limit_s: float, seed: int) -> list[list[i
     return sorties
 
 
-def solve_ortools(cost: SortieCost, time_limit_s: float, seed: int, first: str = "SAVINGS") -> list[list[int]]:
+def ortools_search(routing, first: str, time_limit_s: float):
+    """OR-Tools' routing search: the named first-solution strategy, then guided local search until the time
+    limit; the solution or None."""
     from ortools.constraint_solver import pywrapcp, routing_enums_pb2
+
+    params = pywrapcp.DefaultRoutingSearchParameters()
+    params.first_solution_strategy = getattr(routing_enums_pb2.FirstSolutionStrategy, first)
+    params.local_search_metaheuristic = routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH
+    params.time_limit.FromMilliseconds(int(time_limit_s * 1000))
+    return routing.SolveWithParameters(params)
+
+
+def solve_ortools(cost: SortieCost, time_limit_s: float, seed: int, first: str = "SAVINGS") -> list[list[int]]:
+    from ortools.constraint_solver import pywrapcp
 
     del seed  # OR-Tools' routing search is deterministic
     time_int, energy_int, fixed, cap = integer_matrices(cost)
@@ -141,11 +153,7 @@ def solve_ortools(cost: SortieCost, time_limit_s: float, seed: int, first: str =
     routing.SetFixedCostOfAllVehicles(fixed)
     energy_cb = routing.RegisterTransitMatrix(energy_int.tolist())
     routing.AddDimension(energy_cb, 0, cap, True, "energy")
-    params = pywrapcp.DefaultRoutingSearchParameters()
-    params.first_solution_strategy = getattr(routing_enums_pb2.FirstSolutionStrategy, first)
-    params.local_search_metaheuristic = routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH
-    params.time_limit.FromMilliseconds(int(time_limit_s * 1000))
-    solution = routing.SolveWithParameters(params)
+    solution = ortools_search(routing, first, time_limit_s)
     if solution is None:
         return []
     sorties = []
