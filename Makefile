@@ -37,7 +37,7 @@ test: $(STAMP) $(MAVSDK3_STAMP) chromium postgresql
 	$(BIN)/python -m ruff check .
 	$(BIN)/python -m ruff format --check .
 	$(BIN)/lint-imports
-	$(BIN)/python -m pytest -n $(TEST_WORKERS)
+	$(BIN)/python -m pytest -n $(TEST_WORKERS) --durations=15
 
 # The browser tests drive Debian's Chromium (Playwright's own browser download does not work here).
 chromium:

@@ -343,7 +343,9 @@ def served(tmp_path):
         process = subprocess.Popen(argv, cwd=REPO, stdout=out, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + 60
-    while "Application startup complete" not in log.read_text():
+    # uvicorn says "Application startup complete" before it listens (on a loaded machine, long before): wait until
+    # it says it is running, i.e. the socket is bound
+    while "Uvicorn running on" not in log.read_text():
         assert process.poll() is None and time.monotonic() < deadline, log.read_text()
         time.sleep(0.1)
     yield url, log
