@@ -369,7 +369,8 @@ class FlightLifecycle:
                 raise MissionEndError(MissionStatus.FAILED, RESTART_NOT_FLYING)
         else:
             self._transition(mission_id, MissionStatus.FLYING, REATTACHED)
-            await self._monitor(mission_id, sortie_plan, flight, recorder, s.incarnation, len(expected))
+            # seen armed just now: a sortie that lands before the first check is finished, not ended early
+            await self._monitor(mission_id, sortie_plan, flight, recorder, s.incarnation, len(expected), armed=True)
         await self._landed(recorder)
         for later in range(sortie + 1, len(plan.sortie_orders())):
             await self._fly_sortie(mission_id, plan, flight, recorder, later)
@@ -383,13 +384,16 @@ class FlightLifecycle:
         recorder: MissionRecorder,
         incarnation: int,
         n_items: int,
+        armed: bool = False,
     ) -> None:
+        """Watch the sortie on board until it has landed finished (return) or ends otherwise (MissionEndError).
+        `armed`: the vehicle is known to have been armed for this sortie (a re-attached one)."""
         s = self.link.status
         sysid = s.sysid
         budget_s = flight_budget_s(plan, flight, self.settings.mission_timeout_margin_s)
         start_s = (s.time_boot_ms or 0) / 1000.0
         disarmed_since: float | None = None
-        was_armed = False  # "finished" counts only after the vehicle flew this sortie (not a stale report)
+        was_armed = armed  # "finished" counts only after the vehicle flew this sortie (not a stale report)
         aborting = False
         last_progress: dict[str, Any] | None = None
         while True:
