@@ -482,7 +482,6 @@ def test_a_multi_sortie_mission_shows_its_sorties_and_their_energy(service_with_
         expect(summary).to_contain_text("wind 5.0 m/s from 270°")
         expect(page.locator(".buoy-icon.visited")).to_have_count(0)  # a new plan has not flown
         page.screenshot(path=str(ARTIFACTS / "web_sorties.png"), full_page=True)
-        rows.first.scroll_into_view_if_needed()
         page.locator("#panel").screenshot(path=str(ARTIFACTS / "web_sortie_table.png"))
         browser.close()
     assert errors == []
