@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs.planning import FlightParams, Plan, make_plan, sorties_plan
+from gcs.planning import FlightParams, Plan, local_nodes, make_plan, sorties_plan
 from gcs.schemas import PlanRequest
 from gcs.validation import RequestInvalidError
 from planner.energy import EnergyModel, RouteFlight, WindForecast, calibrated_sortie_cost, route_energy
@@ -96,20 +96,21 @@ def energy_plan(
     single tour), each with its predicted energy. Raises RequestInvalidError naming a buoy no sortie can reach."""
     model = model or EnergyModel.load()
     started = time.perf_counter()
+    points = np.vstack([[0.0, 0.0], local_nodes(depot, buoys)[1]])
     if not battery.split:
         tour = make_plan(depot, buoys, buoy_ids, method, seed, time_limit_s, fenced)
         sorties, method_name = [tour.order], tour.method
+        estimates = [sortie_energy(points, tour.order, route_flight(flight), battery.wind, model)]
     else:
-        points = sorties_plan(depot, buoys, buoy_ids, [list(range(len(buoys)))], "", 0.0).route_local()[:-1]
         try:
-            sorties = split_into_sorties(points, route_flight(flight), battery, model, fenced, seed, time_limit_s)
+            sorties, estimates = split_into_sorties(
+                points, route_flight(flight), battery, model, fenced, seed, time_limit_s
+            )
         except UnreachableBuoyError as error:
             raise RequestInvalidError(unreachable_errors(error, buoy_ids)) from None
         method_name = "sorties: route-first cluster-second + SISR (planner.sorties)"
-    base = sorties_plan(depot, buoys, buoy_ids, sorties, method_name, time.perf_counter() - started)
-    points = np.vstack([[0.0, 0.0], np.asarray(base.buoys_local)])
-    energy = predictions(points, sorties, route_flight(flight), battery, model)
-    return dataclasses.replace(base, energy=energy, elapsed_s=time.perf_counter() - started)
+    energy = predictions(estimates, battery, model)
+    return sorties_plan(depot, buoys, buoy_ids, sorties, method_name, time.perf_counter() - started, energy)
 
 
 def unreachable_errors(error: UnreachableBuoyError, buoy_ids: list[str]) -> list[tuple[tuple, str]]:
@@ -156,9 +157,10 @@ def split_into_sorties(
     fenced: dict[tuple[int, int], str],
     seed: int,
     time_limit_s: float,
-) -> list[list[int]]:
-    """Sorties (lists of buoy indices, 0-based, in flying order) that each fit the budget by the exact prediction.
-    points_en: the depot then the buoys, [east, north] metres. Raises planner.errors.UnreachableBuoyError."""
+) -> tuple[list[list[int]], list[tuple[float, float]]]:
+    """Sorties (lists of buoy indices, 0-based, in flying order) that each fit the budget by the exact prediction,
+    and each one's (energy Wh, time s) by that prediction. points_en: the depot then the buoys, [east, north]
+    metres. Raises planner.errors.UnreachableBuoyError."""
     target = budget(battery, model)["budget_wh"]
     limit = target
     deadline = time.perf_counter() + time_limit_s  # every round shares the request's time limit
@@ -173,11 +175,12 @@ def split_into_sorties(
         remaining_s = max(deadline - time.perf_counter(), 0.1 * time_limit_s)
         plan = plan_sorties(cost, battery.objective, seed, remaining_s, max_iterations=rounds)
         sorties = [[node - 1 for node in sortie] for sortie in plan.sorties]
-        worst = max(sortie_energy(points_en, s, flight, battery.wind, model)[0] for s in sorties)
+        estimates = [sortie_energy(points_en, s, flight, battery.wind, model) for s in sorties]
+        worst = max(energy_wh for energy_wh, _ in estimates)
         if worst <= target:
-            return sorties
+            break
         limit *= target / worst
-    return sorties  # still over after the rounds: predictions() reports the negative margin
+    return sorties, estimates  # still over after the rounds: predictions() reports the negative margin
 
 
 def sortie_energy(
@@ -189,20 +192,13 @@ def sortie_energy(
     return result.energy_wh, result.time_s
 
 
-def predictions(
-    points_en: np.ndarray,
-    sorties: list[list[int]],
-    flight: RouteFlight,
-    battery: BatteryPlan,
-    model: EnergyModel,
-) -> dict[str, Any]:
-    """The plan's energy section: the battery, the budget and, per sortie, the predicted energy and time, the
-    margin left in the budget and the charge predicted at landing."""
+def predictions(estimates: list[tuple[float, float]], battery: BatteryPlan, model: EnergyModel) -> dict[str, Any]:
+    """The plan's energy section from each sortie's predicted (energy Wh, time s): the battery, the budget and,
+    per sortie, the predicted energy and time, the margin left in the budget and the charge predicted at landing."""
     energies = budget(battery, model)
     load = steady_load_w(model)
     per_sortie = []
-    for sortie in sorties:
-        energy_wh, time_s = sortie_energy(points_en, sortie, flight, battery.wind, model)
+    for energy_wh, time_s in estimates:
         landing = battery.pack.charge_after(energy_wh, 1.0, load)
         per_sortie.append(
             {

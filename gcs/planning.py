@@ -110,7 +110,9 @@ def fenced_legs(depot: tuple[float, float], lat_lon: np.ndarray, fence: Geofence
     return broken
 
 
-def _nodes(depot: tuple[float, float], buoys: list[tuple[float, float]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def local_nodes(
+    depot: tuple[float, float], buoys: list[tuple[float, float]]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The buoys' [lat, lon] (n, 2), their local [east, north] (n, 2), and the distances between the n + 1 nodes
     (node 0 the depot)."""
     frame = LocalFrame(depot[0], depot[1], 0.0)
@@ -132,7 +134,7 @@ def make_plan(
 
     fenced: legs the fence forbids (`fenced_legs`); the planner sees them as very long, so it takes one only when
     no tour avoids them (the caller then refuses the plan), and the plan's length is the true one."""
-    _, local, distance = _nodes(depot, buoys)
+    _, local, distance = local_nodes(depot, buoys)
     penalised = None
     if fenced:
         penalised = distance.copy()
@@ -154,7 +156,7 @@ def sorties_plan(
     energy: dict[str, Any] | None = None,
 ) -> Plan:
     """The Plan of given sorties (buoy indices, 0-based, in flying order; one sortie: a single tour)."""
-    lat_lon, local, distance = _nodes(depot, buoys)
+    lat_lon, local, distance = local_nodes(depot, buoys)
     length = sum(closed_tour_length(np.array([0, *(b + 1 for b in sortie)]), distance) for sortie in sorties)
     return Plan(
         depot=(float(depot[0]), float(depot[1])),
