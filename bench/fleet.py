@@ -76,7 +76,11 @@ def solve_ours(fleet: Fleet, points: np.ndarray, time_limit_s: float, seed: int)
     return [r.buoys for r in plan.routes]
 
 
-def solve_ortools(fleet: Fleet, points, time_limit_s: float, seed: int, first: str = "PATH_CHEAPEST_ARC"):
+def solve_ortools(
+    fleet: Fleet, points, time_limit_s: float, seed: int, first: str = "PATH_CHEAPEST_ARC", solutions: int | None = None
+):
+    """OR-Tools within the time limit, or (``solutions``) after that many solutions, a reproducible search
+    whatever the machine's load (the time limit is then a backstop)."""
     from ortools.constraint_solver import pywrapcp
 
     del points, seed  # OR-Tools' routing search is deterministic
@@ -88,7 +92,7 @@ def solve_ortools(fleet: Fleet, points, time_limit_s: float, seed: int, first: s
     routing.SetArcCostEvaluatorOfAllVehicles(transit)
     routing.AddDimension(transit, 0, int(times.sum()), True, "time")
     routing.GetDimensionOrDie("time").SetGlobalSpanCostCoefficient(SPAN_COEFFICIENT)
-    solution = ortools_search(routing, first, time_limit_s)
+    solution = ortools_search(routing, first, time_limit_s, solutions)
     if solution is None:
         return []
     routes = []
@@ -101,9 +105,9 @@ def solve_ortools(fleet: Fleet, points, time_limit_s: float, seed: int, first: s
     return routes
 
 
-def _pyvrp_solve(times: np.ndarray, K: int, shift_ms: int | None, limit_s: float, seed: int):
+def _pyvrp_solve(times: np.ndarray, K: int, shift_ms: int | None, limit_s: float, seed: int, iterations: int | None):
     import pyvrp
-    from pyvrp.stop import MaxRuntime
+    from pyvrp.stop import MaxIterations, MaxRuntime
 
     n = len(times)
     bound = {} if shift_ms is None else {"shift_duration": int(shift_ms)}
@@ -115,15 +119,20 @@ def _pyvrp_solve(times: np.ndarray, K: int, shift_ms: int | None, limit_s: float
         [times],
         [times],
     )
-    result = pyvrp.solve(data, stop=MaxRuntime(limit_s), seed=seed, collect_stats=False, display=False)
+    stop = MaxRuntime(limit_s) if iterations is None else MaxIterations(iterations)
+    result = pyvrp.solve(data, stop=stop, seed=seed, collect_stats=False, display=False)
     if not result.is_feasible():
         return None
     # a client activity's idx counts the clients from 0; client k is our node k + 1 (the depot is node 0)
     return [[a.idx + 1 for a in route if a.is_client()] for route in result.best.routes()]
 
 
-def solve_pyvrp(fleet: Fleet, points, time_limit_s: float, seed: int) -> list[list[int]]:
-    """Bisection on the per-vehicle maximum duration (PyVRP minimises the total only); see the module doc."""
+def solve_pyvrp(fleet: Fleet, points, time_limit_s: float, seed: int, iterations: int | None = None) -> list[list[int]]:
+    """Bisection on the per-vehicle maximum duration (PyVRP minimises the total only); see the module doc.
+    With ``iterations`` each solve stops after that many iterations and every bisection step runs: a
+    reproducible search whatever the machine's load (the time limit is then ignored)."""
+    import pyvrp  # noqa: F401  (imported before the clock starts: a first import is not search time)
+
     del points
     started = time.perf_counter()
     times, K = integer_times(fleet), len(fleet.depot)
@@ -132,13 +141,16 @@ def solve_pyvrp(fleet: Fleet, points, time_limit_s: float, seed: int) -> list[li
         return max(sum(times[a, b] for a, b in zip([0, *r], [*r, 0], strict=True)) for r in routes)
 
     share = time_limit_s / PYVRP_SOLVES
-    best = _pyvrp_solve(times, K, None, share, seed)
+    best = _pyvrp_solve(times, K, None, share, seed, iterations)
     high = makespan(best)
     total = sum(times[a, b] for r in best for a, b in zip([0, *r], [*r, 0], strict=True))
     low = max(int((times[0, 1:] + times[1:, 0]).max()), math.ceil(total / K)) - 1  # infeasible below
-    while high - low > 1 and time.perf_counter() - started + share <= time_limit_s * 1.02:
+    for _ in range(PYVRP_SOLVES - 1):
+        in_time = iterations is not None or time.perf_counter() - started + share <= time_limit_s * 1.02
+        if high - low <= 1 or not in_time:
+            break
         bound = (low + high) // 2
-        routes = _pyvrp_solve(times, K, bound, share, seed)
+        routes = _pyvrp_solve(times, K, bound, share, seed, iterations)
         if routes is None:
             low = bound
         else:

@@ -127,15 +127,17 @@ def solve_pyvrp(cost: SortieCost, time_limit_s: float, seed: int) -> list[list[i
     return sorties
 
 
-def ortools_search(routing, first: str, time_limit_s: float):
+def ortools_search(routing, first: str, time_limit_s: float, solutions: int | None = None):
     """OR-Tools' routing search: the named first-solution strategy, then guided local search until the time
-    limit; the solution or None."""
+    limit (or after ``solutions`` solutions, if that comes first); the solution or None."""
     from ortools.constraint_solver import pywrapcp, routing_enums_pb2
 
     params = pywrapcp.DefaultRoutingSearchParameters()
     params.first_solution_strategy = getattr(routing_enums_pb2.FirstSolutionStrategy, first)
     params.local_search_metaheuristic = routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH
     params.time_limit.FromMilliseconds(int(time_limit_s * 1000))
+    if solutions is not None:
+        params.solution_limit = solutions
     return routing.SolveWithParameters(params)
 
 

@@ -19,6 +19,15 @@ from uavcore.state import VehicleState
 CLIMB_MODES = (FlightMode.AUTO_MISSION, FlightMode.AUTO_TAKEOFF)  # on the ground these start a flight
 # ORBIT holds until the vehicle's orbit command gives the navigator its circle (Vehicle.orbit)
 HOLD_MODES = (FlightMode.AUTO_LOITER, FlightMode.POSCTL, FlightMode.AUTO_READY, FlightMode.ORBIT)
+# PX4 refuses to arm in these (mode_req_prevent_arming), and a disarm returns to the last mode the user chose that
+# neither prevents arming nor means a takeoff (UserModeIntention::onDisarm): home from a Return, the vehicle is
+# back in, say, Mission, not left in a Return that arming would fly again
+ARMING_PREVENTED_MODES = (FlightMode.AUTO_RTL, FlightMode.AUTO_LAND, FlightMode.ORBIT)
+
+
+def kept_after_disarm(mode: FlightMode) -> bool:
+    """Whether a mode the user chooses is the one a later disarm returns to (PX4's user mode intention)."""
+    return mode not in ARMING_PREVENTED_MODES and mode != FlightMode.AUTO_TAKEOFF
 
 
 def start_activity(

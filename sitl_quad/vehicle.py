@@ -50,7 +50,15 @@ from sitl_quad.failsafe import (
     offboard_loss_mode,
 )
 from sitl_quad.flight_loop import AttitudeLoopFactory, FlightLoop, builtin_pid_loop, motors_off_target
-from sitl_quad.flight_modes import CLIMB_MODES, flight_navigator, reposition_target, resume_seq, start_activity
+from sitl_quad.flight_modes import (
+    ARMING_PREVENTED_MODES,
+    CLIMB_MODES,
+    flight_navigator,
+    kept_after_disarm,
+    reposition_target,
+    resume_seq,
+    start_activity,
+)
 from sitl_quad.navigator import Navigator
 from sitl_quad.offboard_setpoints import OffboardTracker, PositionTarget, RatesTarget, SetpointKind, wants_takeoff
 from sitl_quad.orbit import orbit_from_command
@@ -102,6 +110,7 @@ class Vehicle:
         self.mission: list[MissionItem] = []
         self.arming = ArmingState()
         self.mode = FlightMode.AUTO_LOITER
+        self.mode_after_disarm = FlightMode.AUTO_LOITER  # the user's last mode that allows arming
         self.offboard = OffboardStream()
         self.offboard_tracker = OffboardTracker()
         self.geofence = GeofenceGuard()
@@ -217,6 +226,9 @@ class Vehicle:
         if not self.sim.on_ground:
             self._emit("text", "Arming denied: not on the ground", 4)
             return CommandResult.DENIED
+        if self.mode in ARMING_PREVENTED_MODES:
+            self._emit("text", f"Arming denied: not possible in {self.mode.label}", 4)
+            return CommandResult.DENIED
         if self._geofence_enforced() and self.geofence.violation(*self._north_east()) is not None:
             self._emit("text", "Arming denied: vehicle outside geofence", 4)
             return CommandResult.DENIED
@@ -264,6 +276,14 @@ class Vehicle:
         self.arming.disarm()
         self.sim.set_rotor_commands(np.zeros(4))
         self._emit("armed", reason)
+        if self.mode != self.mode_after_disarm:
+            self._enter(self.mode_after_disarm)
+
+    def _choose(self, mode: FlightMode, first_seq: int | None = None, altitude: float | None = None) -> None:
+        """Enter a mode a command asked for (a failsafe's mode is entered, never chosen)."""
+        if kept_after_disarm(mode):
+            self.mode_after_disarm = mode
+        self._enter(mode, first_seq, altitude)
 
     def set_mode(self, mode: FlightMode) -> CommandResult:
         if mode == FlightMode.OFFBOARD and not self.offboard_fresh():
@@ -276,14 +296,14 @@ class Vehicle:
             return CommandResult.DENIED
         if mode == FlightMode.ORBIT:  # an orbit around here with the defaults, as PX4 enters it by mode
             return self.orbit(math.nan, math.nan, math.nan, math.nan, math.nan, math.nan)
-        self._enter(mode)
+        self._choose(mode)
         return CommandResult.ACCEPTED
 
     def takeoff(self, altitude: float | None = None) -> CommandResult:
         if not self.armed:
             self._emit("text", "Takeoff denied: disarmed", 4)
             return CommandResult.DENIED
-        self._enter(FlightMode.AUTO_TAKEOFF, altitude=altitude)
+        self._choose(FlightMode.AUTO_TAKEOFF, altitude=altitude)
         return CommandResult.ACCEPTED
 
     def start_mission(self, first_seq: int | None = None) -> CommandResult:
@@ -294,7 +314,7 @@ class Vehicle:
             return CommandResult.DENIED
         if not self._mission_inside_fence():
             return CommandResult.DENIED
-        self._enter(FlightMode.AUTO_MISSION, first_seq=first_seq)
+        self._choose(FlightMode.AUTO_MISSION, first_seq=first_seq)
         return CommandResult.ACCEPTED
 
     def set_mission(self, items: list[MissionItem]) -> None:
@@ -329,7 +349,7 @@ class Vehicle:
         if taking_off:
             self._reposition_after_takeoff = (lat, lon, alt_amsl, yaw)
             return CommandResult.ACCEPTED
-        self._enter(FlightMode.AUTO_LOITER)
+        self._choose(FlightMode.AUTO_LOITER)
         self.navigator.hold(self.clock, self.estimate, position=place, yaw=yaw if math.isfinite(yaw) else None)
         return CommandResult.ACCEPTED
 
@@ -371,7 +391,7 @@ class Vehicle:
         except ValueError as exc:
             self._emit("text", f"Orbit denied: {exc}", 4)
             return CommandResult.DENIED
-        self._enter(FlightMode.ORBIT)
+        self._choose(FlightMode.ORBIT)
         self.navigator.start_orbit(self.clock, self.estimate, orbit)
         return CommandResult.ACCEPTED
 

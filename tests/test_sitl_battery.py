@@ -212,7 +212,8 @@ def test_return_at_critical_then_land_at_emergency():
         "Emergency battery level! Landing immediately",
     ]
     modes = [e.text for e in events if e.kind == "mode"]
-    assert modes[-2:] == [FlightMode.AUTO_RTL.label, FlightMode.AUTO_LAND.label]
+    # the failsafes' Return then Land, and at the disarm back to the user's Mission (as PX4)
+    assert modes[-3:] == [FlightMode.AUTO_RTL.label, FlightMode.AUTO_LAND.label, FlightMode.AUTO_MISSION.label]
     north = vehicle.truth.position[0]
     assert 0.0 < north < 1000.0 and math.isclose(vehicle.truth.position[2], 0.0, abs_tol=0.1)  # on the way home
     assert vehicle.battery.state_of_charge < 0.1

@@ -114,7 +114,11 @@ def test_battery_status_warnings_return_and_swap_over_udp(start_sitl):
         state = gcs.recv("BATTERY_STATUS", timeout=WAIT_S)
         assert state.charge_state == mavlink.MAV_BATTERY_CHARGE_STATE_CRITICAL and state.battery_remaining <= 18
 
-        assert gcs.wait_heartbeat(lambda m: not armed(m), timeout=4 * WAIT_S) is not None  # home, landed, disarmed
+        landed = gcs.wait_heartbeat(lambda m: not armed(m), timeout=4 * WAIT_S)  # home, landed, disarmed
+        assert landed is not None
+        # as PX4, the disarm went back to the user's mode (Mission), out of the failsafe's Return
+        back = gcs.wait_heartbeat(lambda m: FlightMode.from_custom_mode(m.custom_mode) != FlightMode.AUTO_RTL)
+        assert back is not None and FlightMode.from_custom_mode(back.custom_mode) == FlightMode.AUTO_MISSION
         assert gcs.command(ARM, 1).result == DENIED  # below BAT_CRIT_THR
         assert gcs.text_starting("Arming denied: battery", timeout=WAIT_S) is not None
         assert gcs.command(MAV_CMD_BATTERY_RESET, 0, 100).result == DENIED  # no battery 1 in the mask
@@ -122,6 +126,10 @@ def test_battery_status_warnings_return_and_swap_over_udp(start_sitl):
         fresh = gcs.recv("BATTERY_STATUS", timeout=WAIT_S, condition=lambda m: m.battery_remaining == 100)
         assert fresh is not None and fresh.current_consumed == 0
         assert fresh.charge_state == mavlink.MAV_BATTERY_CHARGE_STATE_OK
+        # the fresh pack arms; in Hold, since arming in Mission would fly the mission again (and be off the ground
+        # before a loaded machine's disarm arrives)
+        hold = FlightMode.AUTO_LOITER
+        assert gcs.set_mode(hold.value[0], hold.value[1]).result == ACCEPTED
         assert gcs.command(ARM, 1).result == ACCEPTED
         assert gcs.command(ARM, 0).result == ACCEPTED
     finally:

@@ -108,6 +108,23 @@ def test_mission_mode_waits_for_arming(vehicle):
     assert -vehicle.truth.position[2] > 2.0  # arming in mission mode starts the mission
 
 
+def test_return_and_land_refuse_arming_and_a_disarm_goes_back_to_the_users_mode(vehicle):
+    """As PX4: no arming in Return or Land (it would fly them from the ground), and after a Return the vehicle
+    is back in the last mode the user chose that allows arming (a failsafe's Return: test_sitl_battery_protocol)."""
+    for mode in (FlightMode.AUTO_RTL, FlightMode.AUTO_LAND):
+        assert vehicle.set_mode(mode) == CommandResult.ACCEPTED
+        assert vehicle.arm() == CommandResult.DENIED and not vehicle.armed
+    assert vehicle.set_mode(FlightMode.AUTO_LOITER) == CommandResult.ACCEPTED
+    vehicle.set_mission(short_mission())
+    assert vehicle.arm() == CommandResult.ACCEPTED
+    assert vehicle.start_mission() == CommandResult.ACCEPTED
+    fly_until(vehicle, lambda v: -v.truth.position[2] > 3.0, 20.0)
+    assert vehicle.set_mode(FlightMode.AUTO_RTL) == CommandResult.ACCEPTED  # never a mode to go back to
+    events = fly_until(vehicle, lambda v: not v.armed, 90.0)
+    assert not vehicle.armed and any(e.kind == "armed" and "landing" in e.text for e in events)
+    assert vehicle.mode == FlightMode.AUTO_MISSION  # the user's last choice; the takeoff mode never counts
+
+
 def _feed_offboard_from_builtin(vehicle: Vehicle) -> None:
     """Stand in for an offboard controller: the built-in loop's answer, sent as an offboard target."""
     target = vehicle.position.update(vehicle.setpoint, vehicle.estimate, vehicle.outer_dt)
