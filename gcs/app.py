@@ -19,10 +19,11 @@ from starlette.responses import Response
 
 from gcs.body_limit import BodyLimitMiddleware
 from gcs.buoy_files import BuoyFileError
+from gcs.connection import TransportHub
 from gcs.http_headers import SecurityHeadersMiddleware
 from gcs.lifecycle import MissionConflictError
 from gcs.link import LinkManager
-from gcs.missions import MissionNotFoundError, MissionService
+from gcs.missions import MissionNotFoundError, MissionService, VehicleNotFoundError
 from gcs.ownership import NotOwnerError
 from gcs.routes import buoy_files, live, missions, plans, vehicle
 from gcs.settings import Settings
@@ -69,6 +70,10 @@ def _install_error_handlers(app: FastAPI) -> None:
     async def not_found(_: Request, error: MissionNotFoundError) -> JSONResponse:
         return JSONResponse({"detail": f"no mission {error.args[0]}"}, status_code=404)
 
+    @app.exception_handler(VehicleNotFoundError)
+    async def no_vehicle(_: Request, error: VehicleNotFoundError) -> JSONResponse:
+        return JSONResponse({"detail": f"no vehicle with system id {error.args[0]}"}, status_code=404)
+
     @app.exception_handler(MissionConflictError)
     async def conflict(_: Request, error: MissionConflictError) -> JSONResponse:
         return JSONResponse({"detail": str(error)}, status_code=409)
@@ -109,8 +114,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         storage = open_storage(settings.database)
         key = None if settings.signing_key is None else parse_signing_key(settings.signing_key)
-        link = LinkManager(settings.vehicle_url, settings.heartbeat_timeout_s, signing_key=key)
-        service = MissionService(settings, storage, link)  # owner or stand-by: gcs.ownership, by the settings
+        hub = TransportHub()  # a fleet's vehicles on one connection (a router's) share its socket
+        links = [
+            LinkManager(url, settings.heartbeat_timeout_s, signing_key=key, sysid=sysid, transports=hub.open_transport)
+            for sysid, url in settings.fleet
+        ]
+        # owner or stand-by: gcs.ownership, by the settings
+        service = MissionService(settings, storage, links[0], fleet=links[1:])
         app.state.service = service
         await service.start()
         try:

@@ -16,6 +16,7 @@ from planner.scenario import Weather
 
 # `up` starts its own vehicle on this machine: by default on the port of the default vehicle connection.
 DEFAULT_VEHICLE_PORT = parse_connection(Settings.default("vehicle_url")).port
+MAX_VEHICLES = 64
 
 
 def _help(text: str, field: str, default: object = None) -> str:
@@ -62,10 +63,13 @@ def build_parser() -> argparse.ArgumentParser:
     serve = commands.add_parser("serve", help="serve the REST API, the WebSocket and the map page")
     serve.add_argument(
         "--vehicle",
-        dest="vehicle_url",
-        metavar="URL",
+        dest="vehicles",
+        action="append",
+        metavar="[SYSID=]URL",
         help=_help(
-            "MAVLink connection: udpout://HOST:PORT, udpin://[HOST]:PORT, tcp://HOST:PORT or serial:///dev/DEVICE[:BAUD]",
+            "MAVLink connection: udpout://HOST:PORT, udpin://[HOST]:PORT, tcp://HOST:PORT or "
+            "serial:///dev/DEVICE[:BAUD]; repeat it for a fleet (missions fly on the first); SYSID= takes only "
+            "that system's autopilot, as when a router delivers several vehicles on one link",
             "vehicle_url",
         ),
     )
@@ -157,6 +161,24 @@ def build_parser() -> argparse.ArgumentParser:
         "udpin://0.0.0.0:14550 (PX4, ArduPilot, radios), udpout://, tcp:// or serial:///dev/DEVICE[:BAUD]",
     )
     up.add_argument(
+        "--vehicles",
+        dest="fleet_size",  # not `vehicles`: that is the service's list of vehicle links (Settings.vehicles)
+        type=int,
+        default=1,
+        metavar="N",
+        help=f"simulate a fleet of N vehicles (system ids 1..N, ports from --vehicle-port up, each with its own "
+        f"offboard controller, seed --seed + id - 1); 1 to {MAX_VEHICLES} (default 1)",
+    )
+    up.add_argument(
+        "--depot",
+        dest="depots",
+        type=_depot,
+        action="append",
+        metavar="LAT,LON",
+        help="a depot the fleet's vehicles stand at (repeatable: vehicle i at depot i mod the number given; "
+        "vehicles sharing a depot stand 3 m apart); default: the service's home",
+    )
+    up.add_argument(
         "--data",
         dest="data_dir",
         type=Path,
@@ -185,6 +207,17 @@ def _wind(text: str) -> tuple[float, float]:
     if len(values) not in (1, 2) or not all(map(math.isfinite, values)) or not 0 <= values[0] <= 40:
         raise argparse.ArgumentTypeError(f"expected SPEED[,FROM_DEG] with 0 <= SPEED <= 40 m/s, got {text!r}")
     return values[0], values[1] if len(values) == 2 else 0.0
+
+
+def _depot(text: str) -> tuple[float, float]:
+    parts = text.split(",")
+    try:
+        lat, lon = (float(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LAT,LON in degrees, got {text!r}") from None
+    if not (math.isfinite(lat) and math.isfinite(lon) and -90 <= lat <= 90 and -180 <= lon <= 180):
+        raise argparse.ArgumentTypeError(f"depot {text!r} is outside lat [-90, 90] / lon [-180, 180]")
+    return lat, lon
 
 
 def _weather(args: argparse.Namespace) -> Weather | None:
@@ -226,6 +259,9 @@ def check_serve(settings: Settings) -> str | None:
         parse_connection(settings.vehicle_url)
     except ConnectionStringError as error:
         return str(error)
+    urls = [url for _, url in settings.fleet]
+    if len(set(urls)) < len(urls) and any(sysid is None for sysid, _ in settings.fleet):
+        return "--vehicle: vehicles sharing a connection each need their system id (SYSID=URL)"
     if not 0 < settings.port < 65536:
         return f"--port {settings.port} is not a TCP port"
     try:
@@ -253,6 +289,15 @@ def up(args: argparse.Namespace) -> int:
         print(f"buoy-gcs: --vehicle-port {args.vehicle_port} is not a port", file=sys.stderr)
         return 2
     external = args.vehicle_url is not None
+    if not 1 <= args.fleet_size <= MAX_VEHICLES:
+        print(f"buoy-gcs: --vehicles must be 1 to {MAX_VEHICLES}", file=sys.stderr)
+        return 2
+    if external and (args.fleet_size > 1 or args.depots):
+        print("buoy-gcs: --vehicles and --depot simulate vehicles; they do not go with --vehicle", file=sys.stderr)
+        return 2
+    if args.vehicle_port + args.fleet_size - 1 >= 65536:
+        print(f"buoy-gcs: {args.fleet_size} vehicles from port {args.vehicle_port} run past port 65535", file=sys.stderr)
+        return 2
     if args.compare and not args.demo:
         print("buoy-gcs: --compare compares two demo flights; it needs --demo", file=sys.stderr)
         return 2
@@ -277,6 +322,8 @@ def up(args: argparse.Namespace) -> int:
         demo_seed=args.demo_seed,
         exit_after_demo=args.exit_after_demo,
         compare=args.compare,
+        vehicles=args.fleet_size,
+        depots=tuple(args.depots or ()),
     )
     return run_up(options, say=lambda text: print(text, flush=True))
 

@@ -24,6 +24,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
+UDP_CLOSE_WAIT_S = 1.0
 RECEIVE_BUFFER_BYTES = 4 << 20  # a vehicle in lockstep sends bursts faster than real time
 TCP_RETRY_S = 1.0
 DEFAULT_BAUD = 57600
@@ -85,6 +86,21 @@ def parse_connection(url: str) -> Connection:
     return Connection(kind, host=host, port=int(port))
 
 
+def parse_vehicle(text: str) -> tuple[int | None, str]:
+    """A fleet's vehicle as `[SYSID=]URL`: (its MAVLink system id or None for the first autopilot heard, the
+    connection string), e.g. `2=udpin://:14550` (system 2 among those a router delivers to port 14550). Raises
+    ConnectionStringError naming what is wrong."""
+    head, sep, rest = text.partition("=")
+    if sep and head.strip().isdigit():
+        sysid, url = int(head), rest
+        if not 1 <= sysid <= 255:
+            raise ConnectionStringError(f"vehicle {text!r}: a system id is 1 to 255, got {sysid}")
+    else:
+        sysid, url = None, text
+    parse_connection(url)
+    return sysid, url.strip()
+
+
 class Transport:
     """Moves bytes to and from one vehicle link. `open(on_data)`, `send(data)`, `close()`."""
 
@@ -111,6 +127,11 @@ class Transport:
 class _DatagramProtocol(asyncio.DatagramProtocol):
     def __init__(self, transport: UdpTransport) -> None:
         self.owner = transport
+        self.closed = asyncio.get_running_loop().create_future()
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        if not self.closed.done():
+            self.closed.set_result(None)
 
     def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
         self.owner._from(data, addr)
@@ -127,6 +148,7 @@ class UdpTransport(Transport):
     def __init__(self, connection: Connection) -> None:
         super().__init__(connection)
         self._socket: asyncio.DatagramTransport | None = None
+        self._protocol: _DatagramProtocol | None = None
         self.peer: tuple[str, int] | None = None
 
     async def open(self, on_data: DataCallback) -> None:
@@ -134,9 +156,11 @@ class UdpTransport(Transport):
         loop = asyncio.get_running_loop()
         address = (self.connection.host, self.connection.port)
         if self.connection.kind == "udpout":
-            self._socket, _ = await loop.create_datagram_endpoint(lambda: _DatagramProtocol(self), remote_addr=address)
+            self._socket, self._protocol = await loop.create_datagram_endpoint(
+                lambda: _DatagramProtocol(self), remote_addr=address
+            )
         else:
-            self._socket, _ = await loop.create_datagram_endpoint(
+            self._socket, self._protocol = await loop.create_datagram_endpoint(
                 lambda: _DatagramProtocol(self), local_addr=address, reuse_port=False
             )
         sock = self._socket.get_extra_info("socket")
@@ -156,16 +180,23 @@ class UdpTransport(Transport):
         self._received(data, addr)
 
     def send(self, data: bytes) -> None:
+        self.send_to(data, self.peer)
+
+    def send_to(self, data: bytes, peer: tuple[str, int] | None) -> None:
+        """udpout: to the vehicle; udpin: to `peer` (nobody until a vehicle has been heard)."""
         if self._socket is None:
             return
         if self.connection.kind == "udpout":
             self._socket.sendto(data)
-        elif self.peer is not None:  # udpin: nobody to talk to until the vehicle has been heard
-            self._socket.sendto(data, self.peer)
+        elif peer is not None:
+            self._socket.sendto(data, peer)
 
     async def close(self) -> None:
         if self._socket is not None:
             self._socket.close()
+            # asyncio closes the socket on a later turn of the loop: wait, so its port is free on return
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._protocol.closed, UDP_CLOSE_WAIT_S)
             self._socket = None
 
 
@@ -292,3 +323,69 @@ def open_transport(connection: Connection) -> Transport:
     if connection.kind == "tcp":
         return TcpTransport(connection)
     return SerialTransport(connection)
+
+
+class TransportHub:
+    """Transports shared by connection: the links of a fleet's vehicles that arrive on one connection (a MAVLink
+    router's port, or several vehicles streaming to one ground port) read one socket or stream. Each link gets a
+    view that receives every chunk; on udpin a view answers its own vehicle's address."""
+
+    def __init__(self) -> None:
+        self._shared: dict[Connection, tuple[Transport, list[SharedTransport]]] = {}
+
+    def open_transport(self, connection: Connection) -> Transport:
+        return SharedTransport(connection, self)
+
+    async def _attach(self, view: SharedTransport) -> Transport:
+        entry = self._shared.get(view.connection)
+        if entry is None:
+            inner: Transport = open_transport(view.connection)
+            entry = self._shared[view.connection] = (inner, [])
+            try:
+                await inner.open(lambda data, source: [v._received(data, source) for v in list(entry[1])])
+            except BaseException:
+                del self._shared[view.connection]
+                raise
+        entry[1].append(view)
+        return entry[0]
+
+    async def _detach(self, view: SharedTransport) -> None:
+        entry = self._shared.get(view.connection)
+        if entry is None or view not in entry[1]:
+            return
+        entry[1].remove(view)
+        if not entry[1]:
+            del self._shared[view.connection]
+            await entry[0].close()
+
+
+class SharedTransport(Transport):
+    """One link's view of a transport its hub shares (see TransportHub)."""
+
+    def __init__(self, connection: Connection, hub: TransportHub) -> None:
+        super().__init__(connection)
+        self._hub = hub
+        self._inner: Transport | None = None
+        self.peer: tuple[str, int] | None = None
+
+    @property
+    def datagrams(self) -> bool:  # type: ignore[override]
+        return self.connection.kind in ("udpin", "udpout")
+
+    async def open(self, on_data: DataCallback) -> None:
+        await super().open(on_data)
+        self._inner = await self._hub._attach(self)
+
+    def reply_to(self, address: object) -> None:
+        if self.connection.kind == "udpin" and isinstance(address, tuple):
+            self.peer = address
+
+    def send(self, data: bytes) -> None:
+        if isinstance(self._inner, UdpTransport):
+            self._inner.send_to(data, self.peer or self._inner.peer)
+        elif self._inner is not None:
+            self._inner.send(data)
+
+    async def close(self) -> None:
+        self._inner = None
+        await self._hub._detach(self)

@@ -11,6 +11,7 @@ What it does, as QGroundControl and MAVSDK do:
   (`gcs.autopilots`: PX4 or ArduPilot Copter) and vehicle type; other ground stations, cameras, gimbals and
   companions on the link are not taken for it (a companion's estimates on the same system are still read);
   once the vehicle is silent past the timeout, an autopilot with another system id is a different vehicle;
+  a link made for one system id (`sysid`, a fleet's vehicle) takes only that system's autopilot;
 - detects a new boot for certain by the vehicle's boot instant (SYSTEM_TIME: unix time minus time since boot,
   constant through one boot) as well as by `time_boot_ms` going back;
 - asks for the streams it needs with SET_MESSAGE_INTERVAL (and REQUEST_DATA_STREAM for ArduPilot), and never
@@ -36,7 +37,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from gcs.autopilots import CUSTOM_MODE_ENABLED, Autopilot, Px4, autopilot_for
-from gcs.connection import ConnectionStringError, Transport, open_transport, parse_connection
+from gcs.connection import Connection, ConnectionStringError, Transport, open_transport, parse_connection
 from gcs.mission_protocol import download_items, upload_items
 from uavcore.geofence import Geofence
 from uavcore.mavlink import (
@@ -250,8 +251,12 @@ class LinkManager:
         url: str = f"udpout://127.0.0.1:{VEHICLE_UDP_PORT}",
         heartbeat_timeout_s: float = 3.0,
         signing_key: bytes | None = None,
+        sysid: int | None = None,
+        transports: Callable[[Connection], Transport] = open_transport,
     ) -> None:
         self.connection = parse_connection(url)
+        self._open_transport = transports  # a TransportHub's when fleet links share a connection
+        self.sysid = sysid  # only this system's autopilot is the vehicle (None: the first autopilot heard)
         self.heartbeat_timeout_s = heartbeat_timeout_s
         self.status = VehicleStatus()
         self.vehicle: VehicleIdentity | None = None
@@ -274,14 +279,14 @@ class LinkManager:
     def target(self) -> tuple[int, int]:
         """(system id, component id) commands go to: the discovered vehicle, or 1/1 until one is heard."""
         if self.vehicle is None:
-            return 1, 1
+            return self.sysid or 1, 1
         return self.vehicle.sysid, self.vehicle.compid
 
     # ----- lifecycle
     async def start(self) -> None:
         self._connected_event = asyncio.Event()
         self._command_lock = asyncio.Lock()
-        self._transport = open_transport(self.connection)
+        self._transport = self._open_transport(self.connection)
         try:
             await self._transport.open(self._received)
         except OSError as error:
@@ -506,6 +511,8 @@ class LinkManager:
         gone silent)."""
         if m.autopilot == mavlink.MAV_AUTOPILOT_INVALID or m.type in NOT_A_VEHICLE:
             return
+        if self.sysid is not None and m.get_srcSystem() != self.sysid:
+            return  # another vehicle of a fleet on a shared link: its own link takes it
         identity = VehicleIdentity(m.get_srcSystem(), m.get_srcComponent(), m.autopilot, m.type)
         current = self.vehicle
         if current is not None and (current.sysid, current.compid) == (identity.sysid, identity.compid):

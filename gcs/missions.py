@@ -12,6 +12,7 @@ The routes see no storage, link or lifecycle: only the methods here.
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -48,14 +49,25 @@ class MissionNotFoundError(KeyError):
     pass
 
 
+class VehicleNotFoundError(KeyError):
+    pass
+
+
 class MissionService:
     """Plans, stores and flies missions over one LinkManager; answers what is stored."""
 
     def __init__(
-        self, settings: Settings, storage: Storage, link: LinkManager, ownership: Ownership | None = None
+        self,
+        settings: Settings,
+        storage: Storage,
+        link: LinkManager,
+        ownership: Ownership | None = None,
+        fleet: Sequence[LinkManager] = (),
     ) -> None:
+        """`link`: the vehicle missions fly on; `fleet`: the other vehicles' links (shown, not yet flown)."""
         self.settings = settings
         self._storage, self._link = storage, link
+        self._fleet = list(fleet)
         self._ownership = ownership or ownership_for(settings)
         self._flights = FlightLifecycle(settings, storage, link)
         self._fence_unanswered: int | None = None  # the vehicle incarnation that did not answer a fence request
@@ -70,6 +82,8 @@ class MissionService:
         """As the link's new owner: start it and re-attach a mission left flying, as after a restart."""
         unfinished = self._storage.unfinished_missions()  # read before this run can start any mission
         await self._link.start()
+        for link in self._fleet:
+            await link.start()
         self._flights.reattach(unfinished)
 
     async def stop(self) -> None:
@@ -77,7 +91,8 @@ class MissionService:
         as soon as this instance releases the lease (and this instance, restarted, would re-attach it)."""
         await self._ownership.stop()
         await self._flights.stop(hand_over=self._ownership.shared)
-        await self._link.stop()
+        for link in (self._link, *self._fleet):
+            await link.stop()
         await self._ownership.release()  # only now may a stand-by talk to the vehicle
 
     # ----- planning
@@ -178,6 +193,22 @@ class MissionService:
         data["depot"] = dict(zip(("lat", "lon"), self.default_depot(), strict=True))
         data["active_mission"] = self.active_mission()
         return data
+
+    def vehicles(self) -> list[dict[str, Any]]:
+        """Every vehicle of the fleet as its link sees it: `sysid` (configured, else as heard), its `link`, and
+        whether missions fly on it (`flies_missions`: the first)."""
+        return [self._fleet_vehicle(link) for link in (self._link, *self._fleet)]
+
+    def fleet_vehicle(self, sysid: int) -> dict[str, Any]:
+        """One vehicle of the fleet by system id; raises VehicleNotFoundError."""
+        for link in (self._link, *self._fleet):
+            if (link.sysid or link.status.sysid) == sysid:
+                return self._fleet_vehicle(link)
+        raise VehicleNotFoundError(sysid)
+
+    def _fleet_vehicle(self, link: LinkManager) -> dict[str, Any]:
+        data = link.status.as_dict() | {"sysid": link.sysid or link.status.sysid, "link": str(link.connection)}
+        return data | {"flies_missions": link is self._link, "role": self._ownership.as_dict()["role"]}
 
     # ----- queries over what is stored
     def get(self, mission_id: int) -> MissionRecord:

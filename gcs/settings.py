@@ -17,9 +17,10 @@ import socket
 from pathlib import Path
 from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
+from gcs.connection import parse_vehicle
 from uavcore.geodesy import DEFAULT_HOME
 from uavcore.mavlink import VEHICLE_UDP_PORT
 
@@ -51,6 +52,10 @@ class Settings(BaseSettings):
     )
 
     vehicle_url: str = Field(f"udpout:127.0.0.1:{VEHICLE_UDP_PORT}", description="MAVLink connection to the vehicle")
+    vehicles: Annotated[list[str], NoDecode] = Field(
+        default_factory=list,
+        description="a fleet, each vehicle as [SYSID=]URL (the first is vehicle_url); none: vehicle_url alone",
+    )
     host: str = Field("127.0.0.1", description="address the service binds (loopback only by default)")
     port: int = Field(8000, description="HTTP port of the service and map page")
     data_dir: Path = Field(Path("data"), description="`up`'s data directory (database, logs, vehicle parameters)")
@@ -92,11 +97,31 @@ class Settings(BaseSettings):
     )
     web_dir: Path = Path(__file__).resolve().parent / "web"  # package data: ships in the wheel
 
-    @field_validator("cors_origins", mode="before")
+    @field_validator("cors_origins", "vehicles", mode="before")
     @classmethod
     def _comma_separated(cls, value: Any) -> Any:
         # BUOY_GCS_CORS_ORIGINS="https://a.example,https://b.example"
         return [part.strip() for part in value.split(",") if part.strip()] if isinstance(value, str) else value
+
+    @field_validator("vehicles")
+    @classmethod
+    def _vehicle_specs(cls, value: list[str]) -> list[str]:
+        specs = [parse_vehicle(text) for text in value]  # raises naming a bad one
+        sysids = [sysid for sysid, _ in specs if sysid is not None]
+        if len(set(sysids)) < len(sysids):
+            raise ValueError(f"a system id is given to two vehicles: {value}")
+        return value
+
+    @model_validator(mode="after")
+    def _first_vehicle_is_vehicle_url(self) -> Settings:
+        if self.vehicles:  # frozen: set as pydantic sets fields
+            object.__setattr__(self, "vehicle_url", parse_vehicle(self.vehicles[0])[1])
+        return self
+
+    @property
+    def fleet(self) -> list[tuple[int | None, str]]:
+        """Each vehicle's (system id or None, connection string); vehicle_url alone without a fleet."""
+        return [parse_vehicle(text) for text in self.vehicles] or [(None, self.vehicle_url)]
 
     @property
     def database(self) -> str | Path:

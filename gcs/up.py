@@ -47,6 +47,7 @@ from planner.scenario import (
     paper_weather,
     reference_scenario,
 )
+from uavcore.geodesy import LocalFrame
 from uavcore.mavlink import SIGNING_KEY_ENV
 
 REPO = Path(__file__).resolve().parent.parent
@@ -63,6 +64,7 @@ CASCADE_NAMES = {"adrc": "cascade dual ADRC", "pid": "PID cascade", "px4": "vehi
 DEMO_DWELL_S = 1.0
 DEMO_ACCEPTANCE_M = 2.0
 COMPARISON_FIGURE = "demo-gust-comparison.png"
+PAD_SPACING_M = 3.0  # vehicles sharing a depot stand this far apart, west to east
 
 
 @dataclass
@@ -80,6 +82,8 @@ class UpOptions:
     demo_seed: int = 1  # which reference scenario to fly
     exit_after_demo: bool = False
     compare: bool = False  # after the demo, fly it again with the PID cascade and print both
+    vehicles: int = 1  # simulated vehicles, system ids 1..N, on ports vehicle_port .. vehicle_port + N - 1
+    depots: tuple[tuple[float, float], ...] = ()  # (lat, lon) each; vehicle i at depot i mod len (none: home)
 
     @property
     def base_url(self) -> str:
@@ -103,40 +107,58 @@ def weather_params(weather: Weather) -> list[str]:
 
 
 def stack(options: UpOptions) -> list[ChildSpec]:
-    """The children in start order (vehicle, offboard controller unless `px4`, service; the service alone for
-    a real vehicle), with how to tell each is ready."""
+    """The children in start order (each vehicle and its offboard controller unless `px4`, then the service;
+    the service alone for a real vehicle), with how to tell each is ready."""
     settings = options.settings
     if not options.simulate:
-        return [_service(options, settings.vehicle_url)]
+        return [_service(options, settings.vehicles or [settings.vehicle_url])]
     if options.controller not in CONTROLLERS:
         raise ValueError(f"controller must be one of {CONTROLLERS}, got {options.controller!r}")
-    vehicle_port = parse_connection(settings.vehicle_url).port
-    vehicle_url = f"udpout:127.0.0.1:{vehicle_port}"  # the children all run on this machine
+    first_port = parse_connection(settings.vehicle_url).port
+    children, links = [], []
+    for sysid in range(1, options.vehicles + 1):
+        vehicle, controller = _vehicle_children(options, sysid, first_port + sysid - 1)
+        children += [vehicle, *controller]
+        links.append(f"{sysid}=udpout:127.0.0.1:{first_port + sysid - 1}")  # the children all run on this machine
+    children.append(_service(options, links if options.vehicles > 1 else [links[0].partition("=")[2]]))
+    return children
+
+
+def vehicle_home(options: UpOptions, sysid: int) -> tuple[float, float, float] | None:
+    """Where vehicle `sysid` stands: its depot (i mod the depots given, else the default home), each vehicle of
+    a depot on its own pad PAD_SPACING_M east of the one before; None for a lone vehicle at the default home."""
+    if options.vehicles == 1 and not options.depots:
+        return None
+    depots = options.depots or (options.settings.home[:2],)
+    lat, lon = depots[(sysid - 1) % len(depots)]
+    pad = (sysid - 1) // len(depots)
+    home = LocalFrame(lat, lon, options.settings.home[2]).from_ned(0.0, pad * PAD_SPACING_M, 0.0)
+    return float(home[0]), float(home[1]), options.settings.home[2]
+
+
+def _vehicle_children(options: UpOptions, sysid: int, port: int) -> tuple[ChildSpec, list[ChildSpec]]:
+    """Vehicle `sysid` (sitl_quad, its own port, seed, parameter file and log) and its offboard controller."""
+    settings = options.settings
+    suffix = "" if sysid == 1 else f"-{sysid}"  # a lone vehicle keeps the names it always had
     params = [f"MC_ATT_CTRL={ATTITUDE_LOOP[options.controller]}", *weather_params(options.weather or Weather())]
-    vehicle_args = ["--port", str(vehicle_port), "--seed", str(options.seed)]
-    vehicle_args += ["--params", str(settings.data_dir / "vehicle.params")]
+    vehicle_args = ["--port", str(port), "--sysid", str(sysid), "--seed", str(options.seed + sysid - 1)]
+    vehicle_args += ["--params", str(settings.data_dir / f"vehicle{suffix}.params")]
+    if (home := vehicle_home(options, sysid)) is not None:
+        vehicle_args += ["--home", ",".join(f"{value:.8f}" for value in home)]
     vehicle_args += [arg for param in params for arg in ("--param", param)]
     vehicle_args += ["--lockstep"] if options.lockstep else ["--speed", f"{options.speed:g}"]
     signing = _signing_env(settings)
-    vehicle_log = settings.data_dir / "logs" / "sitl_quad.log"
-    children = [
-        ChildSpec(
-            "sitl_quad",
-            python_module("sitl_quad", *vehicle_args),
-            ready=lambda: _log_says(vehicle_log, "listening"),
-            env=signing,
-        )
-    ]
-    if options.controller != "px4":
-        children.append(
-            ChildSpec(
-                "adrc_offboard",
-                python_module("adrc_offboard", "--connect", vehicle_url, "--controller", options.controller),
-                env=signing,
-            )
-        )
-    children.append(_service(options, vehicle_url))
-    return children
+    vehicle_log = settings.data_dir / "logs" / f"sitl_quad{suffix}.log"
+    vehicle = ChildSpec(
+        f"sitl_quad{suffix}",
+        python_module("sitl_quad", *vehicle_args),
+        ready=lambda: _log_says(vehicle_log, "listening"),
+        env=signing,
+    )
+    if options.controller == "px4":
+        return vehicle, []
+    connect = ["--connect", f"udpout:127.0.0.1:{port}", "--sysid", str(sysid), "--controller", options.controller]
+    return vehicle, [ChildSpec(f"adrc_offboard{suffix}", python_module("adrc_offboard", *connect), env=signing)]
 
 
 def _signing_env(settings: Settings) -> dict[str, str]:
@@ -144,12 +166,11 @@ def _signing_env(settings: Settings) -> dict[str, str]:
     return {SIGNING_KEY_ENV: settings.signing_key} if settings.signing_key else {}
 
 
-def _service(options: UpOptions, vehicle_url: str) -> ChildSpec:
+def _service(options: UpOptions, vehicles: list[str]) -> ChildSpec:
     settings = options.settings
     gcs_args = [
         "serve",
-        "--vehicle",
-        vehicle_url,
+        *(arg for vehicle in vehicles for arg in ("--vehicle", vehicle)),
         "--host",
         settings.host,
         "--port",
@@ -252,7 +273,8 @@ def _run_stack(
     pacing = "lockstep" if options.lockstep else f"speed {options.speed:g}x"
     if options.simulate:
         outer, inner = LOOPS[options.controller]
-        say(f"starting vehicle ({pacing}, seed {options.seed}; inner loop: {inner}), outer loop: {outer}; service ...")
+        fleet = f"{options.vehicles} vehicles, system ids 1-{options.vehicles}" if options.vehicles > 1 else "vehicle"
+        say(f"starting {fleet} ({pacing}, seed {options.seed}; inner loop: {inner}), outer loop: {outer}; service ...")
     else:
         say(f"starting the service for the vehicle at {settings.vehicle_url} ...")
     try:

@@ -42,6 +42,26 @@ def free_udp_port() -> int:
         return sock.getsockname()[1]
 
 
+def free_udp_port_block(count: int) -> int:
+    """The first of `count` consecutive UDP ports on 127.0.0.1 that nothing is bound to right now (a fleet's)."""
+    while True:
+        first = free_udp_port()
+        if first + count > 65536:
+            continue
+        sockets = []
+        try:
+            for port in range(first, first + count):
+                sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                sockets.append(sock)
+                sock.bind(("127.0.0.1", port))
+            return first
+        except OSError:
+            continue
+        finally:
+            for sock in sockets:
+                sock.close()
+
+
 def start_lockstep_pair(port: int, seed: int, log: Path) -> tuple[subprocess.Popen, subprocess.Popen]:
     """`python -m sitl_quad --lockstep --log` on port and `python -m adrc_offboard` for it: (vehicle, controller),
     stderr piped so a test can check neither printed a traceback."""

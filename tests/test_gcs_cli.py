@@ -14,6 +14,11 @@ from gcs.cli import build_parser, main, settings_from_args
         (["serve", "--vehicle", "pigeon:127.0.0.1:5760"], "unknown scheme 'pigeon'"),
         (["serve", "--vehicle", "udpout:127.0.0.1:notaport"], "the port must be a number"),
         (["serve", "--port", "70000"], "not a TCP port"),
+        (["serve", "--vehicle", "1=udpout:127.0.0.1:14600", "--vehicle", "1=tcp://h:5760"], "two vehicles"),
+        (["serve", "--vehicle", "300=udpout:127.0.0.1:14600"], "a system id is 1 to 255"),
+        (["serve", "--vehicle", "udpin://:14550", "--vehicle", "udpin://:14550"], "each need their system id"),
+        (["up", "--vehicles", "0"], "--vehicles must be 1 to 64"),
+        (["up", "--vehicles", "2", "--vehicle", "udpin://:14550"], "do not go with --vehicle"),
     ],
 )
 def test_bad_options_exit_2_with_a_message(argv, message, capsys):
@@ -60,3 +65,18 @@ def test_serve_names_the_instance_and_the_vehicle_for_a_shared_database():
     args = build_parser().parse_args(["serve", "--instance-name", "tower-2", "--vehicle-name", "harbour-drone-1"])
     settings = settings_from_args(args)
     assert (settings.instance_name, settings.vehicle_name) == ("tower-2", "harbour-drone-1")
+
+
+def test_serve_takes_a_fleet_by_repeating_vehicle():
+    args = build_parser().parse_args(["serve", "--vehicle", "1=udpout:127.0.0.1:14600", "--vehicle", "2=tcp://h:5760"])
+    settings = settings_from_args(args)
+    assert settings.fleet == [(1, "udpout:127.0.0.1:14600"), (2, "tcp://h:5760")]
+    assert settings.vehicle_url == "udpout:127.0.0.1:14600"  # the first: missions fly on it, the lease names it
+    lone = settings_from_args(build_parser().parse_args(["serve", "--vehicle", "udpin://:14550"]))
+    assert lone.fleet == [(None, "udpin://:14550")]  # no system id: the first autopilot heard
+
+
+def test_a_depot_off_the_globe_is_refused_by_the_parser(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["up", "--depot", "91,0"])
+    assert exit_info.value.code == 2 and "outside lat" in capsys.readouterr().err

@@ -326,6 +326,31 @@ def test_another_system_id_after_the_vehicle_falls_silent_is_a_different_vehicle
     asyncio.run(scenario())
 
 
+def test_links_made_for_system_ids_share_one_port_as_a_router_delivers_a_fleet(vehicle):
+    """Two vehicles stream to one listening port (as mavlink-router hands a fleet to a ground station): a link
+    made for system id 6 takes vehicle 6 even while vehicle 5 is heard first, and commands only it."""
+    port = free_udp_port()
+
+    async def scenario() -> None:
+        link = LinkManager(f"udpin://127.0.0.1:{port}", heartbeat_timeout_s=5.0, sysid=6)
+        assert link.target == (6, 1)  # before any heartbeat: commands would already go to system 6
+        await link.start()
+        try:
+            vehicle("--sysid", "5", "--out", f"127.0.0.1:{port}")
+            await asyncio.sleep(1.5)
+            assert link.vehicle is None  # vehicle 5 streams, and is not taken
+            vehicle("--sysid", "6", "--out", f"127.0.0.1:{port}")
+            assert await link.wait_connected(CONNECT_S)
+            assert link.vehicle.sysid == 6 and link.status.sysid == 6
+            items = _mission(DEFAULT_HOME)
+            await link.upload_mission(items, DEFAULT_HOME)
+            assert _same(await link.download_mission(), items)
+        finally:
+            await link.stop()
+
+    asyncio.run(scenario())
+
+
 def test_a_new_boot_is_recognised_by_its_boot_instant_even_when_its_clock_is_ahead():
     """A scripted autopilot: the second boot's time_boot_ms is larger than the first's (a fast lockstep clock
     overtook it), but its SYSTEM_TIME gives another boot instant."""

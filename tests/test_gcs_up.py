@@ -48,6 +48,34 @@ def test_each_controller_starts_its_loops(tmp_path, controller, attitude_loop, o
         assert "udpout:127.0.0.1:14600" in argv
 
 
+def test_a_fleet_is_a_vehicle_and_controller_per_system_id_and_one_service_linked_to_each(tmp_path):
+    options = _options(tmp_path, vehicles=3, depots=((43.0, 6.0), (43.1, 6.1)), seed=5)
+    children = stack(options)
+    names = [child.name for child in children]
+    pairs = [f"{name}{suffix}" for suffix in ("", "-2", "-3") for name in ("sitl_quad", "adrc_offboard")]
+    assert names == [*pairs, "gcs"]
+
+    def option(argv, name):
+        return argv[argv.index(name) + 1]
+
+    vehicles = children[0:6:2]
+    assert [option(v.argv, "--sysid") for v in vehicles] == ["1", "2", "3"]
+    assert [option(v.argv, "--port") for v in vehicles] == ["14600", "14601", "14602"]
+    assert [option(v.argv, "--seed") for v in vehicles] == ["5", "6", "7"]  # each its own air
+    assert len({option(v.argv, "--params") for v in vehicles}) == 3
+    homes = [tuple(float(x) for x in option(v.argv, "--home").split(",")) for v in vehicles]
+    assert homes[0][:2] == pytest.approx((43.0, 6.0)) and homes[1][:2] == pytest.approx((43.1, 6.1))
+    assert homes[2][0] == pytest.approx(43.0) and homes[2][1] > 6.0  # the first depot's second pad, east
+    controllers = children[1:6:2]
+    assert [option(c.argv, "--sysid") for c in controllers] == ["1", "2", "3"]
+    assert [option(c.argv, "--connect") for c in controllers] == [
+        f"udpout:127.0.0.1:{p}" for p in (14600, 14601, 14602)
+    ]
+    service = children[-1].argv
+    links = [service[i + 1] for i, arg in enumerate(service) if arg == "--vehicle"]
+    assert links == [f"{n}=udpout:127.0.0.1:{14599 + n}" for n in (1, 2, 3)]
+
+
 def test_the_command_line_offers_exactly_the_controllers_and_adrc_is_the_default():
     parser = build_parser()
     assert parser.parse_args(["up"]).controller == "adrc"

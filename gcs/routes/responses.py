@@ -26,6 +26,7 @@ UNAUTHORIZED = {
     )
 }
 NOT_FOUND = {404: _error("no mission with this id")}
+NO_VEHICLE = {404: _error("no vehicle with this system id")}
 CONFLICT = {409: _error("another mission uses the vehicle, or this mission is not in a state that allows it")}
 TOO_LARGE = {413: _error("the request body is larger than the service's max_body_bytes")}
 UNAVAILABLE = {

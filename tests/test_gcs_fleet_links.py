@@ -1,0 +1,146 @@
+"""A fleet's links: one service holding a link per vehicle, each by its own connection or several on one shared
+connection (as a MAVLink router delivers a fleet), and GET /vehicles, GET /vehicles/{sysid} over real vehicle
+processes (`python -m sitl_quad --sysid N`)."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+import pytest
+from fastapi.testclient import TestClient
+from sitl_process import SitlProcess, free_udp_port, free_udp_port_block
+
+from gcs.app import create_app
+from gcs.connection import TransportHub
+from gcs.link import LinkManager
+from gcs.settings import Settings
+from uavcore.mavlink import mavlink
+
+pytestmark = pytest.mark.integration
+
+CONNECT_S = 60.0
+
+
+@pytest.fixture
+def vehicles():
+    """Start vehicle processes: vehicles(*extra_args) -> SitlProcess."""
+    started = []
+
+    def start(*extra: str) -> SitlProcess:
+        process = SitlProcess(speed=5.0, extra_args=extra)
+        started.append(process)
+        return process.start()
+
+    yield start
+    for process in started:
+        process.cleanup()
+
+
+def _wait_all_connected(client: TestClient, count: int) -> list[dict]:
+    deadline = time.monotonic() + CONNECT_S
+    while True:
+        fleet = client.get("/vehicles").json()
+        if len(fleet) == count and all(v["connected"] for v in fleet):
+            return fleet
+        assert time.monotonic() < deadline, f"not every vehicle connected: {fleet}"
+        time.sleep(0.2)
+
+
+def test_the_service_holds_a_link_per_vehicle_and_lists_the_fleet(tmp_path, vehicles):
+    first, second = vehicles("--sysid", "1"), vehicles("--sysid", "2")
+    settings = Settings(
+        data_dir=tmp_path,
+        vehicles=[f"1=udpout:127.0.0.1:{first.port}", f"2=udpout:127.0.0.1:{second.port}"],
+    )
+    with TestClient(create_app(settings)) as client:
+        fleet = _wait_all_connected(client, 2)
+        assert [v["sysid"] for v in fleet] == [1, 2]
+        assert [v["flies_missions"] for v in fleet] == [True, False]  # missions fly on the first
+        assert [v["link"] for v in fleet] == [f"udpout://127.0.0.1:{p.port}" for p in (first, second)]
+        one = client.get("/vehicles/2").json()
+        assert one["sysid"] == 2 and one["connected"] and one["autopilot"] == "PX4"
+        assert client.get("/vehicle").json()["sysid"] == 1  # the single-vehicle view is the first
+        missing = client.get("/vehicles/9")
+        assert missing.status_code == 404 and "9" in missing.json()["detail"]
+        assert client.get("/vehicles/0").status_code == 422  # not a system id
+
+
+def test_vehicles_sharing_one_connection_each_get_their_own_link_and_commands(vehicles):
+    """Two vehicles stream to one ground port, as a router delivers them: the two links read one socket, and
+    each answers its own vehicle (an ARM from link 2 arms vehicle 2 only)."""
+    port = free_udp_port()
+
+    async def scenario() -> None:
+        hub = TransportHub()
+        url = f"udpin://127.0.0.1:{port}"
+        one, two = (LinkManager(url, 5.0, sysid=n, transports=hub.open_transport) for n in (1, 2))
+        await one.start()
+        await two.start()  # the same port: a second socket could not bind it
+        try:
+            vehicles("--sysid", "1", "--out", f"127.0.0.1:{port}")
+            vehicles("--sysid", "2", "--out", f"127.0.0.1:{port}")
+            assert await one.wait_connected(CONNECT_S) and await two.wait_connected(CONNECT_S)
+            assert (one.vehicle.sysid, two.vehicle.sysid) == (1, 2)
+            assert await two.command_long(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, [1]) == mavlink.MAV_RESULT_ACCEPTED
+            deadline = time.monotonic() + CONNECT_S
+            while not two.status.armed:
+                assert time.monotonic() < deadline, "vehicle 2 never showed armed"
+                await asyncio.sleep(0.1)
+            await asyncio.sleep(1.5)  # a heartbeat or more of vehicle 1 since
+            assert not one.status.armed
+            assert await two.command_long(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, [0]) == mavlink.MAV_RESULT_ACCEPTED
+        finally:
+            await one.stop()
+            await two.stop()
+        await one.start()  # the last view closed the shared socket: the port can be taken again
+        await one.stop()
+
+    asyncio.run(scenario())
+
+
+@pytest.mark.slow
+def test_up_starts_a_fleet_that_the_service_lists_and_stops_it_whole(tmp_path):
+    """`buoy-gcs up --vehicles 3`: three vehicles (system ids 1-3, each with its offboard controller) on their
+    own pads at the depot, one service linked to each; SIGTERM stops every child."""
+    import json
+    import os
+    import signal
+    import subprocess
+    import sys
+    import urllib.request
+
+    first_port, http_port = free_udp_port_block(3), free_udp_port()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("BUOY_GCS_")}
+    argv = [sys.executable, "-m", "gcs", "up", "--vehicles", "3", "--speed", "1", "--vehicle-port", str(first_port)]
+    up = subprocess.Popen(
+        [*argv, "--port", str(http_port), "--data", str(tmp_path)],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        deadline = time.monotonic() + 2 * CONNECT_S
+        while True:
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{http_port}/vehicles", timeout=2) as response:
+                    fleet = json.load(response)
+                if len(fleet) == 3 and all(v["connected"] and v["home"] for v in fleet):
+                    break
+            except OSError:
+                pass
+            assert up.poll() is None, f"buoy-gcs up exited: {up.stdout.read()}"
+            assert time.monotonic() < deadline, "the service never heard the whole fleet"
+            time.sleep(0.5)
+        assert [v["sysid"] for v in fleet] == [1, 2, 3]
+        homes = [(v["home"]["lat"], v["home"]["lon"]) for v in fleet]
+        assert len(set(homes)) == 3  # each on its own pad
+        for name in ("sitl_quad", "sitl_quad-2", "sitl_quad-3", "adrc_offboard-3"):
+            assert (tmp_path / "logs" / f"{name}.log").is_file()
+    finally:
+        up.send_signal(signal.SIGTERM)
+        output, _ = up.communicate(timeout=60)
+    assert up.returncode == 0, output
+    assert "starting 3 vehicles, system ids 1-3" in output and "stopped" in output
