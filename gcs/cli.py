@@ -68,8 +68,8 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="[SYSID=]URL",
         help=_help(
             "MAVLink connection: udpout://HOST:PORT, udpin://[HOST]:PORT, tcp://HOST:PORT or "
-            "serial:///dev/DEVICE[:BAUD]; repeat it for a fleet (missions fly on the first); SYSID= takes only "
-            "that system's autopilot, as when a router delivers several vehicles on one link",
+            "serial:///dev/DEVICE[:BAUD]; SYSID=URL takes only that system's autopilot; repeat it for a fleet, "
+            "SYSID=URL each (vehicles may share a connection, as a router delivers them)",
             "vehicle_url",
         ),
     )
@@ -81,6 +81,16 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         metavar="SECONDS",
         help=_help("seconds a mission waits for a vehicle", "vehicle_wait_s"),
+    )
+    serve.add_argument(
+        "--heartbeat-timeout",
+        dest="heartbeat_timeout_s",
+        type=float,
+        metavar="SECONDS",
+        help=_help(
+            "seconds without a vehicle heartbeat before its link counts as lost (raise it for a lossy radio)",
+            "heartbeat_timeout_s",
+        ),
     )
     serve.add_argument(
         "--instance-name",
@@ -259,9 +269,6 @@ def check_serve(settings: Settings) -> str | None:
         parse_connection(settings.vehicle_url)
     except ConnectionStringError as error:
         return str(error)
-    urls = [url for _, url in settings.fleet]
-    if len(set(urls)) < len(urls) and any(sysid is None for sysid, _ in settings.fleet):
-        return "--vehicle: vehicles sharing a connection each need their system id (SYSID=URL)"
     if not 0 < settings.port < 65536:
         return f"--port {settings.port} is not a TCP port"
     try:
@@ -296,7 +303,9 @@ def up(args: argparse.Namespace) -> int:
         print("buoy-gcs: --vehicles and --depot simulate vehicles; they do not go with --vehicle", file=sys.stderr)
         return 2
     if args.vehicle_port + args.fleet_size - 1 >= 65536:
-        print(f"buoy-gcs: {args.fleet_size} vehicles from port {args.vehicle_port} run past port 65535", file=sys.stderr)
+        print(
+            f"buoy-gcs: {args.fleet_size} vehicles from port {args.vehicle_port} run past port 65535", file=sys.stderr
+        )
         return 2
     if args.compare and not args.demo:
         print("buoy-gcs: --compare compares two demo flights; it needs --demo", file=sys.stderr)

@@ -273,6 +273,7 @@ class LinkManager:
         self._connected_event = asyncio.Event()
         self._command_lock = asyncio.Lock()
         self.messages_received = 0
+        self.positions_received = 0  # GLOBAL_POSITION_INT from the vehicle: its position stream's rate, measured
         self.fence: Geofence | None = None  # the vehicle's geofence as last read this connection (None: not read)
 
     @property
@@ -496,6 +497,8 @@ class LinkManager:
             if self.vehicle is None or message.get_srcSystem() != self.vehicle.sysid:
                 continue
             self.messages_received += 1
+            if message.get_type() == "GLOBAL_POSITION_INT":
+                self.positions_received += 1
             self._update(message)
             if message.get_srcComponent() == self.vehicle.compid:
                 for names, queue in self._queues:

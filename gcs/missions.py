@@ -21,9 +21,9 @@ import numpy as np
 
 from gcs import report, views
 from gcs.energy_planning import battery_plan, energy_plan
-from gcs.lifecycle import FlightLifecycle, MissionConflictError
-from gcs.link import LinkError, LinkManager
-from gcs.mission_protocol import MissionTransferError
+from gcs.fleet_vehicle import FleetVehicle
+from gcs.lifecycle import MissionConflictError
+from gcs.link import LinkManager
 from gcs.ownership import Ownership, ownership_for
 from gcs.planning import FlightParams, Plan, fenced_legs, make_plan, mission_items
 from gcs.read_cache import VersionedCache
@@ -31,6 +31,7 @@ from gcs.schemas import MissionRequest, PlanRequest
 from gcs.settings import Settings
 from gcs.storage import MissionRecord, Storage
 from gcs.validation import (
+    RequestInvalidError,
     fence_from_request,
     validate_fence_points,
     validate_fenced_route,
@@ -38,11 +39,9 @@ from gcs.validation import (
     validate_route_length,
 )
 from planner.energy import EnergyModel
-from uavcore.battery_pack import PACK_PARAMETERS, PackSpec
-from uavcore.geofence import FenceError, Geofence
+from uavcore.battery_pack import PackSpec
+from uavcore.geofence import Geofence
 from uavcore.mission import MissionItem
-
-FENCE_READ_TIMEOUT_S = 1.5  # wall clock for the vehicle's geofence before a plan
 
 
 class MissionNotFoundError(KeyError):
@@ -64,13 +63,15 @@ class MissionService:
         ownership: Ownership | None = None,
         fleet: Sequence[LinkManager] = (),
     ) -> None:
-        """`link`: the vehicle missions fly on; `fleet`: the other vehicles' links (shown, not yet flown)."""
+        """`link`: the service's vehicle (a fleet's first: GET /vehicle, missions that name no vehicle); `fleet`:
+        the other vehicles' links. A fleet's vehicles are known by their system ids (Settings.vehicles)."""
         self.settings = settings
-        self._storage, self._link = storage, link
-        self._fleet = list(fleet)
+        self._storage = storage
+        first_key = link.sysid if fleet else None  # a lone vehicle's missions are stored without one, as ever
+        self._vehicles = [FleetVehicle(first_key, link, settings, storage)]
+        self._vehicles += [FleetVehicle(other.sysid, other, settings, storage) for other in fleet]
+        self._link, self._flights = link, self._vehicles[0].flights  # the first vehicle's, for its views
         self._ownership = ownership or ownership_for(settings)
-        self._flights = FlightLifecycle(settings, storage, link)
-        self._fence_unanswered: int | None = None  # the vehicle incarnation that did not answer a fence request
         self.energy_model = EnergyModel.load()  # planner/energy_params.json: the calibrated route energy model
         self.documents = VersionedCache()  # the read routes' encoded documents by version (gcs.read_cache)
 
@@ -79,59 +80,56 @@ class MissionService:
         await self._ownership.start(self._take_link)
 
     async def _take_link(self) -> None:
-        """As the link's new owner: start it and re-attach a mission left flying, as after a restart."""
-        unfinished = self._storage.unfinished_missions()  # read before this run can start any mission
-        await self._link.start()
-        for link in self._fleet:
-            await link.start()
-        self._flights.reattach(unfinished)
+        """As the links' new owner: start them and re-attach each vehicle's mission left flying, as after a restart."""
+        # read before this run can start any mission
+        unfinished = [self._storage.unfinished_missions(vehicle.sysid) for vehicle in self._vehicles]
+        for vehicle in self._vehicles:
+            await vehicle.link.start()
+        for vehicle, missions in zip(self._vehicles, unfinished, strict=True):
+            vehicle.flights.reattach(missions)
 
     async def stop(self) -> None:
         """Stop. On a shared database a mission in flight is handed over, not failed: a stand-by takes the link
         as soon as this instance releases the lease (and this instance, restarted, would re-attach it)."""
         await self._ownership.stop()
-        await self._flights.stop(hand_over=self._ownership.shared)
-        for link in (self._link, *self._fleet):
-            await link.stop()
+        for vehicle in self._vehicles:
+            await vehicle.flights.stop(hand_over=self._ownership.shared)
+        for vehicle in self._vehicles:
+            await vehicle.link.stop()
         await self._ownership.release()  # only now may a stand-by talk to the vehicle
+
+    def _vehicle(self, sysid: int | None) -> FleetVehicle:
+        """The vehicle a request names (None: the first); raises RequestInvalidError at body.vehicle."""
+        if sysid is None:
+            return self._vehicles[0]
+        for vehicle in self._vehicles:
+            if vehicle.system_id == sysid:
+                return vehicle
+        known = ", ".join(str(v.system_id) for v in self._vehicles if v.system_id is not None) or "none heard yet"
+        raise RequestInvalidError([(("body", "vehicle"), f"no vehicle with system id {sysid} (the fleet's: {known})")])
+
+    def _vehicle_of(self, record: MissionRecord) -> FleetVehicle:
+        """The vehicle a stored mission flies on (a mission stored without one: the first)."""
+        return next((v for v in self._vehicles if v.sysid == record.vehicle_sysid), self._vehicles[0])
 
     # ----- planning
     def default_depot(self) -> tuple[float, float]:
-        home = self._link.status.home or self.settings.home
-        return home[0], home[1]
+        return self._vehicles[0].depot()
 
     async def plan(self, request: PlanRequest) -> tuple[Plan, FlightParams]:
-        """Validate and plan against the request's geofence, else the one the vehicle holds (read now), and with
-        battery options against the vehicle's pack (read now). Raises RequestInvalidError or InputError."""
-        fence = fence_from_request(request.geofence) if request.geofence else await self._vehicle_fence()
-        pack = await self._vehicle_pack() if request.battery is not None else None
-        return await asyncio.to_thread(self._plan, request, fence, pack)
+        """Validate and plan for the vehicle the request names (default: the first) against the request's
+        geofence, else the one the vehicle holds (read now), and with battery options against the vehicle's pack
+        (read now). Raises RequestInvalidError or InputError."""
+        vehicle = self._vehicle(request.vehicle)
+        fence = fence_from_request(request.geofence) if request.geofence else await vehicle.fence()
+        pack = await vehicle.pack() if request.battery is not None else None
+        return await asyncio.to_thread(self._plan, request, vehicle.depot(), fence, pack)
 
-    async def _vehicle_pack(self) -> PackSpec | None:
-        """The vehicle's pack and warning thresholds from its parameters; None when it has no such parameters
-        (an ArduPilot names them otherwise) or does not answer."""
-        if not self._link.status.connected:
-            return None
-        try:
-            return PackSpec.from_parameters(await self._link.read_parameters(list(PACK_PARAMETERS)))
-        except (LinkError, TimeoutError, ValueError):
-            return None
-
-    async def _vehicle_fence(self) -> Geofence | None:
-        """The vehicle's current geofence; what was read at connection if it does not answer in time (an
-        autopilot without fences may never answer: it is not asked again until it reconnects or reboots)."""
-        link = self._link
-        if not link.status.connected or self._fence_unanswered == link.status.incarnation:
-            return link.fence
-        try:
-            return await asyncio.wait_for(link.download_fence(), FENCE_READ_TIMEOUT_S)
-        except (TimeoutError, LinkError, MissionTransferError, FenceError):
-            self._fence_unanswered = link.status.incarnation
-            return link.fence
-
-    def _plan(self, request: PlanRequest, fence: Geofence | None, pack: PackSpec | None) -> tuple[Plan, FlightParams]:
-        """The CPU-bound part of `plan` (runs in a worker thread)."""
-        depot = (request.depot.lat, request.depot.lon) if request.depot else self.default_depot()
+    def _plan(
+        self, request: PlanRequest, home: tuple[float, float], fence: Geofence | None, pack: PackSpec | None
+    ) -> tuple[Plan, FlightParams]:
+        """The CPU-bound part of `plan` (runs in a worker thread); `home`: the depot when the request names none."""
+        depot = (request.depot.lat, request.depot.lon) if request.depot else home
         validate_request(request, depot, self.settings.limits)
         ids = [b.id or f"B{i + 1}" for i, b in enumerate(request.buoys)]
         buoys = [(b.lat, b.lon) for b in request.buoys]
@@ -156,12 +154,14 @@ class MissionService:
         return self._flights.active_mission()
 
     async def create(self, request: MissionRequest) -> int:
-        """Plan and store a mission; with start=true, also fly it in the background."""
+        """Plan and store a mission on the vehicle it names (default: the first); with start=true, also fly it
+        in the background."""
         self._ownership.ensure_owner()
+        vehicle = self._vehicle(request.vehicle)
         if request.start:
-            self._flights.ensure_vehicle_free()
+            vehicle.flights.ensure_vehicle_free()
         plan, flight = await self.plan(request)
-        mission_id = self._storage.create_mission(asdict(flight), plan.to_dict())
+        mission_id = self._storage.create_mission(asdict(flight), plan.to_dict(), vehicle_sysid=vehicle.sysid)
         if request.start:
             try:
                 self.launch(mission_id)
@@ -173,12 +173,15 @@ class MissionService:
 
     def launch(self, mission_id: int) -> None:
         self._ownership.ensure_owner()
-        self._flights.ensure_vehicle_free()
-        self._flights.launch(self.get(mission_id))
+        record = self.get(mission_id)
+        flights = self._vehicle_of(record).flights
+        flights.ensure_vehicle_free()
+        flights.launch(record)
 
     async def abort(self, mission_id: int) -> None:
         self._ownership.ensure_owner()
-        await self._flights.abort(self.get(mission_id))
+        record = self.get(mission_id)
+        await self._vehicle_of(record).flights.abort(record)
 
     # ----- views
     def live(self) -> dict[str, Any]:
@@ -195,20 +198,16 @@ class MissionService:
         return data
 
     def vehicles(self) -> list[dict[str, Any]]:
-        """Every vehicle of the fleet as its link sees it: `sysid` (configured, else as heard), its `link`, and
-        whether missions fly on it (`flies_missions`: the first)."""
-        return [self._fleet_vehicle(link) for link in (self._link, *self._fleet)]
+        """Every vehicle of the fleet (gcs.fleet_vehicle.FleetVehicle.describe), with who owns the links."""
+        role = self._ownership.as_dict()["role"]
+        return [vehicle.describe() | {"role": role} for vehicle in self._vehicles]
 
     def fleet_vehicle(self, sysid: int) -> dict[str, Any]:
         """One vehicle of the fleet by system id; raises VehicleNotFoundError."""
-        for link in (self._link, *self._fleet):
-            if (link.sysid or link.status.sysid) == sysid:
-                return self._fleet_vehicle(link)
+        for vehicle, described in zip(self._vehicles, self.vehicles(), strict=True):
+            if vehicle.system_id == sysid:
+                return described
         raise VehicleNotFoundError(sysid)
-
-    def _fleet_vehicle(self, link: LinkManager) -> dict[str, Any]:
-        data = link.status.as_dict() | {"sysid": link.sysid or link.status.sysid, "link": str(link.connection)}
-        return data | {"flies_missions": link is self._link, "role": self._ownership.as_dict()["role"]}
 
     # ----- queries over what is stored
     def get(self, mission_id: int) -> MissionRecord:

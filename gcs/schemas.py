@@ -109,6 +109,9 @@ class PlanRequest(Strict):
         "one tour, no energy planning",
     )
     wind: WindIn | None = Field(default=None, description="the forecast wind, for the energy prediction; default: calm")
+    vehicle: int | None = Field(
+        default=None, ge=1, le=255, description="the fleet's vehicle to fly (its system id); default: the first"
+    )
 
     @field_validator("battery", mode="after")
     @classmethod
@@ -237,6 +240,7 @@ class MissionOut(BaseModel):
     reason: str | None
     created_at: str
     updated_at: str
+    vehicle_sysid: int | None = Field(description="the fleet's vehicle it flies on (null: the service's one vehicle)")
     order: list[int]
     length_m: float
     input_order_length_m: float
@@ -264,6 +268,7 @@ class MissionSummary(BaseModel):
     reason: str | None
     created_at: str
     updated_at: str
+    vehicle_sysid: int | None = Field(description="the fleet's vehicle it flies on (null: the service's one vehicle)")
     buoys: int
     length_m: float
     tracking: TrackingFigures | None

@@ -54,7 +54,7 @@ class Settings(BaseSettings):
     vehicle_url: str = Field(f"udpout:127.0.0.1:{VEHICLE_UDP_PORT}", description="MAVLink connection to the vehicle")
     vehicles: Annotated[list[str], NoDecode] = Field(
         default_factory=list,
-        description="a fleet, each vehicle as [SYSID=]URL (the first is vehicle_url); none: vehicle_url alone",
+        description="a fleet, each vehicle as SYSID=URL (the first is vehicle_url); none: vehicle_url alone",
     )
     host: str = Field("127.0.0.1", description="address the service binds (loopback only by default)")
     port: int = Field(8000, description="HTTP port of the service and map page")
@@ -76,7 +76,9 @@ class Settings(BaseSettings):
     max_body_bytes: int = Field(1 << 20, gt=0, description="largest request body (a buoy file too): 413 beyond")
     home: tuple[float, float, float] = DEFAULT_HOME  # depot used while the vehicle has not reported its home
     limits: Limits = Field(default_factory=Limits)
-    heartbeat_timeout_s: float = 3.0  # wall clock, as MAVSDK: no vehicle heartbeat for this long = link lost
+    heartbeat_timeout_s: float = Field(
+        3.0, gt=0, description="wall seconds without a vehicle heartbeat before the link counts as lost (MAVSDK's 3)"
+    )
     vehicle_wait_s: float = Field(5.0, description="seconds a mission waits for a vehicle before failing")
     telemetry_period_s: float = 0.1  # recorded sample spacing in the vehicle's simulated time (10 Hz)
     live_rate_hz: float = 20.0  # WebSocket push rate to each client
@@ -107,6 +109,8 @@ class Settings(BaseSettings):
     @classmethod
     def _vehicle_specs(cls, value: list[str]) -> list[str]:
         specs = [parse_vehicle(text) for text in value]  # raises naming a bad one
+        if len(specs) > 1 and any(sysid is None for sysid, _ in specs):
+            raise ValueError(f"a fleet names each vehicle's system id, SYSID=URL: {value}")
         sysids = [sysid for sysid, _ in specs if sysid is not None]
         if len(set(sysids)) < len(sysids):
             raise ValueError(f"a system id is given to two vehicles: {value}")

@@ -16,7 +16,7 @@ from gcs.cli import build_parser, main, settings_from_args
         (["serve", "--port", "70000"], "not a TCP port"),
         (["serve", "--vehicle", "1=udpout:127.0.0.1:14600", "--vehicle", "1=tcp://h:5760"], "two vehicles"),
         (["serve", "--vehicle", "300=udpout:127.0.0.1:14600"], "a system id is 1 to 255"),
-        (["serve", "--vehicle", "udpin://:14550", "--vehicle", "udpin://:14550"], "each need their system id"),
+        (["serve", "--vehicle", "udpin://:14550", "--vehicle", "2=udpin://:14550"], "names each vehicle's system id"),
         (["up", "--vehicles", "0"], "--vehicles must be 1 to 64"),
         (["up", "--vehicles", "2", "--vehicle", "udpin://:14550"], "do not go with --vehicle"),
     ],

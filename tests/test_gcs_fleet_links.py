@@ -7,6 +7,7 @@ from __future__ import annotations
 import asyncio
 import time
 
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 from sitl_process import SitlProcess, free_udp_port, free_udp_port_block
@@ -15,6 +16,7 @@ from gcs.app import create_app
 from gcs.connection import TransportHub
 from gcs.link import LinkManager
 from gcs.settings import Settings
+from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 from uavcore.mavlink import mavlink
 
 pytestmark = pytest.mark.integration
@@ -56,7 +58,7 @@ def test_the_service_holds_a_link_per_vehicle_and_lists_the_fleet(tmp_path, vehi
     with TestClient(create_app(settings)) as client:
         fleet = _wait_all_connected(client, 2)
         assert [v["sysid"] for v in fleet] == [1, 2]
-        assert [v["flies_missions"] for v in fleet] == [True, False]  # missions fly on the first
+        assert [v["active_mission"] for v in fleet] == [None, None]
         assert [v["link"] for v in fleet] == [f"udpout://127.0.0.1:{p.port}" for p in (first, second)]
         one = client.get("/vehicles/2").json()
         assert one["sysid"] == 2 and one["connected"] and one["autopilot"] == "PX4"
@@ -144,3 +146,55 @@ def test_up_starts_a_fleet_that_the_service_lists_and_stops_it_whole(tmp_path):
         output, _ = up.communicate(timeout=60)
     assert up.returncode == 0, output
     assert "starting 3 vehicles, system ids 1-3" in output and "stopped" in output
+
+
+def _buoys_near(home: tuple[float, float, float], tag: str) -> list[dict]:
+    frame = LocalFrame(*home)
+    places = [frame.from_ned(north, east, 0.0) for north, east in ((30.0, 0.0), (30.0, 30.0))]
+    return [{"id": f"{tag}{i + 1}", "lat": float(lat), "lon": float(lon)} for i, (lat, lon, _) in enumerate(places)]
+
+
+def test_missions_fly_on_the_vehicles_they_name_at_the_same_time(tmp_path, vehicles):
+    homes = {1: DEFAULT_HOME, 2: LocalFrame(*DEFAULT_HOME).from_ned(0.0, 400.0, 0.0)}
+    started = {
+        sysid: vehicles("--sysid", str(sysid), "--home", ",".join(f"{v:.8f}" for v in home))
+        for sysid, home in homes.items()
+    }
+    links = [f"{sysid}=udpout:127.0.0.1:{process.port}" for sysid, process in started.items()]
+    with TestClient(create_app(Settings(data_dir=tmp_path, vehicles=links, vehicle_wait_s=30.0))) as client:
+        _wait_all_connected(client, 2)
+        _wait_homes(client)
+        unknown = client.post("/missions", json={"vehicle": 9, "buoys": _buoys_near(DEFAULT_HOME, "X")})
+        assert unknown.status_code == 422 and unknown.json()["detail"][0]["loc"] == ["body", "vehicle"]
+        assert client.get("/missions").json() == []  # nothing stored
+        ids = {}
+        for sysid in (1, 2):  # the second starts while the first flies: each vehicle is free
+            created = client.post("/missions", json={"vehicle": sysid, "buoys": _buoys_near(homes[sysid], "B")})
+            assert created.status_code == 201, created.text
+            ids[sysid] = created.json()["id"]
+        for sysid, mission_id in ids.items():
+            mission = _wait_ended(client, mission_id)
+            assert (mission["status"], mission["vehicle_sysid"]) == ("completed", sysid), mission["reason"]
+            depot = (mission["depot"]["lat"], mission["depot"]["lon"])
+            assert depot == pytest.approx(homes[sysid][:2])  # the named vehicle's home is its default depot
+            samples = client.get(f"/missions/{mission_id}/telemetry").json()
+            frame = LocalFrame(*homes[sysid])
+            north_east = frame.project(np.array([[s["lat"], s["lon"]] for s in samples]))
+            assert np.abs(north_east).max() < 60.0  # recorded from that vehicle, 400 m from the other
+        assert [m["vehicle_sysid"] for m in client.get("/missions").json()] == [2, 1]
+
+
+def _wait_homes(client: TestClient) -> bool:
+    deadline = time.monotonic() + CONNECT_S
+    while not all(v["home"] for v in client.get("/vehicles").json()):
+        assert time.monotonic() < deadline, "a vehicle never sent its home"
+        time.sleep(0.2)
+    return True
+
+
+def _wait_ended(client: TestClient, mission_id: int) -> dict:
+    deadline = time.monotonic() + 4 * CONNECT_S
+    while (mission := client.get(f"/missions/{mission_id}").json())["status"] not in ("completed", "failed", "aborted"):
+        assert time.monotonic() < deadline, f"mission {mission_id} still {mission['status']}"
+        time.sleep(0.25)
+    return mission

@@ -206,6 +206,32 @@ def test_unfinished_missions_are_the_ones_left_mid_flight_oldest_first(storage):
     assert storage.unfinished_missions() == [flying, uploading]
 
 
+def test_missions_of_a_fleet_keep_their_vehicle_and_fleet_and_restart_per_vehicle(storage):
+    fleet = storage.create_mission(FLIGHT, PLAN)
+    first = storage.create_mission(FLIGHT, PLAN, vehicle_sysid=1, fleet_id=fleet)
+    second = storage.create_mission(FLIGHT, PLAN, vehicle_sysid=2, fleet_id=fleet)
+    alone = storage.create_mission(FLIGHT, PLAN)  # the one vehicle of a service without a fleet
+    for mission_id in (first, second, alone):
+        storage.set_status(mission_id, "flying")
+    record = storage.get_mission(second)
+    assert (record.vehicle_sysid, record.fleet_id) == (2, fleet)
+    assert (storage.get_mission(alone).vehicle_sysid, storage.get_mission(alone).fleet_id) == (None, None)
+    assert [part.id for part in storage.fleet_parts(fleet)] == [first, second]
+    assert storage.unfinished_missions(vehicle_sysid=2) == [second]  # each vehicle re-attaches its own
+    assert storage.unfinished_missions() == [alone]
+
+
+def test_migration_5_leaves_every_stored_mission_on_the_one_vehicle(database):
+    database_at_version(database, 4).close()
+    storage = open_storage(database)
+    try:
+        (mission_id,) = storage.unfinished_missions()
+        record = storage.get_mission(mission_id)
+        assert (record.vehicle_sysid, record.fleet_id) == (None, None) and record.status == "flying"
+    finally:
+        storage.close()
+
+
 def test_database_from_a_newer_service_is_refused(open_db):
     storage = open_db()
     with storage.transaction() as db:

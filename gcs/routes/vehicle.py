@@ -23,7 +23,8 @@ def get_vehicle(service: ServiceDep) -> dict[str, Any]:
 @router.get("/vehicles")
 def list_vehicles(service: ServiceDep) -> list[dict[str, Any]]:
     """Every vehicle the service holds a link to (`serve --vehicle` repeated, `up --vehicles N`), in that order:
-    its state as on GET /vehicle, `sysid`, its `link`, and `flies_missions` (missions fly on the first)."""
+    its state as on GET /vehicle, `sysid`, its `link`, the `active_mission` flying on it, and what the link
+    `received` from it. POST /missions names one by `vehicle` (default: the first)."""
     return service.vehicles()
 
 

@@ -63,6 +63,8 @@ class MissionRecord:
     progress: dict[str, Any]
     results: dict[str, Any] | None
     events: list[dict[str, Any]] = field(default_factory=list)
+    vehicle_sysid: int | None = None  # the vehicle it flies on (None: the service's one vehicle)
+    fleet_id: int | None = None  # a fleet mission's part: the fleet mission's id
 
 
 def _now() -> str:
@@ -86,6 +88,8 @@ def _record(row: Any, events: list[dict[str, Any]]) -> MissionRecord:
         progress=json.loads(row["progress"]),
         results=json.loads(row["results"]) if row["results"] else None,
         events=events,
+        vehicle_sysid=None if row["vehicle_sysid"] is None else int(row["vehicle_sysid"]),
+        fleet_id=None if row["fleet_id"] is None else int(row["fleet_id"]),
     )
 
 
@@ -163,15 +167,22 @@ class Storage(ABC):
 
     # ----- missions
     def create_mission(
-        self, flight: dict[str, Any], plan: dict[str, Any], status: MissionStatus = MissionStatus.PLANNED
+        self,
+        flight: dict[str, Any],
+        plan: dict[str, Any],
+        status: MissionStatus = MissionStatus.PLANNED,
+        vehicle_sysid: int | None = None,
+        fleet_id: int | None = None,
     ) -> int:
+        """A new mission, on a vehicle of the fleet (`vehicle_sysid`; None: the service's one vehicle) and, as a
+        part of a fleet mission, under it (`fleet_id`)."""
         now = _now()
         with self._mission_write() as db:
             mission_id = int(
                 db.execute(
-                    f"INSERT INTO missions (created_at, updated_at, status, flight, plan, version)"
-                    f" VALUES (?, ?, ?, ?, ?, {NEXT_VERSION}) RETURNING id",
-                    (now, now, status, _json(flight), _json(plan)),
+                    f"INSERT INTO missions (created_at, updated_at, status, flight, plan, vehicle_sysid, fleet_id,"
+                    f" version) VALUES (?, ?, ?, ?, ?, ?, ?, {NEXT_VERSION}) RETURNING id",
+                    (now, now, status, _json(flight), _json(plan), vehicle_sysid, fleet_id),
                 ).fetchone()["id"]
             )
             db.execute(
@@ -206,14 +217,23 @@ class Storage(ABC):
                 (_json(document), _now(), mission_id),
             )
 
-    def unfinished_missions(self) -> list[int]:
-        """Ids of missions a previous run of the service left uploading, uploaded or flying, oldest first."""
+    def unfinished_missions(self, vehicle_sysid: int | None = None) -> list[int]:
+        """Ids of missions a previous run of the service left uploading, uploaded or flying, oldest first: those
+        of vehicle `vehicle_sysid` (None: of the service's one vehicle, missions stored without a vehicle)."""
+        vehicle = "vehicle_sysid IS NULL" if vehicle_sysid is None else "vehicle_sysid = ?"
         with self._reading() as db:
             rows = db.execute(
-                f"SELECT id FROM missions WHERE status IN ({', '.join('?' * len(UNFINISHED))}) ORDER BY id",
-                UNFINISHED,
+                f"SELECT id FROM missions WHERE status IN ({', '.join('?' * len(UNFINISHED))}) AND {vehicle}"
+                " ORDER BY id",
+                (*UNFINISHED, *(() if vehicle_sysid is None else (vehicle_sysid,))),
             ).fetchall()
         return [int(row["id"]) for row in rows]
+
+    def fleet_parts(self, fleet_id: int) -> list[MissionRecord]:
+        """A fleet mission's parts (one mission per vehicle, and those re-planned in flight), oldest first."""
+        with self._reading() as db:
+            rows = db.execute("SELECT * FROM missions WHERE fleet_id = ? ORDER BY id", (fleet_id,)).fetchall()
+        return [_record(row, []) for row in rows]
 
     def get_mission(self, mission_id: int) -> MissionRecord | None:
         with self._reading() as db:

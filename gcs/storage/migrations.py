@@ -88,6 +88,16 @@ def _track_columns(real: str, field: str) -> str:
     return f"{added} UPDATE telemetry SET {filled};"
 
 
+def _fleet_columns(integer: str) -> str:
+    """Migration 5: which vehicle a mission flies on (its MAVLink system id; NULL: the service's one vehicle, as
+    every mission before a fleet), and for a fleet mission's part, the fleet mission it belongs to."""
+    return f"""
+    ALTER TABLE missions ADD COLUMN vehicle_sysid {integer};
+    ALTER TABLE missions ADD COLUMN fleet_id {integer} REFERENCES missions(id);
+    CREATE INDEX missions_by_fleet ON missions (fleet_id);
+    """
+
+
 MIGRATIONS: list[Migration] = [
     Migration(
         sqlite=_first_schema("INTEGER", "INTEGER PRIMARY KEY AUTOINCREMENT", "REAL"),
@@ -104,4 +114,5 @@ MIGRATIONS: list[Migration] = [
         sqlite=_track_columns("REAL", "json_extract(sample, '$.{}')"),
         postgresql=_track_columns("DOUBLE PRECISION", "(sample::jsonb ->> '{}')::double precision"),
     ),
+    Migration(sqlite=_fleet_columns("INTEGER"), postgresql=_fleet_columns("BIGINT")),
 ]

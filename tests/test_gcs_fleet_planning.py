@@ -1,0 +1,51 @@
+"""A fleet mission's plan (gcs.fleet_planning): every buoy in one vehicle's share, each share an ordinary plan
+from its vehicle's home at its own altitude layer, the makespan the longest share."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gcs.fleet_planning import plan_fleet_mission
+from planner.fleet import check_fleet
+from planner.scenario import random_area_points
+from uavcore.geodesy import DEFAULT_HOME, LocalFrame
+
+FRAME = LocalFrame(*DEFAULT_HOME)
+
+
+def _lat_lon(north_east: np.ndarray) -> list[tuple[float, float]]:
+    return [tuple(map(float, FRAME.from_ned(n, e, 0.0)[:2])) for n, e in north_east]
+
+
+def test_every_buoy_goes_to_one_vehicle_whose_share_is_a_plan_from_its_home_at_its_layer():
+    homes = dict(zip((1, 2, 3), _lat_lon(np.array([[0.0, 0.0], [0.0, 3.0], [400.0, 600.0]])), strict=True))
+    east_north = random_area_points(30, np.random.default_rng(4))
+    buoys = _lat_lon(east_north[:, ::-1])
+    ids = [f"B{i + 1}" for i in range(30)]
+    plan = plan_fleet_mission(homes, buoys, ids, 5.0, 3.0, 10.0, 1.0, seed=1, time_limit_s=1.0)
+    served = sorted(b for share in plan.shares for b in share.buoys)
+    assert served == list(range(30))
+    assert len(plan.shares) >= 2  # the min-max objective flies more than one vehicle
+    for share in plan.shares:
+        sysid_layer = list(homes).index(share.sysid)
+        assert share.altitude_m == 5.0 + 3.0 * sysid_layer  # the request's order sets the layers
+        assert share.plan.depot == pytest.approx(homes[share.sysid])
+        assert share.plan.buoy_ids == [ids[b] for b in share.buoys]
+        assert share.plan.order == list(range(len(share.buoys)))  # the fleet planner's flying order, kept
+        assert np.allclose(share.plan.buoys_lat_lon, [buoys[b] for b in share.buoys], rtol=0, atol=1e-9)
+    assert plan.makespan_s == pytest.approx(max(s.predicted_time_s for s in plan.shares))
+    stored = plan.to_dict()
+    assert [s["sysid"] for s in stored["shares"]] == [s.sysid for s in plan.shares]
+
+
+def test_the_share_times_are_the_fleet_planners_route_times_from_each_home():
+    homes = dict(zip((4, 7), _lat_lon(np.array([[0.0, 0.0], [300.0, 300.0]])), strict=True))
+    buoys = _lat_lon(np.array([[50.0, 0.0], [0.0, 50.0], [320.0, 300.0], [300.0, 340.0]]))
+    plan = plan_fleet_mission(homes, buoys, ["a", "b", "c", "d"], 5.0, 3.0, 10.0, 2.0, time_limit_s=0.5)
+    by_vehicle = {s.sysid: sorted(s.buoys) for s in plan.shares}
+    assert by_vehicle == {4: [0, 1], 7: [2, 3]}  # each takes the buoys beside its own home
+    local = FRAME.project(np.array([*homes.values(), *buoys]))
+    fleet = check_fleet(local, [0, 1], 10.0, 2.0, 24.0)
+    for k, share in enumerate(plan.shares):
+        assert share.predicted_time_s == pytest.approx(fleet.route_time(k, [2 + b for b in share.buoys]), rel=1e-6)
