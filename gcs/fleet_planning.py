@@ -58,6 +58,7 @@ class FleetMissionPlan:
             "shares": [
                 {
                     "sysid": s.sysid,
+                    "home": list(s.plan.depot),
                     "buoys": s.buoys,
                     "altitude_m": s.altitude_m,
                     "predicted_time_s": s.predicted_time_s,

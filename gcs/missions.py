@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Sequence
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
@@ -21,14 +21,17 @@ import numpy as np
 
 from gcs import report, views
 from gcs.energy_planning import battery_plan, energy_plan
+from gcs.fleet_missions import FleetCoordinator, fleet_vehicles
+from gcs.fleet_planning import METHOD, plan_fleet_mission
 from gcs.fleet_vehicle import FleetVehicle
-from gcs.lifecycle import MissionConflictError
+from gcs.lifecycle import ABORTED_BEFORE_TAKEOFF, MissionConflictError
 from gcs.link import LinkManager
 from gcs.ownership import Ownership, ownership_for
-from gcs.planning import FlightParams, Plan, fenced_legs, make_plan, mission_items
+from gcs.planning import FlightParams, Plan, fenced_legs, make_plan, mission_items, sorties_plan
 from gcs.read_cache import VersionedCache
 from gcs.schemas import MissionRequest, PlanRequest
 from gcs.settings import Settings
+from gcs.status import TERMINAL, MissionStatus
 from gcs.storage import MissionRecord, Storage
 from gcs.validation import (
     RequestInvalidError,
@@ -71,6 +74,7 @@ class MissionService:
         self._vehicles = [FleetVehicle(first_key, link, settings, storage)]
         self._vehicles += [FleetVehicle(other.sysid, other, settings, storage) for other in fleet]
         self._link, self._flights = link, self._vehicles[0].flights  # the first vehicle's, for its views
+        self._fleets = FleetCoordinator(storage, lambda sysid: self._vehicle(sysid).link)
         self._ownership = ownership or ownership_for(settings)
         self.energy_model = EnergyModel.load()  # planner/energy_params.json: the calibrated route energy model
         self.documents = VersionedCache()  # the read routes' encoded documents by version (gcs.read_cache)
@@ -83,15 +87,19 @@ class MissionService:
         """As the links' new owner: start them and re-attach each vehicle's mission left flying, as after a restart."""
         # read before this run can start any mission
         unfinished = [self._storage.unfinished_missions(vehicle.sysid) for vehicle in self._vehicles]
+        fleets = self._storage.unfinished_fleets()
         for vehicle in self._vehicles:
             await vehicle.link.start()
         for vehicle, missions in zip(self._vehicles, unfinished, strict=True):
             vehicle.flights.reattach(missions)
+        for fleet_id in fleets:
+            self._fleets.follow(fleet_id)
 
     async def stop(self) -> None:
         """Stop. On a shared database a mission in flight is handed over, not failed: a stand-by takes the link
         as soon as this instance releases the lease (and this instance, restarted, would re-attach it)."""
         await self._ownership.stop()
+        await self._fleets.stop()
         for vehicle in self._vehicles:
             await vehicle.flights.stop(hand_over=self._ownership.shared)
         for vehicle in self._vehicles:
@@ -157,6 +165,8 @@ class MissionService:
         """Plan and store a mission on the vehicle it names (default: the first); with start=true, also fly it
         in the background."""
         self._ownership.ensure_owner()
+        if request.vehicles is not None:
+            return await self._create_fleet_mission(request)
         vehicle = self._vehicle(request.vehicle)
         if request.start:
             vehicle.flights.ensure_vehicle_free()
@@ -171,17 +181,73 @@ class MissionService:
                 ) from None
         return mission_id
 
+    async def _create_fleet_mission(self, request: MissionRequest) -> int:
+        """Share the buoys among the vehicles named (gcs.fleet_planning), store the fleet mission and a part
+        mission per vehicle given buoys, in one transaction; with start=true, fly every part."""
+        known = [v.system_id for v in self._vehicles if v.system_id is not None]
+        sysids = fleet_vehicles(request, known, self.settings.limits)
+        vehicles = [self._vehicle(sysid) for sysid in sysids]
+        if request.start:
+            for vehicle in vehicles:
+                vehicle.flights.ensure_vehicle_free()
+        homes = {vehicle.system_id: vehicle.depot() for vehicle in vehicles}
+        first_home = homes[sysids[0]]
+        validate_request(request, first_home, self.settings.limits)
+        ids = [b.id or f"B{i + 1}" for i, b in enumerate(request.buoys)]
+        buoys = [(b.lat, b.lon) for b in request.buoys]
+        options = request.planner
+        planned = await asyncio.to_thread(
+            plan_fleet_mission, homes, buoys, ids, request.altitude_m, request.layer_gap_m, request.speed_m_s,
+            request.dwell_s, options.seed, options.time_limit_s,
+        )  # fmt: skip
+        flight = FlightParams(request.altitude_m, request.speed_m_s, request.dwell_s, request.acceptance_radius_m)
+        overview = sorties_plan(first_home, buoys, ids, [[b for s in planned.shares for b in s.buoys]], METHOD,
+                                planned.elapsed_s)  # fmt: skip
+        overview = replace(overview, length_m=sum(s.plan.length_m for s in planned.shares), fleet=planned.to_dict())
+        parts = [
+            (asdict(replace(flight, altitude_m=share.altitude_m)), share.plan.to_dict(), share.sysid)
+            for share in planned.shares
+        ]
+        fleet_id, _ = self._storage.create_fleet_mission(asdict(flight), overview.to_dict(), parts)
+        if request.start:
+            self._launch_fleet(self.get(fleet_id))
+        return fleet_id
+
+    def _launch_fleet(self, fleet: MissionRecord) -> None:
+        """Fly every part of a planned fleet mission (each vehicle must be free), and follow them."""
+        if fleet.status != MissionStatus.PLANNED:
+            raise MissionConflictError(f"mission {fleet.id} is {fleet.status}; only a planned mission can start")
+        parts = self._storage.fleet_parts(fleet.id)
+        for part in parts:
+            self._vehicle_of(part).flights.ensure_vehicle_free()
+        for part in parts:
+            self._vehicle_of(part).flights.launch(part)
+        self._fleets.follow(fleet.id)
+
     def launch(self, mission_id: int) -> None:
         self._ownership.ensure_owner()
         record = self.get(mission_id)
+        if record.is_fleet:
+            self._launch_fleet(record)
+            return
         flights = self._vehicle_of(record).flights
         flights.ensure_vehicle_free()
         flights.launch(record)
 
     async def abort(self, mission_id: int) -> None:
+        """Abort a mission; a fleet mission's every part not yet ended (the fleet mission then ends aborted)."""
         self._ownership.ensure_owner()
         record = self.get(mission_id)
-        await self._vehicle_of(record).flights.abort(record)
+        if not record.is_fleet:
+            await self._vehicle_of(record).flights.abort(record)
+            return
+        if record.status in TERMINAL:
+            raise MissionConflictError(f"mission {mission_id} is {record.status}; nothing to abort")
+        for part in self._storage.fleet_parts(mission_id):
+            if part.status not in TERMINAL:
+                await self._vehicle_of(part).flights.abort(part)
+        if not self._fleets.active(mission_id):  # never launched: its parts ended as they were aborted
+            self._storage.set_status(mission_id, MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF)
 
     # ----- views
     def live(self) -> dict[str, Any]:

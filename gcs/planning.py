@@ -51,6 +51,8 @@ class Plan:
     # predicted energy (gcs.energy_planning), None when the request asked for no energy planning.
     sorties: list[list[int]] | None = None
     energy: dict[str, Any] | None = None
+    # A fleet mission (gcs.fleet_planning): its shares, one part mission per vehicle; None for a vehicle's mission
+    fleet: dict[str, Any] | None = None
 
     def sortie_orders(self) -> list[list[int]]:
         """Each sortie's buoys in flying order: one sortie (the whole tour) unless the plan splits it."""

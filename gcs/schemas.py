@@ -132,6 +132,18 @@ class PlanRequest(Strict):
 
 class MissionRequest(PlanRequest):
     start: bool = Field(default=True, description="upload, arm and fly now")
+    vehicles: list[Annotated[int, Field(ge=1, le=255)]] | Literal["fleet"] | None = Field(
+        default=None,
+        max_length=64,
+        description="a fleet mission: the buoys shared among these vehicles (system ids; 'fleet': every vehicle of "
+        "the service), each flying its share from its own home; default: one vehicle (`vehicle`)",
+    )
+    layer_gap_m: float = Field(
+        default=3.0,
+        ge=1.0,
+        le=50.0,
+        description="a fleet mission's altitude layers: the k-th vehicle flies at altitude_m + k x layer_gap_m",
+    )
 
 
 class Buoy(BaseModel):
@@ -234,6 +246,37 @@ class Progress(BaseModel):
     visited_buoys: list[int] = Field(default=[], description="input indices of the buoys visited, every sortie")
 
 
+class FleetShareOut(BaseModel):
+    """One vehicle's share of a fleet mission: its buoys, as planned, and its part mission as flown."""
+
+    sysid: int
+    mission_id: int = Field(description="the part mission it flies (GET /missions/{id} for its telemetry, report)")
+    buoys: list[int] = Field(description="input indices of its buoys in flying order")
+    altitude_m: float
+    predicted_time_s: float
+    length_m: float
+    route: list[list[float]] = Field(description="[lat, lon] from its home through its buoys back home")
+    status: MissionStatus
+    visited_buoys: list[int] = Field(description="input indices of its buoys inspected so far")
+
+
+class SeparationOut(BaseModel):
+    """The closest two vehicles came while both were in the air (null: never two in the air at once)."""
+
+    min_horizontal_m: float | None
+    min_vertical_m: float | None
+    min_distance_m: float | None
+
+
+class FleetOut(BaseModel):
+    makespan_s: float = Field(description="predicted: when the last vehicle is home")
+    total_time_s: float
+    layer_gap_m: float
+    shares: list[FleetShareOut]
+    inspected_by: dict[str, int] = Field(description="buoy id -> the system id of the vehicle that inspected it")
+    separation: SeparationOut
+
+
 class MissionOut(BaseModel):
     id: int
     status: MissionStatus
@@ -241,6 +284,8 @@ class MissionOut(BaseModel):
     created_at: str
     updated_at: str
     vehicle_sysid: int | None = Field(description="the fleet's vehicle it flies on (null: the service's one vehicle)")
+    fleet_id: int | None = Field(description="a fleet mission's part: the fleet mission (null: not a part)")
+    fleet: FleetOut | None = Field(description="a fleet mission: its shares, who inspected what, the separation")
     order: list[int]
     length_m: float
     input_order_length_m: float
@@ -269,6 +314,7 @@ class MissionSummary(BaseModel):
     created_at: str
     updated_at: str
     vehicle_sysid: int | None = Field(description="the fleet's vehicle it flies on (null: the service's one vehicle)")
+    fleet_id: int | None = Field(description="a fleet mission's part: the fleet mission; a fleet mission: its own id")
     buoys: int
     length_m: float
     tracking: TrackingFigures | None

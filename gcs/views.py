@@ -71,8 +71,14 @@ def sorties_out(plan: Plan, flown: list[dict[str, Any]] | None = None) -> list[d
 
 
 def _buoy_results(record: MissionRecord, plan: Plan) -> list[dict[str, Any]]:
-    if record.results is not None:
+    if record.results is not None and "buoys" in record.results:
         return record.results["buoys"]
+    if record.is_fleet:  # each part mission has the closest approaches and arrival times of its own buoys
+        visited = set(record.progress.get("visited_buoys", []))
+        return [
+            {"index": i, "id": ident, "closest_m": None, "reached": i in visited, "arrival_s": None}
+            for i, ident in enumerate(plan.buoy_ids)
+        ]
     reached_at = {int(k): v for k, v in (record.progress.get("reached_at") or {}).items()}
     return [
         {"index": i, "id": ident, "closest_m": None, "reached": i in reached_at, "arrival_s": reached_at.get(i)}
@@ -82,23 +88,55 @@ def _buoy_results(record: MissionRecord, plan: Plan) -> list[dict[str, Any]]:
 
 def mission_out(record: MissionRecord) -> dict[str, Any]:
     plan = Plan.from_dict(record.plan)
-    progress = {k: v for k, v in record.progress.items() if k not in RECORDER_ONLY_PROGRESS}
+    progress = {k: v for k, v in record.progress.items() if k not in (*RECORDER_ONLY_PROGRESS, "shares")}
     progress.setdefault("buoys", len(plan.order))
     progress.setdefault("sorties", len(plan.sortie_orders()))
-    return {
+    out = {
         "id": record.id,
         "status": record.status,
         "reason": record.reason,
         "created_at": record.created_at,
         "updated_at": record.updated_at,
         "vehicle_sysid": record.vehicle_sysid,
+        "fleet_id": None if record.is_fleet else record.fleet_id,
+        "fleet": None,
         **plan_out(plan),
         "sorties": sorties_out(plan, record.progress.get("sorties_flown")),
         **record.flight,
         "progress": progress,
         "buoy_results": _buoy_results(record, plan),
-        "tracking": record.results["tracking"] if record.results else None,
+        "tracking": (record.results or {}).get("tracking"),
         "events": record.events,
+    }
+    if record.is_fleet:  # its route is its shares' (in `fleet`), each from its own vehicle's home
+        out |= {"fleet": fleet_out(record, plan), "route": [], "sorties": []}
+    return out
+
+
+def fleet_out(record: MissionRecord, plan: Plan) -> dict[str, Any]:
+    """A fleet mission's shares as planned and as flown so far (its progress, kept by gcs.fleet_missions), who
+    inspected what and the separation (once it has ended)."""
+    fleet = plan.fleet
+    flown = {s["sysid"]: s for s in record.progress.get("shares", [])}
+    shares = []
+    for share in fleet["shares"]:
+        state = flown.get(share["sysid"], {})
+        home = share["home"]
+        route = [home, *(plan.buoys_lat_lon[b] for b in share["buoys"]), home]
+        shares.append(
+            {k: share[k] for k in ("sysid", "buoys", "altitude_m", "predicted_time_s", "length_m")}
+            | {"route": route, "mission_id": state.get("mission_id", 0), "status": state.get("status", "planned")}
+            | {"visited_buoys": state.get("visited", [])}
+        )
+    results = record.results or {}
+    separation = results.get("separation") or {"min_horizontal_m": None, "min_vertical_m": None, "min_distance_m": None}
+    return {
+        "makespan_s": fleet["makespan_s"],
+        "total_time_s": fleet["total_time_s"],
+        "layer_gap_m": fleet["layer_gap_m"],
+        "shares": shares,
+        "inspected_by": results.get("inspected_by", {}),
+        "separation": separation,
     }
 
 
@@ -110,9 +148,10 @@ def mission_summary(record: MissionRecord) -> dict[str, Any]:
         "created_at": record.created_at,
         "updated_at": record.updated_at,
         "vehicle_sysid": record.vehicle_sysid,
+        "fleet_id": record.fleet_id,
         "buoys": len(record.plan["order"]),
         "length_m": record.plan["length_m"],
-        "tracking": record.results["tracking"] if record.results else None,
+        "tracking": (record.results or {}).get("tracking"),
     }
 
 

@@ -198,3 +198,40 @@ def _wait_ended(client: TestClient, mission_id: int) -> dict:
         assert time.monotonic() < deadline, f"mission {mission_id} still {mission['status']}"
         time.sleep(0.25)
     return mission
+
+
+def test_a_fleet_mission_shares_the_buoys_flies_each_share_at_its_layer_and_completes(tmp_path, vehicles):
+    frame = LocalFrame(*DEFAULT_HOME)
+    homes = {1: DEFAULT_HOME, 2: frame.from_ned(0.0, 160.0, 0.0), 3: frame.from_ned(160.0, 0.0, 0.0)}
+    started = {
+        sysid: vehicles("--sysid", str(sysid), "--home", ",".join(f"{v:.8f}" for v in home))
+        for sysid, home in homes.items()
+    }
+    links = [f"{sysid}=udpout:127.0.0.1:{process.port}" for sysid, process in started.items()]
+    places = [(n, e) for n in (30.0, 90.0, 150.0) for e in (40.0, 100.0, 170.0)]
+    buoys = [
+        {"id": f"B{i + 1}", "lat": float(lat), "lon": float(lon)}
+        for i, (lat, lon, _) in enumerate(frame.from_ned(n, e, 0.0) for n, e in places)
+    ]
+    with TestClient(create_app(Settings(data_dir=tmp_path, vehicles=links, vehicle_wait_s=30.0))) as client:
+        _wait_all_connected(client, 3)
+        _wait_homes(client)
+        bad = client.post("/missions", json={"vehicles": [1, 7], "buoys": buoys, "battery": {"reserve_pct": 30}})
+        assert bad.status_code == 422
+        assert {tuple(e["loc"]) for e in bad.json()["detail"]} == {("body", "battery"), ("body", "vehicles", 1)}
+        created = client.post("/missions", json={"vehicles": "fleet", "buoys": buoys, "layer_gap_m": 4.0})
+        assert created.status_code == 201, created.text
+        fleet_id = created.json()["id"]
+        mission = _wait_ended(client, fleet_id)
+        assert (mission["status"], mission["reason"]) == ("completed", None)
+        fleet = mission["fleet"]
+        assert sorted(b for share in fleet["shares"] for b in share["buoys"]) == list(range(9))
+        assert set(fleet["inspected_by"]) == {b["id"] for b in buoys}  # each buoy inspected by someone
+        for share in fleet["shares"]:
+            part = client.get(f"/missions/{share['mission_id']}").json()
+            assert (part["status"], part["vehicle_sysid"], part["fleet_id"]) == ("completed", share["sysid"], fleet_id)
+            assert part["altitude_m"] == 5.0 + 4.0 * (share["sysid"] - 1)  # its layer
+            assert all(fleet["inspected_by"][buoys[b]["id"]] == share["sysid"] for b in share["buoys"])
+        separation = fleet["separation"]  # homes 160 m apart: they climb far apart, and cross a layer apart
+        assert len(fleet["shares"]) >= 2 and separation["min_distance_m"] > fleet["layer_gap_m"]
+        assert separation["min_horizontal_m"] <= separation["min_distance_m"]

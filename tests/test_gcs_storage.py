@@ -207,18 +207,26 @@ def test_unfinished_missions_are_the_ones_left_mid_flight_oldest_first(storage):
 
 
 def test_missions_of_a_fleet_keep_their_vehicle_and_fleet_and_restart_per_vehicle(storage):
-    fleet = storage.create_mission(FLIGHT, PLAN)
-    first = storage.create_mission(FLIGHT, PLAN, vehicle_sysid=1, fleet_id=fleet)
-    second = storage.create_mission(FLIGHT, PLAN, vehicle_sysid=2, fleet_id=fleet)
+    fleet, (first, second) = storage.create_fleet_mission(FLIGHT, PLAN, [(FLIGHT, PLAN, 1), (FLIGHT, PLAN, 2)])
     alone = storage.create_mission(FLIGHT, PLAN)  # the one vehicle of a service without a fleet
-    for mission_id in (first, second, alone):
+    for mission_id in (fleet, first, second, alone):
         storage.set_status(mission_id, "flying")
     record = storage.get_mission(second)
-    assert (record.vehicle_sysid, record.fleet_id) == (2, fleet)
+    assert (record.vehicle_sysid, record.fleet_id, record.is_fleet) == (2, fleet, False)
+    assert storage.get_mission(fleet).is_fleet and storage.unfinished_fleets() == [fleet]
     assert (storage.get_mission(alone).vehicle_sysid, storage.get_mission(alone).fleet_id) == (None, None)
     assert [part.id for part in storage.fleet_parts(fleet)] == [first, second]
     assert storage.unfinished_missions(vehicle_sysid=2) == [second]  # each vehicle re-attaches its own
-    assert storage.unfinished_missions() == [alone]
+    lone = storage.create_mission(FLIGHT, PLAN, vehicle_sysid=3)
+    assert (storage.get_mission(lone).vehicle_sysid, storage.get_mission(lone).fleet_id) == (3, None)
+    assert storage.unfinished_missions() == [alone]  # a fleet mission is flown by its parts, never re-attached
+
+
+def test_a_fleet_mission_and_its_parts_are_stored_together_or_not_at_all(storage):
+    before = storage.latest_version()
+    with pytest.raises(ValueError):  # the second part's plan cannot be stored (NaN is not JSON)
+        storage.create_fleet_mission(FLIGHT, PLAN, [(FLIGHT, PLAN, 1), (FLIGHT, {"length_m": float("nan")}, 2)])
+    assert storage.list_missions() == [] and storage.latest_version() == before
 
 
 def test_migration_5_leaves_every_stored_mission_on_the_one_vehicle(database):

@@ -64,7 +64,12 @@ class MissionRecord:
     results: dict[str, Any] | None
     events: list[dict[str, Any]] = field(default_factory=list)
     vehicle_sysid: int | None = None  # the vehicle it flies on (None: the service's one vehicle)
-    fleet_id: int | None = None  # a fleet mission's part: the fleet mission's id
+    fleet_id: int | None = None  # a fleet mission's part: the fleet mission's id; a fleet mission: its own id
+
+    @property
+    def is_fleet(self) -> bool:
+        """A fleet mission (flown by its parts, never by a vehicle itself)."""
+        return self.fleet_id == self.id
 
 
 def _now() -> str:
@@ -176,18 +181,41 @@ class Storage(ABC):
     ) -> int:
         """A new mission, on a vehicle of the fleet (`vehicle_sysid`; None: the service's one vehicle) and, as a
         part of a fleet mission, under it (`fleet_id`)."""
-        now = _now()
         with self._mission_write() as db:
-            mission_id = int(
-                db.execute(
-                    f"INSERT INTO missions (created_at, updated_at, status, flight, plan, vehicle_sysid, fleet_id,"
-                    f" version) VALUES (?, ?, ?, ?, ?, ?, ?, {NEXT_VERSION}) RETURNING id",
-                    (now, now, status, _json(flight), _json(plan), vehicle_sysid, fleet_id),
-                ).fetchone()["id"]
-            )
+            return self._insert_mission(db, flight, plan, status, vehicle_sysid, fleet_id)
+
+    def create_fleet_mission(
+        self, flight: dict[str, Any], plan: dict[str, Any], parts: list[tuple[dict[str, Any], dict[str, Any], int]]
+    ) -> tuple[int, list[int]]:
+        """A fleet mission (its fleet_id its own id) and its parts, each (flight, plan, vehicle_sysid), in one
+        transaction: all of them or none. Returns (the fleet mission's id, the parts' ids)."""
+        with self._mission_write() as db:
+            fleet_id = self._insert_mission(db, flight, plan, MissionStatus.PLANNED, None, None)
+            db.execute("UPDATE missions SET fleet_id = id WHERE id = ?", (fleet_id,))
+            ids = [
+                self._insert_mission(db, part_flight, part_plan, MissionStatus.PLANNED, sysid, fleet_id)
+                for part_flight, part_plan, sysid in parts
+            ]
+        return fleet_id, ids
+
+    @staticmethod
+    def _insert_mission(
+        db: Connection,
+        flight: dict[str, Any],
+        plan: dict[str, Any],
+        status: MissionStatus,
+        vehicle_sysid: int | None,
+        fleet_id: int | None,
+    ) -> int:
+        now = _now()
+        mission_id = int(
             db.execute(
-                "INSERT INTO mission_events (mission_id, at, status) VALUES (?, ?, ?)", (mission_id, now, status)
-            )
+                f"INSERT INTO missions (created_at, updated_at, status, flight, plan, vehicle_sysid, fleet_id,"
+                f" version) VALUES (?, ?, ?, ?, ?, ?, ?, {NEXT_VERSION}) RETURNING id",
+                (now, now, status, _json(flight), _json(plan), vehicle_sysid, fleet_id),
+            ).fetchone()["id"]
+        )
+        db.execute("INSERT INTO mission_events (mission_id, at, status) VALUES (?, ?, ?)", (mission_id, now, status))
         return mission_id
 
     def set_status(self, mission_id: int, status: MissionStatus, reason: str | None = None) -> None:
@@ -224,15 +252,27 @@ class Storage(ABC):
         with self._reading() as db:
             rows = db.execute(
                 f"SELECT id FROM missions WHERE status IN ({', '.join('?' * len(UNFINISHED))}) AND {vehicle}"
-                " ORDER BY id",
+                " AND (fleet_id IS NULL OR fleet_id <> id) ORDER BY id",
                 (*UNFINISHED, *(() if vehicle_sysid is None else (vehicle_sysid,))),
+            ).fetchall()
+        return [int(row["id"]) for row in rows]
+
+    def unfinished_fleets(self) -> list[int]:
+        """Ids of fleet missions a previous run left flying (their parts re-attach by vehicle), oldest first."""
+        with self._reading() as db:
+            rows = db.execute(
+                f"SELECT id FROM missions WHERE status IN ({', '.join('?' * len(UNFINISHED))}) AND fleet_id = id"
+                " ORDER BY id",
+                UNFINISHED,
             ).fetchall()
         return [int(row["id"]) for row in rows]
 
     def fleet_parts(self, fleet_id: int) -> list[MissionRecord]:
         """A fleet mission's parts (one mission per vehicle, and those re-planned in flight), oldest first."""
         with self._reading() as db:
-            rows = db.execute("SELECT * FROM missions WHERE fleet_id = ? ORDER BY id", (fleet_id,)).fetchall()
+            rows = db.execute(
+                "SELECT * FROM missions WHERE fleet_id = ? AND id <> ? ORDER BY id", (fleet_id, fleet_id)
+            ).fetchall()
         return [_record(row, []) for row in rows]
 
     def get_mission(self, mission_id: int) -> MissionRecord | None:

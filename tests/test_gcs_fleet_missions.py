@@ -1,0 +1,71 @@
+"""Following a fleet mission (gcs.fleet_missions), the pure parts: the separation's minima, the fleet mission's
+progress from its parts', and how it ends."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from gcs.fleet_missions import Separation, fleet_ending, fleet_vehicles, shares_progress
+from gcs.schemas import MissionRequest
+from gcs.settings import Limits
+from gcs.status import MissionStatus
+from gcs.storage import MissionRecord
+from gcs.validation import RequestInvalidError
+
+
+def test_each_minimum_is_taken_on_its_own_over_every_pair_and_instant():
+    separation = Separation()
+    assert separation.min_distance_m is None
+    separation.fold({1: (0.0, 0.0, 5.0), 2: (30.0, 40.0, 8.0), 3: (0.0, 100.0, 11.0)})
+    assert separation.min_horizontal_m == pytest.approx(50.0)  # 1-2
+    assert separation.min_vertical_m == pytest.approx(3.0)  # 1-2 and 2-3
+    assert separation.min_distance_m == pytest.approx(math.hypot(50.0, 3.0))
+    separation.fold({1: (0.0, 0.0, 5.0), 2: (3.0, 0.0, 5.0)})  # later: side by side at one height
+    assert (separation.min_horizontal_m, separation.min_vertical_m) == (pytest.approx(3.0), 0.0)
+
+
+def _record(mission_id: int, status: str, plan: dict, progress: dict, reason: str | None = None, sysid=None):
+    return MissionRecord(
+        mission_id, "t", "t", MissionStatus(status), reason, {}, plan, progress, None, vehicle_sysid=sysid, fleet_id=1
+    )
+
+
+FLEET_PLAN = {
+    "buoy_ids": ["A", "B", "C", "D"],
+    "fleet": {"shares": [{"sysid": 1, "buoys": [2, 0]}, {"sysid": 2, "buoys": [3, 1]}]},
+}
+
+
+def test_the_fleet_progress_maps_each_parts_visits_to_the_fleets_buoys_and_its_end_names_what_was_missed():
+    fleet = _record(1, "flying", FLEET_PLAN, {})
+    parts = [
+        _record(2, "completed", {}, {"visited_buoys": [0, 1]}, sysid=1),
+        _record(3, "failed", {}, {"visited_buoys": [0]}, "link lost: no heartbeat from the vehicle", sysid=2),
+    ]
+    progress = shares_progress(fleet, parts)
+    assert [s["visited"] for s in progress["shares"]] == [[2, 0], [3]]
+    assert progress["visited_buoys"] == [0, 2, 3] and progress["visited"] == 3 and progress["buoys"] == 4
+    status, reason = fleet_ending(fleet, parts)
+    assert status == MissionStatus.FAILED
+    assert reason == "vehicle 2 failed (link lost: no heartbeat from the vehicle); not inspected: B"
+    parts[1] = _record(3, "aborted", {}, {"visited_buoys": [0, 1]}, "aborted by the operator", sysid=2)
+    assert fleet_ending(fleet, parts)[0] == MissionStatus.ABORTED
+    parts[1] = _record(3, "completed", {}, {"visited_buoys": [0, 1]}, sysid=2)
+    assert fleet_ending(fleet, parts) == (MissionStatus.COMPLETED, None)
+
+
+def test_a_fleet_request_names_known_vehicles_once_and_keeps_its_layers_within_the_airframe():
+    buoys = [{"lat": 1.0, "lon": 1.0}]
+    assert fleet_vehicles(MissionRequest(buoys=buoys, vehicles="fleet"), [1, 2, 3], Limits()) == [1, 2, 3]
+    assert fleet_vehicles(MissionRequest(buoys=buoys, vehicles=[3, 1]), [1, 2, 3], Limits()) == [3, 1]
+    request = MissionRequest(buoys=buoys, vehicles=[1, 1, 9], vehicle=2, altitude_m=110.0, layer_gap_m=10.0)
+    with pytest.raises(RequestInvalidError) as refused:
+        fleet_vehicles(request, [1, 2], Limits())
+    assert [loc for loc, _ in refused.value.errors] == [
+        ("body", "vehicle"),
+        ("body", "vehicles", 1),
+        ("body", "vehicles", 2),
+        ("body", "layer_gap_m"),
+    ]
