@@ -159,6 +159,7 @@ class SortieOut(BaseModel):
     """One sortie: take-off at the depot, its buoys, back and land; predicted, and once flown, measured."""
 
     index: int
+    vehicle: int | None = Field(default=None, description="a fleet mission's share: the vehicle flying it")
     order: list[int] = Field(description="its buoys' input indices in visiting order")
     route: list[list[float]] = Field(description="[lat, lon] from the depot through its buoys back to it")
     length_m: float

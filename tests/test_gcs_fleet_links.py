@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from sitl_process import SitlProcess, free_udp_port, free_udp_port_block
+from sitl_process import free_udp_port, free_udp_port_block
 
 from gcs.app import create_app
 from gcs.connection import TransportHub
@@ -25,18 +25,9 @@ CONNECT_S = 60.0
 
 
 @pytest.fixture
-def vehicles():
-    """Start vehicle processes: vehicles(*extra_args) -> SitlProcess."""
-    started = []
-
-    def start(*extra: str) -> SitlProcess:
-        process = SitlProcess(speed=5.0, extra_args=extra)
-        started.append(process)
-        return process.start()
-
-    yield start
-    for process in started:
-        process.cleanup()
+def vehicles(start_sitl):
+    """Start vehicle processes at 5x real time: vehicles(*extra_args) -> SitlProcess (each must stop cleanly)."""
+    return lambda *extra: start_sitl(speed=5.0, extra_args=extra)
 
 
 def _wait_all_connected(client: TestClient, count: int) -> list[dict]:

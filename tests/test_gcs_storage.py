@@ -216,6 +216,7 @@ def test_missions_of_a_fleet_keep_their_vehicle_and_fleet_and_restart_per_vehicl
     assert storage.get_mission(fleet).is_fleet and storage.unfinished_fleets() == [fleet]
     assert (storage.get_mission(alone).vehicle_sysid, storage.get_mission(alone).fleet_id) == (None, None)
     assert [part.id for part in storage.fleet_parts(fleet)] == [first, second]
+    assert [m.id for m in storage.list_missions()] == [alone, fleet]  # the fleet mission, not its parts
     assert storage.unfinished_missions(vehicle_sysid=2) == [second]  # each vehicle re-attaches its own
     lone = storage.create_mission(FLIGHT, PLAN, vehicle_sysid=3)
     assert (storage.get_mission(lone).vehicle_sysid, storage.get_mission(lone).fleet_id) == (3, None)

@@ -23,11 +23,12 @@ import pytest
 from ardupilot_double import ArduCopterDouble
 from playwright.sync_api import Browser, Page, Playwright, expect, sync_playwright
 from service_process import serving
+from sitl_process import SitlProcess
 
 from bench.long_mission import store_long_mission
 from gcs.storage import open_storage
 from gcs.up import UpOptions, reference_request
-from uavcore.geodesy import DEFAULT_HOME
+from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 from uavcore.mavlink import mavlink
 
 pytestmark = [pytest.mark.browser, pytest.mark.integration, pytest.mark.slow]
@@ -483,5 +484,82 @@ def test_a_multi_sortie_mission_shows_its_sorties_and_their_energy(service_with_
         expect(page.locator(".buoy-icon.visited")).to_have_count(0)  # a new plan has not flown
         page.screenshot(path=str(ARTIFACTS / "web_sorties.png"), full_page=True)
         page.locator("#panel").screenshot(path=str(ARTIFACTS / "web_sortie_table.png"))
+        browser.close()
+    assert errors == []
+
+
+@pytest.fixture
+def fleet_service(tmp_path):
+    """Three vehicles (`python -m sitl_quad --sysid N`, homes 160 m apart) and `python -m gcs serve` linked to
+    each; yields the service's URL once it has heard all three."""
+    frame = LocalFrame(*DEFAULT_HOME)
+    homes = {1: DEFAULT_HOME, 2: frame.from_ned(0.0, 160.0, 0.0), 3: frame.from_ned(160.0, 0.0, 0.0)}
+    vehicles = [
+        SitlProcess(speed=5.0, extra_args=("--sysid", str(n), "--home", ",".join(f"{v:.8f}" for v in home))).start()
+        for n, home in homes.items()
+    ]
+    http = free_port(socket.SOCK_STREAM)
+    argv = [sys.executable, "-m", "gcs", "serve", "--port", str(http), "--db", str(tmp_path / "gcs.sqlite")]
+    for n, vehicle in zip(homes, vehicles, strict=True):
+        argv += ["--vehicle", f"{n}=udpout:127.0.0.1:{vehicle.port}"]
+    logs = open(tmp_path / "service.log", "w")  # noqa: SIM115 - closed below
+    gcs = subprocess.Popen(argv, stdout=logs, stderr=subprocess.STDOUT)
+    url = f"http://127.0.0.1:{http}"
+    try:
+        deadline = time.monotonic() + 120
+        while True:
+            try:
+                with urllib.request.urlopen(f"{url}/vehicles", timeout=2) as answer:
+                    if all(v["connected"] and v["home"] for v in json.load(answer)):
+                        break
+            except OSError:
+                pass
+            assert gcs.poll() is None and time.monotonic() < deadline, (tmp_path / "service.log").read_text()
+            time.sleep(0.3)
+        yield url, frame
+    finally:
+        stop(gcs)
+        logs.close()
+        for vehicle in vehicles:
+            vehicle.cleanup()
+
+
+def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fleet_service):
+    url, frame = fleet_service
+    places = [(n, e) for n in (30.0, 90.0, 150.0) for e in (40.0, 100.0, 170.0)]
+    buoys = [
+        {"id": f"B{i + 1}", "lat": float(lat), "lon": float(lon)}
+        for i, (lat, lon, _) in enumerate(frame.from_ned(n, e, 0.0) for n, e in places)
+    ]
+    mission = post_json(f"{url}/missions", {"vehicles": "fleet", "buoys": buoys})
+    shares = mission["sorties"]
+    assert [s["vehicle"] for s in shares] == [s["sysid"] for s in mission["fleet"]["shares"]]
+    errors: list[str] = []
+    with sync_playwright() as p:
+        browser, page = open_page(p, errors)
+        page.on("console", lambda m: errors.append(m.text) if "Content Security" in m.text else None)
+        page.goto(url)
+        # every vehicle on the map, titled by its system id, and no other vehicle marker
+        for sysid in (1, 2, 3):
+            expect(page.locator(f".leaflet-marker-icon[title='vehicle {sysid}']")).to_have_count(1, timeout=30_000)
+        expect(page.locator(".leaflet-marker-icon.vehicle-icon")).to_have_count(3)
+        # each vehicle's route in its own colour, and the legend naming each one's share
+        routes = page.locator(".leaflet-overlay-pane path[stroke-dasharray]")
+        expect(routes).to_have_count(len(shares))
+        assert len({routes.nth(k).get_attribute("stroke") for k in range(len(shares))}) == len(shares)
+        legend = page.get_by_test_id("sortie-legend").locator("li")
+        expect(legend).to_have_text(
+            [f"vehicle {s['vehicle']}: {len(s['order'])} buoys, about {round(s['predicted_time_s'])} s" for s in shares]
+        )
+        expect(page.get_by_test_id("sortie-progress")).to_have_text(f"{len(shares)} vehicles")
+        # the fleet's table, a row per vehicle, and once every part has landed the closest approach
+        rows = page.locator("#sortie-table tbody tr")
+        expect(rows).to_have_count(len(shares))
+        expect(page.locator("#mission-status")).to_contain_text("completed", timeout=240_000)
+        expect(page.locator("#figures")).to_contain_text("closest approach")
+        for k, share in enumerate(mission["fleet"]["shares"]):
+            expect(rows.nth(k).locator("td").nth(2)).to_have_text(str(len(share["buoys"])))  # all inspected
+        ARTIFACTS.mkdir(exist_ok=True)
+        page.screenshot(path=str(ARTIFACTS / "fleet-mission.png"))
         browser.close()
     assert errors == []

@@ -71,6 +71,7 @@ def _encoded(body: bytes) -> Response:
 # the bytes. They run on the event loop (no thread hop): a cache hit is a few microseconds of work.
 @router.get("/missions", response_model=list[MissionSummary])
 async def list_missions(service: ServiceDep, limit: Annotated[int, Query(ge=1, le=1000)] = 100) -> Response:
+    """The latest missions, newest first; a fleet mission is listed, its part missions are in its `fleet`."""
     return _encoded(service.missions_json(limit))
 
 

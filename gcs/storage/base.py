@@ -298,8 +298,11 @@ class Storage(ABC):
         return int(row["version"])
 
     def list_missions(self, limit: int = 100) -> list[MissionRecord]:
+        """The latest missions, newest first: a fleet mission, not its parts (`fleet_parts`)."""
         with self._reading() as db:
-            rows = db.execute("SELECT * FROM missions ORDER BY id DESC LIMIT ?", (limit,)).fetchall()
+            rows = db.execute(
+                "SELECT * FROM missions WHERE fleet_id IS NULL OR fleet_id = id ORDER BY id DESC LIMIT ?", (limit,)
+            ).fetchall()
         return [_record(row, []) for row in rows]
 
     # ----- telemetry

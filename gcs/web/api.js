@@ -47,6 +47,10 @@ export class GcsApi {
     return this.request("GET", "/openapi.json");
   }
 
+  vehicles() {
+    return this.request("GET", "/vehicles");
+  }
+
   vehicle() {
     return this.request("GET", "/vehicle");
   }

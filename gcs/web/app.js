@@ -7,8 +7,9 @@ import { byId } from "./dom.js";
 import { showHistory } from "./history.js";
 import { MissionMap } from "./map.js";
 import * as panel from "./panel.js";
+import { sortieLook } from "./sorties.js";
 import { buoyMarkings, buoysEditable, state } from "./state.js";
-import { defineMissionStatus, isFinished } from "./status.js";
+import { defineMissionStatus, isFinished, isUnderway } from "./status.js";
 
 const FALLBACK_DEPOT = { lat: 38.921, lon: 121.663 }; // when the service cannot tell the vehicle's home
 
@@ -113,7 +114,7 @@ function onLiveMessage(message) {
   const vehicle = message.vehicle;
   panel.showVehicleLink(vehicle);
   panel.showBattery(vehicle);
-  if (vehicle.connected && vehicle.lat != null) {
+  if (state.fleetSize < 2 && vehicle.connected && vehicle.lat != null) {
     map.showVehicle(vehicle.lat, vehicle.lon, ((vehicle.yaw ?? 0) * 180) / Math.PI);
   }
   const mission = message.mission;
@@ -125,6 +126,20 @@ function onLiveMessage(message) {
     charts.add(mission.sample);
   }
 }
+
+// A fleet (more than one vehicle): every vehicle on the map, in its share's colour while a fleet mission is shown.
+const pollFleet = showingErrors(async () => {
+  const vehicles = await api.vehicles();
+  state.fleetSize = vehicles.length;
+  if (vehicles.length < 2) return;
+  map.hideVehicle(); // drawn from the live stream before the page knew it watches a fleet
+  const shares = (state.mission && state.mission.fleet && state.mission.sorties) || [];
+  const colourOf = (sysid) => {
+    const share = shares.find((s) => s.vehicle === sysid);
+    return share ? sortieLook(share.index).colour : null;
+  };
+  map.showVehicles(vehicles, colourOf);
+});
 
 // ----- history
 const refreshHistory = showingErrors(async () => {
@@ -217,12 +232,17 @@ async function start() {
   wireControls();
   api.openLiveStream(onLiveMessage);
   setInterval(pollMission, 1000);
+  setInterval(pollFleet, 1000);
   setInterval(() => {
     charts.redraw();
     relabelBuoys();
   }, 250);
   const missions = await refreshHistory();
-  const shown = (vehicle && vehicle.active_mission) || (missions.length ? missions[0].id : null);
+  // the newest mission when it is under way (a fleet mission: its parts fly on the vehicles), else the one the
+  // vehicle flies, else the newest
+  const newest = missions.length ? missions[0] : null;
+  const underway = newest && isUnderway(newest.status) ? newest.id : null;
+  const shown = underway ?? ((vehicle && vehicle.active_mission) || (newest ? newest.id : null));
   if (shown != null) displayMission(shown);
 }
 

@@ -21,9 +21,9 @@ function depotIcon() {
   return L.divIcon({ className: "", html, iconSize: [20, 20], iconAnchor: [10, 10] });
 }
 
-// An arrow pointing along the vehicle's heading.
-function vehicleIcon(yawDeg) {
-  const shape = { d: "M0,-12 L8,10 L0,5 L-8,10 Z", fill: "#c2185b", stroke: "#fff", "stroke-width": 1.5 };
+// An arrow pointing along the vehicle's heading (a fleet's vehicle: in its share's colour).
+function vehicleIcon(yawDeg, colour = "#c2185b") {
+  const shape = { d: "M0,-12 L8,10 L0,5 L-8,10 Z", fill: colour, stroke: "#fff", "stroke-width": 1.5 };
   const arrow = svg("svg", { width: 28, height: 28, viewBox: "-14 -14 28 28" }, svg("path", shape));
   arrow.style.transform = `rotate(${yawDeg}deg)`;
   return L.divIcon({ className: "vehicle-icon", html: arrow, iconSize: [28, 28], iconAnchor: [14, 14] });
@@ -159,6 +159,28 @@ export class MissionMap {
     const points = this.track.getLatLngs();
     const last = points[points.length - 1];
     if (!last || last.lat !== lat || last.lng !== lon) this.track.addLatLng([lat, lon]);
+  }
+
+  // A fleet: a marker per vehicle (GET /vehicles), titled "vehicle N", in the colour colourOf(sysid) gives it
+  // (its share's in the fleet mission shown; null: the one vehicle's colour).
+  showVehicles(vehicles, colourOf) {
+    this.fleetMarkers ??= new Map(); // sysid -> marker
+    for (const vehicle of vehicles) {
+      if (!vehicle.connected || vehicle.lat == null) continue;
+      const icon = vehicleIcon(((vehicle.yaw ?? 0) * 180) / Math.PI, colourOf(vehicle.sysid) ?? undefined);
+      const marker = this.fleetMarkers.get(vehicle.sysid);
+      if (marker) marker.setLatLng([vehicle.lat, vehicle.lon]).setIcon(icon);
+      else {
+        const options = { icon, zIndexOffset: 1000, title: `vehicle ${vehicle.sysid}` };
+        this.fleetMarkers.set(vehicle.sysid, L.marker([vehicle.lat, vehicle.lon], options).addTo(this.map));
+      }
+    }
+  }
+
+  // The one vehicle's marker off the map (a fleet draws every vehicle with showVehicles instead).
+  hideVehicle() {
+    if (this.vehicleMarker) this.vehicleMarker.remove();
+    this.vehicleMarker = null;
   }
 
   showVehicle(lat, lon, yawDeg) {

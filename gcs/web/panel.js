@@ -100,8 +100,19 @@ export function clearPlanSummary() {
   byId("plan-summary").replaceChildren();
 }
 
+// A fleet mission's closest approach of two vehicles in the air, once it has ended (gcs.fleet_missions).
+function separationLines(fleet) {
+  const s = fleet.separation;
+  if (s.min_distance_m == null) return [];
+  return [
+    `closest approach ${formatNumber(s.min_distance_m)} m (horizontal ${formatNumber(s.min_horizontal_m)} m, ` +
+      `vertical ${formatNumber(s.min_vertical_m)} m; layers ${formatNumber(fleet.layer_gap_m)} m apart)`,
+  ];
+}
+
 // The lines of tracking figures of a mission that has flown (none before).
 function figureLines(mission) {
+  if (mission.fleet) return separationLines(mission.fleet);
   const t = mission.tracking;
   if (!t) return [];
   const reached = mission.buoy_results.filter((b) => b.reached).length;
@@ -126,8 +137,10 @@ export function showMission(mission) {
   showSortieTable(mission);
 }
 
-// "sortie 2 of 3" while one flies (or flew last); "3 sorties" before; nothing for a single tour.
+// "sortie 2 of 3" while one flies (or flew last); "3 sorties" before; nothing for a single tour. A fleet
+// mission: how many vehicles share it.
 function sortieProgress(mission) {
+  if (mission.fleet) return `${mission.fleet.shares.length} vehicles`;
   const { sortie, sorties } = mission.progress || {};
   if (!(sorties > 1)) return "";
   return sortie == null ? `${sorties} sorties` : `sortie ${sortie + 1} of ${sorties}`;
@@ -145,9 +158,39 @@ const SORTIE_COLUMNS = [
   ["warn.", "battery warning: the worst battery state the vehicle reported in the sortie"],
 ];
 
+const FLEET_COLUMNS = [
+  ["vehicle", "its system id"],
+  ["buoys", "its share of the buoys"],
+  ["inspected", "its buoys inspected so far"],
+  ["status", "its part mission"],
+  ["pred. s", "predicted flight time, take-off to landing"],
+  ["layer m", "its altitude"],
+];
+
+// A fleet mission: a row per vehicle's share, in its route's colour.
+function showFleetTable(mission) {
+  const row = (s, share) =>
+    h(
+      "tr",
+      {},
+      h("td", {}, swatch(routeLook(mission, s.index)), String(share.sysid)),
+      ...[
+        String(share.buoys.length),
+        String(share.visited_buoys.length),
+        share.status,
+        formatNumber(share.predicted_time_s, 0),
+        formatNumber(share.altitude_m, 0),
+      ].map((text) => h("td", {}, text)),
+    );
+  const head = h("thead", {}, h("tr", {}, ...FLEET_COLUMNS.map(([name, title]) => h("th", { title }, name))));
+  const rows = mission.sorties.map((s, k) => row(s, mission.fleet.shares[k]));
+  byId("sortie-table").replaceChildren(head, h("tbody", {}, ...rows));
+}
+
 // Predicted against used energy, a row per sortie (none for a plain single tour). Error: (used - predicted) / used.
 function showSortieTable(mission) {
   const table = byId("sortie-table");
+  if (mission.fleet) return showFleetTable(mission);
   if (!hasSortieFigures(mission)) return table.replaceChildren();
   const onBoard = mission.status === MissionStatus.flying ? mission.progress.sortie : null;
   const row = (s) => {

@@ -35,8 +35,12 @@ export function sortieOfBuoy(plan) {
 
 const wattHours = (value) => (value == null ? "–" : `${Number(value).toFixed(1)} Wh`);
 
-// The legend's line for one sortie: "sortie 2: 5 buoys, predicted 12.1 Wh".
+// The legend's line for one sortie: "sortie 2: 5 buoys, predicted 12.1 Wh"; a fleet mission's share (a sortie
+// with a vehicle): "vehicle 3: 4 buoys, about 95 s".
 export function sortieLabel(sortie) {
+  if (sortie.vehicle != null) {
+    return `vehicle ${sortie.vehicle}: ${sortie.order.length} buoys, about ${Math.round(sortie.predicted_time_s)} s`;
+  }
   const predicted = sortie.predicted_energy_wh == null ? "" : `, predicted ${wattHours(sortie.predicted_energy_wh)}`;
   return `sortie ${sortie.index + 1}: ${sortie.order.length} buoys${predicted}`;
 }
