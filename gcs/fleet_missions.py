@@ -16,7 +16,12 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
 
+import numpy as np
+
+from gcs.fleet_planning import reshare
+from gcs.lifecycle import MissionConflictError
 from gcs.link import LinkManager
+from gcs.planning import Plan, sorties_plan
 from gcs.schemas import MissionRequest
 from gcs.settings import Limits
 from gcs.status import TERMINAL, MissionStatus
@@ -103,23 +108,27 @@ def shares_progress(fleet: MissionRecord, parts: list[MissionRecord]) -> dict[st
 
 
 def fleet_ending(fleet: MissionRecord, parts: list[MissionRecord]) -> tuple[MissionStatus, str | None]:
-    """The fleet mission's end from its parts': completed when each completed, else aborted (an operator's
-    abort and nothing failed) or failed, naming each vehicle that did not complete and the buoys not inspected."""
-    if all(part.status == MissionStatus.COMPLETED for part in parts):
-        return MissionStatus.COMPLETED, None
+    """The fleet mission's end from its parts': aborted when the operator aborted a part; completed when every
+    buoy was inspected by someone (a lost vehicle's share re-shared to the others counts: the loss is in the
+    events and the shares); else failed, naming each vehicle that did not complete and the buoys not inspected."""
     progress = shares_progress(fleet, parts)
     ids = fleet.plan["buoy_ids"]
     missed = [ids[b] for b in range(len(ids)) if b not in set(progress["visited_buoys"])]
+    aborted = any(part.status == MissionStatus.ABORTED for part in parts)
+    if not missed and not aborted:
+        return MissionStatus.COMPLETED, None
     problems = [
         f"vehicle {share['sysid']} {part.status}" + (f" ({part.reason})" if part.reason else "")
         for share, part in zip(progress["shares"], parts, strict=True)
         if part.status != MissionStatus.COMPLETED
     ]
-    status = MissionStatus.FAILED
-    if all(part.status in (MissionStatus.COMPLETED, MissionStatus.ABORTED) for part in parts):
-        status = MissionStatus.ABORTED
     reason = "; ".join(problems) + (f"; not inspected: {', '.join(missed)}" if missed else "")
-    return status, reason
+    return (MissionStatus.ABORTED if aborted else MissionStatus.FAILED), reason
+
+
+def _local(frame: LocalFrame, lat_lon: list[float]) -> np.ndarray:
+    east, north = frame.project([lat_lon])[0]
+    return np.array([east, north])
 
 
 def fleet_vehicles(request: MissionRequest, known: list[int], limits: Limits) -> list[int]:
@@ -153,8 +162,15 @@ def fleet_vehicles(request: MissionRequest, known: list[int], limits: Limits) ->
 class FleetCoordinator:
     """Follows each fleet mission in flight (one task per fleet mission) until its parts have ended."""
 
-    def __init__(self, storage: Storage, link_of: Callable[[int], LinkManager]) -> None:
-        self.storage, self._link_of = storage, link_of
+    def __init__(
+        self,
+        storage: Storage,
+        link_of: Callable[[int], LinkManager],
+        replan: Callable[[MissionRecord, Plan], None],
+    ) -> None:
+        """link_of(sysid): a vehicle's link; replan(part, plan): fly a part on with a new plan, in flight (raises
+        MissionConflictError when that part is not flying)."""
+        self.storage, self._link_of, self._replan = storage, link_of, replan
         self._tasks: dict[int, asyncio.Task] = {}
 
     def follow(self, fleet_id: int) -> None:
@@ -193,9 +209,14 @@ class FleetCoordinator:
         if fleet.status != MissionStatus.FLYING:
             self.storage.set_status(fleet_id, MissionStatus.FLYING)
         stored: dict[str, Any] | None = None
+        lost: set[int] = {p.id for p in parts if p.status == MissionStatus.FAILED}  # before a restart: handled
         try:
             while True:
                 parts = self.storage.fleet_parts(fleet_id)
+                for part in parts:
+                    if part.status == MissionStatus.FAILED and part.id not in lost:
+                        lost.add(part.id)
+                        fleet = self._reshare(fleet, part, parts)
                 progress = shares_progress(fleet, parts)
                 if progress != stored:
                     self.storage.set_progress(fleet_id, progress)
@@ -211,3 +232,66 @@ class FleetCoordinator:
         status, reason = fleet_ending(fleet, parts)
         self.storage.set_status(fleet_id, status, reason)
         log.info("fleet mission %s %s%s", fleet_id, status, f": {reason}" if reason else "")
+
+    def _reshare(self, fleet: MissionRecord, lost_part: MissionRecord, parts: list[MissionRecord]) -> MissionRecord:
+        """A part ended failed (its vehicle lost, or a failsafe brought it down): its buoys not inspected go to the
+        vehicles still flying their shares (gcs.fleet_planning.reshare), each uploaded in flight as its part's new
+        plan. The fleet mission's plan records who took what; its events say so. Returns the fleet re-read."""
+        plan = Plan.from_dict(fleet.plan)
+        shares = {share["sysid"]: share for share in plan.fleet["shares"]}
+        lost_share = shares[lost_part.vehicle_sysid]
+        visited = set(lost_part.progress.get("visited_buoys", []))
+        orphans = [b for i, b in enumerate(lost_share["buoys"]) if i not in visited]
+        lost_share["lost"] = lost_part.reason or "failed"
+        receivers = []
+        for part in parts:
+            status = self._link_of(part.vehicle_sysid).status
+            flying = status.connected and status.armed and not status.mission_complete and status.lat is not None
+            if part.status == MissionStatus.FLYING and flying:
+                receivers.append(part)
+        frame = plan.frame
+        flying_now, remaining = {}, {}
+        for part in receivers:
+            status, share = self._link_of(part.vehicle_sysid).status, shares[part.vehicle_sysid]
+            part_plan, done = Plan.from_dict(part.plan), set(part.progress.get("visited_buoys", []))
+            remaining[part.id] = [i for i in part_plan.order if i not in done]
+            own = [_local(frame, part_plan.buoys_lat_lon[i]) for i in remaining[part.id]]
+            here = _local(frame, [status.lat, status.lon])
+            flying_now[part.vehicle_sysid] = (here, own, _local(frame, share["home"]))
+        handed: dict[int, list[int]] = {}
+        if orphans and receivers:
+            lost_points = [_local(frame, plan.buoys_lat_lon[b]) for b in orphans]
+            flight = fleet.flight
+            routes = reshare(flying_now, lost_points, flight["speed_m_s"], flight["dwell_s"])
+            for part in receivers:
+                own_left = remaining[part.id]
+                order = routes[part.vehicle_sysid]
+                added = [orphans[n - len(own_left)] for n in order if n >= len(own_left)]
+                if not added:
+                    continue
+                part_plan = Plan.from_dict(part.plan)
+                first_new = len(part_plan.buoy_ids)
+                new_order = [own_left[n] if n < len(own_left) else first_new + added.index(orphans[n - len(own_left)])
+                             for n in order]  # fmt: skip
+                new_plan = sorties_plan(
+                    part_plan.depot,
+                    [*part_plan.buoys_lat_lon, *(plan.buoys_lat_lon[b] for b in added)],
+                    [*part_plan.buoy_ids, *(plan.buoy_ids[b] for b in added)],
+                    [new_order],
+                    part_plan.method,
+                    part_plan.elapsed_s,
+                )
+                try:
+                    self._replan(part, new_plan)
+                except MissionConflictError:  # it landed or ended meanwhile: the buoys stay not inspected
+                    continue
+                shares[part.vehicle_sysid]["buoys"] = [*shares[part.vehicle_sysid]["buoys"], *added]
+                handed[part.vehicle_sysid] = added
+        lost_share["handed_over"] = {str(sysid): buoys for sysid, buoys in handed.items()}
+        self.storage.set_plan(fleet.id, plan.to_dict())
+        names = {sysid: ", ".join(plan.buoy_ids[b] for b in buoys) for sysid, buoys in handed.items()}
+        given = "; ".join(f"{names[sysid]} to vehicle {sysid}" for sysid in names) or "nobody left to take its buoys"
+        why = f" ({lost_part.reason})" if lost_part.reason else ""
+        self.storage.set_status(fleet.id, MissionStatus.FLYING, f"vehicle {lost_part.vehicle_sysid} lost{why}: {given}")
+        log.warning("fleet mission %s: vehicle %s lost; %s", fleet.id, lost_part.vehicle_sysid, given)
+        return self.storage.get_mission(fleet.id)

@@ -11,6 +11,7 @@ altitude_m + k x layer_gap_m, so two vehicles crossing paths are a layer apart.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -119,3 +120,45 @@ def plan_fleet_mission(
         [list(map(float, b)) for b in buoys],
         layer_gap_m,
     )
+
+
+def reshare(
+    flying: dict[int, tuple[np.ndarray, list[np.ndarray], np.ndarray]],
+    lost: list[np.ndarray],
+    speed_m_s: float,
+    dwell_s: float,
+) -> dict[int, list[int]]:
+    """A lost vehicle's buoys shared among the vehicles still flying, without landing them: each lost buoy (points
+    in one planar frame, metres) goes where it lengthens the longest remaining flight least (cheapest insertion
+    under the min-max objective, then the least added time). `flying`: {sysid: (its position now, its remaining
+    buoys in flying order, its home)}. Returns {sysid: its new remaining order}, as indices: 0..k-1 its own
+    remaining buoys, k.. the lost ones (k + j for lost[j])."""
+    routes = {sysid: list(range(len(own))) for sysid, (_, own, _) in flying.items()}
+
+    def point(sysid: int, node: int) -> np.ndarray:
+        own = flying[sysid][1]
+        return own[node] if node < len(own) else lost[node - len(own)]
+
+    def remaining_s(sysid: int, order: list[int]) -> float:
+        here, _, home = flying[sysid]
+        stops = [here, *(point(sysid, n) for n in order), home]
+        legs = sum(float(np.hypot(*(b - a))) for a, b in itertools.pairwise(stops))
+        return legs / speed_m_s + dwell_s * len(order)
+
+    times = {sysid: remaining_s(sysid, order) for sysid, order in routes.items()}
+    # the farthest from every flying vehicle first: it constrains the makespan most
+    nearest = [min(float(np.hypot(*(b - flying[s][0]))) for s in flying) for b in lost]
+    for j in sorted(range(len(lost)), key=lambda j: -nearest[j]):
+        best = None
+        for sysid, order in routes.items():
+            node = len(flying[sysid][1]) + j
+            for at in range(len(order) + 1):
+                trial = [*order[:at], node, *order[at:]]
+                t = remaining_s(sysid, trial)
+                makespan = max(t, *(times[o] for o in routes if o != sysid))
+                key = (makespan, t - times[sysid])
+                if best is None or key < best[0]:
+                    best = (key, sysid, trial, t)
+        _, sysid, trial, t = best
+        routes[sysid], times[sysid] = trial, t
+    return routes

@@ -120,6 +120,7 @@ class FlightLifecycle:
         self._recorders: dict[int, MissionRecorder] = {}
         self._statuses: dict[int, MissionStatus] = {}  # last status of missions run here, for the live view
         self._handing_over = False  # stop() leaves flying missions for the next owner of the vehicle link
+        self._replans: dict[int, Plan] = {}  # new plans for flying missions, uploaded in flight by their monitor
 
     def reattach(self, unfinished: list[int]) -> None:
         """At start-up, with the ids of the missions a previous run left unfinished (oldest first)."""
@@ -176,6 +177,15 @@ class FlightLifecycle:
         else:
             self._transition(mission_id, MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF)
 
+    def replan(self, mission_id: int, plan: Plan) -> None:
+        """Fly a new plan (one tour: the mission's buoys in the same indices, then more) on a mission in flight:
+        its monitor uploads it to the flying vehicle, which flies on from its cruise-speed item (the take-off is
+        behind it) through the new plan's buoys. Raises MissionConflictError unless the mission is flying here."""
+        task = self._tasks.get(mission_id)
+        if task is None or task.done() or self._statuses.get(mission_id) != MissionStatus.FLYING:
+            raise MissionConflictError(f"mission {mission_id} is not flying here: it cannot be re-planned in flight")
+        self._replans[mission_id] = plan
+
     def live_mission(self) -> dict[str, Any] | None:
         """The active mission's status, progress and latest sample, for /ws; None when no mission flies."""
         active = self.active_mission()
@@ -219,12 +229,12 @@ class FlightLifecycle:
             status, reason = MissionStatus.FAILED, "the service stopped during the mission"
             if mission_id in self._abort_requested:
                 status, reason = MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF
-            self._finish(mission_id, plan, flight, recorder, status, reason)
+            self._finish(mission_id, recorder.mission_plan, flight, recorder, status, reason)
             raise
         except Exception as error:  # never leave a mission hanging in a non-terminal state
             log.exception("mission %s failed", mission_id)
             reason = f"internal error: {type(error).__name__}: {error}"
-        self._finish(mission_id, plan, flight, recorder, status, reason)
+        self._finish(mission_id, recorder.mission_plan, flight, recorder, status, reason)
 
     def _record_with(self, mission_id: int, recorder: MissionRecorder) -> None:
         """From now on the recorder hears every message of the vehicle, and /ws shows its progress."""
@@ -376,6 +386,21 @@ class FlightLifecycle:
             await self._fly_sortie(mission_id, plan, flight, recorder, later)
         raise MissionEndError(MissionStatus.COMPLETED, None)
 
+    async def _upload_in_flight(
+        self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder
+    ) -> int:
+        """Upload `plan` to the flying vehicle (MISSION_ITEM_INT while in AUTO), fly on from its cruise-speed item,
+        record against it; returns its number of items."""
+        home = self.link.status.home
+        items = mission_items(plan, flight, None if home is None else (home[0], home[1]))
+        added = len(plan.buoy_ids) - len(recorder.mission_plan.buoy_ids)
+        await self.link.upload_mission(items, home or self.settings.home)
+        await self.link.set_current_item(FIRST_BUOY_SEQ - 1)  # the take-off is behind it; the speed, then buoys
+        recorder.replan(plan)
+        self.storage.set_plan(mission_id, plan.to_dict())
+        self._transition(mission_id, MissionStatus.FLYING, f"re-planned in flight: {added} more buoys")
+        return len(items)
+
     async def _monitor(
         self,
         mission_id: int,
@@ -404,6 +429,10 @@ class FlightLifecycle:
             if progress != last_progress:
                 self.storage.set_progress(mission_id, progress)
                 last_progress = progress
+            if (replanned := self._replans.pop(mission_id, None)) is not None and not aborting:
+                n_items = await self._upload_in_flight(mission_id, replanned, flight, recorder)
+                elapsed = (s.time_boot_ms or 0) / 1000.0 - start_s
+                budget_s = elapsed + flight_budget_s(replanned, flight, self.settings.mission_timeout_margin_s)
             if s.incarnation != incarnation:
                 what = (
                     "the vehicle rebooted" if s.sysid == sysid else f"another vehicle (system {s.sysid}) took the link"

@@ -424,6 +424,11 @@ class LinkManager:
         except CommandDeniedError:
             await self._command("start the mission", mavlink.MAV_CMD_MISSION_START, [0, len(items) - 1])
 
+    async def set_current_item(self, seq: int) -> None:
+        """Fly on from mission item `seq` (planned numbering): MAV_CMD_DO_SET_MISSION_CURRENT."""
+        vehicle_seq = seq + self.autopilot.mission_offset
+        await self._command(f"go to mission item {seq}", mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, [vehicle_seq])
+
     async def return_to_launch(self) -> None:
         await self._command("return to launch", mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from gcs import report, views
 from gcs.energy_planning import battery_plan, energy_plan
-from gcs.fleet_missions import FleetCoordinator, fleet_vehicles
+from gcs.fleet_missions import FleetCoordinator, fleet_vehicles, shares_progress
 from gcs.fleet_planning import METHOD, plan_fleet_mission
 from gcs.fleet_vehicle import FleetVehicle
 from gcs.lifecycle import ABORTED_BEFORE_TAKEOFF, MissionConflictError
@@ -74,7 +74,11 @@ class MissionService:
         self._vehicles = [FleetVehicle(first_key, link, settings, storage)]
         self._vehicles += [FleetVehicle(other.sysid, other, settings, storage) for other in fleet]
         self._link, self._flights = link, self._vehicles[0].flights  # the first vehicle's, for its views
-        self._fleets = FleetCoordinator(storage, lambda sysid: self._vehicle(sysid).link)
+        self._fleets = FleetCoordinator(
+            storage,
+            lambda sysid: self._vehicle(sysid).link,
+            lambda part, plan: self._vehicle_of(part).flights.replan(part.id, plan),
+        )
         self._ownership = ownership or ownership_for(settings)
         self.energy_model = EnergyModel.load()  # planner/energy_params.json: the calibrated route energy model
         self.documents = VersionedCache()  # the read routes' encoded documents by version (gcs.read_cache)
@@ -209,6 +213,8 @@ class MissionService:
             for share in planned.shares
         ]
         fleet_id, _ = self._storage.create_fleet_mission(asdict(flight), overview.to_dict(), parts)
+        # its shares' part missions, as the answer names them (the coordinator keeps this progress from here)
+        self._storage.set_progress(fleet_id, shares_progress(self.get(fleet_id), self._storage.fleet_parts(fleet_id)))
         if request.start:
             self._launch_fleet(self.get(fleet_id))
         return fleet_id

@@ -74,6 +74,14 @@ class MissionRecorder:
         self._on_board(sortie)
         self.reached_seqs, self.highest_seq = [], -1
 
+    def replan(self, plan: Plan) -> None:
+        """The vehicle now flies `plan` (one tour), uploaded in flight: the same buoys first, in the same indices,
+        then more (a fleet's re-share); what was visited stays visited."""
+        self.done_before |= self._done_buoys()
+        self.mission_plan = plan
+        self._on_board(self.sortie)
+        self.reached_seqs, self.highest_seq = [], -1
+
     def sortie_took_off(self) -> None:
         """Before arming for the sortie: what the battery has delivered so far (the swap zeroes it)."""
         self.consumed_at_start = self.link.status.battery_consumed_wh
@@ -183,7 +191,7 @@ class MissionRecorder:
             "mission_state": s.mission_state,
             "reached_seqs": list(self.reached_seqs),
             "visited": len(visited),
-            "buoys": len(self.mission_plan.order),
+            "buoys": len(self.mission_plan.buoy_ids),
             "reached_at": {str(k): v for k, v in self.reached_at.items()},
             "vehicle_events": list(self.vehicle_events),
             "sortie": self.sortie,

@@ -259,6 +259,10 @@ class FleetShareOut(BaseModel):
     route: list[list[float]] = Field(description="[lat, lon] from its home through its buoys back home")
     status: MissionStatus
     visited_buoys: list[int] = Field(description="input indices of its buoys inspected so far")
+    lost: str | None = Field(default=None, description="why this vehicle dropped out of the fleet mission, if it did")
+    handed_over: dict[str, list[int]] = Field(
+        default={}, description="a lost vehicle's buoys re-shared in flight: system id -> the buoys it took"
+    )
 
 
 class SeparationOut(BaseModel):

@@ -144,6 +144,7 @@ def fleet_out(record: MissionRecord, plan: Plan) -> dict[str, Any]:
             {k: share[k] for k in ("sysid", "buoys", "altitude_m", "predicted_time_s", "length_m")}
             | {"route": route, "mission_id": state.get("mission_id", 0), "status": state.get("status", "planned")}
             | {"visited_buoys": state.get("visited", [])}
+            | {"lost": share.get("lost"), "handed_over": share.get("handed_over", {})}
         )
     results = record.results or {}
     separation = results.get("separation") or {"min_horizontal_m": None, "min_vertical_m": None, "min_distance_m": None}

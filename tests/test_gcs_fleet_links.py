@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from sitl_process import free_udp_port, free_udp_port_block
+from sitl_process import SitlProcess, free_udp_port, free_udp_port_block
 
 from gcs.app import create_app
 from gcs.connection import TransportHub
@@ -226,3 +226,53 @@ def test_a_fleet_mission_shares_the_buoys_flies_each_share_at_its_layer_and_comp
         separation = fleet["separation"]  # homes 160 m apart: they climb far apart, and cross a layer apart
         assert len(fleet["shares"]) >= 2 and separation["min_distance_m"] > fleet["layer_gap_m"]
         assert separation["min_horizontal_m"] <= separation["min_distance_m"]
+
+
+def test_a_lost_vehicles_buoys_are_reshared_in_flight_and_the_fleet_mission_completes(tmp_path, vehicles):
+    """Three vehicles share 30 buoys; vehicle 2's process is killed (SIGKILL) after its first buoy: its part
+    fails "link lost", its buoys not inspected are uploaded in flight to the vehicles still flying, and the fleet
+    mission completes with every buoy inspected by someone and vehicle 2 reported lost."""
+    frame = LocalFrame(*DEFAULT_HOME)
+    homes = {1: DEFAULT_HOME, 2: frame.from_ned(0.0, 160.0, 0.0), 3: frame.from_ned(160.0, 0.0, 0.0)}
+    home_arg = {n: ",".join(f"{v:.8f}" for v in home) for n, home in homes.items()}
+    doomed = SitlProcess(speed=5.0, extra_args=("--sysid", "2", "--home", home_arg[2])).start()
+    try:
+        started = {1: vehicles("--sysid", "1", "--home", home_arg[1]), 2: doomed}
+        started[3] = vehicles("--sysid", "3", "--home", home_arg[3])
+        links = [f"{n}=udpout:127.0.0.1:{started[n].port}" for n in (1, 2, 3)]
+        places = [(n, e) for n in np.linspace(20.0, 220.0, 6) for e in np.linspace(30.0, 230.0, 5)]
+        buoys = [
+            {"id": f"B{i + 1}", "lat": float(lat), "lon": float(lon)}
+            for i, (lat, lon, _) in enumerate(frame.from_ned(n, e, 0.0) for n, e in places)
+        ]
+        settings = Settings(data_dir=tmp_path, vehicles=links, vehicle_wait_s=30.0)
+        with TestClient(create_app(settings)) as client:
+            _wait_all_connected(client, 3)
+            _wait_homes(client)
+            created = client.post("/missions", json={"vehicles": "fleet", "buoys": buoys, "layer_gap_m": 4.0})
+            assert created.status_code == 201, created.text
+            fleet_id = created.json()["id"]
+            share = next(s for s in created.json()["fleet"]["shares"] if s["sysid"] == 2)
+            assert len(share["buoys"]) >= 2  # something left for the others once it is lost after its first
+            deadline = time.monotonic() + 4 * CONNECT_S
+            while client.get(f"/missions/{share['mission_id']}").json()["progress"]["visited"] < 1:
+                assert time.monotonic() < deadline, "vehicle 2 never reached its first buoy"
+                time.sleep(0.1)
+            doomed.process.kill()  # no goodbye: its link falls silent
+            mission = _wait_ended(client, fleet_id)
+            assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
+            fleet = mission["fleet"]
+            assert set(fleet["inspected_by"]) == {b["id"] for b in buoys}  # every buoy, by someone
+            lost = next(s for s in fleet["shares"] if s["sysid"] == 2)
+            assert lost["lost"].startswith("link lost") and lost["status"] == "failed"
+            handed = [b for taken in lost["handed_over"].values() for b in taken]
+            assert handed and set(handed) == set(lost["buoys"]) - set(lost["visited_buoys"])
+            assert all(fleet["inspected_by"][buoys[b]["id"]] != 2 for b in handed)
+            assert any("vehicle 2 lost (link lost" in (e["reason"] or "") for e in mission["events"])
+            for sysid, taken in lost["handed_over"].items():
+                part_id = next(s["mission_id"] for s in fleet["shares"] if s["sysid"] == int(sysid))
+                part = client.get(f"/missions/{part_id}").json()
+                assert part["status"] == "completed" and len(part["buoys"]) > len(taken)
+                assert any((e["reason"] or "").startswith("re-planned in flight") for e in part["events"])
+    finally:
+        doomed.cleanup()

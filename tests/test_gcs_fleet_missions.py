@@ -50,6 +50,8 @@ def test_the_fleet_progress_maps_each_parts_visits_to_the_fleets_buoys_and_its_e
     status, reason = fleet_ending(fleet, parts)
     assert status == MissionStatus.FAILED
     assert reason == "vehicle 2 failed (link lost: no heartbeat from the vehicle); not inspected: B"
+    parts[1] = _record(3, "failed", {}, {"visited_buoys": [0, 1]}, "link lost", sysid=2)
+    assert fleet_ending(fleet, parts) == (MissionStatus.COMPLETED, None)  # lost, but every buoy inspected
     parts[1] = _record(3, "aborted", {}, {"visited_buoys": [0, 1]}, "aborted by the operator", sysid=2)
     assert fleet_ending(fleet, parts)[0] == MissionStatus.ABORTED
     parts[1] = _record(3, "completed", {}, {"visited_buoys": [0, 1]}, sysid=2)

@@ -49,3 +49,21 @@ def test_the_share_times_are_the_fleet_planners_route_times_from_each_home():
     fleet = check_fleet(local, [0, 1], 10.0, 2.0, 24.0)
     for k, share in enumerate(plan.shares):
         assert share.predicted_time_s == pytest.approx(fleet.route_time(k, [2 + b for b in share.buoys]), rel=1e-6)
+
+
+def test_a_lost_vehicles_buoys_go_where_they_lengthen_the_longest_remaining_flight_least():
+    from gcs.fleet_planning import reshare
+
+    home = np.zeros(2)
+    # vehicle 1 is near the lost buoys' corner, vehicle 2 far away with a long way still to fly
+    flying = {
+        1: (np.array([0.0, 100.0]), [np.array([0.0, 150.0])], home),
+        2: (np.array([500.0, 0.0]), [np.array([600.0, 0.0]), np.array([700.0, 0.0])], home),
+    }
+    lost = [np.array([20.0, 120.0]), np.array([40.0, 160.0])]
+    routes = reshare(flying, lost, 10.0, 1.0)
+    # vehicle 1: its own buoy (0) and both lost ones (1 + 0, 1 + 1); vehicle 2, far and busy: its own only
+    assert sorted(routes[1]) == [0, 1, 2] and routes[2] == [0, 1]
+    moved = reshare({1: flying[1], 2: (np.array([10.0, 130.0]), [], home)}, lost, 10.0, 1.0)
+    # both near the lost buoys: one each keeps the longest remaining flight shortest
+    assert (len(moved[1]), len(moved[2])) == (2, 1)

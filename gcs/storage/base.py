@@ -235,6 +235,10 @@ class Storage(ABC):
     def set_progress(self, mission_id: int, progress: dict[str, Any]) -> None:
         self._set_document(mission_id, "progress", progress)
 
+    def set_plan(self, mission_id: int, plan: dict[str, Any]) -> None:
+        """A mission re-planned in flight (a fleet's share grown by a lost vehicle's buoys)."""
+        self._set_document(mission_id, "plan", plan)
+
     def set_results(self, mission_id: int, results: dict[str, Any]) -> None:
         self._set_document(mission_id, "results", results)
 
