@@ -339,7 +339,7 @@ def up(args: argparse.Namespace) -> int:
 
 def report(args: argparse.Namespace) -> int:
     """`python -m gcs report`: a missing database or an unknown mission is a message and exit 2."""
-    from gcs.report import ReportError, cached_report, write_report
+    from gcs.report import ReportError, cached_report, write_stored_report
 
     settings = settings_from_args(args)
     if settings.db is None and not settings.db_path.is_file():
@@ -357,7 +357,7 @@ def report(args: argparse.Namespace) -> int:
             record = storage.get_mission(args.mission_id)
             if record is None:
                 raise ReportError(f"no mission {args.mission_id} in {storage.location}")
-            index = write_report(record, storage.telemetry(args.mission_id), args.out)
+            index = write_stored_report(storage, record, args.out)
     except ReportError as error:
         print(f"buoy-gcs: {error.args[0]}", file=sys.stderr)
         return 2

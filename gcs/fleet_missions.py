@@ -83,6 +83,9 @@ class SeparationMonitor:
             link.remove_listener(self._listeners[sysid])
 
     def _update(self, sysid: int) -> None:
+        for other, link in self.links.items():  # a vehicle whose link fell silent is nowhere known any more
+            if not link.status.connected:
+                self._positions.pop(other, None)
         status = self.links[sysid].status
         if status.lat is None or status.lon is None or status.alt_m is None or status.alt_m < AIRBORNE_M:
             self._positions.pop(sysid, None)

@@ -26,6 +26,7 @@ from gcs.views import sorties_out
 
 FIGURES = ("route.png", "tracking_error.png", "cross_track.png", "altitude.png", "yaw.png", "eso.png")
 ENERGY_FIGURE = "energy.png"  # drawn only for a mission planned with energy figures
+FLEET_FIGURE = "fleet.png"  # a fleet mission's report has this figure only (gcs.fleet_report)
 # Okabe & Ito's colour-blind-safe palette less its yellow and black, as the map page draws sorties
 # (gcs/web/sorties.js); past six sorties the colours repeat with another dash.
 SORTIE_COLOURS = ("#0072b2", "#e69f00", "#009e73", "#cc79a7", "#d55e00", "#56b4e9")
@@ -453,7 +454,12 @@ def cached_report(storage: Storage, mission_id: int, cache_root: Path) -> Path:
     if record is None:
         raise ReportError(f"no mission {mission_id} in {storage.location}")
     out_dir = cache_root / f"mission-{mission_id}"
-    stamp = {"updated_at": record.updated_at, "samples": storage.telemetry_count(mission_id)}
+    parts = storage.fleet_parts(mission_id) if record.is_fleet else []
+    counted = [mission_id, *(part.id for part in parts)]
+    stamp = {
+        "updated_at": [record.updated_at, *(part.updated_at for part in parts)],
+        "samples": sum(storage.telemetry_count(i) for i in counted),
+    }
     stamp_path = out_dir / STAMP_FILE
     index = out_dir / "index.html"
     try:
@@ -461,6 +467,17 @@ def cached_report(storage: Storage, mission_id: int, cache_root: Path) -> Path:
             return index
     except (OSError, ValueError):
         pass
-    write_report(record, storage.telemetry(mission_id), out_dir)
+    write_stored_report(storage, record, out_dir)
     stamp_path.write_text(json.dumps(stamp))
     return index
+
+
+def write_stored_report(storage: Storage, record: MissionRecord, out_dir: Path) -> Path:
+    """A stored mission's report into out_dir: a mission's (write_report), or a fleet mission's, over its parts'
+    telemetry (gcs.fleet_report)."""
+    if not record.is_fleet:
+        return write_report(record, storage.telemetry(record.id), out_dir)
+    from gcs.fleet_report import write_fleet_report  # it draws with this module's helpers
+
+    parts = storage.fleet_parts(record.id)
+    return write_fleet_report(record, parts, {part.id: storage.telemetry(part.id) for part in parts}, out_dir)

@@ -51,6 +51,7 @@ class VehicleServer:
         self.running = True
         self.handler_errors = 0
         self.tick_lateness_s: list[float] = []  # paced mode: how late each tick started (for --stats)
+        self.armed_lateness_s: list[float] = []  # the same, of the ticks flown armed (a fleet's start-ups excluded)
         self.telemetry = Telemetry(vehicle, link)
         self.heartbeat = Heartbeat(vehicle, self.send)
         self.parameters = Parameters(params, self.send, self._param_changed)
@@ -116,6 +117,8 @@ class VehicleServer:
             if not self.lockstep:
                 due = wall_anchor + (self.vehicle.t - sim_anchor) / self.speed
                 self.tick_lateness_s.append(time.monotonic() - due)
+                if self.vehicle.armed:
+                    self.armed_lateness_s.append(self.tick_lateness_s[-1])
             record = self.vehicle.tick()
             self._publish_events()
             self.telemetry.publish_due()
@@ -231,16 +234,21 @@ class VehicleServer:
 
     def stats(self) -> dict:
         """Counters for --stats: ticks, pacing, link drops, mission transfers."""
-        lateness_ms = sorted(x * 1000 for x in self.tick_lateness_s[50:])  # skip start-up
 
-        def percentile(q: float) -> float | None:
-            return lateness_ms[min(len(lateness_ms) - 1, int(q * len(lateness_ms)))] if lateness_ms else None
+        def percentiles(lateness_s: list[float]) -> dict[str, float | None]:
+            ms = sorted(x * 1000 for x in lateness_s)
+
+            def percentile(q: float) -> float | None:
+                return ms[min(len(ms) - 1, int(q * len(ms)))] if ms else None
+
+            return {"p50": percentile(0.5), "p99": percentile(0.99), "max": percentile(1.0)}
 
         link = self.link.stats
         return {
             "simulated_s": self.vehicle.t,
             "ticks": round(self.vehicle.t / self.vehicle.outer_dt),
-            "tick_lateness_ms": {"p50": percentile(0.5), "p99": percentile(0.99), "max": percentile(1.0)},
+            "tick_lateness_ms": percentiles(self.tick_lateness_s[50:]),  # skip start-up
+            "tick_lateness_armed_ms": percentiles(self.armed_lateness_s),
             "link": {k: v for k, v in vars(link).items() if k != "by_type"} | {"dropped": link.dropped},
             "received_by_type": dict(link.by_type),
             "handler_errors": self.handler_errors,

@@ -269,6 +269,12 @@ def test_a_lost_vehicles_buoys_are_reshared_in_flight_and_the_fleet_mission_comp
             assert handed and set(handed) == set(lost["buoys"]) - set(lost["visited_buoys"])
             assert all(fleet["inspected_by"][buoys[b]["id"]] != 2 for b in handed)
             assert any("vehicle 2 lost (link lost" in (e["reason"] or "") for e in mission["events"])
+            assert fleet["separation"]["min_distance_m"] > fleet["layer_gap_m"]
+            # the fleet report: vehicle 2 lost and who took its buoys, every buoy with the vehicle that inspected it
+            page = client.get(f"/missions/{fleet_id}/report/index.html")
+            assert page.status_code == 200 and "link lost" in page.text and "to vehicle" in page.text
+            assert page.text.count("<tr><td>B") == 30 and ">nobody<" not in page.text
+            assert client.get(f"/missions/{fleet_id}/report/fleet.png").headers["content-type"] == "image/png"
             for sysid, taken in lost["handed_over"].items():
                 part_id = next(s["mission_id"] for s in fleet["shares"] if s["sysid"] == int(sysid))
                 part = client.get(f"/missions/{part_id}").json()
