@@ -5,6 +5,7 @@
 
 Prints the table, writes bench/results/fleet.json (with the machine and its load average) and
 bench/results/fleet.png (the routes of the three methods on one instance, and every instance's gaps).
+The planned makespan against the flown one (fleet missions through the whole stack) is bench/fleet_flown.py.
 
 Instances: n buoys uniform in the reference area (planner.scenario.random_area_points: 1200 m x 700 m, the depot
 at its reference place), K identical vehicles at that depot, 10 m/s, 10 s dwell per buoy, 24 s take-off and
