@@ -26,6 +26,7 @@ from tempfile import TemporaryDirectory
 
 import numpy as np
 
+from bench.fleet_scale import get_json, wait_for_fleet
 from gcs.settings import Settings
 from gcs.supervisor import Supervisor, SupervisorError
 from gcs.up import UpOptions, stack
@@ -34,13 +35,7 @@ from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "bench" / "results" / "fleet_flown.json"
-CONNECT_S = 180.0
 FLIGHT_TIMEOUT_S = 1800.0
-
-
-def get_json(url: str) -> object:
-    with urllib.request.urlopen(url, timeout=30) as response:
-        return json.load(response)
 
 
 def post_json(url: str, body: dict) -> dict:
@@ -67,11 +62,7 @@ def fly_case(vehicles: int, n_buoys: int, seed: int, workdir: Path, first_port: 
     ]
     try:
         supervisor.start_all()
-        deadline = time.monotonic() + CONNECT_S
-        while not all(v["connected"] and v["home"] for v in get_json(f"{base}/vehicles")):
-            if time.monotonic() > deadline:
-                raise SupervisorError("the service never heard every vehicle")
-            time.sleep(0.5)
+        wait_for_fleet(base, supervisor)
         request = {"vehicles": "fleet", "buoys": buoys, "speed_m_s": 10.0, "dwell_s": 1.0, "layer_gap_m": 3.0}
         request["planner"] = {"seed": seed, "time_limit_s": 5.0}
         started = time.monotonic()

@@ -101,6 +101,16 @@ def get_json(url: str) -> object:
         return json.load(response)
 
 
+def wait_for_fleet(base: str, supervisor: Supervisor) -> None:
+    """Until the service at `base` has heard every vehicle and its home (the children watched meanwhile)."""
+    deadline = time.monotonic() + CONNECT_S
+    while not all(v["connected"] and v["home"] for v in get_json(f"{base}/vehicles")):
+        if time.monotonic() > deadline:
+            raise SupervisorError("the service never heard every vehicle")
+        supervisor.poll()
+        time.sleep(0.5)
+
+
 def run(vehicles: int, flight_s: float, workdir: Path, first_port: int, http_port: int) -> dict:
     settings = Settings(
         data_dir=workdir, vehicle_url=f"udpout:127.0.0.1:{first_port}", port=http_port, db_path=workdir / "gcs.sqlite"
@@ -116,12 +126,7 @@ def run(vehicles: int, flight_s: float, workdir: Path, first_port: int, http_por
     base = f"http://127.0.0.1:{http_port}"
     try:
         supervisor.start_all()
-        deadline = time.monotonic() + CONNECT_S
-        while not all(v["connected"] and v["home"] for v in get_json(f"{base}/vehicles")):
-            if time.monotonic() > deadline:
-                raise SupervisorError("the service never heard every vehicle")
-            supervisor.poll()
-            time.sleep(0.5)
+        wait_for_fleet(base, supervisor)
         homes = [vehicle_home(options, n) or DEFAULT_HOME for n in range(1, vehicles + 1)]
         asyncio.run(start_flights([first_port + n for n in range(vehicles)], homes))
         time.sleep(5.0)  # take-off under way everywhere
