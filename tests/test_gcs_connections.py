@@ -19,6 +19,7 @@ import time
 import tty
 
 import pytest
+from service_process import free_port
 from sitl_process import SitlProcess, free_udp_port
 
 from gcs.connection import ConnectionStringError, parse_connection
@@ -416,7 +417,7 @@ def test_up_listens_for_a_vehicle_streaming_to_it(tmp_path, vehicle):
     import sys
     import urllib.request
 
-    mavlink_port, http_port = free_udp_port(), free_udp_port()
+    mavlink_port, http_port = free_udp_port(), free_port(socket.SOCK_STREAM)  # HTTP is TCP: a free TCP port
     env = {k: v for k, v in os.environ.items() if not k.startswith("BUOY_GCS_")}
     up = subprocess.Popen(
         [

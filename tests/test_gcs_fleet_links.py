@@ -5,11 +5,13 @@ processes (`python -m sitl_quad --sysid N`)."""
 from __future__ import annotations
 
 import asyncio
+import socket
 import time
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from service_process import free_port
 from sitl_process import SitlProcess, free_udp_port, free_udp_port_block
 
 from gcs.app import create_app
@@ -103,7 +105,7 @@ def test_up_starts_a_fleet_that_the_service_lists_and_stops_it_whole(tmp_path):
     import sys
     import urllib.request
 
-    first_port, http_port = free_udp_port_block(3), free_udp_port()
+    first_port, http_port = free_udp_port_block(3), free_port(socket.SOCK_STREAM)  # HTTP is TCP
     env = {k: v for k, v in os.environ.items() if not k.startswith("BUOY_GCS_")}
     argv = [sys.executable, "-m", "gcs", "up", "--vehicles", "3", "--speed", "1", "--vehicle-port", str(first_port)]
     up = subprocess.Popen(
