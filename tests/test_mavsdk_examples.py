@@ -533,7 +533,10 @@ def test_offboard_velocity_ned(flight, tmp_path):
 def test_offboard_velocity_body(flight, tmp_path):
     """Body-frame velocity setpoints: climb 1 m/s turning, a 5 m/s circle forwards and one sideways."""
     observer = fly_offboard_example(flight, tmp_path, "offboard_velocity_body", timeout=180)
-    observer.wait_for(lambda r: r.max_height() > 4.0, "above 4 m (5 m nominal)", CATCH_UP_S)
+    # 1 m/s up for the example's 5 s, of which the motors' 1 s spool-up (COM_SPOOLUP_TIME) and the ramp to 1 m/s
+    # leave at most 4 m: a 4 m bar was met only by the example's sleeps overrunning (fresh-clone run at 52ecf82:
+    # 4.0 m, failed); 3 m still says it climbed as told
+    observer.wait_for(lambda r: r.max_height() > 3.0, "above 3 m (5 s at 1 m/s, less the spool-up)", CATCH_UP_S)
     # a 5 m/s, 30°/s circle has a radius of 9.5 m: the vehicle gets well away from where it started
     observer.wait_for(lambda r: max(math.hypot(s.north, s.east) for s in r.track) > 12.0, "12 m away", CATCH_UP_S)
     observer.wait_for(lambda r: {int(y // 45) for y in r.yaws_deg} == set(range(8)), "every heading", CATCH_UP_S)
