@@ -129,11 +129,6 @@ def fleet_ending(fleet: MissionRecord, parts: list[MissionRecord]) -> tuple[Miss
     return (MissionStatus.ABORTED if aborted else MissionStatus.FAILED), reason
 
 
-def _local(frame: LocalFrame, lat_lon: list[float]) -> np.ndarray:
-    east, north = frame.project([lat_lon])[0]
-    return np.array([east, north])
-
-
 def fleet_vehicles(request: MissionRequest, known: list[int], limits: Limits) -> list[int]:
     """The system ids a fleet mission request flies (in layer order), or RequestInvalidError naming each field
     that cannot be flown as a fleet."""
@@ -206,7 +201,7 @@ class FleetCoordinator:
     async def _follow_parts(self, fleet_id: int) -> None:
         fleet = self.storage.get_mission(fleet_id)
         parts = self.storage.fleet_parts(fleet_id)
-        frame = LocalFrame(fleet.plan["depot"][0], fleet.plan["depot"][1], 0.0)
+        frame = Plan.from_dict(fleet.plan).frame
         monitor = SeparationMonitor(frame, {part.vehicle_sysid: self._link_of(part.vehicle_sysid) for part in parts})
         monitor.start()
         if fleet.status != MissionStatus.FLYING:
@@ -246,36 +241,35 @@ class FleetCoordinator:
         visited = set(lost_part.progress.get("visited_buoys", []))
         orphans = [b for i, b in enumerate(lost_share["buoys"]) if i not in visited]
         lost_share["lost"] = lost_part.reason or "failed"
-        receivers = []
+        # every buoy in the fleet's frame (the overview plan's: the first vehicle's home); a share's buoy i is
+        # buoy share["buoys"][i] there
+        points = np.asarray(plan.buoys_local)
+        receivers: dict[int, tuple[MissionRecord, Plan, list[int]]] = {}  # sysid -> part, its plan, buoys left
+        positions = {}  # sysid -> (where it is, its buoys left, its home) for reshare
         for part in parts:
             status = self._link_of(part.vehicle_sysid).status
             flying = status.connected and status.armed and not status.mission_complete and status.lat is not None
-            if part.status == MissionStatus.FLYING and flying:
-                receivers.append(part)
-        frame = plan.frame
-        flying_now, remaining = {}, {}
-        for part in receivers:
-            status, share = self._link_of(part.vehicle_sysid).status, shares[part.vehicle_sysid]
+            if part.status != MissionStatus.FLYING or not flying:
+                continue
             part_plan, done = Plan.from_dict(part.plan), set(part.progress.get("visited_buoys", []))
-            remaining[part.id] = [i for i in part_plan.order if i not in done]
-            own = [_local(frame, part_plan.buoys_lat_lon[i]) for i in remaining[part.id]]
-            here = _local(frame, [status.lat, status.lon])
-            flying_now[part.vehicle_sysid] = (here, own, _local(frame, share["home"]))
+            left = [i for i in part_plan.order if i not in done]
+            share = shares[part.vehicle_sysid]
+            here, home = plan.frame.project([[status.lat, status.lon], share["home"]])
+            receivers[part.vehicle_sysid] = (part, part_plan, left)
+            positions[part.vehicle_sysid] = (here, points[[share["buoys"][i] for i in left]].reshape(-1, 2), home)
         handed: dict[int, list[int]] = {}
         if orphans and receivers:
-            lost_points = [_local(frame, plan.buoys_lat_lon[b]) for b in orphans]
-            flight = fleet.flight
-            routes = reshare(flying_now, lost_points, flight["speed_m_s"], flight["dwell_s"])
-            for part in receivers:
-                own_left = remaining[part.id]
-                order = routes[part.vehicle_sysid]
-                added = [orphans[n - len(own_left)] for n in order if n >= len(own_left)]
+            routes = reshare(positions, points[orphans], fleet.flight["speed_m_s"], fleet.flight["dwell_s"])
+            for sysid, (part, part_plan, left) in receivers.items():
+                new_order, added = [], []  # in the part's buoy indices; the lost buoys it takes, appended
+                for node in routes[sysid]:
+                    if node < len(left):
+                        new_order.append(left[node])
+                    else:
+                        added.append(orphans[node - len(left)])
+                        new_order.append(len(part_plan.buoy_ids) + len(added) - 1)
                 if not added:
                     continue
-                part_plan = Plan.from_dict(part.plan)
-                first_new = len(part_plan.buoy_ids)
-                new_order = [own_left[n] if n < len(own_left) else first_new + added.index(orphans[n - len(own_left)])
-                             for n in order]  # fmt: skip
                 new_plan = sorties_plan(
                     part_plan.depot,
                     [*part_plan.buoys_lat_lon, *(plan.buoys_lat_lon[b] for b in added)],
@@ -288,8 +282,8 @@ class FleetCoordinator:
                     self._replan(part, new_plan)
                 except MissionConflictError:  # it landed or ended meanwhile: the buoys stay not inspected
                     continue
-                shares[part.vehicle_sysid]["buoys"] = [*shares[part.vehicle_sysid]["buoys"], *added]
-                handed[part.vehicle_sysid] = added
+                shares[sysid]["buoys"] = [*shares[sysid]["buoys"], *added]
+                handed[sysid] = added
         lost_share["handed_over"] = {str(sysid): buoys for sysid, buoys in handed.items()}
         self.storage.set_plan(fleet.id, plan.to_dict())
         names = {sysid: ", ".join(plan.buoy_ids[b] for b in buoys) for sysid, buoys in handed.items()}

@@ -12,7 +12,7 @@ altitude_m + k x layer_gap_m, so two vehicles crossing paths are a layer apart.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -41,20 +41,14 @@ class FleetMissionPlan:
     makespan_s: float  # predicted: when the last vehicle is home
     total_time_s: float
     elapsed_s: float
-    buoy_ids: list[str]
-    buoys_lat_lon: list[list[float]]
     layer_gap_m: float
-    extra: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
-        """What the fleet mission stores as its plan (its parts store their own plans)."""
+        """The fleet section of the fleet mission's plan (`Plan.fleet`: the plan itself has the buoys, their ids,
+        the method and the planner's time; each part stores its own plan)."""
         return {
-            "method": METHOD,
             "makespan_s": self.makespan_s,
             "total_time_s": self.total_time_s,
-            "elapsed_s": self.elapsed_s,
-            "buoy_ids": self.buoy_ids,
-            "buoys_lat_lon": self.buoys_lat_lon,
             "layer_gap_m": self.layer_gap_m,
             "shares": [
                 {
@@ -116,23 +110,21 @@ def plan_fleet_mission(
         float(result.makespan_s),
         float(result.total_time_s),
         float(result.elapsed_s),
-        list(buoy_ids),
-        [list(map(float, b)) for b in buoys],
         layer_gap_m,
     )
 
 
 def reshare(
-    flying: dict[int, tuple[np.ndarray, list[np.ndarray], np.ndarray]],
-    lost: list[np.ndarray],
+    flying: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    lost: np.ndarray,
     speed_m_s: float,
     dwell_s: float,
 ) -> dict[int, list[int]]:
     """A lost vehicle's buoys shared among the vehicles still flying, without landing them: each lost buoy (points
     in one planar frame, metres) goes where it lengthens the longest remaining flight least (cheapest insertion
     under the min-max objective, then the least added time). `flying`: {sysid: (its position now, its remaining
-    buoys in flying order, its home)}. Returns {sysid: its new remaining order}, as indices: 0..k-1 its own
-    remaining buoys, k.. the lost ones (k + j for lost[j])."""
+    buoys in flying order (k, 2), its home)}; `lost`: (m, 2). Returns {sysid: its new remaining order}, as
+    indices: 0..k-1 its own remaining buoys, k.. the lost ones (k + j for lost[j])."""
     routes = {sysid: list(range(len(own))) for sysid, (_, own, _) in flying.items()}
 
     def point(sysid: int, node: int) -> np.ndarray:

@@ -38,6 +38,7 @@ from gcs.results import flight_results
 from gcs.settings import Settings
 from gcs.status import TERMINAL, MissionStatus
 from gcs.storage import MissionRecord, Storage
+from uavcore.mission import MissionItem
 
 log = logging.getLogger(__name__)
 
@@ -292,10 +293,9 @@ class FlightLifecycle:
         if plan.energy is not None:
             await self._battery_for(plan, sortie, recorder)
         incarnation = self.link.status.incarnation  # after the swap: a pack swapped by hand reboots the vehicle
-        vehicle_home = self.link.status.home
         sortie_plan = plan.sortie_plan(sortie)
-        items = mission_items(sortie_plan, flight, None if vehicle_home is None else vehicle_home[:2])
-        await self.link.upload_mission(items, vehicle_home or self.settings.home)
+        items = self._items(sortie_plan, flight)
+        await self.link.upload_mission(items, self.link.status.home or self.settings.home)
         if sortie == 0:
             self._transition(mission_id, MissionStatus.UPLOADED, on)
         else:
@@ -363,10 +363,9 @@ class FlightLifecycle:
         deadline = time.monotonic() + MISSION_CURRENT_WAIT_S
         while s.mission_total is None and time.monotonic() < deadline:
             await asyncio.sleep(0.1)
-        home = s.home
         sortie = recorder.sortie
         sortie_plan = plan.sortie_plan(sortie)
-        expected = mission_items(sortie_plan, flight, None if home is None else (home[0], home[1]))
+        expected = self._items(sortie_plan, flight)
         on_board = await self.link.download_mission()
         same = len(on_board) == len(expected) and all(
             (a.command, a.x, a.y) == (b.command, b.x, b.y) for a, b in zip(on_board, expected, strict=True)
@@ -386,15 +385,19 @@ class FlightLifecycle:
             await self._fly_sortie(mission_id, plan, flight, recorder, later)
         raise MissionEndError(MissionStatus.COMPLETED, None)
 
+    def _items(self, plan: Plan, flight: FlightParams) -> list[MissionItem]:
+        """The mission items of a (sortie) plan for this vehicle: back to its home by RTL when the depot is it."""
+        home = self.link.status.home
+        return mission_items(plan, flight, None if home is None else (home[0], home[1]))
+
     async def _upload_in_flight(
         self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder
     ) -> int:
         """Upload `plan` to the flying vehicle (MISSION_ITEM_INT while in AUTO), fly on from its cruise-speed item,
         record against it; returns its number of items."""
-        home = self.link.status.home
-        items = mission_items(plan, flight, None if home is None else (home[0], home[1]))
+        items = self._items(plan, flight)
         added = len(plan.buoy_ids) - len(recorder.mission_plan.buoy_ids)
-        await self.link.upload_mission(items, home or self.settings.home)
+        await self.link.upload_mission(items, self.link.status.home or self.settings.home)
         await self.link.set_current_item(FIRST_BUOY_SEQ - 1)  # the take-off is behind it; the speed, then buoys
         recorder.replan(plan)
         self.storage.set_plan(mission_id, plan.to_dict())

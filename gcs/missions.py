@@ -47,6 +47,12 @@ from uavcore.geofence import Geofence
 from uavcore.mission import MissionItem
 
 
+def _named_buoys(request: PlanRequest) -> tuple[list[str], list[tuple[float, float]]]:
+    """The request's buoy ids (B<index> for an unnamed one) and (lat, lon) points, in input order."""
+    ids = [b.id or f"B{i + 1}" for i, b in enumerate(request.buoys)]
+    return ids, [(b.lat, b.lon) for b in request.buoys]
+
+
 class MissionNotFoundError(KeyError):
     pass
 
@@ -143,8 +149,7 @@ class MissionService:
         """The CPU-bound part of `plan` (runs in a worker thread); `home`: the depot when the request names none."""
         depot = (request.depot.lat, request.depot.lon) if request.depot else home
         validate_request(request, depot, self.settings.limits)
-        ids = [b.id or f"B{i + 1}" for i, b in enumerate(request.buoys)]
-        buoys = [(b.lat, b.lon) for b in request.buoys]
+        ids, buoys = _named_buoys(request)
         fenced = {}
         if fence is not None and not fence.empty:
             validate_fence_points(depot, buoys, fence)
@@ -197,8 +202,7 @@ class MissionService:
         homes = {vehicle.system_id: vehicle.depot() for vehicle in vehicles}
         first_home = homes[sysids[0]]
         validate_request(request, first_home, self.settings.limits)
-        ids = [b.id or f"B{i + 1}" for i, b in enumerate(request.buoys)]
-        buoys = [(b.lat, b.lon) for b in request.buoys]
+        ids, buoys = _named_buoys(request)
         options = request.planner
         planned = await asyncio.to_thread(
             plan_fleet_mission, homes, buoys, ids, request.altitude_m, request.layer_gap_m, request.speed_m_s,
@@ -213,10 +217,11 @@ class MissionService:
             for share in planned.shares
         ]
         fleet_id, _ = self._storage.create_fleet_mission(asdict(flight), overview.to_dict(), parts)
+        fleet = self.get(fleet_id)
         # its shares' part missions, as the answer names them (the coordinator keeps this progress from here)
-        self._storage.set_progress(fleet_id, shares_progress(self.get(fleet_id), self._storage.fleet_parts(fleet_id)))
+        self._storage.set_progress(fleet_id, shares_progress(fleet, self._storage.fleet_parts(fleet_id)))
         if request.start:
-            self._launch_fleet(self.get(fleet_id))
+            self._launch_fleet(fleet)
         return fleet_id
 
     def _launch_fleet(self, fleet: MissionRecord) -> None:
@@ -271,15 +276,17 @@ class MissionService:
 
     def vehicles(self) -> list[dict[str, Any]]:
         """Every vehicle of the fleet (gcs.fleet_vehicle.FleetVehicle.describe), with who owns the links."""
-        role = self._ownership.as_dict()["role"]
-        return [vehicle.describe() | {"role": role} for vehicle in self._vehicles]
+        return [self._described(vehicle) for vehicle in self._vehicles]
 
     def fleet_vehicle(self, sysid: int) -> dict[str, Any]:
         """One vehicle of the fleet by system id; raises VehicleNotFoundError."""
-        for vehicle, described in zip(self._vehicles, self.vehicles(), strict=True):
+        for vehicle in self._vehicles:
             if vehicle.system_id == sysid:
-                return described
+                return self._described(vehicle)
         raise VehicleNotFoundError(sysid)
+
+    def _described(self, vehicle: FleetVehicle) -> dict[str, Any]:
+        return vehicle.describe() | {"role": self._ownership.as_dict()["role"]}
 
     # ----- queries over what is stored
     def get(self, mission_id: int) -> MissionRecord:

@@ -77,10 +77,8 @@ class MissionRecorder:
     def replan(self, plan: Plan) -> None:
         """The vehicle now flies `plan` (one tour), uploaded in flight: the same buoys first, in the same indices,
         then more (a fleet's re-share); what was visited stays visited."""
-        self.done_before |= self._done_buoys()
         self.mission_plan = plan
-        self._on_board(self.sortie)
-        self.reached_seqs, self.highest_seq = [], -1
+        self.begin_sortie(self.sortie)  # what the old items on board visited counts, against the old sortie plan
 
     def sortie_took_off(self) -> None:
         """Before arming for the sortie: what the battery has delivered so far (the swap zeroes it)."""

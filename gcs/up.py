@@ -119,8 +119,9 @@ def stack(options: UpOptions) -> list[ChildSpec]:
     for sysid in range(1, options.vehicles + 1):
         vehicle, controller = _vehicle_children(options, sysid, first_port + sysid - 1)
         children += [vehicle, *controller]
-        links.append(f"{sysid}=udpout:127.0.0.1:{first_port + sysid - 1}")  # the children all run on this machine
-    children.append(_service(options, links if options.vehicles > 1 else [links[0].partition("=")[2]]))
+        url = f"udpout:127.0.0.1:{first_port + sysid - 1}"  # the children all run on this machine
+        links.append(url if options.vehicles == 1 else f"{sysid}={url}")  # a fleet names each one's system id
+    children.append(_service(options, links))
     return children
 
 

@@ -252,22 +252,21 @@ class Storage(ABC):
     def unfinished_missions(self, vehicle_sysid: int | None = None) -> list[int]:
         """Ids of missions a previous run of the service left uploading, uploaded or flying, oldest first: those
         of vehicle `vehicle_sysid` (None: of the service's one vehicle, missions stored without a vehicle)."""
-        vehicle = "vehicle_sysid IS NULL" if vehicle_sysid is None else "vehicle_sysid = ?"
-        with self._reading() as db:
-            rows = db.execute(
-                f"SELECT id FROM missions WHERE status IN ({', '.join('?' * len(UNFINISHED))}) AND {vehicle}"
-                " AND (fleet_id IS NULL OR fleet_id <> id) ORDER BY id",
-                (*UNFINISHED, *(() if vehicle_sysid is None else (vehicle_sysid,))),
-            ).fetchall()
-        return [int(row["id"]) for row in rows]
+        if vehicle_sysid is None:
+            return self._unfinished("vehicle_sysid IS NULL AND (fleet_id IS NULL OR fleet_id <> id)")
+        return self._unfinished("vehicle_sysid = ? AND (fleet_id IS NULL OR fleet_id <> id)", (vehicle_sysid,))
 
     def unfinished_fleets(self) -> list[int]:
         """Ids of fleet missions a previous run left flying (their parts re-attach by vehicle), oldest first."""
+        return self._unfinished("fleet_id = id")
+
+    def _unfinished(self, condition: str, parameters: tuple[Any, ...] = ()) -> list[int]:
+        """Ids of the missions left uploading, uploaded or flying that meet `condition`, oldest first."""
         with self._reading() as db:
             rows = db.execute(
-                f"SELECT id FROM missions WHERE status IN ({', '.join('?' * len(UNFINISHED))}) AND fleet_id = id"
+                f"SELECT id FROM missions WHERE status IN ({', '.join('?' * len(UNFINISHED))}) AND {condition}"
                 " ORDER BY id",
-                UNFINISHED,
+                (*UNFINISHED, *parameters),
             ).fetchall()
         return [int(row["id"]) for row in rows]
 

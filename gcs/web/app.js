@@ -130,9 +130,6 @@ function onLiveMessage(message) {
 // A fleet (more than one vehicle): every vehicle on the map, in its share's colour while a fleet mission is shown.
 const pollFleet = showingErrors(async () => {
   const vehicles = await api.vehicles();
-  state.fleetSize = vehicles.length;
-  if (vehicles.length < 2) return;
-  map.hideVehicle(); // drawn from the live stream before the page knew it watches a fleet
   const shares = (state.mission && state.mission.fleet && state.mission.sorties) || [];
   const colourOf = (sysid) => {
     const share = shares.find((s) => s.vehicle === sysid);
@@ -230,9 +227,12 @@ async function start() {
   map.showBaseLayers(depot);
   setDepot(depot);
   wireControls();
+  // the service's vehicles are fixed at its start: a lone vehicle is drawn from the live stream, a fleet polled
+  const fleet = await showingErrors(() => api.vehicles(), [])();
+  state.fleetSize = fleet.length;
+  if (fleet.length > 1) setInterval(pollFleet, 1000);
   api.openLiveStream(onLiveMessage);
   setInterval(pollMission, 1000);
-  setInterval(pollFleet, 1000);
   setInterval(() => {
     charts.redraw();
     relabelBuoys();

@@ -177,12 +177,6 @@ export class MissionMap {
     }
   }
 
-  // The one vehicle's marker off the map (a fleet draws every vehicle with showVehicles instead).
-  hideVehicle() {
-    if (this.vehicleMarker) this.vehicleMarker.remove();
-    this.vehicleMarker = null;
-  }
-
   showVehicle(lat, lon, yawDeg) {
     if (!this.vehicleMarker) {
       const options = { icon: vehicleIcon(yawDeg), zIndexOffset: 1000, title: "vehicle" };
