@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import os
 import socket
 import subprocess
 import sys
 import time
 import urllib.request
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -19,16 +20,31 @@ def free_port(kind: int) -> int:
 
 
 @contextmanager
-def serving(db: Path, log: Path, *options: str) -> Iterator[str]:
+def serving(
+    db: Path,
+    log: Path,
+    *options: str,
+    sysids: Sequence[int] = (),
+    env: Mapping[str, str] | None = None,
+    ready_s: float = 180.0,
+) -> Iterator[str]:
     """The service over the database `db` with no vehicle (it sends to a UDP port nobody holds), its output in
-    `log`: yields its http:// URL once it answers, and stops it afterwards."""
+    `log`: yields its http:// URL once it answers, and stops it afterwards. `sysids`: a fleet of vehicles with
+    these system ids instead (each configured, so a fleet mission can be planned for them, none there to fly);
+    `env`: added to the service's environment.
+
+    ready_s: the service answers only once the planner's kernels are compiled (gcs.app's lifespan), which takes
+    up to a minute on a cold numba cache and longer beside other tests' processes on a loaded machine."""
     udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
-    argv = [sys.executable, "-m", "gcs", "serve", "--vehicle", f"udpout:127.0.0.1:{udp}", "--port", str(http)]
+    links = [f"{sysid}=udpout:127.0.0.1:{udp}" for sysid in sysids] or [f"udpout:127.0.0.1:{udp}"]
+    argv = [sys.executable, "-m", "gcs", "serve", *(a for link in links for a in ("--vehicle", link))]
+    argv += ["--port", str(http), "--db", str(db), *options]
     with open(log, "w") as output:
-        service = subprocess.Popen([*argv, "--db", str(db), *options], stdout=output, stderr=subprocess.STDOUT)
+        environment = {**os.environ, **(env or {})}
+        service = subprocess.Popen(argv, stdout=output, stderr=subprocess.STDOUT, env=environment)
         url = f"http://127.0.0.1:{http}"
         try:
-            deadline = time.monotonic() + 60
+            deadline = time.monotonic() + ready_s
             while True:
                 try:
                     with urllib.request.urlopen(f"{url}/vehicle", timeout=2):
