@@ -126,6 +126,28 @@ def unreachable_errors(error: UnreachableBuoyError, buoy_ids: list[str]) -> list
     ]
 
 
+@dataclass(frozen=True)
+class ChargeNeed:
+    """What a sortie needs of the pack at take-off: its predicted energy, and the charge to land with the reserve."""
+
+    energy_wh: float
+    reserve_pct: float
+    needed_pct: float  # may exceed 100: no pack of this kind flies it with the reserve left
+
+
+def charge_needed(plan: Plan, sortie: int, flight: FlightParams, pack: PackSpec, model: EnergyModel) -> ChargeNeed:
+    """The pre-flight figure of sortie `sortie` (0-based; a single tour is sortie 0): an energy-planned mission's
+    own prediction (its reserve, its wind forecast); otherwise the same route energy model in calm air with the
+    pack's BAT_LOW_THR as the reserve, so a tour flown as predicted lands before the low-battery warning."""
+    if plan.energy is not None:
+        entry = plan.energy["sorties"][sortie]
+        return ChargeNeed(entry["energy_wh"], plan.energy["reserve_pct"], entry["needed_charge_pct"])
+    points = np.vstack([[0.0, 0.0], np.asarray(plan.buoys_local, dtype=float).reshape(-1, 2)])
+    energy_wh, _ = sortie_energy(points, plan.sortie_orders()[sortie], route_flight(flight), WindForecast(), model)
+    landing = pack.charge_after(energy_wh, 1.0, steady_load_w(model))
+    return ChargeNeed(energy_wh, 100.0 * pack.low_threshold, 100.0 * (1.0 - landing + pack.low_threshold))
+
+
 def model_pack(model: EnergyModel) -> PackSpec:
     """The pack the energy model was fitted with (energy_params.json's fitted_for.battery)."""
     fitted = model.fitted_for.get("battery", {})

@@ -7,12 +7,12 @@ from __future__ import annotations
 import asyncio
 from typing import Any
 
-from gcs.lifecycle import FlightLifecycle
+from gcs.lifecycle import FlightLifecycle, vehicle_pack
 from gcs.link import LinkError, LinkManager
 from gcs.mission_protocol import MissionTransferError
 from gcs.settings import Settings
 from gcs.storage import Storage
-from uavcore.battery_pack import PACK_PARAMETERS, PackSpec
+from uavcore.battery_pack import PackSpec
 from uavcore.geofence import FenceError, Geofence
 
 FENCE_READ_TIMEOUT_S = 1.5  # wall clock for the vehicle's geofence before a plan
@@ -37,14 +37,8 @@ class FleetVehicle:
         return home[0], home[1]
 
     async def pack(self) -> PackSpec | None:
-        """Its pack and warning thresholds from its parameters; None when it has no such parameters (an
-        ArduPilot names them otherwise) or does not answer."""
-        if not self.link.status.connected:
-            return None
-        try:
-            return PackSpec.from_parameters(await self.link.read_parameters(list(PACK_PARAMETERS)))
-        except (LinkError, TimeoutError, ValueError):
-            return None
+        """Its pack and warning thresholds from its parameters (None: it has none such, or does not answer)."""
+        return await vehicle_pack(self.link)
 
     async def fence(self) -> Geofence | None:
         """Its current geofence; what was read at connection if it does not answer in time (an autopilot without

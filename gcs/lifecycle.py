@@ -14,8 +14,18 @@ flying it (the same waypoints on board, downloaded and compared, and armed): rec
 where they stopped, and the mission ends as it would have. A vehicle that finished it meanwhile (mission
 complete, landed, disarmed) completes it; anything else fails it with reason RESTART_NOT_FLYING.
 
-Completed means: the vehicle reported the mission complete (MISSION_CURRENT.mission_state COMPLETE, or the
-last item reached), and it is on the ground (EXTENDED_SYS_STATE) and disarmed (HEARTBEAT base_mode).
+Completed means: every buoy visited (gcs.recorder: the vehicle's own positions, after this mission's upload was
+acknowledged), and the vehicle landed at the depot (its last position there) and disarmed (HEARTBEAT base_mode),
+whichever messages showed it: a mission whose MISSION_ITEM_REACHED or MISSION_CURRENT were lost on the radio
+but which flew is completed, and one whose messages claim completion without the positions to show it is not.
+
+Before every arming, the pre-flight check (`_preflight`): the predicted energy of the sortie about to be flown
+(gcs.energy_planning.charge_needed) against the charge the vehicle reports, with its reserve. Short of charge,
+the first sortie is refused (the mission fails naming both figures) unless the request said `override` (flown,
+and the override recorded in the mission's events and progress); a later sortie waits in `waiting_for_battery`
+until the operator confirms a battery swap (`battery_swapped`, POST /vehicles/{sysid}/battery-swap). The
+service never tells the vehicle its pack was swapped unless the operator says so: MAV_CMD_BATTERY_RESET resets
+ArduPilot's consumed-energy count, so sent unasked it would report a depleted pack full.
 
 When no vehicle answers, POST /missions with start=true still answers 201 (status planned); the background
 lifecycle then ends in `failed` with reason "no vehicle" after `vehicle_wait_s`. Clients poll
@@ -30,6 +40,7 @@ import logging
 import time
 from typing import Any
 
+from gcs.energy_planning import ChargeNeed, charge_needed, model_pack
 from gcs.link import CommandTimeoutError, LinkError, LinkManager
 from gcs.mission_protocol import MissionTransferError
 from gcs.planning import FIRST_BUOY_SEQ, FlightParams, Plan, mission_items
@@ -38,6 +49,8 @@ from gcs.results import flight_results
 from gcs.settings import Settings
 from gcs.status import TERMINAL, MissionStatus
 from gcs.storage import MissionRecord, Storage
+from planner.energy import EnergyModel
+from uavcore.battery_pack import PACK_PARAMETERS, PackSpec
 from uavcore.mission import MissionItem
 
 log = logging.getLogger(__name__)
@@ -51,6 +64,27 @@ REATTACHED = "GCS restarted; re-attached to the vehicle flying this mission"
 MISSION_CURRENT_WAIT_S = 3.0  # wall clock a re-attaching service waits for the vehicle's MISSION_CURRENT
 BATTERY_REPORT_WAIT_S = 5.0  # wall clock for the vehicle's battery report (BATTERY_STATUS comes at 1 Hz)
 BATTERY_SETTLE_MS = 1500.0  # vehicle time after a landing before its battery report counts (one report after it)
+SWAPPED_CHARGE_WAIT_S = 5.0  # wall clock for the vehicle to report the charge of a pack the operator swapped
+
+
+async def vehicle_pack(link: LinkManager) -> PackSpec | None:
+    """The vehicle's pack and warning thresholds from its parameters (BAT1_*, BAT_*_THR); None when it has no
+    such parameters (an ArduPilot names them otherwise) or does not answer."""
+    if not link.status.connected:
+        return None
+    try:
+        return PackSpec.from_parameters(await link.read_parameters(list(PACK_PARAMETERS)))
+    except (LinkError, TimeoutError, ValueError):
+        return None
+
+
+def charge_text(remaining_pct: float | None) -> str:
+    return "no charge" if remaining_pct is None else f"{remaining_pct:.0f} %"
+
+
+def need_text(need: ChargeNeed) -> str:
+    predicted = f"{need.energy_wh:.1f} Wh predicted"
+    return f"{need.needed_pct:.0f} % ({predicted}, landing with the {need.reserve_pct:.0f} % reserve)"
 
 
 class MissionConflictError(RuntimeError):
@@ -122,6 +156,8 @@ class FlightLifecycle:
         self._statuses: dict[int, MissionStatus] = {}  # last status of missions run here, for the live view
         self._handing_over = False  # stop() leaves flying missions for the next owner of the vehicle link
         self._replans: dict[int, Plan] = {}  # new plans for flying missions, uploaded in flight by their monitor
+        self._swapped = asyncio.Event()  # the operator confirmed a battery swap (a waiting mission goes on)
+        self._energy_model: EnergyModel | None = None
 
     def reattach(self, unfinished: list[int]) -> None:
         """At start-up, with the ids of the missions a previous run left unfinished (oldest first)."""
@@ -167,7 +203,8 @@ class FlightLifecycle:
         if record.status in TERMINAL:
             raise MissionConflictError(f"mission {mission_id} is {record.status}; nothing to abort")
         task = self._tasks.get(mission_id)
-        if record.status == MissionStatus.FLYING and task is not None and not task.done():
+        between_sorties = record.status == MissionStatus.WAITING_FOR_BATTERY  # the wait ends it at the depot
+        if (record.status == MissionStatus.FLYING or between_sorties) and task is not None and not task.done():
             self._abort_requested.add(mission_id)
             return
         if task is not None and not task.done():
@@ -208,7 +245,7 @@ class FlightLifecycle:
     async def _run(self, mission_id: int, resume: bool = False) -> None:
         record = self.storage.get_mission(mission_id)
         plan, flight = Plan.from_dict(record.plan), FlightParams(**record.flight)
-        recorder = MissionRecorder(self.link, plan, self.settings.telemetry_period_s)
+        recorder = MissionRecorder(self.link, plan, self.settings.telemetry_period_s, flight.acceptance_radius_m)
         status, reason = MissionStatus.FAILED, "internal error"
         try:
             if resume:
@@ -282,31 +319,33 @@ class FlightLifecycle:
     async def _fly_sortie(
         self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder, sortie: int
     ) -> None:
-        """Upload, arm, start and watch one sortie to its landing at the depot. Between sorties the mission stays
-        flying, its events saying which sortie is on; before each one the vehicle gets a fresh battery."""
+        """Upload, check, arm, start and watch one sortie to its landing at the depot. Between sorties the mission
+        stays flying, its events saying which sortie is on (or waits for a battery swap)."""
         sorties = len(plan.sortie_orders())
         on = f"sortie {sortie + 1} of {sorties}" if sorties > 1 else None
         self._check_abort_between_sorties(mission_id, sortie)
-        self._transition(mission_id, MissionStatus.UPLOADING if sortie == 0 else MissionStatus.FLYING, on)
         if sortie == 0:
-            self._record_with(mission_id, recorder)  # from here: the battery swap's text is the mission's too
-        if plan.energy is not None:
-            await self._battery_for(plan, sortie, recorder)
-        incarnation = self.link.status.incarnation  # after the swap: a pack swapped by hand reboots the vehicle
+            self._transition(mission_id, MissionStatus.UPLOADING, on)
+            self._record_with(mission_id, recorder)  # from here: what the vehicle says is the mission's too
+        else:
+            recorder.begin_sortie(sortie)
+        await self._preflight(mission_id, plan, flight, recorder, sortie)
+        if sortie > 0:
+            self._transition(mission_id, MissionStatus.FLYING, on)
+        incarnation = self.link.status.incarnation  # after the check: a pack swapped by hand reboots a vehicle
         sortie_plan = plan.sortie_plan(sortie)
         items = self._items(sortie_plan, flight)
         await self.link.upload_mission(items, self.link.status.home or self.settings.home)
+        recorder.mission_uploaded()
         if sortie == 0:
             self._transition(mission_id, MissionStatus.UPLOADED, on)
-        else:
-            recorder.begin_sortie(sortie)
         self._check_abort_between_sorties(mission_id, sortie)
         recorder.sortie_took_off()
         await self.link.arm()
         await self.link.start_mission(items)
         if sortie == 0:
             self._transition(mission_id, MissionStatus.FLYING, on)
-        await self._monitor(mission_id, sortie_plan, flight, recorder, incarnation, len(items))
+        await self._monitor(mission_id, sortie_plan, flight, recorder, incarnation)
         await self._landed(recorder)
 
     def _check_abort_between_sorties(self, mission_id: int, sortie: int) -> None:
@@ -315,30 +354,91 @@ class FlightLifecycle:
                 MissionStatus.ABORTED, f"aborted by the operator at the depot before sortie {sortie + 1}"
             )
 
-    async def _battery_for(self, plan: Plan, sortie: int, recorder: MissionRecorder) -> None:
-        """A pack with the charge the sortie needs (its predicted energy and the reserve). Between sorties the
-        crew swaps the pack, which MAV_CMD_BATTERY_RESET tells the vehicle (the simulator puts a full pack in;
-        ArduPilot resets its consumed-energy count); before the first, only a pack short of the need is swapped.
-        A vehicle still reporting too little charge afterwards ends the mission: it would land early."""
-        needed = min(plan.energy["sorties"][sortie]["needed_charge_pct"], 100.0)
+    async def _charge_need(self, plan: Plan, flight: FlightParams, sortie: int) -> ChargeNeed:
+        if self._energy_model is None:
+            self._energy_model = await asyncio.to_thread(EnergyModel.load)
+        model = self._energy_model
+        pack = await vehicle_pack(self.link) or model_pack(model)
+        return await asyncio.to_thread(charge_needed, plan, sortie, flight, pack, model)
+
+    async def _preflight(
+        self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder, sortie: int
+    ) -> None:
+        """Before arming for `sortie`: its predicted energy against the charge the vehicle reports (module doc)."""
+        need = await self._charge_need(plan, flight, sortie)
         remaining = await self._battery_remaining()
-        if sortie > 0 or remaining is None or remaining < needed:
-            wait_s = BATTERY_REPORT_WAIT_S
-            try:
-                await self.link.reset_battery(100.0)
-            except LinkError as error:  # refused or unknown: the crew swaps the pack by hand, the vehicle reports it
-                wait_s = self.settings.battery_swap_wait_s
-                log.warning("%s; waiting %.0f s for a fresh pack to be reported", error, wait_s)
-            deadline = time.monotonic() + wait_s
-            while time.monotonic() < deadline and ((remaining := self.link.status.battery_remaining_pct) or 0) < needed:
-                await asyncio.sleep(0.1)
-        if remaining is None or remaining < needed:
-            charge = "no charge reported" if remaining is None else f"{remaining:.0f} % charge"
-            raise MissionEndError(
-                MissionStatus.ABORTED,
-                f"battery not ready for sortie {sortie + 1}: {charge}, the sortie needs {needed:.0f} %; "
-                f"buoys not inspected: {', '.join(recorder.not_inspected())}",
+        check = {"sortie": sortie, "needed_pct": need.needed_pct, "energy_wh": need.energy_wh,
+                 "reserve_pct": need.reserve_pct, "remaining_pct": remaining, "override": False}  # fmt: skip
+        short = remaining is None or remaining < need.needed_pct
+        if short and flight.override:
+            check["override"] = True
+            self._transition(
+                mission_id,
+                MissionStatus.UPLOADING if sortie == 0 else self._statuses[mission_id],
+                f"pre-flight check overridden by the request: the vehicle reports {charge_text(remaining)}, "
+                f"the sortie needs {need_text(need)}",
             )
+        elif short and sortie == 0:
+            recorder.preflight(check)
+            raise MissionEndError(
+                MissionStatus.FAILED,
+                f"refused by the pre-flight check: the vehicle reports {charge_text(remaining)}, the "
+                f"{'first sortie' if len(plan.sortie_orders()) > 1 else 'tour'} needs {need_text(need)}; swap the "
+                'pack (POST /vehicles/{sysid}/battery-swap), or fly it anyway with "override": true',
+            )
+        elif short:
+            check["remaining_pct"] = remaining = await self._wait_for_battery(mission_id, recorder, sortie, need)
+            check["swapped"] = True
+        recorder.preflight(check)
+        self.storage.set_progress(mission_id, recorder.progress())  # the check is on record before the arming
+
+    async def _wait_for_battery(
+        self, mission_id: int, recorder: MissionRecorder, sortie: int, need: ChargeNeed
+    ) -> float | None:
+        """`waiting_for_battery` until the operator confirms a swap and the vehicle reports the charge the sortie
+        needs (or the operator aborts at the depot). Returns the charge then reported."""
+        while True:
+            remaining = self.link.status.battery_remaining_pct
+            self._transition(
+                mission_id,
+                MissionStatus.WAITING_FOR_BATTERY,
+                f"sortie {sortie + 1} needs {need_text(need)}; the vehicle reports {charge_text(remaining)}: swap "
+                "the pack and confirm the swap",
+            )
+            self._swapped.clear()
+            while not self._swapped.is_set():
+                self._check_abort_between_sorties(mission_id, sortie)
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(self._swapped.wait(), FLUSH_PERIOD_S)
+                self.storage.add_telemetry(mission_id, recorder.take())
+            deadline = time.monotonic() + SWAPPED_CHARGE_WAIT_S
+            while time.monotonic() < deadline:
+                remaining = self.link.status.battery_remaining_pct
+                if remaining is not None and remaining >= need.needed_pct:
+                    return remaining
+                await asyncio.sleep(0.1)
+
+    def waiting_for_battery(self) -> int | None:
+        """The mission waiting here for a battery swap, if one is."""
+        active = self.active_mission()
+        waiting = active is not None and self._statuses.get(active) == MissionStatus.WAITING_FOR_BATTERY
+        return active if waiting else None
+
+    async def battery_swapped(self, charge_pct: float = 100.0) -> str:
+        """The operator says a fresh pack is in: tell the vehicle (MAV_CMD_BATTERY_RESET: the simulator puts the
+        pack in, ArduPilot resets its consumed-energy count), and wake a mission waiting for it. A vehicle that
+        refuses the command (PX4 measures a new pack itself) still reports its charge, which the waiting mission
+        checks. Returns what the vehicle answered. Raises MissionConflictError while the vehicle is in the air."""
+        s = self.link.status
+        if s.armed or not s.on_ground:
+            raise MissionConflictError("the vehicle is armed or airborne: a pack is swapped on the ground")
+        try:
+            await self.link.reset_battery(charge_pct)
+            answer = "accepted"
+        except LinkError as error:
+            answer = str(error)
+        self._swapped.set()
+        return answer
 
     async def _battery_remaining(self) -> float | None:
         deadline = time.monotonic() + BATTERY_REPORT_WAIT_S
@@ -379,7 +479,7 @@ class FlightLifecycle:
         else:
             self._transition(mission_id, MissionStatus.FLYING, REATTACHED)
             # seen armed just now: a sortie that lands before the first check is finished, not ended early
-            await self._monitor(mission_id, sortie_plan, flight, recorder, s.incarnation, len(expected), armed=True)
+            await self._monitor(mission_id, sortie_plan, flight, recorder, s.incarnation, armed=True)
         await self._landed(recorder)
         for later in range(sortie + 1, len(plan.sortie_orders())):
             await self._fly_sortie(mission_id, plan, flight, recorder, later)
@@ -392,17 +492,17 @@ class FlightLifecycle:
 
     async def _upload_in_flight(
         self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder
-    ) -> int:
+    ) -> None:
         """Upload `plan` to the flying vehicle (MISSION_ITEM_INT while in AUTO), fly on from its cruise-speed item,
-        record against it; returns its number of items."""
+        record against it."""
         items = self._items(plan, flight)
         added = len(plan.buoy_ids) - len(recorder.mission_plan.buoy_ids)
+        recorder.replan(plan)  # the items on board are no longer the ones it records against
         await self.link.upload_mission(items, self.link.status.home or self.settings.home)
         await self.link.set_current_item(FIRST_BUOY_SEQ - 1)  # the take-off is behind it; the speed, then buoys
-        recorder.replan(plan)
+        recorder.mission_uploaded()
         self.storage.set_plan(mission_id, plan.to_dict())
         self._transition(mission_id, MissionStatus.FLYING, f"re-planned in flight: {added} more buoys")
-        return len(items)
 
     async def _monitor(
         self,
@@ -411,7 +511,6 @@ class FlightLifecycle:
         flight: FlightParams,
         recorder: MissionRecorder,
         incarnation: int,
-        n_items: int,
         armed: bool = False,
     ) -> None:
         """Watch the sortie on board until it has landed finished (return) or ends otherwise (MissionEndError).
@@ -433,7 +532,7 @@ class FlightLifecycle:
                 self.storage.set_progress(mission_id, progress)
                 last_progress = progress
             if (replanned := self._replans.pop(mission_id, None)) is not None and not aborting:
-                n_items = await self._upload_in_flight(mission_id, replanned, flight, recorder)
+                await self._upload_in_flight(mission_id, replanned, flight, recorder)
                 elapsed = (s.time_boot_ms or 0) / 1000.0 - start_s
                 budget_s = elapsed + flight_budget_s(replanned, flight, self.settings.mission_timeout_margin_s)
             if s.incarnation != incarnation:
@@ -449,7 +548,8 @@ class FlightLifecycle:
                 self._transition(mission_id, MissionStatus.ABORTED, "aborted by the operator: returning to the depot")
             was_armed = was_armed or s.armed
             on_ground_disarmed = not s.armed and s.on_ground
-            finished = s.mission_complete or (n_items - 1) in recorder.reached_seqs
+            # what the vehicle did, whichever messages showed it (gcs.recorder): every buoy visited, back home
+            finished = recorder.sortie_visited() and recorder.at_depot()
             if on_ground_disarmed and aborting:
                 recorder.sortie_landed()
                 raise MissionEndError(MissionStatus.ABORTED, "aborted by the operator: returned to the depot")

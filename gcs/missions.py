@@ -180,6 +180,7 @@ class MissionService:
         if request.start:
             vehicle.flights.ensure_vehicle_free()
         plan, flight = await self.plan(request)
+        flight = replace(flight, override=request.override)
         mission_id = self._storage.create_mission(asdict(flight), plan.to_dict(), vehicle_sysid=vehicle.sysid)
         if request.start:
             try:
@@ -208,7 +209,9 @@ class MissionService:
             plan_fleet_mission, homes, buoys, ids, request.altitude_m, request.layer_gap_m, request.speed_m_s,
             request.dwell_s, options.seed, options.time_limit_s,
         )  # fmt: skip
-        flight = FlightParams(request.altitude_m, request.speed_m_s, request.dwell_s, request.acceptance_radius_m)
+        flight = FlightParams(
+            request.altitude_m, request.speed_m_s, request.dwell_s, request.acceptance_radius_m, request.override
+        )
         overview = sorties_plan(first_home, buoys, ids, [[b for s in planned.shares for b in s.buoys]], METHOD,
                                 planned.elapsed_s)  # fmt: skip
         overview = replace(overview, length_m=sum(s.plan.length_m for s in planned.shares), fleet=planned.to_dict())
@@ -259,6 +262,22 @@ class MissionService:
                 await self._vehicle_of(part).flights.abort(part)
         if not self._fleets.active(mission_id):  # never launched: its parts ended as they were aborted
             self._storage.set_status(mission_id, MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF)
+
+    async def battery_swapped(self, sysid: int | None, charge_pct: float) -> dict[str, Any]:
+        """The operator swapped the pack of a vehicle (None: the first): the vehicle is told (gcs.lifecycle
+        .FlightLifecycle.battery_swapped) and a mission waiting for the swap goes on. Raises VehicleNotFoundError,
+        MissionConflictError (a mission flies on it)."""
+        self._ownership.ensure_owner()
+        if sysid is not None and all(v.system_id != sysid for v in self._vehicles):
+            raise VehicleNotFoundError(sysid)
+        vehicle = self._vehicle(sysid)
+        waiting = vehicle.flights.waiting_for_battery()
+        answer = await vehicle.flights.battery_swapped(charge_pct)
+        return {
+            "vehicle": answer,
+            "battery_remaining_pct": vehicle.link.status.battery_remaining_pct,
+            "waiting_mission": waiting,
+        }
 
     # ----- views
     def live(self) -> dict[str, Any]:

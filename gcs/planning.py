@@ -31,6 +31,7 @@ class FlightParams:
     speed_m_s: float
     dwell_s: float
     acceptance_radius_m: float
+    override: bool = False  # fly even when the pre-flight charge check says the pack is short (recorded)
 
 
 @dataclass(frozen=True)

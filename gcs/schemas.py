@@ -132,6 +132,11 @@ class PlanRequest(Strict):
 
 class MissionRequest(PlanRequest):
     start: bool = Field(default=True, description="upload, arm and fly now")
+    override: bool = Field(
+        default=False,
+        description="fly even when the pre-flight check finds the vehicle's charge short of what the tour needs "
+        "(the override is recorded with the mission)",
+    )
     vehicles: list[Annotated[int, Field(ge=1, le=255)]] | Literal["fleet"] | None = Field(
         default=None,
         max_length=64,
@@ -234,6 +239,29 @@ class VehicleEvent(BaseModel):
     text: str
 
 
+class PreflightCheck(BaseModel):
+    """A sortie's pre-flight check: the charge it needs (its predicted energy, landing with the reserve) against
+    the charge the vehicle reported before arming."""
+
+    sortie: int = Field(description="0-based")
+    needed_pct: float = Field(description="charge needed at take-off (over 100: no full pack of this kind suffices)")
+    energy_wh: float = Field(description="the sortie's predicted energy")
+    reserve_pct: float = Field(description="charge to land with")
+    remaining_pct: float | None = Field(description="charge the vehicle reported (null: none reported)")
+    override: bool = Field(description="flown short of charge because the request said override")
+    swapped: bool = Field(default=False, description="flown after the operator confirmed a battery swap")
+
+
+class BatterySwapIn(BaseModel):
+    charge_pct: float = Field(default=100.0, ge=1.0, le=100.0, description="the charge of the pack put in")
+
+
+class BatterySwapOut(BaseModel):
+    vehicle: str = Field(description="what the vehicle answered to MAV_CMD_BATTERY_RESET")
+    battery_remaining_pct: float | None = Field(description="the charge the vehicle reports now")
+    waiting_mission: int | None = Field(description="the mission that was waiting for this swap, if any")
+
+
 class Progress(BaseModel):
     current_seq: int | None = None
     total: int | None = None
@@ -245,6 +273,7 @@ class Progress(BaseModel):
     sortie: int | None = Field(default=None, description="the sortie being flown (0-based)")
     sorties: int = 1
     visited_buoys: list[int] = Field(default=[], description="input indices of the buoys visited, every sortie")
+    preflight: list[PreflightCheck] = Field(default=[], description="each sortie's pre-flight charge check")
 
 
 class FleetShareOut(BaseModel):

@@ -83,9 +83,6 @@ class Settings(BaseSettings):
     telemetry_period_s: float = 0.1  # recorded sample spacing in the vehicle's simulated time (10 Hz)
     live_rate_hz: float = 20.0  # WebSocket push rate to each client
     mission_timeout_margin_s: float = 120.0  # simulated seconds allowed beyond the planned flight time
-    # wall clock between sorties for a fresh pack to be reported when the vehicle refuses MAV_CMD_BATTERY_RESET
-    # (a crew swapping the pack by hand on an autopilot that then reports its charge itself)
-    battery_swap_wait_s: float = 120.0
     # several instances on one PostgreSQL database: one owns the vehicle link, the others stand by (gcs.ownership)
     instance_name: str = Field(
         default_factory=lambda: f"{socket.gethostname()}:{os.getpid()}",

@@ -1,7 +1,8 @@
 """A mission's lifecycle states, defined once: storage's CHECK constraint, the REST schema (OpenAPI
 `components.schemas.MissionStatus`, which the map page reads), the lifecycle and `up --demo` all use these.
 
-planned -> uploading -> uploaded -> flying -> completed | aborted | failed. A StrEnum, so a member is equal to
+planned -> uploading -> uploaded -> flying -> completed | aborted | failed; a mission of several sorties may wait
+in waiting_for_battery between them (flying -> waiting_for_battery -> flying). A StrEnum, so a member is equal to
 (and stored, sent and hashed as) its string.
 """
 
@@ -18,12 +19,18 @@ class MissionStatus(StrEnum):
     UPLOADING = "uploading"
     UPLOADED = "uploaded"
     FLYING = "flying"
+    WAITING_FOR_BATTERY = "waiting_for_battery"  # on the ground between sorties until the operator swaps the pack
     COMPLETED = "completed"
     ABORTED = "aborted"
     FAILED = "failed"
 
 
 # Started but not ended: a service that stops leaves these behind, and re-attaches to them at start-up.
-UNFINISHED: tuple[MissionStatus, ...] = (MissionStatus.UPLOADING, MissionStatus.UPLOADED, MissionStatus.FLYING)
+UNFINISHED: tuple[MissionStatus, ...] = (
+    MissionStatus.UPLOADING,
+    MissionStatus.UPLOADED,
+    MissionStatus.FLYING,
+    MissionStatus.WAITING_FOR_BATTERY,
+)
 # Ended: nothing more happens to a mission in one of these.
 TERMINAL: tuple[MissionStatus, ...] = (MissionStatus.COMPLETED, MissionStatus.ABORTED, MissionStatus.FAILED)

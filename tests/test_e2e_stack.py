@@ -295,7 +295,7 @@ def test_gcs_restarted_mid_flight_reattaches_keeps_recording_and_completes(stack
     before = len(stack.api.get(f"/missions/{mission_id}/telemetry").json())
     gcs.kill()
     stack.start_gcs()
-    mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
+    mission, _ = fly_with_swaps(stack, mission_id)
     assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
     statuses = [(e["status"], e["reason"]) for e in mission["events"]]
     assert statuses[-2:] == [("flying", REATTACHED), ("completed", None)]
@@ -367,6 +367,78 @@ def test_mission_uploads_and_completes_through_20_percent_datagram_loss(stack):
         total = dropped + relay.to_vehicle.forwarded + relay.to_client.forwarded
         assert 0.15 < dropped / total < 0.25, (relay.to_vehicle, relay.to_client)
     assert_landed_at_depot(stack, request["acceptance_radius_m"])
+
+
+def test_a_mission_whose_progress_messages_are_lost_but_which_flew_is_completed(stack):
+    """Every MISSION_CURRENT and MISSION_ITEM_REACHED of the vehicle is lost on the way to the service (the relay
+    drops them on purpose): the positions show each buoy visited and the landing at home, so it completed."""
+    stack.start_vehicle()
+    stack.start_offboard()
+    lost = frozenset({mavlink.MAVLINK_MSG_ID_MISSION_CURRENT, mavlink.MAVLINK_MSG_ID_MISSION_ITEM_REACHED})
+    with LossyUdpRelay(stack.vehicle_port, drop_fraction=0.0, drop_to_client=lost) as relay:
+        stack.start_gcs(relay.port)
+        stack.wait_connected()
+        request = near_buoys(3)
+        mission_id = stack.fly(request)
+        mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
+        assert relay.dropped_on_purpose > 0
+    assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
+    progress = mission["progress"]
+    assert progress["visited"] == 3 and progress["reached_seqs"] == [] and progress["current_seq"] is None, progress
+    assert all(result["reached"] for result in mission["buoy_results"]), mission["buoy_results"]
+    assert_landed_at_depot(stack, request["acceptance_radius_m"])
+
+
+def test_a_new_mission_takes_nothing_from_the_last_ones_sequence_numbers(stack):
+    """A mission flown to completion leaves its last sequence number on the vehicle; the next mission, aborted at
+    once, visits nothing and measures no cross-track error against the last mission's leg."""
+    stack.start_vehicle()
+    stack.start_offboard()
+    stack.start_gcs()
+    stack.wait_connected()
+    first = stack.fly(near_buoys(4))
+    done = stack.wait_mission(first, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
+    assert done["status"] == "completed" and done["progress"]["current_seq"] >= 5, done["progress"]
+    second = stack.fly(near_buoys(2))
+    stack.wait_mission(second, lambda m: m["status"] == "flying", timeout_s=WAIT_S)
+    assert stack.api.post(f"/missions/{second}/abort").status_code == 200
+    mission = stack.wait_mission(second, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
+    assert mission["status"] == "aborted", mission
+    assert mission["progress"]["visited_buoys"] == [] and mission["progress"]["visited"] == 0, mission["progress"]
+    assert not any(result["reached"] for result in mission["buoy_results"]), mission["buoy_results"]
+    samples = stack.api.get(f"/missions/{second}/telemetry").json()
+    # the buoys are within 150 m of the depot: a cross-track error measured against the previous mission's legs
+    # (or a stale sequence number pointing past this mission's) would show tens to hundreds of metres
+    errors = [s["cross_track_m"] for s in samples if s["cross_track_m"] is not None]
+    assert max(errors, default=0.0) < 10.0, errors
+    assert all(s["mission_seq"] is None or s["mission_seq"] <= 4 for s in samples), [s["mission_seq"] for s in samples]
+
+
+def test_the_preflight_check_refuses_a_tour_the_charge_cannot_fly_unless_overridden(stack):
+    """At 28 % the reference tour (about 21 Wh) is refused before arming, naming both figures; with override it
+    flies, and the override is recorded."""
+    stack.start_vehicle("--battery-percent", "28")
+    stack.start_offboard()
+    stack.start_gcs()
+    stack.wait_connected()
+    refused = stack.wait_mission(stack.fly(REFERENCE), lambda m: m["status"] in TERMINAL, timeout_s=WAIT_S)
+    assert refused["status"] == "failed", refused
+    (check,) = refused["progress"]["preflight"]
+    assert check["remaining_pct"] == pytest.approx(28.0, abs=1.0) and check["needed_pct"] > 28.0, check
+    assert check["energy_wh"] > 10.0 and not check["override"], check
+    reason = refused["reason"]
+    assert reason.startswith("refused by the pre-flight check: the vehicle reports 28 %, the tour needs "), reason
+    assert f"{check['needed_pct']:.0f} % ({check['energy_wh']:.1f} Wh predicted" in reason, reason
+    vehicle = stack.api.get("/vehicle").json()
+    assert not vehicle["armed"] and vehicle["landed_state"] == mavlink.MAV_LANDED_STATE_ON_GROUND, vehicle
+
+    overridden = stack.fly(REFERENCE | {"override": True})
+    flying = stack.wait_mission(overridden, lambda m: m["status"] in ("flying", *TERMINAL), timeout_s=WAIT_S)
+    assert flying["status"] == "flying", flying
+    assert flying["progress"]["preflight"][0]["override"] is True, flying["progress"]
+    assert any((e["reason"] or "").startswith("pre-flight check overridden") for e in flying["events"]), flying
+    assert stack.api.post(f"/missions/{overridden}/abort").status_code == 200
+    stack.wait_mission(overridden, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
 
 
 def test_vehicle_restarted_mid_mission_fails_it_with_a_reason_and_a_new_mission_flies(stack):
@@ -578,8 +650,29 @@ def ring_request(**battery: object) -> dict:
     }
 
 
-def test_a_mission_of_two_and_a_half_batteries_flies_three_sorties_with_battery_swaps(stack):
-    stack.start_vehicle(*SMALL_PACK_VEHICLE, "--battery-percent", "50")  # too little for sortie 1: swapped first
+def fly_with_swaps(stack: Stack, mission_id: int) -> tuple[dict, int]:
+    """Follow a mission to its end as its operator: each time it waits for a battery, check that it goes on
+    waiting unasked (a few polls), then confirm a swap (POST /vehicle/battery-swap). Returns the ended mission
+    and the number of swaps confirmed."""
+    swaps = 0
+    while True:
+        mission = stack.wait_mission(
+            mission_id, lambda m: m["status"] in (*TERMINAL, "waiting_for_battery"), timeout_s=FLIGHT_S
+        )
+        if mission["status"] in TERMINAL:
+            return mission, swaps
+        for _ in range(5):  # nobody confirmed a swap: the mission stays on the ground, waiting
+            time.sleep(0.2)
+            assert stack.mission(mission_id)["status"] == "waiting_for_battery"
+        answer = stack.api.post("/vehicle/battery-swap", json={})
+        assert answer.status_code == 200, answer.text
+        assert answer.json()["waiting_mission"] == mission_id, answer.json()
+        swaps += 1
+        stack.wait_mission(mission_id, lambda m: m["status"] != "waiting_for_battery", timeout_s=WAIT_S)
+
+
+def test_a_mission_of_two_and_a_half_batteries_flies_three_sorties_with_operator_confirmed_swaps(stack):
+    stack.start_vehicle(*SMALL_PACK_VEHICLE)
     stack.start_offboard()
     stack.start_gcs()
     stack.wait_connected()
@@ -594,18 +687,20 @@ def test_a_mission_of_two_and_a_half_batteries_flies_three_sorties_with_battery_
     assert all(s["margin_wh"] >= 0 for s in sorties), sorties
     assert sorted(b for s in sorties for b in s["order"]) == list(range(RING_BUOYS))
 
-    mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
+    mission, swaps = fly_with_swaps(stack, mission_id)
     assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
     events = [(e["status"], e["reason"]) for e in mission["events"]]
-    assert events == [
-        ("planned", None),
-        ("uploading", "sortie 1 of 3"),
-        ("uploaded", "sortie 1 of 3"),
-        ("flying", "sortie 1 of 3"),
-        ("flying", "sortie 2 of 3"),
-        ("flying", "sortie 3 of 3"),
-        ("completed", None),
-    ]
+    assert swaps == 2
+    assert [status for status, _ in events] == ["planned", "uploading", "uploaded", "flying", "waiting_for_battery",
+        "flying", "waiting_for_battery", "flying", "completed"], events  # fmt: skip
+    assert [reason for status, reason in events if status == "flying"] == [
+        "sortie 1 of 3", "sortie 2 of 3", "sortie 3 of 3"]  # fmt: skip
+    waits = [reason for status, reason in events if status == "waiting_for_battery"]
+    assert [w.startswith(f"sortie {k} needs ") for k, w in zip((2, 3), waits, strict=True)] == [True, True], waits
+    checks = mission["progress"]["preflight"]
+    assert [(c["sortie"], c["swapped"], c["override"]) for c in checks] == [(0, False, False), (1, True, False),
+                                                                         (2, True, False)], checks  # fmt: skip
+    assert all(c["remaining_pct"] >= c["needed_pct"] for c in checks), checks
     assert mission["progress"]["visited"] == RING_BUOYS
     assert all(result["reached"] for result in mission["buoy_results"]), mission["buoy_results"]
     for sortie in mission["sorties"]:
@@ -614,7 +709,8 @@ def test_a_mission_of_two_and_a_half_batteries_flies_three_sorties_with_battery_
         assert used is not None and abs(used - predicted) / used <= 0.10, sortie
         assert sortie["battery_warning"] is None and sortie["landing_charge_pct"] > energy["reserve_pct"], sortie
     texts = [e["text"] for e in mission["progress"]["vehicle_events"]]
-    assert texts.count("Battery replaced: 100%") == 3, texts  # the vehicle's word for each swap
+    # the vehicle's word for each swap: only the two the operator confirmed (the service never swaps by itself)
+    assert texts.count("Battery replaced: 100%") == 2, texts
     assert not [text for text in texts if "battery level" in text.lower()], texts  # no low/critical warning
     samples = stack.api.get(f"/missions/{mission_id}/telemetry").json()
     assert sorted({s["sortie"] for s in samples}) == [0, 1, 2]
@@ -626,10 +722,14 @@ def test_the_same_mission_forced_into_one_sortie_returns_on_the_battery_failsafe
     stack.start_offboard()
     stack.start_gcs()
     stack.wait_connected()
-    mission_id = stack.fly(ring_request(split=False))
+    mission_id = stack.fly(ring_request(split=False) | {"override": True})  # short of charge: flown anyway
     planned = stack.mission(mission_id)
     assert len(planned["sorties"]) == 1 and planned["sorties"][0]["margin_wh"] < 0, planned["sorties"]
     mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
+    (check,) = mission["progress"]["preflight"]
+    assert check["override"] and check["remaining_pct"] < check["needed_pct"], check
+    overridden = [e["reason"] for e in mission["events"] if (e["reason"] or "").startswith("pre-flight check overr")]
+    assert len(overridden) == 1 and f"{check['needed_pct']:.0f} %" in overridden[0], mission["events"]
     assert mission["status"] == "aborted", mission
     not_reached = [r["id"] for r in mission["buoy_results"] if not r["reached"]]
     assert 0 < len(not_reached) < RING_BUOYS, mission["buoy_results"]
@@ -652,6 +752,8 @@ def test_gcs_killed_during_the_second_sortie_carries_on_with_it_and_flies_the_th
     gcs = stack.start_gcs()
     stack.wait_connected()
     mission_id = stack.fly(ring_request())
+    stack.wait_mission(mission_id, lambda m: m["status"] == "waiting_for_battery", timeout_s=FLIGHT_S)
+    assert stack.api.post("/vehicle/battery-swap").status_code == 200
     flying_second = stack.wait_mission(
         mission_id,
         lambda m: m["progress"].get("sortie") == 1 and m["progress"]["visited"] > len(m["sorties"][0]["order"]),
@@ -660,7 +762,7 @@ def test_gcs_killed_during_the_second_sortie_carries_on_with_it_and_flies_the_th
     assert flying_second["status"] == "flying"
     gcs.kill()
     stack.start_gcs()
-    mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
+    mission, _ = fly_with_swaps(stack, mission_id)
     assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
     # the new instance re-attaches sortie 2 if the vehicle still flies it (lockstep flies a sortie in a few seconds
     # of wall clock, so it may have landed by then: then sortie 2 is found complete on board) and flies sortie 3

@@ -1,15 +1,19 @@
-"""GET /vehicle: the link's view of the vehicle (connected or not, state, home); GET /vehicles: the fleet's."""
+"""GET /vehicle: the link's view of the vehicle (connected or not, state, home); GET /vehicles: the fleet's;
+POST .../battery-swap: the operator's word that a fresh pack is in."""
 
 from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Path
+from fastapi import APIRouter, Depends, Path
 
 from gcs.routes.deps import ServiceDep
-from gcs.routes.responses import NO_VEHICLE
+from gcs.routes.responses import CONFLICT, MUTATING, NO_VEHICLE
+from gcs.schemas import BatterySwapIn, BatterySwapOut
+from gcs.security import require_token
 
 router = APIRouter(tags=["vehicle"])
+SystemId = Annotated[int, Path(ge=1, le=255)]
 
 
 @router.get("/vehicle")
@@ -29,6 +33,24 @@ def list_vehicles(service: ServiceDep) -> list[dict[str, Any]]:
 
 
 @router.get("/vehicles/{sysid}", responses=NO_VEHICLE)
-def get_fleet_vehicle(service: ServiceDep, sysid: Annotated[int, Path(ge=1, le=255)]) -> dict[str, Any]:
+def get_fleet_vehicle(service: ServiceDep, sysid: SystemId) -> dict[str, Any]:
     """One vehicle of the fleet by its MAVLink system id."""
     return service.fleet_vehicle(sysid)
+
+
+SWAP = {"dependencies": [Depends(require_token)], "responses": MUTATING | CONFLICT}
+
+
+@router.post("/vehicle/battery-swap", **SWAP)
+async def swap_battery(service: ServiceDep, swap: BatterySwapIn | None = None) -> BatterySwapOut:
+    """The operator swapped the vehicle's pack (on the ground, disarmed): the vehicle is told
+    (MAV_CMD_BATTERY_RESET at `charge_pct`; the simulator puts the pack in) and a mission waiting for the swap
+    (`waiting_for_battery`) goes on once the vehicle reports the charge its next sortie needs. The service never
+    sends this by itself. 409 while the vehicle is armed or airborne."""
+    return BatterySwapOut(**await service.battery_swapped(None, (swap or BatterySwapIn()).charge_pct))
+
+
+@router.post("/vehicles/{sysid}/battery-swap", **SWAP | {"responses": MUTATING | CONFLICT | NO_VEHICLE})
+async def swap_fleet_battery(service: ServiceDep, sysid: SystemId, swap: BatterySwapIn | None = None) -> BatterySwapOut:
+    """As POST /vehicle/battery-swap, for one vehicle of the fleet by its system id."""
+    return BatterySwapOut(**await service.battery_swapped(sysid, (swap or BatterySwapIn()).charge_pct))

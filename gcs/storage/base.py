@@ -160,8 +160,11 @@ class Storage(ABC):
                     f"{self.location}: schema version {current} is newer than this service ({len(MIGRATIONS)})"
                 )
             for version in range(current + 1, len(MIGRATIONS) + 1):
-                for statement in MIGRATIONS[version - 1].statements(self.dialect):
+                migration = MIGRATIONS[version - 1]
+                for statement in migration.statements(self.dialect):
                     db.execute(statement)
+                if self.dialect == "sqlite" and migration.sqlite_steps is not None:
+                    migration.sqlite_steps(db)
                 db.execute("INSERT INTO schema_migrations (version, applied_at) VALUES (?, ?)", (version, _now()))
 
     @contextmanager

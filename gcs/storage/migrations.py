@@ -1,7 +1,8 @@
 """The schema, as a list of migrations: each upgrades it by one version, in both dialects.
 
 Never edit a released migration, append a new one. The status CHECK lists MissionStatus's values: a status added
-later needs a migration that rebuilds the CHECK.
+later needs a migration that rebuilds the CHECK (migration 6 shows how: PostgreSQL replaces the constraint,
+SQLite rewrites the table's definition, the procedure SQLite's ALTER TABLE documentation gives for a CHECK).
 
 Dialect differences: SQLite's `INTEGER PRIMARY KEY AUTOINCREMENT` is PostgreSQL's `BIGINT GENERATED ALWAYS AS
 IDENTITY`; SQLite's REAL is DOUBLE PRECISION. Timestamps are ISO 8601 text and JSON documents are TEXT in both:
@@ -10,10 +11,14 @@ they are read and written whole, never queried field by field, so both backends 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from gcs.status import MissionStatus
 
+# The statuses of migration 1, as released (MissionStatus has grown since: migration 6)
+_FIRST_STATUSES = "'planned', 'uploading', 'uploaded', 'flying', 'completed', 'aborted', 'failed'"
 _STATUSES = ", ".join(f"'{status.value}'" for status in MissionStatus)
 
 
@@ -21,6 +26,7 @@ _STATUSES = ", ".join(f"'{status.value}'" for status in MissionStatus)
 class Migration:
     sqlite: str
     postgresql: str
+    sqlite_steps: Callable[[Any], None] | None = None  # run after the SQLite statements, with the connection
 
     def statements(self, dialect: str) -> list[str]:
         script = self.sqlite if dialect == "sqlite" else self.postgresql
@@ -34,7 +40,7 @@ def _first_schema(integer: str, key: str, real: str) -> str:
         id {key},
         created_at TEXT NOT NULL,
         updated_at TEXT NOT NULL,
-        status TEXT NOT NULL CHECK (status IN ({_STATUSES})),
+        status TEXT NOT NULL CHECK (status IN ({_FIRST_STATUSES})),
         reason TEXT,
         flight TEXT NOT NULL,
         plan TEXT NOT NULL,
@@ -98,6 +104,21 @@ def _fleet_columns(integer: str) -> str:
     """
 
 
+def _sqlite_status_check(db: Any) -> None:
+    """Migration 6 in SQLite: the missions table's CHECK lists every MissionStatus. SQLite cannot alter a
+    constraint; a CHECK that admits more values changes no stored row, so the table's definition is rewritten in
+    place and the schema version raised, so every connection reads the new definition (sqlite.org/lang_altertable
+    .html, "making other kinds of table schema changes")."""
+    version = db.execute("PRAGMA schema_version").fetchone()[0]
+    db.execute("PRAGMA writable_schema=ON")
+    db.execute(
+        "UPDATE sqlite_master SET sql = replace(sql, ?, ?) WHERE type = 'table' AND name = 'missions'",
+        (f"CHECK (status IN ({_FIRST_STATUSES}))", f"CHECK (status IN ({_STATUSES}))"),
+    )
+    db.execute(f"PRAGMA schema_version={int(version) + 1}")
+    db.execute("PRAGMA writable_schema=OFF")
+
+
 MIGRATIONS: list[Migration] = [
     Migration(
         sqlite=_first_schema("INTEGER", "INTEGER PRIMARY KEY AUTOINCREMENT", "REAL"),
@@ -115,4 +136,11 @@ MIGRATIONS: list[Migration] = [
         postgresql=_track_columns("DOUBLE PRECISION", "(sample::jsonb ->> '{}')::double precision"),
     ),
     Migration(sqlite=_fleet_columns("INTEGER"), postgresql=_fleet_columns("BIGINT")),
+    # Migration 6: the status waiting_for_battery (a mission between sorties, until the operator swaps the pack)
+    Migration(
+        sqlite="",
+        postgresql="ALTER TABLE missions DROP CONSTRAINT missions_status_check;"
+        f"ALTER TABLE missions ADD CONSTRAINT missions_status_check CHECK (status IN ({_STATUSES}));",
+        sqlite_steps=_sqlite_status_check,
+    ),
 ]
