@@ -6,7 +6,8 @@ battery gauge shows the vehicle's charge live. Then hostile text: a vehicle (the
 over UDP) whose STATUSTEXTs and a buoy file whose ids carry markup and script, shown literally on the page and
 in the report, where nothing of it runs. A multi-sortie mission (the energy model's pack at 1000 mAh splits the
 reference buoys in three) shows each sortie in its own colour with a legend, and its predicted against used
-energy per sortie. Screenshots go to test-artifacts/.
+energy per sortie. A plan's answer that arrives after the buoys changed is dropped, and Plan and Fly wait for the
+request in flight. Screenshots go to test-artifacts/.
 """
 
 import json
@@ -561,5 +562,52 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
             expect(rows.nth(k).locator("td").nth(2)).to_have_text(str(len(share["buoys"])))  # all inspected
         ARTIFACTS.mkdir(exist_ok=True)
         page.screenshot(path=str(ARTIFACTS / "fleet-mission.png"))
+        browser.close()
+    assert errors == []
+
+
+def test_plan_and_fly_wait_for_the_answer_and_a_superseded_plan_answer_changes_nothing(tmp_path):
+    """Plan and Fly are disabled while a plan is in flight, with "planning… N s" beside them; a buoy placed
+    meanwhile supersedes the request, so its late answer (held back here by intercepting POST /plans) neither
+    draws a route nor fills the summary; the next plan, of the buoys now placed, does."""
+    errors: list[str] = []
+    held = []
+    with serving(tmp_path / "gcs.sqlite", tmp_path / "service.log") as url, sync_playwright() as p:
+        browser, page = open_page(p, errors)
+        page.route("**/plans", lambda route: held.append(route) if not held else route.continue_())
+        page.goto(url)
+        plan, fly = page.get_by_role("button", name="Plan"), page.get_by_role("button", name="Fly")
+        # the controls are wired (app.js wireControls disables the battery fields first, then takes map clicks)
+        expect(page.locator("#reserve")).to_be_disabled(timeout=30_000)
+        box = page.locator("#map").bounding_box()
+        centre_x, centre_y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+        for dx, dy in ((-120, -60), (90, -90), (140, 60), (-60, 100)):
+            page.mouse.click(centre_x + dx, centre_y + dy)
+        expect(page.locator("#buoy-count")).to_have_text("4 buoys")
+
+        plan.click()
+        busy = page.get_by_test_id("busy")
+        expect(busy).to_contain_text("planning…")
+        expect(plan).to_be_disabled()
+        expect(fly).to_be_disabled()
+        page.wait_for_function("() => document.querySelector('#busy').textContent.includes(' 1 s')")  # counting
+        page.mouse.click(centre_x + 40, centre_y - 140)  # a fifth buoy while the plan of four is in flight
+        expect(page.locator("#buoy-count")).to_have_text("5 buoys")
+        assert len(held) == 1
+        held[0].continue_()  # the late answer, for the four buoys
+        expect(plan).to_be_enabled(timeout=30_000)
+        expect(fly).to_be_enabled()
+        expect(busy).to_be_hidden()
+        summary = page.get_by_test_id("plan-summary")
+        expect(summary).to_have_text("")
+        expect(page.locator(".leaflet-overlay-pane path[stroke-dasharray]")).to_have_count(0)
+
+        plan.click()  # answered at once this time
+        expect(page.locator("#message")).to_have_text("route planned", timeout=30_000)
+        expect(summary).to_contain_text("km")
+        expect(page.locator(".leaflet-overlay-pane path[stroke-dasharray]")).to_have_count(1)
+        # the route the page shows is the five buoys' (each labelled with its visiting rank, 1 to 5)
+        labels = sorted(int(text) for text in page.locator(".buoy-icon").all_inner_texts())
+        assert labels == [1, 2, 3, 4, 5]
         browser.close()
     assert errors == []

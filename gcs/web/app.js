@@ -57,6 +57,7 @@ function clearBuoys() {
 }
 
 function invalidatePlan() {
+  supersedeRequests(); // the buoys or depot a request in flight was made for are not the page's any more
   state.plan = null;
   map.clearRoute();
   panel.clearPlanSummary();
@@ -81,6 +82,41 @@ function showPlan(plan) {
   map.showRoute(plan);
   panel.showPlanSummary(plan);
   relabelBuoys();
+}
+
+// ----- plan and fly requests
+// One at a time (Plan and Fly are disabled while one is in flight), and only the latest one's answer may change
+// the page: a change of what is shown since it was sent (a buoy placed or removed, the depot moved, Clear, a
+// mission shown from the history) supersedes it, and its late answer is dropped. A plan can take its whole time
+// limit, and a slow answer must not replace what the operator has moved on to.
+let requestSeq = 0; // the latest request's number; bumped by every request and by what supersedes one
+
+function supersedeRequests() {
+  requestSeq += 1;
+}
+
+// The answer of `call()` (a plan or mission request), or null when the request was superseded while in flight,
+// its error too: the page has moved on and must not show it.
+async function latestAnswer(note, call) {
+  const seq = ++requestSeq;
+  const done = panel.showBusy(note);
+  try {
+    const answer = await call();
+    return seq === requestSeq ? answer : null;
+  } catch (error) {
+    if (seq === requestSeq) throw error;
+    return null;
+  } finally {
+    done();
+  }
+}
+
+// A mission under way on the page (its route, its visited marks) is what the operator watches: a plan never
+// replaces it. Says so and returns true when one is.
+function watchingFlight() {
+  if (buoysEditable()) return false;
+  panel.say(`Mission ${state.missionId} is under way: its route stays shown (abort it or show another first).`);
+  return true;
 }
 
 // ----- a mission: planned route, status, figures
@@ -147,6 +183,7 @@ const refreshHistory = showingErrors(async () => {
 
 // Draw a stored mission: its buoys, planned route, flown track and charts; a flying one keeps updating live.
 const displayMission = showingErrors(async (id) => {
+  supersedeRequests(); // the operator chose what to look at: an answer in flight must not replace it
   const mission = await api.mission(id);
   clearBuoys();
   setDepot(mission.depot);
@@ -167,8 +204,11 @@ function wireControls() {
     "click",
     showingErrors(async () => {
       if (!state.buoys.length) return panel.say("Place at least one buoy first.");
-      panel.say("planning…", true);
-      showPlan(await api.plan(flightRequest()));
+      if (watchingFlight()) return;
+      panel.say("");
+      const plan = await latestAnswer("planning…", () => api.plan(flightRequest()));
+      if (plan === null || watchingFlight()) return; // superseded, or a mission shown since is flying
+      showPlan(plan);
       panel.say("route planned", true);
     }),
   );
@@ -177,11 +217,18 @@ function wireControls() {
     "click",
     showingErrors(async () => {
       if (!state.buoys.length) return panel.say("Place at least one buoy first.");
-      panel.say("creating mission…", true);
-      const mission = await api.createMission(flightRequest());
+      panel.say("");
+      const request = flightRequest();
+      let created = null;
+      const mission = await latestAnswer("planning…", async () => (created = await api.createMission(request)));
+      refreshHistory();
+      if (mission === null) {
+        // superseded: the page shows what the operator chose since; the mission flies all the same, so say so
+        if (created) panel.say(`mission ${created.id} created and started: "show" it in the history`, true);
+        return;
+      }
       startWatching(mission);
       panel.say(`mission ${mission.id} created`, true);
-      refreshHistory();
     }),
   );
 

@@ -14,6 +14,26 @@ export function say(text, ok = false) {
   byId("message").className = ok ? "ok" : "";
 }
 
+// While a plan or mission request is in flight: Plan and Fly disabled, and "<note> N s" beside them, counting (a
+// plan takes up to its time limit; the message line below keeps the last result). Returns what ends it.
+export function showBusy(note) {
+  const started = performance.now();
+  const indicator = byId("busy");
+  const buttons = [byId("plan"), byId("fly")];
+  const tick = () => {
+    indicator.textContent = `${note} ${Math.floor((performance.now() - started) / 1000)} s`;
+  };
+  tick();
+  const timer = setInterval(tick, 1000);
+  indicator.hidden = false;
+  buttons.forEach((button) => (button.disabled = true));
+  return () => {
+    clearInterval(timer);
+    indicator.hidden = true;
+    buttons.forEach((button) => (button.disabled = false));
+  };
+}
+
 export function token() {
   return byId("token").value.trim();
 }
