@@ -512,7 +512,9 @@ class ArduCopterDouble:
         return self.encoder.mav.attitude_encode(self.time_boot_ms, 0.0, 0.0, self.yaw, 0.0, 0.0, 0.0)
 
     def _sys_status(self) -> Any:
-        return self.encoder.mav.sys_status_encode(0, 0, 0, 0, 12600, -1, -1, 0, 0, 0, 0, 0, 0)
+        # a full 3S pack, as ArduCopter with a battery monitor reports it (the service's pre-flight check refuses to
+        # arm a vehicle that reports no charge)
+        return self.encoder.mav.sys_status_encode(0, 0, 0, 0, 12600, 0, 100, 0, 0, 0, 0, 0, 0)
 
     def _mission_current(self) -> Any:
         total = max(len(self.mission) - 1, 0)  # home excluded (send_mission_current)

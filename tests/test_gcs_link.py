@@ -31,7 +31,8 @@ ITEMS = [
 
 
 class ScriptedVehicle(threading.Thread):
-    """sysid 1 / compid 1 on a UDP port: heartbeats, ATTITUDE with time_boot_ms, commands, mission transfer."""
+    """sysid 1 / compid 1 on a UDP port: heartbeats, ATTITUDE with time_boot_ms, a full battery (SYS_STATUS),
+    commands, mission transfer."""
 
     def __init__(self) -> None:
         super().__init__(daemon=True)
@@ -71,6 +72,8 @@ class ScriptedVehicle(threading.Thread):
                 self.last_periodic = now
                 self.send(self.mav.heartbeat_encode(2, 12, 1, 0, mavlink.MAV_STATE_STANDBY))
                 self.send(self.mav.attitude_encode(self.boot_ms(), 0.0, 0.0, 0.5, 0.0, 0.0, 0.0))
+                # a full pack (12.6 V, 100 %): the service's pre-flight check refuses to arm one reporting no charge
+                self.send(self.mav.sys_status_encode(0, 0, 0, 0, 12600, 0, 100, 0, 0, 0, 0, 0, 0))
             try:
                 data, self.peer = self.sock.recvfrom(65535)
             except TimeoutError:
@@ -221,6 +224,9 @@ def test_reboot_and_heartbeat_loss_are_detected(vehicle):
     async def scenario():
         link = await connected_link(vehicle, timeout_s=2.0)
         try:
+            # connected is the first HEARTBEAT; the clock comes in the ATTITUDE the vehicle's thread sends after it,
+            # which a loaded machine can delay past the move below: the link must hold the old clock first
+            await eventually(lambda: link.status.time_boot_ms is not None, "the vehicle's clock (an ATTITUDE)")
             vehicle.boot_start = time.monotonic() + 60.0  # time_boot_ms jumps back by a minute
             await eventually(lambda: link.status.reboots > 0, "the reboot seen (the next ATTITUDE shows it)")
             reboots = link.status.reboots
