@@ -20,7 +20,8 @@ whichever messages showed it: a mission whose MISSION_ITEM_REACHED or MISSION_CU
 but which flew is completed, and one whose messages claim completion without the positions to show it is not.
 
 Before every arming, the pre-flight check (`_preflight`): the predicted energy of the sortie about to be flown
-(gcs.energy_planning.charge_needed) against the charge the vehicle reports, with its reserve. Short of charge,
+(gcs.energy_planning.charge_needed) against the charge the vehicle reports, with its reserve (a vehicle that
+reports no charge, having no battery monitor, is flown and the record says the check was not made). Short of charge,
 the first sortie is refused (the mission fails naming both figures) unless the request said `override` (flown,
 and the override recorded in the mission's events and progress); a later sortie waits in `waiting_for_battery`
 until the operator confirms a battery swap (`battery_swapped`, POST /vehicles/{sysid}/battery-swap). The
@@ -369,8 +370,14 @@ class FlightLifecycle:
         remaining = await self._battery_remaining()
         check = {"sortie": sortie, "needed_pct": need.needed_pct, "energy_wh": need.energy_wh,
                  "reserve_pct": need.reserve_pct, "remaining_pct": remaining, "override": False}  # fmt: skip
-        short = remaining is None or remaining < need.needed_pct
-        if short and flight.override:
+        short = remaining is not None and remaining < need.needed_pct
+        if remaining is None:  # no battery monitor reported: nothing to check against, and the record says so
+            self._transition(
+                mission_id,
+                MissionStatus.UPLOADING if sortie == 0 else self._statuses[mission_id],
+                f"pre-flight check not made: the vehicle reports no charge; the sortie needs {need_text(need)}",
+            )
+        elif short and flight.override:
             check["override"] = True
             self._transition(
                 mission_id,

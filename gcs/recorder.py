@@ -83,8 +83,7 @@ class MissionRecorder:
         self.consumed_at_start = progress.get("consumed_at_start")
         self.reached_seqs = list(progress.get("reached_seqs") or [])
         self.reached_at = {int(k): float(v) for k, v in (progress.get("reached_at") or {}).items()}
-        current = progress.get("current_seq")
-        self.current_seq = None if current is None else int(current)
+        # the current item is not restored: the vehicle flew on unwatched, and its next MISSION_CURRENT says where
         self.vehicle_events = list(progress.get("vehicle_events") or [])
         self.preflight_checks = list(progress.get("preflight") or [])
 

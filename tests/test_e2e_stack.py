@@ -295,7 +295,7 @@ def test_gcs_restarted_mid_flight_reattaches_keeps_recording_and_completes(stack
     before = len(stack.api.get(f"/missions/{mission_id}/telemetry").json())
     gcs.kill()
     stack.start_gcs()
-    mission, _ = fly_with_swaps(stack, mission_id)
+    mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
     assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
     statuses = [(e["status"], e["reason"]) for e in mission["events"]]
     assert statuses[-2:] == [("flying", REATTACHED), ("completed", None)]
