@@ -437,6 +437,8 @@ class FlightLifecycle:
         refuses the command (PX4 measures a new pack itself) still reports its charge, which the waiting mission
         checks. Returns what the vehicle answered. Raises MissionConflictError while the vehicle is in the air."""
         s = self.link.status
+        if not s.connected:
+            raise MissionConflictError("no vehicle is connected: there is nobody to tell of a swap")
         if s.armed or not s.on_ground:
             raise MissionConflictError("the vehicle is armed or airborne: a pack is swapped on the ground")
         try:

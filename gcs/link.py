@@ -109,6 +109,9 @@ BATTERY_CRITICAL_STATES = frozenset(
 )
 
 
+BATTERY_THRESHOLDS = ("BAT_LOW_THR", "BAT_CRIT_THR")
+
+
 class LinkError(RuntimeError):
     """The vehicle did not answer or cannot be reached; the message says what was asked."""
 
@@ -191,6 +194,9 @@ class VehicleStatus:
     battery_consumed_wh: float | None = None  # since the pack was put in (or the vehicle booted)
     battery_charge_state: int | None = None  # MAV_BATTERY_CHARGE_STATE (OK 1, LOW 2, CRITICAL 3, ...)
     battery_status_seen: bool = field(default=False, repr=False)  # then SYS_STATUS's battery fields are ignored
+    # the vehicle's own warning levels (PX4's BAT_LOW_THR, BAT_CRIT_THR), read at connection; None: not known
+    battery_low_pct: float | None = None
+    battery_critical_pct: float | None = None
     home: tuple[float, float, float] | None = None
     estimates: dict[str, Any] = field(default_factory=dict)  # a companion controller's ESO outputs by name
     status_texts: list[str] = field(default_factory=list)  # the vehicle's latest STATUSTEXTs, oldest first
@@ -643,3 +649,15 @@ class LinkManager:
             refused = refused or result != mavlink.MAV_RESULT_ACCEPTED
         if refused and self.autopilot.streams_by_data_stream_request:
             self.send(self.encoder.request_data_stream_encode(*self.target, mavlink.MAV_DATA_STREAM_ALL, 10, 1))
+        await self._read_battery_thresholds()
+
+    async def _read_battery_thresholds(self) -> None:
+        """The levels at which the vehicle itself warns of its battery, for the page's badge: PX4's BAT_LOW_THR and
+        BAT_CRIT_THR (fractions). An autopilot without them (ArduPilot counts mAh and volts) leaves them unknown,
+        and the badge shows the vehicle's own charge state alone."""
+        try:
+            values = await self.read_parameters(BATTERY_THRESHOLDS)
+        except (LinkError, TimeoutError):
+            return
+        self.status.battery_low_pct = 100.0 * values["BAT_LOW_THR"]
+        self.status.battery_critical_pct = 100.0 * values["BAT_CRIT_THR"]

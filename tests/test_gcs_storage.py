@@ -173,6 +173,31 @@ def test_migration_4_copies_each_stored_samples_position_into_the_track_columns(
         storage.close()
 
 
+def test_migration_6_admits_waiting_for_battery_and_still_refuses_an_unknown_status(database):
+    connection = database_at_version(database, 5)
+    with pytest.raises((sqlite3.IntegrityError, psycopg.errors.CheckViolation)):  # version 5 knows no such status
+        connection.execute("UPDATE missions SET status = 'waiting_for_battery' WHERE id = 1")
+    connection.close()
+
+    storage = open_storage(database)
+    try:
+        assert storage.schema_version() == len(MIGRATIONS)
+        storage.set_status(1, "waiting_for_battery", "sortie 2 needs 64 %")
+        assert storage.get_mission(1).status == "waiting_for_battery"
+        assert storage.unfinished_missions(None) == [1]  # a restart re-attaches a mission waiting between sorties
+        with pytest.raises(ConstraintError):
+            storage.set_status(1, "exploded")
+    finally:
+        storage.close()
+    reopened = open_storage(database)  # another connection reads the rewritten definition
+    try:
+        with pytest.raises(ConstraintError):
+            reopened.set_status(1, "exploded")
+        reopened.set_status(1, "flying")
+    finally:
+        reopened.close()
+
+
 def test_track_columns_and_samples_at_instants_read_what_add_telemetry_stored(storage):
     mission_id = storage.create_mission(FLIGHT, PLAN)
     samples = [

@@ -611,3 +611,38 @@ def test_plan_and_fly_wait_for_the_answer_and_a_superseded_plan_answer_changes_n
         assert labels == [1, 2, 3, 4, 5]
         browser.close()
     assert errors == []
+
+
+def test_a_mission_waiting_for_a_battery_swap_asks_for_it_and_shows_its_preflight_checks(tmp_path):
+    """A mission between sorties, waiting for the operator's swap (as gcs.lifecycle stores it): the page opens
+    on it, its status asks for attention and the pre-flight checks read as figures; "Pack swapped" asks for
+    confirmation and shows the service's answer as text (here: no vehicle to tell)."""
+    with serving(tmp_path / "gcs.sqlite", tmp_path / "service.log") as url:
+        request = {**reference_request(UpOptions()), "battery": {"capacity_mah": 1000}, "start": False}
+        created = post_json(f"{url}/missions", request)
+        storage = open_storage(tmp_path / "gcs.sqlite")
+        check = {"sortie": 0, "needed_pct": 71.4, "energy_wh": 10.2, "reserve_pct": 15.0, "remaining_pct": 100.0,
+                 "override": False}  # fmt: skip
+        storage.set_progress(created["id"], {"sortie": 1, "sorties": 3, "visited": 4, "preflight": [check]})
+        waiting = "sortie 2 needs 74 % (10.6 Wh predicted, landing with the 15 % reserve); the vehicle reports 16 %"
+        storage.set_status(created["id"], "flying", "sortie 1 of 3")
+        storage.set_status(created["id"], "waiting_for_battery", waiting)
+        storage.close()
+        errors: list[str] = []
+        with sync_playwright() as p:
+            browser, page = open_page(p, errors)
+            page.goto(url)
+            status = page.get_by_test_id("mission-status")
+            expect(status).to_have_text(f"#{created['id']}: waiting_for_battery – {waiting}", timeout=30_000)
+            expect(status).to_have_class("attention")
+            expect(page.get_by_test_id("preflight")).to_have_text(
+                "pre-flight, sortie 1: needs 71 % (10.2 Wh), the vehicle had 100 %"
+            )
+            dialogs: list[str] = []
+            page.on("dialog", lambda dialog: (dialogs.append(dialog.message), dialog.accept()))
+            page.get_by_test_id("battery-swap").click()
+            expect(page.locator("#message")).to_contain_text("409: no vehicle is connected")
+            assert dialogs and "charged pack" in dialogs[0], dialogs
+            page.screenshot(path=str(ARTIFACTS / "web_waiting_for_battery.png"))
+            browser.close()
+    assert errors == []

@@ -67,6 +67,12 @@ export class GcsApi {
     return this.request("GET", `/missions/${encodeURIComponent(id)}`);
   }
 
+  // the operator's word that a charged pack is in (the first vehicle, or one of the fleet by its system id)
+  swapBattery(sysid = null) {
+    const path = sysid == null ? "/vehicle/battery-swap" : `/vehicles/${encodeURIComponent(sysid)}/battery-swap`;
+    return this.request("POST", path);
+  }
+
   abortMission(id) {
     return this.request("POST", `/missions/${encodeURIComponent(id)}/abort`);
   }

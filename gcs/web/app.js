@@ -218,7 +218,7 @@ function wireControls() {
     showingErrors(async () => {
       if (!state.buoys.length) return panel.say("Place at least one buoy first.");
       panel.say("");
-      const request = flightRequest();
+      const request = { ...flightRequest(), override: byId("override").checked };
       let created = null;
       const mission = await latestAnswer("planning…", async () => (created = await api.createMission(request)));
       refreshHistory();
@@ -229,6 +229,18 @@ function wireControls() {
       }
       startWatching(mission);
       panel.say(`mission ${mission.id} created`, true);
+    }),
+  );
+
+  byId("battery-swap").addEventListener(
+    "click",
+    showingErrors(async () => {
+      const question = "Is a charged pack in the vehicle? The vehicle is told its battery was replaced.";
+      if (!window.confirm(question)) return;
+      const answer = await api.swapBattery(state.mission?.vehicle_sysid ?? null);
+      const waiting = answer.waiting_mission == null ? "" : `; mission ${answer.waiting_mission} goes on`;
+      panel.say(`pack swapped (vehicle: ${answer.vehicle})${waiting}`, true);
+      pollMission();
     }),
   );
 

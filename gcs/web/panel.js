@@ -148,7 +148,10 @@ function figureLines(mission) {
 export function showMission(mission) {
   const reason = mission.reason ? ` – ${mission.reason}` : "";
   byId("mission-status").textContent = `#${mission.id}: ${mission.status}${reason}`;
+  // between sorties, the mission waits for the operator: the status asks for attention until the swap
+  byId("mission-status").classList.toggle("attention", mission.status === MissionStatus.waiting_for_battery);
   const progress = mission.progress || {};
+  byId("preflight").textContent = (progress.preflight || []).map(preflightLine).join("\n");
   byId("progress").max = Math.max(1, progress.buoys || mission.order.length);
   byId("progress").value = progress.visited || 0;
   byId("sortie-progress").textContent = sortieProgress(mission);
@@ -232,6 +235,16 @@ function showSortieTable(mission) {
   table.replaceChildren(head, h("tbody", {}, ...mission.sorties.map(row)));
 }
 
+// A sortie's pre-flight check: the charge it needed against what the vehicle reported before arming.
+function preflightLine(check) {
+  const sortie = `pre-flight, sortie ${check.sortie + 1}: `;
+  const need = `needs ${formatNumber(check.needed_pct, 0)} % (${formatNumber(check.energy_wh, 1)} Wh)`;
+  if (check.remaining_pct == null) return `${sortie}${need}; no charge reported, not checked`;
+  const had = `, the vehicle had ${formatNumber(check.remaining_pct, 0)} %`;
+  const how = check.override ? " – flown short by override" : check.swapped ? " after a swap" : "";
+  return `${sortie}${need}${had}${how}`;
+}
+
 // MAV_BATTERY_CHARGE_STATE by value: the name shown and the look (style.css .charge-*)
 const CHARGE_STATES = {
   1: ["ok", "ok"],
@@ -243,11 +256,23 @@ const CHARGE_STATES = {
   7: ["charging", "ok"],
 };
 
+const LOOK_RANK = { unknown: -1, ok: 0, low: 1, critical: 2, emergency: 3 };
+
+// The badge: the worse of the vehicle's own charge state and where its charge stands against its own warning
+// levels (BAT_LOW_THR, BAT_CRIT_THR, when it told them): never a fixed colour of the page's choosing.
+function chargeLook(v) {
+  const [name, look] = CHARGE_STATES[v.battery_charge_state] ?? ["state unknown", "unknown"];
+  const pct = v.battery_remaining_pct;
+  if (pct == null || v.battery_low_pct == null || v.battery_critical_pct == null) return [name, look];
+  const byLevel = pct <= v.battery_critical_pct ? "critical" : pct <= v.battery_low_pct ? "low" : "ok";
+  return LOOK_RANK[look] >= LOOK_RANK[byLevel] ? [name, look] : [byLevel, byLevel];
+}
+
 // vehicle: the live stream's vehicle part; its first battery's state, or "no battery report".
 export function showBattery(vehicle) {
   const v = vehicle.connected ? vehicle : {};
   const reported = [v.battery_remaining_pct, v.battery_voltage_v, v.battery_current_a].some((x) => x != null);
-  const [name, look] = CHARGE_STATES[v.battery_charge_state] ?? ["state unknown", "unknown"];
+  const [name, look] = chargeLook(v);
   const meter = byId("battery-meter");
   meter.hidden = v.battery_remaining_pct == null;
   meter.value = v.battery_remaining_pct ?? 0;
@@ -256,6 +281,11 @@ export function showBattery(vehicle) {
   const state = byId("battery-state");
   state.textContent = reported ? name : "";
   state.className = `badge charge-${look}`;
+  state.title =
+    v.battery_low_pct == null
+      ? "the vehicle's own charge state"
+      : `low at ${formatNumber(v.battery_low_pct, 0)} %, critical at ${formatNumber(v.battery_critical_pct, 0)} % ` +
+        "(the vehicle's BAT_LOW_THR, BAT_CRIT_THR)";
   byId("battery-figures").textContent = reported
     ? `${formatNumber(v.battery_voltage_v, 2)} V, ${formatNumber(v.battery_current_a)} A, ` +
       `${formatNumber(v.battery_consumed_wh, 2)} Wh used`

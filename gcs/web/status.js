@@ -35,7 +35,12 @@ export const MissionStatus = new Proxy(
 
 // On the way to or on the vehicle: the route is fixed (the page does not edit buoys then).
 export function isUnderway(status) {
-  return [MissionStatus.uploading, MissionStatus.uploaded, MissionStatus.flying].includes(status);
+  return [
+    MissionStatus.uploading,
+    MissionStatus.uploaded,
+    MissionStatus.flying,
+    MissionStatus.waiting_for_battery,
+  ].includes(status);
 }
 
 // Ended for good: nothing about the mission changes any more.
