@@ -18,6 +18,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
+	$(BIN)/python -m planner.warmup  # numba's on-disk cache: services and tests then load, not compile
 	touch $(STAMP)
 
 # The last line proves the bundled mavsdk_server binary runs on this machine (it is a prebuilt executable).

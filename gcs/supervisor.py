@@ -25,7 +25,10 @@ class ChildSpec:
     name: str
     argv: list[str]
     ready: Callable[[], bool] | None = None  # polled after start until True (or start_timeout_s)
-    start_timeout_s: float = 90.0  # a fresh machine compiles the numba kernels on first start
+    # A fresh machine compiles the numba kernels on first start: the service compiles every planner kernel before
+    # it answers (planner.warmup: about 40 s idle, 80 s on a loaded 2-core machine) while the vehicle compiles its
+    # own. A child that fails exits, which is seen at once; this bounds only one that hangs.
+    start_timeout_s: float = 300.0
     env: dict[str, str] = field(default_factory=dict)  # added to the environment: secrets go here, not in argv
 
 

@@ -39,3 +39,11 @@ def warm_up() -> None:
     _tour_kernels()
     sorties.warm_up()
     fleet.warm_up()
+
+
+if __name__ == "__main__":  # `make` runs it once after installing, so no process pays the first compilation
+    import time
+
+    started = time.perf_counter()
+    warm_up()
+    print(f"planner kernels compiled or loaded in {time.perf_counter() - started:.1f} s")
