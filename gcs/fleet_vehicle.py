@@ -12,6 +12,7 @@ from gcs.link import LinkError, LinkManager
 from gcs.mission_protocol import MissionTransferError
 from gcs.settings import Settings
 from gcs.storage import Storage
+from planner.energy import EnergyModel
 from uavcore.battery_pack import PackSpec
 from uavcore.geofence import FenceError, Geofence
 
@@ -19,10 +20,12 @@ FENCE_READ_TIMEOUT_S = 1.5  # wall clock for the vehicle's geofence before a pla
 
 
 class FleetVehicle:
-    def __init__(self, sysid: int | None, link: LinkManager, settings: Settings, storage: Storage) -> None:
+    def __init__(
+        self, sysid: int | None, link: LinkManager, settings: Settings, storage: Storage, energy_model: EnergyModel
+    ) -> None:
         self.sysid = sysid  # what its missions store as vehicle_sysid (None: the service's one vehicle)
         self.link = link
-        self.flights = FlightLifecycle(settings, storage, link)
+        self.flights = FlightLifecycle(settings, storage, link, energy_model)
         self._default_home = settings.home
         self._fence_unanswered: int | None = None  # the vehicle incarnation that did not answer a fence request
 

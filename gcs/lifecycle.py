@@ -149,8 +149,11 @@ def ended_early_reason(events: list[dict[str, Any]], visited: int, buoys: int) -
 class FlightLifecycle:
     """Flies stored missions over one LinkManager, one at a time, and records them."""
 
-    def __init__(self, settings: Settings, storage: Storage, link: LinkManager) -> None:
+    def __init__(self, settings: Settings, storage: Storage, link: LinkManager, energy_model: EnergyModel) -> None:
+        """`energy_model`: the calibrated route energy model the service plans sorties with (the pre-flight check
+        predicts with the same one)."""
         self.settings, self.storage, self.link = settings, storage, link
+        self.energy_model = energy_model
         self._tasks: dict[int, asyncio.Task] = {}
         self._abort_requested: set[int] = set()
         self._recorders: dict[int, MissionRecorder] = {}
@@ -158,7 +161,6 @@ class FlightLifecycle:
         self._handing_over = False  # stop() leaves flying missions for the next owner of the vehicle link
         self._replans: dict[int, Plan] = {}  # new plans for flying missions, uploaded in flight by their monitor
         self._swapped = asyncio.Event()  # the operator confirmed a battery swap (a waiting mission goes on)
-        self._energy_model: EnergyModel | None = None
 
     def reattach(self, unfinished: list[int]) -> None:
         """At start-up, with the ids of the missions a previous run left unfinished (oldest first)."""
@@ -310,6 +312,10 @@ class FlightLifecycle:
         self.storage.set_status(mission_id, status, reason)
         self._statuses[mission_id] = status
 
+    def _note(self, mission_id: int, reason: str) -> None:
+        """An event on the mission's record that leaves its status as it is."""
+        self._transition(mission_id, self._statuses[mission_id], reason)
+
     async def _fly(self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder) -> None:
         if not await self.link.wait_connected(self.settings.vehicle_wait_s):
             raise MissionEndError(MissionStatus.FAILED, "no vehicle")
@@ -356,11 +362,8 @@ class FlightLifecycle:
             )
 
     async def _charge_need(self, plan: Plan, flight: FlightParams, sortie: int) -> ChargeNeed:
-        if self._energy_model is None:
-            self._energy_model = await asyncio.to_thread(EnergyModel.load)
-        model = self._energy_model
-        pack = await vehicle_pack(self.link) or model_pack(model)
-        return await asyncio.to_thread(charge_needed, plan, sortie, flight, pack, model)
+        pack = await vehicle_pack(self.link) or model_pack(self.energy_model)
+        return await asyncio.to_thread(charge_needed, plan, sortie, flight, pack, self.energy_model)
 
     async def _preflight(
         self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder, sortie: int
@@ -372,16 +375,14 @@ class FlightLifecycle:
                  "reserve_pct": need.reserve_pct, "remaining_pct": remaining, "override": False}  # fmt: skip
         short = remaining is not None and remaining < need.needed_pct
         if remaining is None:  # no battery monitor reported: nothing to check against, and the record says so
-            self._transition(
+            self._note(
                 mission_id,
-                MissionStatus.UPLOADING if sortie == 0 else self._statuses[mission_id],
                 f"pre-flight check not made: the vehicle reports no charge; the sortie needs {need_text(need)}",
             )
         elif short and flight.override:
             check["override"] = True
-            self._transition(
+            self._note(
                 mission_id,
-                MissionStatus.UPLOADING if sortie == 0 else self._statuses[mission_id],
                 f"pre-flight check overridden by the request: the vehicle reports {charge_text(remaining)}, "
                 f"the sortie needs {need_text(need)}",
             )

@@ -12,6 +12,7 @@ The routes see no storage, link or lifecycle: only the methods here.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 from collections.abc import Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -76,9 +77,10 @@ class MissionService:
         the other vehicles' links. A fleet's vehicles are known by their system ids (Settings.vehicles)."""
         self.settings = settings
         self._storage = storage
+        self.energy_model = EnergyModel.load()  # planner/energy_params.json: the calibrated route energy model
         first_key = link.sysid if fleet else None  # a lone vehicle's missions are stored without one, as ever
-        self._vehicles = [FleetVehicle(first_key, link, settings, storage)]
-        self._vehicles += [FleetVehicle(other.sysid, other, settings, storage) for other in fleet]
+        self._vehicles = [FleetVehicle(first_key, link, settings, storage, self.energy_model)]
+        self._vehicles += [FleetVehicle(other.sysid, other, settings, storage, self.energy_model) for other in fleet]
         self._link, self._flights = link, self._vehicles[0].flights  # the first vehicle's, for its views
         self._fleets = FleetCoordinator(
             storage,
@@ -86,7 +88,6 @@ class MissionService:
             lambda part, plan: self._vehicle_of(part).flights.replan(part.id, plan),
         )
         self._ownership = ownership or ownership_for(settings)
-        self.energy_model = EnergyModel.load()  # planner/energy_params.json: the calibrated route energy model
         self.documents = VersionedCache()  # the read routes' encoded documents by version (gcs.read_cache)
 
     async def start(self) -> None:
@@ -120,11 +121,17 @@ class MissionService:
         """The vehicle a request names (None: the first); raises RequestInvalidError at body.vehicle."""
         if sysid is None:
             return self._vehicles[0]
-        for vehicle in self._vehicles:
-            if vehicle.system_id == sysid:
-                return vehicle
+        with contextlib.suppress(VehicleNotFoundError):
+            return self._known_vehicle(sysid)
         known = ", ".join(str(v.system_id) for v in self._vehicles if v.system_id is not None) or "none heard yet"
         raise RequestInvalidError([(("body", "vehicle"), f"no vehicle with system id {sysid} (the fleet's: {known})")])
+
+    def _known_vehicle(self, sysid: int) -> FleetVehicle:
+        """The fleet's vehicle with this system id; raises VehicleNotFoundError."""
+        found = next((vehicle for vehicle in self._vehicles if vehicle.system_id == sysid), None)
+        if found is None:
+            raise VehicleNotFoundError(sysid)
+        return found
 
     def _vehicle_of(self, record: MissionRecord) -> FleetVehicle:
         """The vehicle a stored mission flies on (a mission stored without one: the first)."""
@@ -268,9 +275,7 @@ class MissionService:
         .FlightLifecycle.battery_swapped) and a mission waiting for the swap goes on. Raises VehicleNotFoundError,
         MissionConflictError (a mission flies on it)."""
         self._ownership.ensure_owner()
-        if sysid is not None and all(v.system_id != sysid for v in self._vehicles):
-            raise VehicleNotFoundError(sysid)
-        vehicle = self._vehicle(sysid)
+        vehicle = self._vehicles[0] if sysid is None else self._known_vehicle(sysid)
         waiting = vehicle.flights.waiting_for_battery()
         answer = await vehicle.flights.battery_swapped(charge_pct)
         return {
@@ -299,10 +304,7 @@ class MissionService:
 
     def fleet_vehicle(self, sysid: int) -> dict[str, Any]:
         """One vehicle of the fleet by system id; raises VehicleNotFoundError."""
-        for vehicle in self._vehicles:
-            if vehicle.system_id == sysid:
-                return self._described(vehicle)
-        raise VehicleNotFoundError(sysid)
+        return self._described(self._known_vehicle(sysid))
 
     def _described(self, vehicle: FleetVehicle) -> dict[str, Any]:
         return vehicle.describe() | {"role": self._ownership.as_dict()["role"]}
