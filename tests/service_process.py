@@ -25,23 +25,26 @@ def serving(
     log: Path,
     *options: str,
     sysids: Sequence[int] = (),
-    env: Mapping[str, str] | None = None,
+    env: Mapping[str, str | None] | None = None,
     ready_s: float = 180.0,
+    program: Sequence[str] = (sys.executable, "-m", "gcs"),
+    cwd: Path | None = None,
 ) -> Iterator[str]:
     """The service over the database `db` with no vehicle (it sends to a UDP port nobody holds), its output in
     `log`: yields its http:// URL once it answers, and stops it afterwards. `sysids`: a fleet of vehicles with
     these system ids instead (each configured, so a fleet mission can be planned for them, none there to fly);
-    `env`: added to the service's environment.
+    `env`: added to the service's environment (a value None removes the variable); `program`: the command that
+    runs the service's CLI (an installed `buoy-gcs`, say), run in `cwd`.
 
     ready_s: the service answers only once the planner's kernels are compiled (gcs.app's lifespan), which takes
     up to a minute on a cold numba cache and longer beside other tests' processes on a loaded machine."""
     udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
     links = [f"{sysid}=udpout:127.0.0.1:{udp}" for sysid in sysids] or [f"udpout:127.0.0.1:{udp}"]
-    argv = [sys.executable, "-m", "gcs", "serve", *(a for link in links for a in ("--vehicle", link))]
+    argv = [*program, "serve", *(a for link in links for a in ("--vehicle", link))]
     argv += ["--port", str(http), "--db", str(db), *options]
     with open(log, "w") as output:
-        environment = {**os.environ, **(env or {})}
-        service = subprocess.Popen(argv, stdout=output, stderr=subprocess.STDOUT, env=environment)
+        environment = {name: value for name, value in {**os.environ, **(env or {})}.items() if value is not None}
+        service = subprocess.Popen(argv, stdout=output, stderr=subprocess.STDOUT, env=environment, cwd=cwd)
         url = f"http://127.0.0.1:{http}"
         try:
             deadline = time.monotonic() + ready_s
