@@ -96,12 +96,13 @@ def _post(url: str, body: dict) -> tuple[int, dict, float]:
 
 def test_the_wheel_installs_and_on_a_cold_start_serves_the_page_and_plans_within_the_time_limit(installed, tmp_path):
     """The wheel's packages import from site-packages and carry the map page. The installed `buoy-gcs serve` on a
-    cold start (a fresh install whose numba cache is empty, as on a user's machine after `pip install`),
-    configured with a fleet of two vehicles (none there: the fleet planner needs only their homes), serves the map
-    page and its assets from the installed package; and its first fleet POST /missions (time_limit_s 2) answers
-    within its time limit, because the service compiled (or loaded) every planner kernel before it answered at all
-    (gcs.app's lifespan, planner.warmup). Before, that first POST answered after 56 s. One test: each wheel build and each cold start are costly (a full compile: 38 s idle,
-    80 s on a loaded machine), and a test's worker is not known in advance."""
+    cold start (a fresh install whose numba cache is empty, as on a user's machine after `pip install`), configured
+    with a fleet of two vehicles (none there: the fleet planner needs only their homes), serves the map page and its
+    assets from the installed package; and its first fleet POST /missions (time_limit_s 2) answers within its time
+    limit, because the service compiled (or loaded) every planner kernel before it answered at all (gcs.app's
+    lifespan, planner.warmup). Before, that first POST answered after 56 s. One test: each wheel build and each cold
+    start are costly (a full compile: 38 s idle, 80 s on a loaded machine), and a test's worker is not known in
+    advance."""
     where = subprocess.check_output(
         [str(installed), "-c", "import gcs, uavcore; print(gcs.__file__); print(uavcore.__file__)"],
         cwd=tmp_path,
