@@ -3,9 +3,10 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
-# Most integration tests wait on real-time flights (MAVSDK's example programs, test doubles), not on the CPU:
-# four workers on two cores finish the suite sooner than two, and every test polls with generous deadlines.
-TEST_WORKERS ?= 4
+# Many integration tests wait on real-time flights (MAVSDK's example programs, test doubles), not on the CPU:
+# six workers on two cores keep both cores busy while some of them wait (pytest 9:08 on a fresh clone), and every
+# test polls on conditions with generous deadlines.
+TEST_WORKERS ?= 6
 # MAVSDK-Python 3.x (the gRPC wrapper bundling mavsdk_server) has the import name of the native mavsdk 4.x in
 # .venv, so it lives in a venv of its own: tests/test_mavsdk_examples.py runs its example programs with it.
 MAVSDK3_VENV  := .venv-mavsdk3
