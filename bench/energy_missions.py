@@ -12,7 +12,7 @@ SIM_WIND_DIR and SIM_TURB_W20 are set to; the service splits the buoys into sort
 (gcs.energy_planning) and flies them one after another with a battery swap between them (gcs.lifecycle).
 
 Cases: (a) the ring: 9 buoys on a 150 m circle round the depot, 5 s inspections, a 500 mAh pack (the energy
-test of tests/test_e2e_stack.py); (b) the paper's reference scenario (13 buoys, gcs.up.reference_request with
+test of tests/test_e2e_stack.py); (b) the paper's reference scenario (13 buoys, stack.demo.reference_request with
 demo seed 1, 1 s dwell) on a 1200 mAh pack (2 sorties in these winds; 1000 mAh would make 3, 1500 mAh a short
 and a full one). Each in calm air, 3 m/s from 250 deg and 6 m/s from 60 deg, on two vehicle seeds. Then the
 ring forced into one sortie (battery split = false) with COM_LOW_BAT_ACT = 1: the vehicle's battery failsafe
@@ -43,8 +43,9 @@ import httpx
 import numpy as np
 
 from bench.failover import free_port, poll, rounded
-from gcs.supervisor import ChildSpec, Supervisor, SupervisorError, python_module
-from gcs.up import UpOptions, reference_request
+from stack.demo import reference_request
+from stack.options import UpOptions
+from stack.supervisor import ChildSpec, Supervisor, SupervisorError, python_module
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 
 REPO = Path(__file__).resolve().parents[1]
@@ -332,7 +333,7 @@ def document(runs: list[dict[str, Any]], forced: dict[str, Any], command: str, l
         "cases": {
             "ring": f"{RING_BUOYS} buoys on a {RING_RADIUS_M:g} m circle, dwell {RING_DWELL_S:g} s, "
             f"BAT1_CAPACITY {RING_CAPACITY_MAH:g} mAh",
-            "reference": "gcs.up.reference_request(UpOptions(demo_seed=1)): 13 buoys, dwell 1 s, "
+            "reference": "stack.demo.reference_request(UpOptions(demo_seed=1)): 13 buoys, dwell 1 s, "
             f"BAT1_CAPACITY {REFERENCE_CAPACITY_MAH:g} mAh",
             "air": "vehicle SIM_WIND_SPD/SIM_WIND_DIR/SIM_TURB_W20 = the request's wind forecast (W20 = mean wind)",
             "battery_options": "reserve_pct 'vehicle' (BAT_LOW_THR), margin 5 %, objective time",

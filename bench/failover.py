@@ -41,7 +41,7 @@ from typing import Any, TypeVar
 import httpx
 
 from gcs.lifecycle import REATTACHED
-from gcs.supervisor import ChildSpec, Supervisor, SupervisorError, python_module
+from stack.supervisor import ChildSpec, Supervisor, SupervisorError, python_module
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 
 REPO = Path(__file__).resolve().parents[1]

@@ -3,7 +3,7 @@
     .venv/bin/python -m bench.fleet_flown                      # 3 vehicles x 30 buoys, 5 x 60, seeds 0
     .venv/bin/python -m bench.fleet_flown --cases 3x30 5x60 --seeds 0 1
 
-Per case: `buoy-gcs up --vehicles K` in lockstep (gcs.up.stack under gcs.supervisor: K vehicles on pads 3 m
+Per case: `buoy-gcs up --vehicles K` in lockstep (stack.children under stack.supervisor: K vehicles on pads 3 m
 apart at the reference depot, each with its ADRC offboard controller, and the service), then POST /missions
 with n buoys uniform in the reference area (planner.scenario.random_area_points), `vehicles: "fleet"`, 10 m/s,
 1 s dwell, layers 3 m apart. Planned: the fleet planner's makespan (take-off and landing 24 s, legs at cruise
@@ -28,9 +28,10 @@ import numpy as np
 
 from bench.fleet_scale import get_json, wait_for_fleet
 from gcs.settings import Settings
-from gcs.supervisor import Supervisor, SupervisorError
-from gcs.up import UpOptions, stack
 from planner.scenario import random_area_points
+from stack.children import children
+from stack.options import UpOptions
+from stack.supervisor import Supervisor, SupervisorError
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 
 REPO = Path(__file__).resolve().parents[1]
@@ -51,7 +52,7 @@ def fly_case(vehicles: int, n_buoys: int, seed: int, workdir: Path, first_port: 
         data_dir=workdir, vehicle_url=f"udpout:127.0.0.1:{first_port}", port=http_port, db_path=workdir / "gcs.sqlite"
     )
     supervisor = Supervisor(
-        stack(UpOptions(settings=settings, vehicles=vehicles)), workdir / "logs", REPO, say=lambda _: None
+        children(UpOptions(settings=settings, vehicles=vehicles)), workdir / "logs", REPO, say=lambda _: None
     )
     base = f"http://127.0.0.1:{http_port}"
     frame = LocalFrame(*DEFAULT_HOME)

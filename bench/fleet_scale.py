@@ -3,8 +3,8 @@
     .venv/bin/python -m bench.fleet_scale                    # N = 1, 2, 4, 6, 8, 10, 12; 60 s of flight each
     .venv/bin/python -m bench.fleet_scale --vehicles 2 4 --flight-s 30
 
-For each N the stack `up` starts (gcs.up.stack: N vehicles `python -m sitl_quad --speed 1`, each with its ADRC
-offboard controller, and one service with a link per vehicle) runs under gcs.supervisor, each vehicle also
+For each N the stack `up` starts (stack.children: N vehicles `python -m sitl_quad --speed 1`, each with its ADRC
+offboard controller, and one service with a link per vehicle) runs under stack.supervisor, each vehicle also
 writing `--stats`. Once the service has heard every vehicle, a second ground station (this bench, one
 gcs.link.LinkManager per vehicle, as QGroundControl beside the service would) uploads a racetrack to each vehicle
 at its own altitude (5 m + 3 m per system id), arms it and starts it, then closes. After `--flight-s` seconds of
@@ -36,8 +36,9 @@ from tempfile import TemporaryDirectory
 
 from gcs.link import LinkManager
 from gcs.settings import Settings
-from gcs.supervisor import Supervisor, SupervisorError
-from gcs.up import UpOptions, stack, vehicle_home
+from stack.children import children, vehicle_home
+from stack.options import UpOptions
+from stack.supervisor import Supervisor, SupervisorError
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 from uavcore.mission import MavCmd, MavFrame, MissionItem
 
@@ -116,13 +117,13 @@ def run(vehicles: int, flight_s: float, workdir: Path, first_port: int, http_por
         data_dir=workdir, vehicle_url=f"udpout:127.0.0.1:{first_port}", port=http_port, db_path=workdir / "gcs.sqlite"
     )
     options = UpOptions(settings=settings, lockstep=False, speed=1.0, vehicles=vehicles)
-    children = stack(options)
+    specs = children(options)
     stats_files = []
-    for child in children:
+    for child in specs:
         if child.name.startswith("sitl_quad"):
             stats_files.append(workdir / f"{child.name}.stats.json")
             child.argv += ["--stats", str(stats_files[-1])]
-    supervisor = Supervisor(children, workdir / "logs", REPO, say=lambda _: None)
+    supervisor = Supervisor(specs, workdir / "logs", REPO, say=lambda _: None)
     base = f"http://127.0.0.1:{http_port}"
     try:
         supervisor.start_all()

@@ -3,7 +3,7 @@
     .venv/bin/python -m bench.lockstep_mission     # prints a table, writes bench/results/lockstep_mission.json
 
 For the cascade dual ADRC (ADRC offboard outer loop over the vehicle's ADRC attitude loop, MC_ATT_CTRL=1) and
-the PID cascade, in that order, `gcs.up.run_up` starts the vehicle (--lockstep), the offboard controller and the
+the PID cascade, in that order, `stack.up.run_up` starts the vehicle (--lockstep), the offboard controller and the
 service, flies the reference scenario through POST /missions in the paper's weather on its route, and stops
 them. Per run:
 - lockstep: simulated s / wall s from POST to landed, as the demo prints it (its "lockstep" line);
@@ -26,7 +26,8 @@ from pathlib import Path
 
 from bench.gcs_bench import free_port
 from gcs.settings import Settings
-from gcs.up import CASCADE_NAMES, UpOptions, run_up
+from stack.options import CASCADE_NAMES, UpOptions
+from stack.up import run_up
 
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "bench" / "results" / "lockstep_mission.json"
@@ -117,7 +118,7 @@ def main() -> None:
     )
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     result = {
-        "what": "python -m gcs up --demo --exit-after-demo: reference mission, paper's weather, lockstep",
+        "what": "python -m stack up --demo --exit-after-demo: reference mission, paper's weather, lockstep",
         "cores": os.cpu_count(),
         "targets": {"lockstep_x_min": TARGET_LOCKSTEP_X, "demo_wall_s_max": TARGET_DEMO_WALL_S},
         "runs": rows,

@@ -11,5 +11,6 @@ Read in this order:
   `lifecycle` (upload, arm, start, watch to the end), `missions` (the service: the facade the routes call)
 - `report` (the mission report: PNG figures + index.html, cached per mission)
 - `app` (create_app), `routes/*` (thin; `routes.deps` gives them the service), `views` (records -> documents),
-  `cli` (`python -m gcs serve | report | up`), `up` and `supervisor` (the whole stack as supervised children)
+  `cli` (`python -m gcs serve | report`); the whole stack as supervised children (`buoy-gcs up`) is the `stack`
+  package, above this one: the ground station starts no vehicle
 """

@@ -6,7 +6,7 @@ coordinates used elsewhere are relative to the depot: ``local = area - DEPOT_IN_
 
 The paper's weather for a route (`paper_weather`): a crosswind across the longest leg, a 1-cosine gust halfway
 along it at an instant estimated from the route (`MissionTimeline`), and Dryden turbulence; pure data that the
-demo (`gcs up`) hands the vehicle as parameters and the benchmark (bench.control) as its wind configuration.
+demo (`buoy-gcs up`) hands the vehicle as parameters and the benchmark (bench.control) as its wind configuration.
 """
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ def reference_scenario(seed: int = 1, n_buoys: int = N_BUOYS, home=DEFAULT_HOME)
     return Scenario(buoys_local=local, buoys_lat_lon=frame.unproject(local), home=tuple(home))
 
 
-# ----- the paper's weather (Section VI, made concrete): one definition for the demo (gcs up) and the benchmark
+# ----- the paper's weather (Section VI, made concrete): one definition for the demo (buoy-gcs up) and the benchmark
 CROSSWIND_M_S = 5.0  # mean wind across the route's longest leg
 GUST_M_S = 4.0  # 1-cosine gust added along the crosswind: the "sudden wind change" of the paper's Figure 6
 GUST_RISE_S = 1.0

@@ -32,8 +32,9 @@ from udp_relay import LossyUdpRelay
 from gcs.lifecycle import REATTACHED, RESTART_NOT_FLYING
 from gcs.planning import make_plan
 from gcs.storage import open_storage
-from gcs.up import UpOptions, reference_request
 from planner.scenario import reference_scenario
+from stack.demo import reference_request
+from stack.options import UpOptions
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow, pytest.mark.timeout(1500)]  # FLIGHT_S: two flights each

@@ -1,11 +1,13 @@
-"""The command line: bad options give a message and exit 2, never a traceback."""
+"""The command line (`buoy-gcs`: the ground station's `serve` and `report`, and the stack's `up`): bad options give
+a message and exit 2, never a traceback."""
 
 import subprocess
 import sys
 
 import pytest
 
-from gcs.cli import build_parser, main, settings_from_args
+from gcs.cli import settings_from_args
+from stack.cli import build_parser, main
 
 
 @pytest.mark.parametrize(

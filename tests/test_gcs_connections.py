@@ -395,16 +395,17 @@ def test_a_new_boot_is_recognised_by_its_boot_instant_even_when_its_clock_is_ahe
 
 def test_up_with_a_vehicle_url_starts_only_the_service():
     from gcs.settings import Settings
-    from gcs.up import UpOptions, stack
+    from stack.children import children
+    from stack.options import UpOptions
 
     settings = Settings(vehicle_url="udpin://0.0.0.0:14550")
-    (service,) = stack(UpOptions(settings=settings, simulate=False))
+    (service,) = children(UpOptions(settings=settings, simulate=False))
     assert service.name == "gcs"
     assert service.argv[service.argv.index("--vehicle") + 1] == "udpin://0.0.0.0:14550"
 
 
 def test_up_refuses_the_simulated_demo_with_a_real_vehicle(capsys):
-    from gcs.cli import main
+    from stack.cli import main
 
     assert main(["up", "--vehicle", "udpin://0.0.0.0:14550", "--demo"]) == 2
     assert "--demo" in capsys.readouterr().err
@@ -421,7 +422,7 @@ def test_up_listens_for_a_vehicle_streaming_to_it(tmp_path, vehicle):
     env = {k: v for k, v in os.environ.items() if not k.startswith("BUOY_GCS_")}
     up = subprocess.Popen(
         [
-            *(sys.executable, "-m", "gcs", "up", "--vehicle", f"udpin://127.0.0.1:{mavlink_port}"),
+            *(sys.executable, "-m", "stack", "up", "--vehicle", f"udpin://127.0.0.1:{mavlink_port}"),
             *("--port", str(http_port), "--data", str(tmp_path)),
         ],
         env=env,

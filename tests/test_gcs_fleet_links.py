@@ -107,7 +107,7 @@ def test_up_starts_a_fleet_that_the_service_lists_and_stops_it_whole(tmp_path):
 
     first_port, http_port = free_udp_port_block(3), free_port(socket.SOCK_STREAM)  # HTTP is TCP
     env = {k: v for k, v in os.environ.items() if not k.startswith("BUOY_GCS_")}
-    argv = [sys.executable, "-m", "gcs", "up", "--vehicles", "3", "--speed", "1", "--vehicle-port", str(first_port)]
+    argv = [sys.executable, "-m", "stack", "up", "--vehicles", "3", "--speed", "1", "--vehicle-port", str(first_port)]
     up = subprocess.Popen(
         [*argv, "--port", str(http_port), "--data", str(tmp_path)],
         env=env,

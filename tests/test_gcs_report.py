@@ -23,7 +23,8 @@ from gcs.report import ENERGY_FIGURE, FIGURES, cached_report, report_series, sum
 from gcs.results import flight_results
 from gcs.settings import Settings
 from gcs.storage import SqliteStorage, Storage
-from gcs.up import UpOptions, reference_request
+from stack.demo import reference_request
+from stack.options import UpOptions
 from uavcore.geodesy import DEFAULT_HOME
 
 OFFSET_M = 0.3  # the synthetic vehicle flies this far to the left of every leg

@@ -6,7 +6,8 @@ import pytest
 
 from gcs.cli import build_parser, main, settings_from_args
 from gcs.settings import DB_FILENAME, Settings
-from gcs.up import UpOptions, stack
+from stack.children import children
+from stack.options import UpOptions
 
 
 @pytest.fixture(autouse=True)
@@ -57,7 +58,7 @@ def test_a_bad_environment_value_is_a_message_naming_the_variable(monkeypatch, c
 
 def test_up_hands_its_settings_to_the_children(tmp_path):
     settings = Settings(data_dir=tmp_path, port=8123, token="t", vehicle_url="udpout:127.0.0.1:14600")
-    vehicle, controller, service = stack(UpOptions(settings=settings))
+    vehicle, controller, service = children(UpOptions(settings=settings))
     assert vehicle.argv[vehicle.argv.index("--port") + 1] == "14600"
     assert "udpout:127.0.0.1:14600" in controller.argv
     argv = service.argv

@@ -28,7 +28,8 @@ from sitl_process import SitlProcess
 
 from bench.long_mission import store_long_mission
 from gcs.storage import open_storage
-from gcs.up import UpOptions, reference_request
+from stack.demo import reference_request
+from stack.options import UpOptions
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 from uavcore.mavlink import mavlink
 

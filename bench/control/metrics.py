@@ -8,7 +8,7 @@ vehicle above 1 m:
   consecutive waypoints, takeoff point first) while flying to each buoy;
 - gust_peak_m: largest 3-D error within 10 s of the gust onset; gust_recovery_s: time from the onset until
   the error is back under 0.2 m for good within that window (10 s = not recovered): gcs.tracking.gust_effect,
-  the demo's (`gcs up --demo`) measure too;
+  the demo's (`buoy-gcs up --demo`) measure too;
 - altitude_rms_m: vertical error;
 - yaw_turn_rms_deg / yaw_turn_max_deg: yaw error during the on-the-spot turns at the buoys (reference yaw
   rate non-zero, and 1.5 s after), the paper's Figure 11: the heading of the body x axis

@@ -5,7 +5,7 @@
   (`plan_tour(method="exact")` through gcs.planning.make_plan), flown as the GCS would upload it
   (gcs.planning.mission_items: takeoff, DO_CHANGE_SPEED 10 m/s, one NAV_WAYPOINT per buoy at 5 m with a
   1 s inspection dwell and a 2 m acceptance radius, RTL), in-process lockstep (sitl_quad.lockstep_harness).
-- Weather: `planner.scenario.paper_weather` for the route, the one definition the demo (`gcs up --demo`)
+- Weather: `planner.scenario.paper_weather` for the route, the one definition the demo (`buoy-gcs up --demo`)
   flies too: 5 m/s mean crosswind perpendicular to the route's longest leg (blowing from its right-hand side);
   a 1-cosine gust, 4 m/s along the crosswind, rise 1 s, starting at the instant the route's kinematic timeline
   (`planner.scenario.MissionTimeline`: spool-up, climb, turns, S-curve legs, dwells) has the vehicle halfway

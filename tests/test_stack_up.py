@@ -1,4 +1,4 @@
-"""`buoy-gcs up`: which loops each controller starts, the weather the demo hands the vehicle, the demo's figures.
+"""`buoy-gcs up` (stack): the loops each controller starts, the weather the demo hands the vehicle, its figures.
 
 No process is started here except one `python -m sitl_quad --list-params`, which checks that the vehicle takes
 every parameter `up` gives it.
@@ -13,10 +13,12 @@ import sys
 import numpy as np
 import pytest
 
-from gcs.cli import _weather, build_parser, main
 from gcs.settings import Settings
-from gcs.up import CONTROLLERS, UpOptions, measure_flight, prepare, stack
 from planner.scenario import GUST_HOLD_S, Weather, compass_bearing_deg
+from stack.children import children
+from stack.cli import build_parser, main, requested_weather
+from stack.demo import measure_flight, prepare
+from stack.options import CONTROLLERS, UpOptions
 from uavcore.mavlink import SIGNING_KEY_ENV
 
 
@@ -35,30 +37,30 @@ def _vehicle_params(argv: list[str]) -> dict[str, float]:
     [("adrc", 1, ["--controller", "adrc"]), ("pid", 0, ["--controller", "pid"]), ("px4", 0, None)],
 )
 def test_each_controller_starts_its_loops(tmp_path, controller, attitude_loop, offboard):
-    children = stack(_options(tmp_path, controller=controller))
-    names = [child.name for child in children]
-    vehicle = children[0]
+    started = children(_options(tmp_path, controller=controller))
+    names = [child.name for child in started]
+    vehicle = started[0]
     assert _vehicle_params(vehicle.argv)["MC_ATT_CTRL"] == attitude_loop  # the vehicle's inner loop: 1 ADRC, 0 PID
     if offboard is None:
         assert names == ["sitl_quad", "gcs"]  # no offboard process: the vehicle's own position loop flies
     else:
         assert names == ["sitl_quad", "adrc_offboard", "gcs"]
-        argv = children[1].argv
+        argv = started[1].argv
         assert argv[argv.index("--controller") :][:2] == offboard
         assert "udpout:127.0.0.1:14600" in argv
 
 
 def test_a_fleet_is_a_vehicle_and_controller_per_system_id_and_one_service_linked_to_each(tmp_path):
     options = _options(tmp_path, vehicles=3, depots=((43.0, 6.0), (43.1, 6.1)), seed=5)
-    children = stack(options)
-    names = [child.name for child in children]
+    started = children(options)
+    names = [child.name for child in started]
     pairs = [f"{name}{suffix}" for suffix in ("", "-2", "-3") for name in ("sitl_quad", "adrc_offboard")]
     assert names == [*pairs, "gcs"]
 
     def option(argv, name):
         return argv[argv.index(name) + 1]
 
-    vehicles = children[0:6:2]
+    vehicles = started[0:6:2]
     assert [option(v.argv, "--sysid") for v in vehicles] == ["1", "2", "3"]
     assert [option(v.argv, "--port") for v in vehicles] == ["14600", "14601", "14602"]
     assert [option(v.argv, "--seed") for v in vehicles] == ["5", "6", "7"]  # each its own air
@@ -66,12 +68,12 @@ def test_a_fleet_is_a_vehicle_and_controller_per_system_id_and_one_service_linke
     homes = [tuple(float(x) for x in option(v.argv, "--home").split(",")) for v in vehicles]
     assert homes[0][:2] == pytest.approx((43.0, 6.0)) and homes[1][:2] == pytest.approx((43.1, 6.1))
     assert homes[2][0] == pytest.approx(43.0) and homes[2][1] > 6.0  # the first depot's second pad, east
-    controllers = children[1:6:2]
+    controllers = started[1:6:2]
     assert [option(c.argv, "--sysid") for c in controllers] == ["1", "2", "3"]
     assert [option(c.argv, "--connect") for c in controllers] == [
         f"udpout:127.0.0.1:{p}" for p in (14600, 14601, 14602)
     ]
-    service = children[-1].argv
+    service = started[-1].argv
     links = [service[i + 1] for i, arg in enumerate(service) if arg == "--vehicle"]
     assert links == [f"{n}=udpout:127.0.0.1:{14599 + n}" for n in (1, 2, 3)]
 
@@ -88,7 +90,7 @@ def test_the_command_line_offers_exactly_the_controllers_and_adrc_is_the_default
 def test_without_a_demo_the_air_is_still_and_every_weather_parameter_is_set(tmp_path):
     options, demo = prepare(_options(tmp_path))
     assert demo is None and options.weather == Weather()
-    params = _vehicle_params(stack(options)[0].argv)
+    params = _vehicle_params(children(options)[0].argv)
     assert params["SIM_WIND_SPD"] == params["SIM_GUST_AMP"] == params["SIM_TURB_W20"] == 0.0
     assert params["SIM_GUST_HOLD"] == math.inf
     assert {"SIM_WIND_DIR", "SIM_GUST_T0", "SIM_GUST_RISE", "SIM_GUST_DIR", "SIM_DIST_VX", "SIM_DIST_VYAW"} <= set(
@@ -98,7 +100,7 @@ def test_without_a_demo_the_air_is_still_and_every_weather_parameter_is_set(tmp_
 
 def test_the_demo_flies_the_papers_weather_placed_on_the_route_the_service_will_plan(tmp_path):
     options, demo = prepare(_options(tmp_path, demo=True))
-    params = _vehicle_params(stack(options)[0].argv)
+    params = _vehicle_params(children(options)[0].argv)
     route = demo.plan.route_local()[:-1]  # [east, north]: the depot, then the buoys in visiting order
     legs = np.hypot(*np.diff(route, axis=0).T)
     longest = int(np.argmax(legs))
@@ -119,12 +121,12 @@ def test_the_demo_flies_the_papers_weather_placed_on_the_route_the_service_will_
     # the ADRC cascade by default; --calm and --wind replace the weather, the demo still flies
     assert params["MC_ATT_CTRL"] == 1
     calm, _ = prepare(_options(tmp_path, demo=True, weather=Weather()))
-    assert _vehicle_params(stack(calm)[0].argv)["SIM_GUST_AMP"] == 0.0
+    assert _vehicle_params(children(calm)[0].argv)["SIM_GUST_AMP"] == 0.0
 
 
 def test_the_vehicle_takes_every_parameter_up_gives_it(tmp_path):
     options, _ = prepare(_options(tmp_path, demo=True))
-    argv = stack(options)[0].argv
+    argv = children(options)[0].argv
     params = [arg for i, arg in enumerate(argv) if i > 0 and argv[i - 1] == "--param"]
     listed = subprocess.run(
         [sys.executable, "-m", "sitl_quad", *[a for p in params for a in ("--param", p)], "--list-params"],
@@ -139,9 +141,9 @@ def test_the_vehicle_takes_every_parameter_up_gives_it(tmp_path):
 
 def test_weather_options_on_the_command_line(capsys):
     parser = build_parser()
-    assert _weather(parser.parse_args(["up"])) is None  # the default: the paper's weather with --demo
-    assert _weather(parser.parse_args(["up", "--calm"])) == Weather()
-    assert _weather(parser.parse_args(["up", "--wind", "3,90"])) == Weather(wind_m_s=3.0, wind_from_deg=90.0)
+    assert requested_weather(parser.parse_args(["up"])) is None  # the default: the paper's weather with --demo
+    assert requested_weather(parser.parse_args(["up", "--calm"])) == Weather()
+    assert requested_weather(parser.parse_args(["up", "--wind", "3,90"])) == Weather(wind_m_s=3.0, wind_from_deg=90.0)
     with pytest.raises(SystemExit):
         parser.parse_args(["up", "--calm", "--wind", "3"])
     assert main(["up", "--compare"]) == 2
@@ -188,17 +190,17 @@ def test_the_gust_is_found_in_the_telemetry_by_the_climb_and_measured_there():
 def test_a_database_url_reaches_the_service_by_the_environment_never_its_command_line(tmp_path):
     url = "postgresql://pilot:secret@db.example:5432/buoys"  # a password: the command line is logged and in ps
     settings = Settings(data_dir=tmp_path, db=url, vehicle_url="udpout:127.0.0.1:14600")
-    service = stack(UpOptions(settings=settings))[-1]
+    service = children(UpOptions(settings=settings))[-1]
     assert service.env[Settings.env_name("db")] == url
     assert "--db" not in service.argv and "secret" not in " ".join(service.argv)
-    sqlite_service = stack(_options(tmp_path))[-1]  # a SQLite file goes on the command line, as before
+    sqlite_service = children(_options(tmp_path))[-1]  # a SQLite file goes on the command line, as before
     assert sqlite_service.argv[sqlite_service.argv.index("--db") + 1] == str(tmp_path / "gcs.sqlite")
 
 
 def test_the_signing_key_reaches_every_child_by_the_environment_never_a_command_line(tmp_path):
     key = "harbour signing passphrase"
     settings = Settings(data_dir=tmp_path, signing_key=key, vehicle_url="udpout:127.0.0.1:14600")
-    vehicle, controller, service = stack(UpOptions(settings=settings))
+    vehicle, controller, service = children(UpOptions(settings=settings))
     assert vehicle.env[SIGNING_KEY_ENV] == controller.env[SIGNING_KEY_ENV] == key
     assert service.env[Settings.env_name("signing_key")] == key
     assert all(

@@ -1,0 +1,129 @@
+"""The stack's children: each simulated vehicle (sitl_quad) and its offboard controller (adrc_offboard), then the
+ground station (gcs serve), as the supervisor's ChildSpecs; the service alone for a real vehicle.
+
+The weather is handed to the vehicle as its SIM_* parameters, every one of them each time (the vehicle keeps its
+parameters in the data directory, so an unnamed one would carry over from the last run). Secrets (the API token,
+the MAVLink signing key, a database URL) go by the environment, never a command line.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from gcs.connection import parse_connection
+from gcs.settings import Settings
+from planner.scenario import Weather
+from stack.options import ATTITUDE_LOOP, CONTROLLERS, UpOptions
+from stack.service_api import http_ok
+from stack.supervisor import ChildSpec, python_module
+from uavcore.geodesy import LocalFrame
+from uavcore.mavlink import SIGNING_KEY_ENV
+
+PAD_SPACING_M = 3.0  # vehicles sharing a depot stand this far apart, west to east
+
+
+def weather_params(weather: Weather) -> list[str]:
+    """The vehicle's `--param NAME=VALUE` arguments for a weather: all of the air's parameters."""
+    values = {
+        "SIM_WIND_SPD": weather.wind_m_s,
+        "SIM_WIND_DIR": weather.wind_from_deg,
+        "SIM_GUST_AMP": weather.gust_m_s,
+        "SIM_GUST_DIR": weather.gust_from_deg,
+        "SIM_GUST_T0": weather.gust_start_s,
+        "SIM_GUST_RISE": weather.gust_rise_s,
+        "SIM_GUST_HOLD": weather.gust_hold_s,
+        "SIM_TURB_W20": weather.turbulence_w20_m_s,
+        **{f"SIM_DIST_V{axis}": weather.disturbance_variance for axis in ("X", "Y", "Z", "R", "P", "YAW")},
+    }
+    return [f"{name}={value:.7g}" for name, value in values.items()]
+
+
+def children(options: UpOptions) -> list[ChildSpec]:
+    """The children in start order (each vehicle and its offboard controller unless `px4`, then the service;
+    the service alone for a real vehicle), with how to tell each is ready."""
+    settings = options.settings
+    if not options.simulate:
+        return [_service(options, settings.vehicles or [settings.vehicle_url])]
+    if options.controller not in CONTROLLERS:
+        raise ValueError(f"controller must be one of {CONTROLLERS}, got {options.controller!r}")
+    first_port = parse_connection(settings.vehicle_url).port
+    children, links = [], []
+    for sysid in range(1, options.vehicles + 1):
+        vehicle, controller = _vehicle_children(options, sysid, first_port + sysid - 1)
+        children += [vehicle, *controller]
+        url = f"udpout:127.0.0.1:{first_port + sysid - 1}"  # the children all run on this machine
+        links.append(url if options.vehicles == 1 else f"{sysid}={url}")  # a fleet names each one's system id
+    children.append(_service(options, links))
+    return children
+
+
+def vehicle_home(options: UpOptions, sysid: int) -> tuple[float, float, float] | None:
+    """Where vehicle `sysid` stands: its depot (i mod the depots given, else the default home), each vehicle of
+    a depot on its own pad PAD_SPACING_M east of the one before; None for a lone vehicle at the default home."""
+    if options.vehicles == 1 and not options.depots:
+        return None
+    depots = options.depots or (options.settings.home[:2],)
+    lat, lon = depots[(sysid - 1) % len(depots)]
+    pad = (sysid - 1) // len(depots)
+    home = LocalFrame(lat, lon, options.settings.home[2]).from_ned(0.0, pad * PAD_SPACING_M, 0.0)
+    return float(home[0]), float(home[1]), options.settings.home[2]
+
+
+def _vehicle_children(options: UpOptions, sysid: int, port: int) -> tuple[ChildSpec, list[ChildSpec]]:
+    """Vehicle `sysid` (sitl_quad, its own port, seed, parameter file and log) and its offboard controller."""
+    settings = options.settings
+    suffix = "" if sysid == 1 else f"-{sysid}"  # a lone vehicle keeps the names it always had
+    params = [f"MC_ATT_CTRL={ATTITUDE_LOOP[options.controller]}", *weather_params(options.weather or Weather())]
+    vehicle_args = ["--port", str(port), "--sysid", str(sysid), "--seed", str(options.seed + sysid - 1)]
+    vehicle_args += ["--params", str(settings.data_dir / f"vehicle{suffix}.params")]
+    if (home := vehicle_home(options, sysid)) is not None:
+        vehicle_args += ["--home", ",".join(f"{value:.8f}" for value in home)]
+    vehicle_args += [arg for param in params for arg in ("--param", param)]
+    vehicle_args += ["--lockstep"] if options.lockstep else ["--speed", f"{options.speed:g}"]
+    signing = _signing_env(settings)
+    vehicle_log = settings.data_dir / "logs" / f"sitl_quad{suffix}.log"
+    vehicle = ChildSpec(
+        f"sitl_quad{suffix}",
+        python_module("sitl_quad", *vehicle_args),
+        ready=lambda: _log_says(vehicle_log, "listening"),
+        env=signing,
+    )
+    if options.controller == "px4":
+        return vehicle, []
+    connect = ["--connect", f"udpout:127.0.0.1:{port}", "--sysid", str(sysid), "--controller", options.controller]
+    return vehicle, [ChildSpec(f"adrc_offboard{suffix}", python_module("adrc_offboard", *connect), env=signing)]
+
+
+def _signing_env(settings: Settings) -> dict[str, str]:
+    """The vehicle's and the offboard controller's MAVLink signing key, by the environment (not argv: see below)."""
+    return {SIGNING_KEY_ENV: settings.signing_key} if settings.signing_key else {}
+
+
+def _service(options: UpOptions, vehicles: list[str]) -> ChildSpec:
+    settings = options.settings
+    gcs_args = [
+        "serve",
+        *(arg for vehicle in vehicles for arg in ("--vehicle", vehicle)),
+        "--host",
+        settings.host,
+        "--port",
+        str(settings.port),
+    ]
+    # the token, the signing key and a database URL (it may hold a password) go by the environment: a command line
+    # is written to the child's log and shown by ps
+    secrets = {"token": settings.token, "signing_key": settings.signing_key}
+    env = {Settings.env_name(name): value for name, value in secrets.items() if value}
+    if settings.db is None:
+        gcs_args += ["--db", str(settings.db_path)]
+    else:
+        env[Settings.env_name("db")] = settings.db
+    base = options.base_url
+    return ChildSpec("gcs", python_module("gcs", *gcs_args), ready=lambda: http_ok(f"{base}/vehicle"), env=env)
+
+
+def _log_says(path: Path, marker: str) -> bool:
+    """Whether the child's current run (after the supervisor's last "starting" line) printed the marker."""
+    try:
+        return marker in path.read_text().rpartition("starting: ")[2]
+    except OSError:
+        return False
