@@ -5,7 +5,7 @@ track its part mission recorded, a lost vehicle's last position and the buoys it
 fleet's figures (planned makespan, each part's flight time, the closest two vehicles came), a row per vehicle
 (buoys, inspected, status, why it was lost and who took its buoys, its own report) and a row per buoy (the
 vehicle that inspected it). Every text from the missions goes through html.escape; the style is the mission
-report's (gcs.report.REPORT_STYLE, which the service's Content-Security-Policy allows by its hash).
+report's (gcs.report_drawing.REPORT_STYLE, which the service's Content-Security-Policy allows by its hash).
 """
 
 from __future__ import annotations
@@ -17,9 +17,11 @@ from typing import Any
 import numpy as np
 
 from gcs.planning import Plan
-from gcs.report import FLEET_FIGURE, REPORT_STYLE, _column, _figure, _save, _sortie_style
+from gcs.report_drawing import REPORT_STYLE, column, new_figure, save_figure, sortie_style
 from gcs.storage import MissionRecord
 from gcs.views import fleet_out
+
+FLEET_FIGURE = "fleet.png"  # a fleet mission's report has this figure only
 
 
 def write_fleet_report(
@@ -42,17 +44,17 @@ def _draw_fleet(
     samples: dict[int, list[dict[str, Any]]],
     path: Path,
 ) -> None:
-    figure, ax = _figure(6.5)
+    figure, ax = new_figure(6.5)
     frame = plan.frame
     buoys = np.asarray(plan.buoys_local)
     part_of = {part.vehicle_sysid: part for part in parts}
     for k, share in enumerate(fleet["shares"]):
-        style = _sortie_style(k)
+        style = sortie_style(k)
         route = frame.project(np.asarray(share["route"]))
         ax.plot(route[:, 0], route[:, 1], lw=1.2, label=f"vehicle {share['sysid']}: planned", **style)
         part = part_of.get(share["sysid"])
         recorded = samples.get(part.id, []) if part is not None else []
-        lat, lon = _column(recorded, "lat"), _column(recorded, "lon")  # each vehicle's local frame is its own
+        lat, lon = column(recorded, "lat"), column(recorded, "lon")  # each vehicle's local frame is its own
         located = ~(np.isnan(lat) | np.isnan(lon))
         if located.any():
             flown = frame.project(np.column_stack([lat[located], lon[located]]))
@@ -69,7 +71,7 @@ def _draw_fleet(
     ax.set_aspect("equal", adjustable="datalim")
     ax.set(xlabel="east (m)", ylabel="north (m)", title="Fleet: each vehicle's share, planned and flown")
     ax.legend(loc="best", fontsize=8)
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 def _number(value: float | None, digits: int = 1) -> str:

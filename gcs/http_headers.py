@@ -16,7 +16,7 @@ import hashlib
 from starlette.datastructures import MutableHeaders
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from gcs.report import REPORT_STYLE
+from gcs.report_drawing import REPORT_STYLE
 
 TILE_SERVER = "https://tile.openstreetmap.org"  # the origin of map.js's OSM_URL
 DOCS_CDN = "https://cdn.jsdelivr.net"  # fastapi.openapi.docs: Swagger UI and ReDoc bundles

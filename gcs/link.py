@@ -38,7 +38,9 @@ from typing import Any
 
 from gcs.autopilots import CUSTOM_MODE_ENABLED, Autopilot, Px4, autopilot_for
 from gcs.connection import Connection, ConnectionStringError, Transport, open_transport, parse_connection
+from gcs.link_errors import CommandDeniedError, CommandTimeoutError, LinkError
 from gcs.mission_protocol import download_items, upload_items
+from gcs.parameters import read_parameters
 from uavcore.geofence import Geofence
 from uavcore.mavlink import (
     GCS_COMPID,
@@ -49,7 +51,6 @@ from uavcore.mavlink import (
     mavlink,
     new_parser,
     parse_datagram,
-    result_name,
     statustext,
 )
 from uavcore.mission import MavCmd, MissionItem, MissionType
@@ -110,22 +111,6 @@ BATTERY_CRITICAL_STATES = frozenset(
 
 
 BATTERY_THRESHOLDS = ("BAT_LOW_THR", "BAT_CRIT_THR")
-
-
-class LinkError(RuntimeError):
-    """The vehicle did not answer or cannot be reached; the message says what was asked."""
-
-
-class CommandTimeoutError(LinkError):
-    pass
-
-
-class CommandDeniedError(LinkError):
-    """The vehicle answered a command with something other than ACCEPTED (`result` is the MAV_RESULT)."""
-
-    def __init__(self, what: str, result: int) -> None:
-        self.result = result
-        super().__init__(f"the vehicle refused to {what} ({result_name('MAV_RESULT', result)})")
 
 
 @dataclass(frozen=True)
@@ -449,8 +434,6 @@ class LinkManager:
     async def read_parameters(self, names: Sequence[str], timeout_s: float = 3.0) -> dict[str, float]:
         """{name: value} read from the vehicle, integers decoded as its autopilot encodes them; raises
         ParameterError (a LinkError) naming the parameters that did not answer within timeout_s."""
-        from gcs.parameters import read_parameters  # imported here: gcs.parameters' error derives from LinkError
-
         return await read_parameters(self, names, timeout_s)
 
     # ----- missions (MAVSDK's MissionRaw plugin)

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 from gcs.autopilots import PARAM_ENCODE_BYTEWISE
-from gcs.link import LinkError
+from gcs.link_errors import LinkError
 from uavcore.mavlink import mavlink
 
 if TYPE_CHECKING:

@@ -20,19 +20,17 @@ from typing import Any
 
 import numpy as np
 
+from gcs.fleet_report import write_fleet_report
 from gcs.planning import Plan
+from gcs.report_drawing import REPORT_STYLE, SORTIE_COLOURS, column, new_figure, save_figure, sortie_style
 from gcs.storage import MissionRecord, Storage
 from gcs.views import sorties_out
 
 FIGURES = ("route.png", "tracking_error.png", "cross_track.png", "altitude.png", "yaw.png", "eso.png")
 ENERGY_FIGURE = "energy.png"  # drawn only for a mission planned with energy figures
-FLEET_FIGURE = "fleet.png"  # a fleet mission's report has this figure only (gcs.fleet_report)
 # Okabe & Ito's colour-blind-safe palette less its yellow and black, as the map page draws sorties
 # (gcs/web/sorties.js); past six sorties the colours repeat with another dash.
-SORTIE_COLOURS = ("#0072b2", "#e69f00", "#009e73", "#cc79a7", "#d55e00", "#56b4e9")
-SORTIE_DASHES = ((0, (5, 3)), (0, (1, 3)), (0, (7, 2, 1, 2)))
 STAMP_FILE = "stamp.json"
-DPI = 110
 
 
 class ReportError(LookupError):
@@ -53,10 +51,6 @@ class ReportSeries:
     cross_track_m: np.ndarray
     position_error_m: np.ndarray  # 3-D distance from the reference trajectory point (the ADRC tracking error)
     eso: dict[str, np.ndarray] = field(default_factory=dict)  # name -> (n, k) estimates, NaN when absent
-
-
-def _column(samples: list[dict[str, Any]], name: str) -> np.ndarray:
-    return np.array([np.nan if s.get(name) is None else float(s[name]) for s in samples], dtype=float)
 
 
 def _wrap_deg(angle_rad: np.ndarray) -> np.ndarray:
@@ -82,18 +76,18 @@ def _eso_series(samples: list[dict[str, Any]]) -> dict[str, np.ndarray]:
 
 def report_series(samples: list[dict[str, Any]]) -> ReportSeries:
     """Stored telemetry samples -> the time series the report draws (pure)."""
-    north, east, down = (_column(samples, k) for k in ("north", "east", "down"))
-    ref_north, ref_east, ref_down = (_column(samples, k) for k in ("ref_north", "ref_east", "ref_down"))
+    north, east, down = (column(samples, k) for k in ("north", "east", "down"))
+    ref_north, ref_east, ref_down = (column(samples, k) for k in ("ref_north", "ref_east", "ref_down"))
     error = np.sqrt((ref_north - north) ** 2 + (ref_east - east) ** 2 + (ref_down - down) ** 2)
     return ReportSeries(
-        t_s=_column(samples, "t_s"),
+        t_s=column(samples, "t_s"),
         east=east,
         north=north,
         altitude=-down,
         ref_altitude=-ref_down,
-        yaw_deg=_wrap_deg(_column(samples, "yaw")),
-        ref_yaw_deg=_wrap_deg(_column(samples, "ref_yaw")),
-        cross_track_m=_column(samples, "cross_track_m"),
+        yaw_deg=_wrap_deg(column(samples, "yaw")),
+        ref_yaw_deg=_wrap_deg(column(samples, "ref_yaw")),
+        cross_track_m=column(samples, "cross_track_m"),
         position_error_m=error,
         eso=_eso_series(samples),
     )
@@ -168,29 +162,6 @@ def _degrees(value: float | None) -> str:
     return "–" if value is None else f"{value:.2f}°"
 
 
-# ----- drawing
-def _figure(height: float = 3.2):
-    from matplotlib.figure import Figure
-
-    figure = Figure(figsize=(9, height), dpi=DPI, layout="constrained")
-    return figure, figure.add_subplot()
-
-
-def _save(figure, path: Path) -> None:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    FigureCanvasAgg(figure)
-    figure.savefig(path)
-
-
-def _sortie_style(sortie: int) -> dict[str, Any]:
-    """Sortie k's line colour and dash (matplotlib keywords)."""
-    return {
-        "color": SORTIE_COLOURS[sortie % len(SORTIE_COLOURS)],
-        "linestyle": SORTIE_DASHES[sortie // len(SORTIE_COLOURS) % len(SORTIE_DASHES)],
-    }
-
-
 def sortie_label(sortie: dict[str, Any]) -> str:
     """'sortie 2: 5 buoys, predicted 12.1 Wh' (the map page's legend says the same)."""
     predicted = sortie["predicted_energy_wh"]
@@ -199,12 +170,12 @@ def sortie_label(sortie: dict[str, Any]) -> str:
 
 
 def _draw_route(plan: Plan, radius_m: float, series: ReportSeries, path: Path) -> None:
-    figure, ax = _figure(6.0)
+    figure, ax = new_figure(6.0)
     buoys = np.asarray(plan.buoys_local)
     colour_of = {index: "tab:orange" for index in plan.order}  # a single tour: as it always looked
     if plan.sorties:
         for sortie in sorties_out(plan):
-            style = _sortie_style(sortie["index"])
+            style = sortie_style(sortie["index"])
             route = plan.sortie_plan(sortie["index"]).route_local()
             ax.plot(route[:, 0], route[:, 1], lw=1.4, label=sortie_label(sortie), **style)
             colour_of.update(dict.fromkeys(sortie["order"], style["color"]))
@@ -225,7 +196,7 @@ def _draw_route(plan: Plan, radius_m: float, series: ReportSeries, path: Path) -
     ax.set_aspect("equal", adjustable="datalim")
     ax.set(xlabel="east (m)", ylabel="north (m)", title="Route: planned and flown (visiting order in brackets)")
     ax.legend(loc="best", fontsize=8)
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 def _circle(centre: tuple[float, float], radius: float, colour: str):
@@ -246,10 +217,10 @@ def _draw_energy(sorties: list[dict[str, Any]], budget_wh: float, path: Path) ->
     """Per sortie: the predicted energy (pale) beside the energy used (with the error in %), against the budget."""
     from matplotlib.patches import Patch
 
-    figure, ax = _figure()
+    figure, ax = new_figure()
     width = 0.38
     for s in sorties:
-        colour, x = _sortie_style(s["index"])["color"], s["index"]
+        colour, x = sortie_style(s["index"])["color"], s["index"]
         if s["predicted_energy_wh"] is not None:
             ax.bar(x - width / 2, s["predicted_energy_wh"], width, color=colour, alpha=0.4, edgecolor=colour)
         used, error = s["used_energy_wh"], energy_error_pct(s)
@@ -271,7 +242,7 @@ def _draw_energy(sorties: list[dict[str, Any]], budget_wh: float, path: Path) ->
     ]
     handles[-1].set_label(f"budget a sortie ({budget_wh:.1f} Wh)")
     ax.legend(handles=handles, loc="upper left", ncols=3, fontsize=8)
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 def _draw_lines(path: Path, title: str, ylabel: str, t_s: np.ndarray, lines: list[tuple[np.ndarray, str]]) -> None:
@@ -288,7 +259,7 @@ def draw_series(
 ) -> None:
     """Curves (x, y, label), each on its own x values (e.g. two missions around the same event), in one PNG;
     `shade` greys an x interval."""
-    figure, ax = _figure()
+    figure, ax = new_figure()
     if shade is not None:
         ax.axvspan(*shade, color="0.9", zorder=0)
     for x, values, label in lines:
@@ -297,7 +268,7 @@ def draw_series(
     ax.grid(alpha=0.3)
     if len(lines) > 1:
         ax.legend(loc="best", fontsize=8)
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 def _draw_eso(series: ReportSeries, path: Path) -> None:
@@ -357,15 +328,6 @@ def write_report(record: MissionRecord, samples: list[dict[str, Any]], out_dir: 
     return index
 
 
-# The report's only inline content: the service's Content-Security-Policy allows it by its hash
-# (gcs.http_headers); the page has no script. Every text from the mission goes through html.escape. The sortie
-# table's swatches are classes (.sortie-k), since a style attribute would need the policy to allow it too.
-REPORT_STYLE = (
-    "body{font-family:sans-serif;max-width:1000px;margin:1em auto} table{border-collapse:collapse}\n"
-    "th,td{border:1px solid #ccc;padding:2px 8px;text-align:left} img{max-width:100%}\n"
-    ".swatch{display:inline-block;width:1.5em;height:.6em;margin-right:.4em}\n"
-    + "\n".join(f".sortie-{k}{{background:{colour}}}" for k, colour in enumerate(SORTIE_COLOURS))
-)
 SORTIE_COLUMNS = (
     "sortie", "buoys (in order)", "length m", "predicted Wh", "predicted time s", "margin Wh", "margin %",
     "used Wh", "error %", "predicted landing %", "measured landing %", "battery warning",
@@ -477,7 +439,6 @@ def write_stored_report(storage: Storage, record: MissionRecord, out_dir: Path) 
     telemetry (gcs.fleet_report)."""
     if not record.is_fleet:
         return write_report(record, storage.telemetry(record.id), out_dir)
-    from gcs.fleet_report import write_fleet_report  # it draws with this module's helpers
 
     parts = storage.fleet_parts(record.id)
     return write_fleet_report(record, parts, {part.id: storage.telemetry(part.id) for part in parts}, out_dir)

@@ -9,14 +9,14 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from planner.api import METHODS, NoValidTourError, PlanResult, plan_tour
+    from planner.tour import METHODS, NoValidTourError, PlanResult, plan_tour
 
 __all__ = ["METHODS", "NoValidTourError", "PlanResult", "plan_tour"]
 
 
 def __getattr__(name: str):
     if name in __all__:
-        from planner import api
+        from planner import tour
 
-        return getattr(api, name)
+        return getattr(tour, name)
     raise AttributeError(f"module 'planner' has no attribute {name!r}")

@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
         points, distance, unit = load_mission(Path(args.file), args.depot)
-        from planner.api import plan_tour  # the solvers (and numba) load only once the input is good
+        from planner.tour import plan_tour  # the solvers (and numba) load only once the input is good
 
         if distance is not None:
             result = plan_tour(

@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from planner.sortie_search import EPS, _apply_relocate, _join, copy_solution, refresh, restore, ruin
+from planner.sortie_search import EPS, apply_relocate, copy_solution, join_routes, refresh, restore, ruin
 
 # ----- times and the lexicographic score
 
@@ -129,7 +129,7 @@ def _try_relocate(u, rv, after, prob, sol, buf):
                 tb = base + insertion * inv_speed[rv] + dwell
             makespan, total = _after_move(ru, ta, rv, tb, times, score)
             if _improves(makespan, total, score):
-                _apply_relocate(ru, iu, length, rv, after, rev == 1, routes, rlen, info, route_of, pos, pref, stamp,
+                apply_relocate(ru, iu, length, rv, after, rev == 1, routes, rlen, info, route_of, pos, pref, stamp,
                                 buf, D, W)  # fmt: skip
                 update_score(sol, inv_speed, fixed)
                 return True
@@ -190,8 +190,8 @@ def _try_two_opt_star(ru, i, rv, j, prob, sol, buf):
     makespan, total = _after_move(ru, ta, rv, tb, times, score)
     if not _improves(makespan, total, score):
         return False
-    k1 = _join(buf[0], routes, ru, i, rv, j + 1, end_s - 1)
-    k2 = _join(buf[1], routes, rv, j, ru, i + 1, end_r - 1)
+    k1 = join_routes(buf[0], routes, ru, i, rv, j + 1, end_s - 1)
+    k2 = join_routes(buf[1], routes, rv, j, ru, i + 1, end_r - 1)
     buf[0, k1], buf[1, k2] = routes[ru, 0], routes[rv, 0]
     routes[ru, : k1 + 1] = buf[0, : k1 + 1]
     routes[rv, : k2 + 1] = buf[1, : k2 + 1]
@@ -266,7 +266,7 @@ def _unload_longest(prob, sol, buf):
                     best_makespan, best_total, best_u, best_rv, best_after = makespan, total, iu, rv, after
     if best_u < 0:
         return False
-    _apply_relocate(ru, best_u, 1, best_rv, best_after, False, routes, rlen, sol[2], sol[3], sol[4], sol[5], sol[6],
+    apply_relocate(ru, best_u, 1, best_rv, best_after, False, routes, rlen, sol[2], sol[3], sol[4], sol[5], sol[6],
                     buf, D, prob[1])  # fmt: skip
     update_score(sol, inv_speed, fixed)
     return True

@@ -126,7 +126,7 @@ def restore(src_routes, src_rlen, src_info, routes, rlen, info, route_of, pos, p
 
 
 @njit(cache=True)
-def _apply_relocate(ru, start, length, rv, after, rev, routes, rlen, info, route_of, pos, pref, stamp, buf, C, E):
+def apply_relocate(ru, start, length, rv, after, rev, routes, rlen, info, route_of, pos, pref, stamp, buf, C, E):
     """Move the stretch routes[ru, start:start+length] to just after position ``after`` of route rv (a route
     left empty stays in its slot: the caller drops it, or keeps it as an idle vehicle of planner.fleet)."""
     last = start + length - 1
@@ -196,7 +196,7 @@ def _try_relocate(u, v, C, E, fixed, cap, routes, rlen, info, route_of, pos, pre
                 else:
                     feasible = energy_u + removal_e <= cap and energy_v + insert_e <= cap
                 if feasible:
-                    _apply_relocate(
+                    apply_relocate(
                         ru, iu, length, rv, after, rev == 1, routes, rlen, info, route_of, pos, pref, stamp, buf, C, E
                     )
                     if emptied:
@@ -229,7 +229,7 @@ def _try_swap(u, v, C, E, cap, routes, rlen, info, route_of, pos, pref, stamp):
 
 
 @njit(cache=True)
-def _join(out, routes, head_route, head_end, tail_route, tail_start, tail_end):
+def join_routes(out, routes, head_route, head_end, tail_route, tail_start, tail_end):
     """out = routes[head_route, 0..head_end] followed by routes[tail_route, tail_start..tail_end]; its length."""
     k = 0
     for t in range(head_end + 1):
@@ -259,8 +259,8 @@ def _try_two_opt_star(ru, i, rv, j, C, E, fixed, cap, routes, rlen, info, route_
         return False
     if pref[2, rv, j] + E[c, b] + pref[2, ru, end_r] - pref[2, ru, i + 1] > cap:
         return False
-    k1 = _join(buf[0], routes, ru, i, rv, j + 1, end_s)
-    k2 = _join(buf[1], routes, rv, j, ru, i + 1, end_r)
+    k1 = join_routes(buf[0], routes, ru, i, rv, j + 1, end_s)
+    k2 = join_routes(buf[1], routes, rv, j, ru, i + 1, end_r)
     routes[ru, :k1] = buf[0, :k1]
     routes[rv, :k2] = buf[1, :k2]
     rlen[ru], rlen[rv] = k1, k2

@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from planner.api import plan_tour
 from planner.chnn_ga import GAParameters
 from planner.errors import InputError, UnreachableBuoyError
 from planner.local_search import iterated_local_search, local_search, neighbour_lists
@@ -33,6 +32,7 @@ from planner.sortie_cost import EnergyBudget, SortieCost, default_sortie_cost
 from planner.sortie_search import copy_solution, refresh, search, seed_rng, total_cost
 from planner.sortie_search import local_search as sortie_local_search
 from planner.split import folded_matrices, split_tour
+from planner.tour import plan_tour
 
 OBJECTIVES = ("time", "distance")
 REOPTIMISE_EXACT_MAX_BUOYS = 11  # Held-Karp on 12 nodes takes a few ms; larger sorties get the CHNN-GA

@@ -7,10 +7,10 @@ import itertools
 import numpy as np
 import pytest
 
-from planner.api import plan_tour
 from planner.errors import InputError
 from planner.fleet import check_fleet, plan_fleet
 from planner.fleet_split import minmax_split
+from planner.tour import plan_tour
 
 
 def uniform(n_buoys: int, seed: int, depots=((0.0, 0.0),), size: float = 600.0) -> np.ndarray:

@@ -7,11 +7,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from planner.api import plan_tour
 from planner.errors import UnreachableBuoyError
 from planner.sortie_cost import EnergyBudget, FlightEnergyModel, SortieCost, default_sortie_cost, ground_speed
 from planner.sorties import SortieSearchParameters, objective_matrices, plan_sorties, warm_up
 from planner.split import split_tour
+from planner.tour import plan_tour
 
 WINDY = FlightEnergyModel(wind_east_m_s=4.0, wind_north_m_s=-3.0, dwell_s=20.0)
 

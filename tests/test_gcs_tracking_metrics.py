@@ -1,10 +1,10 @@
-"""Tracking figures (gcs.tracking) on hand-built tracks whose answers are known geometrically."""
+"""Tracking figures (gcs.tracking_metrics) on hand-built tracks whose answers are known geometrically."""
 
 import numpy as np
 import pytest
 
 from gcs import tracking
-from gcs.tracking import TrackPoint
+from gcs.tracking_metrics import TrackPoint
 
 # depot -> (100, 0) -> depot: two legs along the east axis
 ROUTE = np.array([[0.0, 0.0], [100.0, 0.0], [0.0, 0.0]])
