@@ -21,7 +21,7 @@ ends the mission aborted, naming the buoys not inspected.
 Per mission, from GET /missions/{id}: per sortie the predicted energy against the energy the vehicle's
 BATTERY_STATUS counted (error in % of used), the predicted landing charge against the measured one, the worst
 battery warning; the status, the flight time predicted (sum of the sorties') against flown
-(tracking.flight_time_s, airborne samples, vehicle time) and the wall time from POST to the end.
+(gcs.tracking_metrics.flight_time_s, airborne samples, vehicle time) and the wall time from POST to the end.
 """
 
 from __future__ import annotations

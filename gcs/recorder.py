@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs import tracking
+from gcs import tracking_metrics
 from gcs.link import LinkManager
 from gcs.planning import FIRST_BUOY_SEQ, Plan, buoy_of_seq, leg_of_seq
 from gcs.schemas import TELEMETRY_FROM_STATUS, TelemetrySample
@@ -168,7 +168,7 @@ class MissionRecorder:
             return
         buoys = np.asarray(self.plan.buoys_local, dtype=float).reshape(-1, 2)[todo]
         for buoy, point in zip(todo, buoys, strict=True):
-            distance = tracking.distance_to_segment(point, np.array(start), np.array([east, north]))[0]
+            distance = tracking_metrics.distance_to_segment(point, np.array(start), np.array([east, north]))[0]
             if distance <= self.acceptance_radius_m:
                 self.visited.add(buoy)
 
@@ -243,7 +243,7 @@ class MissionRecorder:
         if leg is None or s.lat is None:
             return None
         east, north = self.plan.frame.project(np.array([[s.lat, s.lon]]))[0]
-        return tracking.cross_track_m(float(east), float(north), self.route, leg)
+        return tracking_metrics.cross_track_m(float(east), float(north), self.route, leg)
 
     def progress(self) -> dict[str, Any]:
         s = self.link.status

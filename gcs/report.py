@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs.fleet_report import write_fleet_report
+from gcs.fleet_report import FLEET_FIGURE, write_fleet_report
 from gcs.planning import Plan
 from gcs.report_drawing import REPORT_STYLE, SORTIE_COLOURS, column, new_figure, save_figure, sortie_style
 from gcs.storage import MissionRecord, Storage
@@ -28,6 +28,8 @@ from gcs.views import sorties_out
 
 FIGURES = ("route.png", "tracking_error.png", "cross_track.png", "altitude.png", "yaw.png", "eso.png")
 ENERGY_FIGURE = "energy.png"  # drawn only for a mission planned with energy figures
+# every file a report folder may hold (a fleet mission's report: index.html and FLEET_FIGURE only)
+REPORT_FILES = ("index.html", *FIGURES, ENERGY_FIGURE, FLEET_FIGURE)
 # Okabe & Ito's colour-blind-safe palette less its yellow and black, as the map page draws sorties
 # (gcs/web/sorties.js); past six sorties the colours repeat with another dash.
 STAMP_FILE = "stamp.json"

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs import tracking
+from gcs import tracking_metrics
 from gcs.planning import FlightParams, Plan, leg_of_seq
 from uavcore.mavlink import mavlink
 
@@ -28,7 +28,7 @@ def flight_results(plan: Plan, flight: FlightParams, samples: list[dict[str, Any
     sortie_sizes = [len(order) for order in plan.sortie_orders()]
     en = plan.frame.project(np.array([[s["lat"], s["lon"]] for s in located]).reshape(-1, 2))
     track = [
-        tracking.TrackPoint(
+        tracking_metrics.TrackPoint(
             t_s=s["t_s"],
             east=float(e),
             north=float(n),
@@ -38,15 +38,15 @@ def flight_results(plan: Plan, flight: FlightParams, samples: list[dict[str, Any
         for s, (e, n) in zip(located, en, strict=True)
     ]
     reached_at = {int(k): float(v) for k, v in (progress.get("reached_at") or {}).items()}
-    buoys = tracking.buoy_figures(
+    buoys = tracking_metrics.buoy_figures(
         np.asarray(plan.buoys_local), [flight.acceptance_radius_m] * len(plan.buoys_local), track, reached_at
     )
     for result in buoys:
         result["id"] = plan.buoy_ids[result["index"]]
-    figures = tracking.tracking_figures(plan.route_local(), plan.length_m, track)
+    figures = tracking_metrics.tracking_figures(plan.route_local(), plan.length_m, track)
     # several sorties: the time on the ground between them is no flight time
     sortie_times = [
-        tracking.flight_time_s([p for p, s in zip(track, located, strict=True) if (s.get("sortie") or 0) == k])
+        tracking_metrics.flight_time_s([p for p, s in zip(track, located, strict=True) if (s.get("sortie") or 0) == k])
         for k in range(len(sortie_sizes))
     ]
     if len(sortie_sizes) > 1:

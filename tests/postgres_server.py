@@ -18,6 +18,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from processes import free_tcp_port
+
 START_TIMEOUT_S = 60.0
 
 
@@ -30,18 +32,12 @@ def postgres_bindir() -> Path | None:
     return None if initdb is None else Path(initdb).parent
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
 class PostgresServer:
     """initdb + pg_ctl start in a temporary directory; `stop()` removes everything."""
 
     def __init__(self, bindir: Path) -> None:
         self.bindir = bindir
-        self.port = _free_port()
+        self.port = free_tcp_port()
         self.root = Path(tempfile.mkdtemp(prefix="buoy-pg-"))
         self.data = self.root / "data"
         self._databases = 0

@@ -13,8 +13,6 @@ os.environ.setdefault("MAVLINK20", "1")  # pymavlink picks its wire protocol at 
 
 import math
 import queue
-import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -23,6 +21,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from processes import free_udp_port, stop_process
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink
 
@@ -33,33 +32,6 @@ START_TIMEOUT_S = 60.0  # a loaded 2-core machine can take long to import numpy/
 # A wait's deadline: only reached when the behaviour is wrong, however loaded the machine (a paced vehicle covers
 # less simulated time per wall second when it is, and a lockstep one runs at the CPU's pace).
 WAIT_S = 60.0
-
-
-def free_udp_port() -> int:
-    """A UDP port on 127.0.0.1 that nothing is bound to right now."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-def free_udp_port_block(count: int) -> int:
-    """The first of `count` consecutive UDP ports on 127.0.0.1 that nothing is bound to right now (a fleet's)."""
-    while True:
-        first = free_udp_port()
-        if first + count > 65536:
-            continue
-        sockets = []
-        try:
-            for port in range(first, first + count):
-                sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-                sockets.append(sock)
-                sock.bind(("127.0.0.1", port))
-            return first
-        except OSError:
-            continue
-        finally:
-            for sock in sockets:
-                sock.close()
 
 
 def start_lockstep_pair(port: int, seed: int, log: Path) -> tuple[subprocess.Popen, subprocess.Popen]:
@@ -129,14 +101,7 @@ class SitlProcess:
         """SIGTERM, then SIGKILL if it has not exited within timeout; returns the exit code."""
         if self.process is None:
             return None
-        if self.process.poll() is None:
-            self.process.send_signal(signal.SIGTERM)
-            try:
-                self.process.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait(timeout)
-        self.returncode = self.process.returncode
+        self.returncode = stop_process(self.process, timeout)
         return self.returncode
 
     def stderr(self) -> str:

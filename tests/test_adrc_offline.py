@@ -8,7 +8,8 @@ import math
 import time
 
 import pytest
-from sitl_process import GroundStation, free_udp_port, start_lockstep_pair
+from processes import free_udp_port
+from sitl_process import GroundStation, start_lockstep_pair
 
 from adrc_offboard.cli import make_controller
 from sitl_quad.config import VehicleConfig

@@ -14,7 +14,6 @@ os.environ.setdefault("MAVLINK20", "1")  # pymavlink picks its wire protocol at 
 
 import math
 import random
-import signal
 import socket
 import subprocess
 import sys
@@ -25,8 +24,9 @@ from pathlib import Path
 import httpx
 import numpy as np
 import pytest
+from processes import free_tcp_port, free_udp_port, stop_process
 from pymavlink.dialects.v20 import common as mavlink
-from sitl_process import GroundStation, free_udp_port, short_mission
+from sitl_process import GroundStation, short_mission
 from udp_relay import LossyUdpRelay
 
 from gcs.lifecycle import REATTACHED, RESTART_NOT_FLYING
@@ -84,16 +84,7 @@ class Child:
         self.process.wait(10)
 
     def stop(self) -> int | None:
-        if self.process is None:
-            return None
-        if self.process.poll() is None:
-            self.process.send_signal(signal.SIGTERM)
-            try:
-                self.process.wait(10)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait(10)
-        return self.process.returncode
+        return None if self.process is None else stop_process(self.process)
 
 
 class Stack:
@@ -193,12 +184,6 @@ def stack(tmp_path) -> Iterator[Stack]:
     problems = running.close()
     if problems:
         pytest.fail("\n".join(problems))
-
-
-def free_tcp_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def wait_until(probe: Callable[[], object], timeout_s: float, what) -> object:

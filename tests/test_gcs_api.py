@@ -4,11 +4,11 @@ Flying is covered by the integration test against the real vehicle (test_gcs_int
 """
 
 import json
-import socket
 import time
 
 import pytest
 from fastapi.testclient import TestClient
+from processes import free_udp_port
 
 from gcs.app import create_app
 from gcs.exports import read_qgc_plan, read_waypoints
@@ -20,12 +20,6 @@ from uavcore.geodesy import DEFAULT_HOME
 
 SCENARIO = reference_scenario(1)
 BUOYS = [{"lat": lat, "lon": lon} for lat, lon in SCENARIO.buoys_lat_lon]
-
-
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def make_client(tmp_path, **overrides) -> TestClient:

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from ardupilot_double import ArduCopterDouble
 from fastapi.testclient import TestClient
-from sitl_process import free_udp_port
+from processes import free_udp_port
 
 from gcs.app import create_app
 from gcs.autopilots import ArduCopter

@@ -17,7 +17,8 @@ import time
 from collections.abc import AsyncIterator, Callable
 
 import pytest
-from sitl_process import WAIT_S, free_udp_port
+from processes import free_udp_port
+from sitl_process import WAIT_S
 
 from gcs.link import CommandDeniedError, LinkManager
 from gcs.parameters import ParameterError

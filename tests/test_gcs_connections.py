@@ -19,8 +19,9 @@ import time
 import tty
 
 import pytest
+from processes import free_udp_port, stop_process
 from service_process import free_port
-from sitl_process import SitlProcess, free_udp_port
+from sitl_process import SitlProcess
 
 from gcs.connection import ConnectionStringError, parse_connection
 from gcs.link import LinkManager
@@ -445,8 +446,7 @@ def test_up_listens_for_a_vehicle_streaming_to_it(tmp_path, vehicle):
             time.sleep(0.2)
         assert state["sysid"] == 9 and state["autopilot"] == "PX4"
     finally:
-        up.terminate()
-        up.wait(timeout=20)
+        stop_process(up, 20)
 
 
 @pytest.mark.parametrize(

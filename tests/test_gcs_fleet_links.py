@@ -11,8 +11,9 @@ import time
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from processes import free_udp_port, free_udp_port_block
 from service_process import free_port
-from sitl_process import SitlProcess, free_udp_port, free_udp_port_block
+from sitl_process import SitlProcess
 
 from gcs.app import create_app
 from gcs.connection import TransportHub

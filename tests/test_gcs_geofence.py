@@ -17,7 +17,8 @@ from mavsdk.plugins.mission_raw import MissionItem as MavsdkItem
 from mavsdk.plugins.mission_raw import MissionRaw
 from mavsdk.plugins.param import Param
 from mavsdk.plugins.telemetry import FlightMode, Telemetry
-from sitl_process import WAIT_S, free_udp_port
+from processes import free_udp_port
+from sitl_process import WAIT_S
 from test_sitl_mavsdk import FIELDS, mavsdk_system, wait_until
 
 from gcs.app import create_app

@@ -4,13 +4,13 @@ No fake vehicle here: the vehicle is the project's SITL process on a free port, 
 (FastAPI lifespan, link manager, storage on disk) driven through its HTTP API.
 """
 
-import socket
 import subprocess
 import sys
 import time
 
 import pytest
 from fastapi.testclient import TestClient
+from processes import free_udp_port, stop_process
 
 from gcs.app import create_app
 from gcs.settings import Settings
@@ -28,12 +28,6 @@ TERMINAL = {"completed", "failed", "aborted"}
 WAIT_S = 120.0
 
 
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
 @pytest.fixture
 def vehicle(tmp_path):
     """The real vehicle in lockstep on a free port; yields (port, process)."""
@@ -45,13 +39,7 @@ def vehicle(tmp_path):
         stderr=subprocess.STDOUT,
     )
     yield port, process
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+    stop_process(process)
     log.close()
 
 
@@ -136,8 +124,7 @@ def test_vehicle_lost_mid_flight_ends_failed_and_the_link_reconnects_after_resta
                 state = client.get("/vehicle").json()
             assert state["connected"] and state["reboots"] == 1
         finally:
-            restarted.terminate()
-            restarted.wait(10)
+            stop_process(restarted)
 
 
 def test_mission_with_the_offboard_controller_records_its_eso_estimates(tmp_path, vehicle):
@@ -165,6 +152,5 @@ def test_mission_with_the_offboard_controller_records_its_eso_estimates(tmp_path
             with_estimates = [s for s in airborne if s["eso"] and any(s["eso"].get("ESO_Z3") or [])]
             assert len(with_estimates) > 0.9 * len(airborne) > 0
     finally:
-        offboard.terminate()
-        offboard.wait(10)
+        stop_process(offboard)
         log.close()

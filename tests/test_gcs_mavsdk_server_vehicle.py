@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from sitl_process import REPO, free_udp_port
+from processes import free_udp_port, stop_process
+from sitl_process import REPO
 
 from gcs.app import create_app
 from gcs.link import LinkManager
@@ -82,13 +83,7 @@ class MavsdkVehicle:
         return self.log_path.read_text()[-3000:]
 
     def stop(self) -> int:
-        if self.process.poll() is None:
-            self.process.terminate()
-            try:
-                self.process.wait(15)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait()
+        stop_process(self.process, 15)
         self._log.close()
         return self.process.returncode
 

@@ -15,13 +15,13 @@ and waits for a started mission to end ("no vehicle"), so a replayed scenario ge
 loaded the machine.
 """
 
-import socket
 import time
 
 import pytest
 import schemathesis
 from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, settings
+from processes import free_udp_port
 from schemathesis.checks import not_a_server_error
 from schemathesis.core.transport import Response
 from schemathesis.specs.openapi.checks import (
@@ -48,12 +48,6 @@ CHECKS = [
 BASE_URL = "http://testserver"
 
 
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
 APP_FOR_SCHEMA = create_app(Settings(db_path=":memory:"))
 schema = schemathesis.openapi.from_dict(APP_FOR_SCHEMA.openapi())
 
@@ -62,7 +56,7 @@ def fuzz_settings(tmp_path_factory) -> Settings:
     """A service with a database of its own and no vehicle at its link's port (missions wait 0.05 s for one)."""
     return Settings(
         db_path=tmp_path_factory.mktemp("fuzz") / "gcs.sqlite",
-        vehicle_url=f"udpout:127.0.0.1:{_free_udp_port()}",
+        vehicle_url=f"udpout:127.0.0.1:{free_udp_port()}",
         vehicle_wait_s=0.05,
     )
 

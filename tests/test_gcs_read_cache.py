@@ -9,10 +9,10 @@
 
 from __future__ import annotations
 
-import socket
 from dataclasses import asdict
 
 from fastapi.testclient import TestClient
+from processes import free_udp_port
 
 from gcs.app import create_app
 from gcs.planning import FlightParams, make_plan
@@ -22,12 +22,6 @@ from gcs.settings import Settings
 from gcs.status import MissionStatus
 from gcs.storage import open_storage
 from planner.scenario import reference_scenario
-
-
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 # ----- the cache

@@ -20,7 +20,8 @@ from pathlib import Path
 import pytest
 from fastapi.routing import APIRoute
 from fastapi.testclient import TestClient
-from sitl_process import REPO, free_udp_port
+from processes import free_udp_port, stop_process
+from sitl_process import REPO
 from starlette.websockets import WebSocketDisconnect
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect as ws_connect
@@ -351,8 +352,7 @@ def served(tmp_path):
         assert process.poll() is None and time.monotonic() < deadline, log.read_text()
         time.sleep(0.1)
     yield url, log
-    process.terminate()
-    process.wait(30)
+    stop_process(process, 30)
 
 
 def test_the_token_never_reaches_the_log(served):

@@ -4,11 +4,11 @@ two-hour mission (72 000 samples at 10 Hz), whose exports stay at full resolutio
 from __future__ import annotations
 
 import itertools
-import socket
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from processes import free_udp_port
 
 from bench.long_mission import SAMPLES, store_long_mission
 from gcs.app import create_app
@@ -19,12 +19,6 @@ from gcs.storage import open_storage
 from gcs.track_display import arrival_indices, evenly_spaced, extremes_per_bucket, simplify_track
 
 DISPLAY_TOLERANCE_M = 1.0  # the page draws the 2-hour track within this of every recorded position
-
-
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def deviations(points: np.ndarray, kept: np.ndarray) -> np.ndarray:

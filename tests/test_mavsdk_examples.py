@@ -23,7 +23,6 @@ import contextlib
 import math
 import os
 import signal
-import socket
 import subprocess
 import threading
 import time
@@ -32,7 +31,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
-from sitl_process import REPO, VEHICLE_SYSID, GroundStation, SitlProcess, free_udp_port, mavlink
+from processes import free_tcp_port, free_udp_port
+from sitl_process import REPO, VEHICLE_SYSID, GroundStation, SitlProcess, mavlink
 
 from uavcore.geodesy import LocalFrame
 from uavcore.modes import FlightMode
@@ -55,13 +55,6 @@ SETTLE_TIMEOUT_S = 180.0  # for the vehicle to finish what the example started (
 # For the observer's thread to have read what the vehicle sent before the example exited (a loaded machine's
 # scheduler may leave it behind the example): what happened is waited for, never judged the moment the example ends.
 CATCH_UP_S = 60.0
-
-
-def free_tcp_port() -> int:
-    """A TCP port on 127.0.0.1 that nothing listens on right now (for the bundled mavsdk_server's gRPC)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 # ----- what the vehicle reports, recorded by a second ground station

@@ -6,7 +6,8 @@ import socket
 import time
 
 import pytest
-from sitl_process import WAIT_S, GroundStation, free_udp_port
+from processes import free_udp_port
+from sitl_process import WAIT_S, GroundStation
 
 from uavcore.mavlink import mavlink
 

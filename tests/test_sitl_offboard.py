@@ -9,7 +9,8 @@ import threading
 import time
 
 import pytest
-from sitl_process import GroundStation, free_udp_port, start_lockstep_pair
+from processes import free_udp_port
+from sitl_process import GroundStation, start_lockstep_pair
 from test_sitl_vehicle import FRAME
 
 from uavcore.mavlink import mavlink

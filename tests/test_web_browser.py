@@ -23,6 +23,7 @@ from urllib.parse import urlsplit
 import pytest
 from ardupilot_double import ArduCopterDouble
 from playwright.sync_api import Browser, Page, Playwright, expect, sync_playwright
+from processes import free_port, stop_process
 from service_process import serving
 from sitl_process import SitlProcess
 
@@ -58,22 +59,6 @@ STATUS_PROBE = """async () => {
 def csv_file(text: str) -> dict:
     """A file for <input type=file> (Playwright's set_input_files payload)."""
     return {"name": "buoys.csv", "mimeType": "text/csv", "buffer": text.encode()}
-
-
-def free_port(kind: int) -> int:
-    with socket.socket(socket.AF_INET, kind) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-def stop(process: subprocess.Popen) -> None:
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
 
 
 def wait_until_connected(url: str, log: Path) -> None:
@@ -134,8 +119,8 @@ def stack(tmp_path):
     url = f"http://127.0.0.1:{http}"
     wait_until_connected(url, tmp_path / "stack.log")
     yield url
-    stop(gcs)
-    stop(vehicle)
+    stop_process(gcs)
+    stop_process(vehicle)
     logs.close()
 
 
@@ -246,7 +231,7 @@ def double_and_service(tmp_path):
     wait_until_connected(url, tmp_path / "service.log")
     yield url, double
     double.stop()
-    stop(gcs)
+    stop_process(gcs)
     logs.close()
 
 
@@ -520,7 +505,7 @@ def fleet_service(tmp_path):
             time.sleep(0.3)
         yield url, frame
     finally:
-        stop(gcs)
+        stop_process(gcs)
         logs.close()
         for vehicle in vehicles:
             vehicle.cleanup()

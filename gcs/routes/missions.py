@@ -162,7 +162,7 @@ def get_report(mission_id: MissionId, service: ServiceDep) -> RedirectResponse:
 async def get_report_file(mission_id: MissionId, name: str, service: ServiceDep) -> FileResponse:
     """index.html or one of its figures, drawn on first request and again only after the mission changed."""
     service.get(mission_id)
-    if name not in ("index.html", *report.FIGURES, report.ENERGY_FIGURE, report.FLEET_FIGURE):
+    if name not in report.REPORT_FILES:
         raise HTTPException(404, f"no report file {name!r}")
     index = await asyncio.to_thread(service.report_index, mission_id)
     if not (index.parent / name).is_file():  # energy.png: only for a mission planned with energy figures
