@@ -19,7 +19,8 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
-	$(BIN)/python -m planner.warmup  # numba's on-disk cache: services and tests then load, not compile
+	$(BIN)/python -m planner.warmup  # numba's on-disk cache: services, vehicles and tests then load, not compile
+	$(BIN)/python -m sitl_quad.warmup
 	touch $(STAMP)
 
 # The last line proves the bundled mavsdk_server binary runs on this machine (it is a prebuilt executable).

@@ -191,6 +191,7 @@ def main(argv: list[str] | None = None) -> int:
     from sitl_quad.server import VehicleServer
     from sitl_quad.vehicle import Vehicle
     from sitl_quad.vehicle_params import VEHICLE_PARAMETERS
+    from sitl_quad.warmup import warm_up
 
     config = VehicleConfig()
     table = ParameterTable(VEHICLE_PARAMETERS, config)
@@ -205,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
         for spec in table.specs:
             print(f"{spec.name:16} {table.get(spec.name):<14.6g} {spec.description}")
         return 0
-    warm_up(config, args.home, args.outer_rate)
+    warm_up(config, args.home, args.outer_rate)  # before listening: no ground station waits on a compile
     vehicle = Vehicle(
         config, home=args.home, seed=args.seed, outer_rate_hz=args.outer_rate, attitude_loops=attitude_loops()
     )
@@ -243,26 +244,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.stats is not None:
         args.stats.write_text(json.dumps(server.stats(), indent=2) + "\n")
     return 0
-
-
-def warm_up(config, home: tuple[float, float, float], outer_rate_hz: float) -> None:
-    """Fly a throwaway copy of the vehicle for a moment before listening.
-
-    That compiles (or loads from numba's cache) every kernel a flight uses. A first compile takes seconds;
-    done later it would stall the first armed tick while ground stations wait for their command acks.
-    """
-    import copy
-
-    from sitl_quad.attitude_loops import attitude_loops
-    from sitl_quad.vehicle import Vehicle
-
-    scratch = Vehicle(
-        copy.deepcopy(config), home=home, seed=0, outer_rate_hz=outer_rate_hz, attitude_loops=attitude_loops()
-    )
-    scratch.arm()
-    scratch.takeoff(2.0)
-    for _ in range(round(2.0 * outer_rate_hz)):  # spool-up, then climbing under the onboard loops
-        scratch.tick()
 
 
 def _fail(message: str) -> int:
