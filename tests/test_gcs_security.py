@@ -11,17 +11,14 @@ import html
 import http.client
 import json
 import re
-import socket
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 from fastapi.routing import APIRoute
 from fastapi.testclient import TestClient
-from processes import free_udp_port, stop_process
-from sitl_process import REPO
+from processes import free_udp_port
+from service_process import serving
 from starlette.websockets import WebSocketDisconnect
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect as ws_connect
@@ -335,24 +332,10 @@ def test_every_string_a_request_carries_is_bounded(client):
 # ----- the real server: the token never reaches its output
 @pytest.fixture
 def served(tmp_path):
-    """`python -m gcs serve --token ...` on a free port, output to a file; yields (url, log path)."""
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port = sock.getsockname()[1]
+    """`python -m gcs serve --token ...` on free ports, output to a file; yields (url, log path)."""
     log = tmp_path / "serve.log"
-    argv = [sys.executable, "-m", "gcs", "serve", "--port", str(port), "--token", TOKEN]
-    argv += ["--db", str(tmp_path / "gcs.sqlite"), "--vehicle", f"udpout:127.0.0.1:{free_udp_port()}"]
-    with open(log, "w") as out:
-        process = subprocess.Popen(argv, cwd=REPO, stdout=out, stderr=subprocess.STDOUT)
-    url = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + 60
-    # uvicorn says "Application startup complete" before it listens (on a loaded machine, long before): wait until
-    # it says it is running, i.e. the socket is bound
-    while "Uvicorn running on" not in log.read_text():
-        assert process.poll() is None and time.monotonic() < deadline, log.read_text()
-        time.sleep(0.1)
-    yield url, log
-    stop_process(process, 30)
+    with serving(tmp_path / "gcs.sqlite", log, "--token", TOKEN) as url:
+        yield url, log
 
 
 def test_the_token_never_reaches_the_log(served):
