@@ -20,6 +20,7 @@ from sitl_quad.mavlink.mission import MissionProtocol
 from sitl_quad.mavlink.offboard import Offboard
 from sitl_quad.mavlink.parameters import Parameters
 from sitl_quad.mavlink.telemetry import Telemetry
+from sitl_quad.pacing import WallPacing
 from sitl_quad.params import ParameterTable
 from sitl_quad.vehicle import CommandResult, TickRecord, Vehicle, VehicleEvent
 from uavcore.mavlink import mavlink
@@ -28,7 +29,6 @@ from uavcore.rotation import euler_from_quat
 log = logging.getLogger(__name__)
 
 MAX_WAIT_SLICE_S = 0.005  # never sleep longer than this without looking at the socket and wall timers
-RESYNC_BEHIND_S = 0.5  # paced mode fell this far behind the wall clock: re-anchor instead of racing
 
 
 class VehicleServer:
@@ -46,9 +46,12 @@ class VehicleServer:
         vehicle.wall_clock = time.monotonic  # protocol-facing timers also respect the wall clock
         self.params = params
         self.link = link
-        self.speed = speed
         self.lockstep = lockstep
         self.running = True
+        self.pacing = WallPacing(speed, time.monotonic(), vehicle.t)
+        self._arrived_at = 0.0  # when the message being handled reached the socket (wall clock)
+        if not lockstep:  # a setpoint read late belongs to the simulated time it arrived at (sitl_quad.pacing)
+            vehicle.arrival_step = self.arrival_step
         self.handler_errors = 0
         self.tick_lateness_s: list[float] = []  # paced mode: how late each tick started (for --stats)
         self.armed_lateness_s: list[float] = []  # the same, of the ticks flown armed (a fleet's start-ups excluded)
@@ -84,10 +87,11 @@ class VehicleServer:
         self.link.send(msg, peer)
 
     def handle_incoming(self) -> None:
-        for peer, msg in self.link.receive():
+        for peer, msg, at in self.link.receive():
             handler = self.dispatch.get(msg.get_type())
             if handler is None:
                 continue
+            self._arrived_at = at  # for arrival_step()
             try:
                 handler(peer, msg)
             except Exception:  # a bug in one handler must not take the vehicle down mid-flight
@@ -108,15 +112,14 @@ class VehicleServer:
     # ----- the loop
     def run(self, duration_s: float | None = None) -> None:
         """Run until stop() or until `duration_s` of simulated time has passed."""
-        wall_anchor, sim_anchor = time.monotonic(), self.vehicle.t
+        self.pacing.resync(time.monotonic(), self.vehicle.t)
         end = None if duration_s is None else self.vehicle.t + duration_s
         while self.running and (end is None or self.vehicle.t < end - 1e-9):
-            wall_anchor, sim_anchor = self._wait_for_next_tick(wall_anchor, sim_anchor)
+            self._wait_for_next_tick()
             if not self.running:
                 break
             if not self.lockstep:
-                due = wall_anchor + (self.vehicle.t - sim_anchor) / self.speed
-                self.tick_lateness_s.append(time.monotonic() - due)
+                self.tick_lateness_s.append(self.pacing.behind_s(time.monotonic(), self.vehicle.t))
                 if self.vehicle.armed:
                     self.armed_lateness_s.append(self.tick_lateness_s[-1])
             record = self.vehicle.tick()
@@ -129,23 +132,28 @@ class VehicleServer:
     def stop(self) -> None:
         self.running = False
 
-    def _wait_for_next_tick(self, wall_anchor: float, sim_anchor: float) -> tuple[float, float]:
+    def arrival_step(self) -> int:
+        """Paced mode: the physics step the message being handled arrived at (sitl_quad.pacing)."""
+        sim = self.vehicle.sim
+        ahead_s = self.pacing.arrival_time(self._arrived_at, time.monotonic(), sim.t) - sim.t
+        return sim.step_index + int(ahead_s / sim.dt)  # rounded down: a setpoint is never made younger than it is
+
+    def _wait_for_next_tick(self) -> None:
         while self.running:
             self.handle_incoming()
             self.poll_wall_timers()
             now = time.monotonic()
             if self.lockstep:
                 if not self.offboard.streaming(now) or self.offboard.answered(self.vehicle.time_boot_ms):
-                    return wall_anchor, sim_anchor
+                    return
                 self.link.wait(MAX_WAIT_SLICE_S)
                 continue
-            due = wall_anchor + (self.vehicle.t - sim_anchor) / self.speed
+            due = self.pacing.due(self.vehicle.t)
             if now >= due:
-                if now - due > RESYNC_BEHIND_S:  # e.g. the process was suspended: don't sprint to catch up
-                    return now, self.vehicle.t
-                return wall_anchor, sim_anchor
+                if self.pacing.must_resync(now, self.vehicle.t):  # e.g. the process was suspended: don't sprint
+                    self.pacing.resync(now, self.vehicle.t)
+                return
             self.link.wait(min(due - now, MAX_WAIT_SLICE_S))
-        return wall_anchor, sim_anchor
 
     def _publish_events(self) -> None:
         vehicle = self.vehicle

@@ -112,6 +112,9 @@ class Vehicle:
         self.mode = FlightMode.AUTO_LOITER
         self.mode_after_disarm = FlightMode.AUTO_LOITER  # the user's last mode that allows arming
         self.offboard = OffboardStream()
+        # The physics step a setpoint read now belongs to: a paced server that fell behind the wall clock names a
+        # later one than the current step (sitl_quad.pacing); None: the current step (lockstep, tests)
+        self.arrival_step: Callable[[], int] | None = None
         self.offboard_tracker = OffboardTracker()
         self.geofence = GeofenceGuard()
         self.fence_items: list[MissionItem] = []  # the MISSION_TYPE_FENCE list, as uploaded
@@ -405,16 +408,19 @@ class Vehicle:
         self._emit("mission_current", seq=seq)
         return True
 
+    def _arrival_step(self) -> int:
+        return self.sim.step_index if self.arrival_step is None else max(self.sim.step_index, self.arrival_step())
+
     def set_offboard_target(self, target: AttitudeTarget, answered_ms: int) -> None:
-        self.offboard.receive(target, answered_ms, self.sim.step_index)
+        self.offboard.receive(target, answered_ms, self._arrival_step())
 
     def set_offboard_position_target(self, target: PositionTarget) -> None:
         """SET_POSITION_TARGET_*, already in the local NED frame (sitl_quad.offboard_setpoints)."""
-        self.offboard.receive_position(target, self.sim.step_index)
+        self.offboard.receive_position(target, self._arrival_step())
 
     def set_offboard_rates_target(self, target: RatesTarget) -> None:
         """SET_ATTITUDE_TARGET with body rates and thrust, the attitude ignored."""
-        self.offboard.receive_rates(target, self.sim.step_index)
+        self.offboard.receive_rates(target, self._arrival_step())
 
     # ----- geofence and rally points (the other two lists of the mission protocol)
     def set_fence(self, items: list[MissionItem]) -> None:

@@ -9,6 +9,7 @@ import pytest
 from processes import free_udp_port
 from sitl_process import WAIT_S, GroundStation
 
+from sitl_quad.mavlink.link import UdpLink
 from uavcore.mavlink import mavlink
 
 pytestmark = pytest.mark.integration
@@ -87,3 +88,23 @@ def test_signed_vehicle_refuses_unsigned_commands_and_obeys_the_keyed_station(st
     finally:
         keyed.close()
         stranger.close()
+
+
+def test_a_message_read_late_carries_the_time_it_reached_the_socket():
+    """The vehicle reads the kernel's receive timestamp: a setpoint that waited 0.3 s in the socket (a process the
+    machine did not schedule) is known to be 0.3 s old, not as fresh as the moment it was read."""
+    link = UdpLink(port=0)
+    sender = GroundStation(link.address[1])
+    try:
+        sent_before = time.monotonic()
+        sender.send_heartbeat()
+        sent_after = time.monotonic()
+        time.sleep(0.3)
+        read_at = time.monotonic()
+        received = link.receive()
+    finally:
+        sender.close()
+        link.close()
+    assert [r.msg.get_type() for r in received] == ["HEARTBEAT"]
+    # the two clocks (the kernel stamps CLOCK_REALTIME) are compared to the microsecond; 1 ms leaves room for that
+    assert sent_before - 0.001 <= received[0].at <= sent_after + 0.001 < read_at - 0.25

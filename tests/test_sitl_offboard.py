@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import csv
 import math
+import os
+import signal
 import threading
 import time
 
@@ -31,22 +33,28 @@ def main_mode(heartbeat) -> int:
 
 
 class AttitudeStream:
-    """SET_ATTITUDE_TARGET at 100 Hz wall clock from a thread of its own, as an offboard computer streams, until
-    stop(): the test changes `roll`/`thrust` while it runs and never leaves a gap in the stream (a gap longer
-    than OFFB_LOSS_T of the vehicle's time would trigger the failsafe before the test means it to)."""
+    """SET_ATTITUDE_TARGET every `period_s` (100 Hz) wall clock from a thread of its own, as an offboard computer
+    streams, until stop(): the test changes `roll`/`thrust` while it runs and never leaves a gap in the stream (a
+    gap longer than OFFB_LOSS_T of the vehicle's time would trigger the failsafe before the test means it to)."""
 
-    def __init__(self, station: GroundStation, roll: float, thrust: float) -> None:
-        self.station, self.roll, self.thrust = station, roll, thrust
+    def __init__(self, station: GroundStation, roll: float, thrust: float, period_s: float = 0.01) -> None:
+        self.station, self.roll, self.thrust, self.period_s = station, roll, thrust, period_s
+        self.longest_gap_s = 0.0  # between two sends, wall clock: a loaded machine may hold this thread back
         self._running = True
         self._thread = threading.Thread(target=self._run, name="attitude-stream", daemon=True)
         self._thread.start()
 
     def _run(self) -> None:
         ignore_rates = 7
+        last = None
         while self._running:
             q = [float(c) for c in quat_from_euler(self.roll, 0.0, 0.0)]
             self.station.mav.set_attitude_target_send(0, 1, 1, ignore_rates, q, 0.0, 0.0, 0.0, self.thrust)
-            time.sleep(0.01)
+            now = time.monotonic()
+            if last is not None:
+                self.longest_gap_s = max(self.longest_gap_s, now - last)
+            last = now
+            time.sleep(self.period_s)
 
     def stop(self) -> None:
         self._running = False
@@ -132,6 +140,74 @@ def test_attitude_stream_is_obeyed_and_its_loss_lands_gently(start_sitl, tmp_pat
 
     limit = LOSS_TIMEOUT_S + 1e-6
     assert age_at_tick_start(rows[switch - 1]) <= limit < age_at_tick_start(rows[switch]) <= limit + 0.02
+
+
+HOVER_THRUST = 1.3 * 9.81 / (4 * 2.85e-5 * 500.0**2)  # m g / max thrust of Table 2 at 500 rad/s
+
+
+def take_off_into_offboard(gcs: GroundStation, stream_station: GroundStation, period_s: float) -> AttitudeStream:
+    """Arm, take off to 5 m, start a level hover stream and switch to OFFBOARD once it is accepted."""
+    assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == mavlink.MAV_RESULT_ACCEPTED
+    assert gcs.command(mavlink.MAV_CMD_NAV_TAKEOFF).result == mavlink.MAV_RESULT_ACCEPTED
+    assert gcs.recv("LOCAL_POSITION_NED", timeout=LOADED_BACKSTOP_S, condition=lambda m: m.z < -4.5) is not None
+    stream = AttitudeStream(stream_station, 0.0, HOVER_THRUST, period_s)
+    deadline = time.monotonic() + LOADED_BACKSTOP_S
+    while (ack := gcs.set_mode(OFFBOARD)) is not None and ack.result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED:
+        assert time.monotonic() < deadline, "OFFBOARD still refused while the setpoints stream"
+    assert ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED
+    return stream
+
+
+# Suspended for less than the 0.5 s after which it re-anchors, the vehicle sprints through the time it missed
+# (sitl_quad.pacing). With the setpoints it then read stamped at the late tick that read them, a 10 Hz stream was
+# 0.5 s old at the end of each sprint: on the edge of the default OFFB_LOSS_T, which a MAVSDK example's 20 Hz
+# stream crossed in a loaded test run.
+STALL_S = 0.48
+STALLS = 6
+TICK_S = 0.02  # the vehicle's outer loop (50 Hz): the flight log holds each setpoint's age at the end of a tick
+
+
+def test_a_vehicle_process_the_machine_stalls_counts_setpoints_from_their_arrival(start_sitl, tmp_path):
+    """A loaded machine can leave the vehicle's process unscheduled for a while (here SIGSTOP, 0.48 s): the
+    setpoints a 10 Hz stream (PX4 asks for more than 2 Hz) sent meanwhile count from when they arrived, so no
+    setpoint looks older than the stream's longest gap, and the vehicle stays in OFFBOARD through every stall."""
+    log = tmp_path / "flight.csv"
+    vehicle = start_sitl(speed=1.0, extra_args=("--log", str(log)))
+    gcs = GroundStation(vehicle.port)
+    gcs.connect()
+    offboard = GroundStation(vehicle.port, sysid=1, compid=mavlink.MAV_COMP_ID_ONBOARD_COMPUTER)
+    stream = None
+    try:
+        stream = take_off_into_offboard(gcs, offboard, period_s=0.1)
+        modes, texts = set(), []
+        for _ in range(STALLS):
+            os.kill(vehicle.process.pid, signal.SIGSTOP)
+            time.sleep(STALL_S)
+            os.kill(vehicle.process.pid, signal.SIGCONT)
+            gcs.send_heartbeat()
+            heartbeats = 0
+            while heartbeats < 2:  # what the vehicle did after the stall: two heartbeats (1 Hz) and all before
+                msg = gcs.recv(["HEARTBEAT", "STATUSTEXT"], timeout=LOADED_BACKSTOP_S)
+                assert msg is not None, "the vehicle fell silent"
+                if msg.get_type() == "HEARTBEAT":
+                    heartbeats += 1
+                    modes.add(main_mode(msg))
+                else:
+                    texts.append(msg.text)
+    finally:
+        if stream is not None:
+            stream.stop()
+        offboard.close()
+        gcs.close()
+    vehicle.stop()
+    with open(log) as f:
+        rows = list(csv.DictReader(f))
+    ages = [float(r["offboard_age"]) for r in rows if r["mode"] == "OFFBOARD"]
+    # a setpoint's age: at most the stream's own longest gap (at 1x, wall = simulated), one tick for the log's
+    # end-of-tick age and one for rounding down to the physics step
+    assert len(ages) > STALLS * STALL_S / TICK_S and max(ages) <= stream.longest_gap_s + 2 * TICK_S
+    if stream.longest_gap_s < 0.5 - 2 * TICK_S:  # the stream itself never paused for OFFB_LOSS_T
+        assert modes == {OFFBOARD} and not [t for t in texts if "setpoints lost" in t], texts
 
 
 def _fly_lockstep_mission(tmp_path, tag: str, seed: int) -> list[list[str]]:

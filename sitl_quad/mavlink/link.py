@@ -11,8 +11,11 @@ from __future__ import annotations
 import logging
 import select
 import socket
+import struct
+import sys
 import time
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from uavcore.mavlink import VEHICLE_UDP_PORT, Encoder, mavlink, new_parser, parse_datagram
 
@@ -21,6 +24,12 @@ log = logging.getLogger(__name__)
 PEER_TIMEOUT_S = 10.0  # a peer silent this long (wall clock) stops receiving telemetry
 MAX_DATAGRAM = 65535
 MAX_BATCH_BYTES = 1200  # stays under a 1500-byte Ethernet MTU when a peer is on another host
+TIMESPEC = struct.Struct("@qq")  # SCM_TIMESTAMPNS: struct timespec, seconds and nanoseconds (CLOCK_REALTIME)
+ANCILLARY_SPACE = socket.CMSG_SPACE(TIMESPEC.size)
+# Linux's SO_TIMESTAMPNS (asm-generic/socket.h, x86 and ARM), which Python's socket module does not name;
+# elsewhere a message's arrival is when it is read
+SO_TIMESTAMPNS = 35 if sys.platform == "linux" else None
+SCM_TIMESTAMPNS = SO_TIMESTAMPNS
 
 
 @dataclass
@@ -52,6 +61,25 @@ class LinkStats:
         return self.malformed + self.unsigned_rejected + self.unknown
 
 
+class Received(NamedTuple):
+    """A message for this vehicle, the peer it came from, and when the kernel received its datagram
+    (time.monotonic()): a process the machine did not schedule for a while reads it later than that."""
+
+    peer: Peer
+    msg: object
+    at: float
+
+
+def _arrival_time(ancillary: list[tuple[int, int, bytes]]) -> float:
+    """The datagram's kernel receive time (SO_TIMESTAMPNS) on the monotonic clock; now when it has none."""
+    now = time.monotonic()
+    for level, kind, data in ancillary:
+        if level == socket.SOL_SOCKET and kind == SCM_TIMESTAMPNS and len(data) >= TIMESPEC.size:
+            seconds, nanoseconds = TIMESPEC.unpack_from(data)
+            return min(now, now - (time.time() - (seconds + nanoseconds * 1e-9)))
+    return now
+
+
 def _target_of(msg) -> tuple[int, int] | None:
     """(target_system, target_component) of a message, or None for a broadcast-type message."""
     target_system = getattr(msg, "target_system", None)
@@ -75,6 +103,8 @@ class UdpLink:
         self.sysid, self.compid = sysid, compid
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+        if SO_TIMESTAMPNS is not None:
+            self.sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)  # see Received.at
         self.sock.bind((host, port))
         self.sock.setblocking(False)
         self.address = self.sock.getsockname()
@@ -143,12 +173,12 @@ class UdpLink:
         ready, _, _ = select.select([self.sock], [], [], max(0.0, timeout))
         return bool(ready)
 
-    def receive(self) -> list[tuple[Peer, object]]:
+    def receive(self) -> list[Received]:
         """Drain the socket: parsed messages addressed to (or broadcast for) this vehicle, with their peer."""
-        out: list[tuple[Peer, object]] = []
+        out: list[Received] = []
         while True:
             try:
-                data, address = self.sock.recvfrom(MAX_DATAGRAM)
+                data, ancillary, _, address = self.sock.recvmsg(MAX_DATAGRAM, ANCILLARY_SPACE)
             except (BlockingIOError, InterruptedError):
                 return out
             except OSError as exc:  # e.g. ICMP port unreachable reported on the socket
@@ -157,9 +187,10 @@ class UdpLink:
             self.stats.datagrams += 1
             peer = self.peers.get(address) or self._new_peer(address)
             peer.last_seen = time.monotonic()
+            at = _arrival_time(ancillary)
             for msg in self._parse(peer, data):
                 if self._accept(peer, msg):
-                    out.append((peer, msg))
+                    out.append(Received(peer, msg, at))
 
     def _new_peer(self, address: tuple[str, int]) -> Peer:
         parser = new_parser(self.sysid, self.compid, self.signing_key)
