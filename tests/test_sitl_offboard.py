@@ -3,12 +3,16 @@ and the real adrc_offboard process flies a mission in lockstep, deterministicall
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import math
 import os
 import signal
 import threading
 import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
 
 import pytest
 from processes import free_udp_port
@@ -74,34 +78,68 @@ def hold_roll(gcs: GroundStation, roll: float, tolerance: float, count: int = 10
             held = held + 1 if abs(attitude.roll - roll) <= tolerance else 0
 
 
+HOVER_THRUST = 1.3 * 9.81 / (4 * 2.85e-5 * 500.0**2)  # m g / max thrust of Table 2 at 500 rad/s
+
+
+@dataclass
+class OffboardFlight:
+    """A ground station and an onboard computer's station on one vehicle, and the attitude stream once started."""
+
+    gcs: GroundStation
+    onboard: GroundStation
+    stream: AttitudeStream | None = None
+
+    def take_off_into_offboard(self, period_s: float = 0.01) -> AttitudeStream:
+        """Arm, take off to 5 m, and switch to OFFBOARD: refused until a setpoint stream exists, then accepted
+        (once the stream's first setpoint has reached the vehicle) while a level hover streams."""
+        gcs = self.gcs
+        assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == mavlink.MAV_RESULT_ACCEPTED
+        assert gcs.command(mavlink.MAV_CMD_NAV_TAKEOFF).result == mavlink.MAV_RESULT_ACCEPTED
+        assert gcs.recv("LOCAL_POSITION_NED", timeout=LOADED_BACKSTOP_S, condition=lambda m: m.z < -4.5) is not None
+        assert gcs.set_mode(OFFBOARD).result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+        self.stream = AttitudeStream(self.onboard, 0.0, HOVER_THRUST, period_s)
+        deadline = time.monotonic() + LOADED_BACKSTOP_S
+        while (ack := gcs.set_mode(OFFBOARD)) is not None and ack.result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED:
+            assert time.monotonic() < deadline, "OFFBOARD still refused while the setpoints stream"
+        assert ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED
+        return self.stream
+
+
+@contextlib.contextmanager
+def offboard_flight(vehicle) -> Iterator[OffboardFlight]:
+    gcs = GroundStation(vehicle.port)
+    gcs.connect()
+    flight = OffboardFlight(gcs, GroundStation(vehicle.port, sysid=1, compid=mavlink.MAV_COMP_ID_ONBOARD_COMPUTER))
+    try:
+        yield flight
+    finally:
+        if flight.stream is not None:
+            flight.stream.stop()
+        flight.onboard.close()
+        gcs.close()
+
+
+def flight_log(vehicle, log: Path) -> list[dict[str, str]]:
+    """The vehicle's --log CSV, one row per outer tick, once the vehicle has stopped and closed it."""
+    vehicle.stop()
+    with open(log) as f:
+        return list(csv.DictReader(f))
+
+
 def test_attitude_stream_is_obeyed_and_its_loss_lands_gently(start_sitl, tmp_path):
     log = tmp_path / "flight.csv"
     vehicle = start_sitl(
         speed=2.0,
         extra_args=("--param", "OFFB_LOSS_ACT=1", "--param", f"OFFB_LOSS_T={LOSS_TIMEOUT_S:g}", "--log", str(log)),
     )
-    gcs = GroundStation(vehicle.port)
-    gcs.connect()
-    offboard = GroundStation(vehicle.port, sysid=1, compid=mavlink.MAV_COMP_ID_ONBOARD_COMPUTER)
-    stream = None
-    try:
-        assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == mavlink.MAV_RESULT_ACCEPTED
-        assert gcs.command(mavlink.MAV_CMD_NAV_TAKEOFF).result == mavlink.MAV_RESULT_ACCEPTED
-        assert gcs.recv("LOCAL_POSITION_NED", timeout=LOADED_BACKSTOP_S, condition=lambda m: m.z < -4.5) is not None
-        # OFFBOARD is refused until a setpoint stream exists, then accepted (once the stream's first setpoint
-        # has reached the vehicle)
-        assert gcs.set_mode(OFFBOARD).result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED
-        hover = 1.3 * 9.81 / (4 * 2.85e-5 * 500.0**2)  # m g / max thrust of Table 2 at 500 rad/s
-        stream = AttitudeStream(offboard, 0.0, hover)
-        deadline = time.monotonic() + LOADED_BACKSTOP_S
-        while (ack := gcs.set_mode(OFFBOARD)) is not None and ack.result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED:
-            assert time.monotonic() < deadline, "OFFBOARD still refused while the setpoints stream"
-        assert ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED
+    with offboard_flight(vehicle) as flight:
+        gcs = flight.gcs
+        stream = flight.take_off_into_offboard()
         # obeyed: a 0.25 rad roll command shows up in the vehicle's attitude and stays
         roll_target = 0.25
-        stream.roll, stream.thrust = roll_target, hover / math.cos(roll_target)
+        stream.roll, stream.thrust = roll_target, HOVER_THRUST / math.cos(roll_target)
         hold_roll(gcs, roll_target, 0.05)
-        stream.roll, stream.thrust = 0.0, hover
+        stream.roll, stream.thrust = 0.0, HOVER_THRUST
         hold_roll(gcs, 0.0, 0.05)
         # stop streaming: the failsafe (land) takes over (timed below, in simulated time, from the flight log)
         stream.stop()
@@ -123,14 +161,7 @@ def test_attitude_stream_is_obeyed_and_its_loss_lands_gently(start_sitl, tmp_pat
         else:
             pytest.fail("the vehicle did not land and disarm")
         assert worst < 1.0
-    finally:
-        if stream is not None:
-            stream.stop()
-        offboard.close()
-        gcs.close()
-    vehicle.stop()
-    with open(log) as f:
-        rows = list(csv.DictReader(f))
+    rows = flight_log(vehicle, log)
     switch = next(i for i, r in enumerate(rows) if i and rows[i - 1]["mode"] == "OFFBOARD" and r["mode"] != "OFFBOARD")
 
     # The log holds each setpoint's age at the end of its 20 ms tick; the failsafe looks at the start. The tick
@@ -140,22 +171,6 @@ def test_attitude_stream_is_obeyed_and_its_loss_lands_gently(start_sitl, tmp_pat
 
     limit = LOSS_TIMEOUT_S + 1e-6
     assert age_at_tick_start(rows[switch - 1]) <= limit < age_at_tick_start(rows[switch]) <= limit + 0.02
-
-
-HOVER_THRUST = 1.3 * 9.81 / (4 * 2.85e-5 * 500.0**2)  # m g / max thrust of Table 2 at 500 rad/s
-
-
-def take_off_into_offboard(gcs: GroundStation, stream_station: GroundStation, period_s: float) -> AttitudeStream:
-    """Arm, take off to 5 m, start a level hover stream and switch to OFFBOARD once it is accepted."""
-    assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == mavlink.MAV_RESULT_ACCEPTED
-    assert gcs.command(mavlink.MAV_CMD_NAV_TAKEOFF).result == mavlink.MAV_RESULT_ACCEPTED
-    assert gcs.recv("LOCAL_POSITION_NED", timeout=LOADED_BACKSTOP_S, condition=lambda m: m.z < -4.5) is not None
-    stream = AttitudeStream(stream_station, 0.0, HOVER_THRUST, period_s)
-    deadline = time.monotonic() + LOADED_BACKSTOP_S
-    while (ack := gcs.set_mode(OFFBOARD)) is not None and ack.result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED:
-        assert time.monotonic() < deadline, "OFFBOARD still refused while the setpoints stream"
-    assert ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED
-    return stream
 
 
 # Suspended for less than the 0.5 s after which it re-anchors, the vehicle sprints through the time it missed
@@ -173,12 +188,9 @@ def test_a_vehicle_process_the_machine_stalls_counts_setpoints_from_their_arriva
     setpoint looks older than the stream's longest gap, and the vehicle stays in OFFBOARD through every stall."""
     log = tmp_path / "flight.csv"
     vehicle = start_sitl(speed=1.0, extra_args=("--log", str(log)))
-    gcs = GroundStation(vehicle.port)
-    gcs.connect()
-    offboard = GroundStation(vehicle.port, sysid=1, compid=mavlink.MAV_COMP_ID_ONBOARD_COMPUTER)
-    stream = None
-    try:
-        stream = take_off_into_offboard(gcs, offboard, period_s=0.1)
+    with offboard_flight(vehicle) as flight:
+        gcs = flight.gcs
+        stream = flight.take_off_into_offboard(period_s=0.1)
         modes, texts = set(), []
         for _ in range(STALLS):
             os.kill(vehicle.process.pid, signal.SIGSTOP)
@@ -194,14 +206,7 @@ def test_a_vehicle_process_the_machine_stalls_counts_setpoints_from_their_arriva
                     modes.add(main_mode(msg))
                 else:
                     texts.append(msg.text)
-    finally:
-        if stream is not None:
-            stream.stop()
-        offboard.close()
-        gcs.close()
-    vehicle.stop()
-    with open(log) as f:
-        rows = list(csv.DictReader(f))
+    rows = flight_log(vehicle, log)
     ages = [float(r["offboard_age"]) for r in rows if r["mode"] == "OFFBOARD"]
     # a setpoint's age: at most the stream's own longest gap (at 1x, wall = simulated), one tick for the log's
     # end-of-tick age and one for rounding down to the physics step
