@@ -9,7 +9,8 @@ Each mission runs on its own stack of real processes on free loopback ports: the
 service (`python -m gcs serve`, a fresh SQLite file). The mission is posted over HTTP with `battery` options
 (reserve and pack: the vehicle's own BAT_LOW_THR and BAT1_*) and the `wind` forecast the vehicle's SIM_WIND_SPD,
 SIM_WIND_DIR and SIM_TURB_W20 are set to; the service splits the buoys into sorties that each fit one battery
-(gcs.energy_planning) and flies them one after another with a battery swap between them (gcs.lifecycle).
+(gcs.missions.energy_planning) and flies them one after another with a battery swap between them
+(gcs.missions.lifecycle).
 
 Cases: (a) the ring: 9 buoys on a 150 m circle round the depot, 5 s inspections, a 500 mAh pack (the energy
 test of tests/test_e2e_stack.py); (b) the paper's reference scenario (13 buoys, stack.demo.reference_request with
@@ -21,7 +22,7 @@ ends the mission aborted, naming the buoys not inspected.
 Per mission, from GET /missions/{id}: per sortie the predicted energy against the energy the vehicle's
 BATTERY_STATUS counted (error in % of used), the predicted landing charge against the measured one, the worst
 battery warning; the status, the flight time predicted (sum of the sorties') against flown
-(gcs.tracking_metrics.flight_time_s, airborne samples, vehicle time) and the wall time from POST to the end.
+(gcs.domain.tracking_metrics.flight_time_s, airborne samples, vehicle time) and the wall time from POST to the end.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@
 
 Flights: the whole stack in one process and in simulated time (sitl_quad.lockstep_harness): the vehicle with
 the ADRC attitude loop (MC_ATT_CTRL = 1) under the ADRC offboard outer loop, as users fly it. Each flight is a
-mission the ground station would upload (gcs.planning: the planner's order, take-off, DO_CHANGE_SPEED, one
+mission the ground station would upload (gcs.domain.planning: the planner's order, take-off, DO_CHANGE_SPEED, one
 waypoint per buoy with its dwell, RTL) over 5-15 buoys uniform in the paper's 1200 m x 700 m harbour area, at a
 commanded speed of 5-12 m/s, 5-15 m altitude, 1-10 s dwell, in a mean wind of 0-8 m/s with Dryden turbulence
 of W20 = the wind speed (the forecast's reading) and the paper's D terms. The battery (sitl_quad.battery)
@@ -37,7 +37,7 @@ import numpy as np
 
 from bench.control.flight import make_controller
 from bench.control.scenario import OUTER_RATE_HZ, wind_config
-from gcs.planning import FIRST_BUOY_SEQ, FlightParams, make_plan, mission_items
+from gcs.domain.planning import FIRST_BUOY_SEQ, FlightParams, make_plan, mission_items
 from planner.energy import (
     PARAMS_PATH,
     EnergyModel,

@@ -40,7 +40,7 @@ from typing import Any, TypeVar
 
 import httpx
 
-from gcs.lifecycle import REATTACHED
+from gcs.missions.lifecycle import REATTACHED
 from stack.supervisor import ChildSpec, Supervisor, SupervisorError, python_module
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 

@@ -6,8 +6,8 @@
 For each N the stack `up` starts (stack.children: N vehicles `python -m sitl_quad --speed 1`, each with its ADRC
 offboard controller, and one service with a link per vehicle) runs under stack.supervisor, each vehicle also
 writing `--stats`. Once the service has heard every vehicle, a second ground station (this bench, one
-gcs.link.LinkManager per vehicle, as QGroundControl beside the service would) uploads a racetrack to each vehicle
-at its own altitude (5 m + 3 m per system id), arms it and starts it, then closes. After `--flight-s` seconds of
+gcs.vehicle.link.LinkManager per vehicle, as QGroundControl beside the service would) uploads a racetrack to each
+vehicle at its own altitude (5 m + 3 m per system id), arms it and starts it, then closes. After `--flight-s` seconds of
 everyone flying the stack is stopped. Per N:
 - every vehicle's outer-loop tick lateness (how late each 50 Hz tick started against the wall clock; the
   vehicle's own `--stats`, `tick_lateness_armed_ms`: the ticks it flew armed, so the other vehicles' start-up
@@ -34,8 +34,8 @@ import urllib.request
 from pathlib import Path
 from tempfile import TemporaryDirectory
 
-from gcs.link import LinkManager
 from gcs.settings import Settings
+from gcs.vehicle.link import LinkManager
 from stack.children import children, vehicle_home
 from stack.options import UpOptions
 from stack.supervisor import Supervisor, SupervisorError
@@ -45,7 +45,7 @@ from uavcore.mission import MavCmd, MavFrame, MissionItem
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "bench" / "results" / "fleet_scale.json"
 LATENESS_P99_REQUIREMENT_MS = 5.0
-POSITION_RATE_HZ = 10.0  # what the service asks each vehicle for (gcs.link.STREAMS)
+POSITION_RATE_HZ = 10.0  # what the service asks each vehicle for (gcs.vehicle.link.STREAMS)
 CONNECT_S = 180.0
 RACETRACK_M = ((150.0, 0.0), (150.0, 80.0), (0.0, 80.0), (0.0, 0.0))  # north, east of home: ~40 s a lap at 10 m/s
 LAPS = 5

@@ -13,9 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from gcs.planning import FlightParams, Plan, make_plan
-from gcs.schemas import TelemetrySample
-from gcs.status import MissionStatus
+from gcs.domain.planning import FlightParams, Plan, make_plan
+from gcs.domain.schemas import TelemetrySample
+from gcs.domain.status import MissionStatus
 from gcs.storage import Storage
 from planner.scenario import reference_scenario
 

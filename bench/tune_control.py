@@ -43,7 +43,7 @@ from adrc_offboard.outer_loop import matched_gains
 from bench.control import RESULTS
 from bench.control.flight import fly
 from bench.control.scenario import Scenario, build_scenario
-from gcs.planning import FIRST_BUOY_SEQ
+from gcs.domain.planning import FIRST_BUOY_SEQ
 from planner.scenario import MissionTimeline
 from uavcore.geodesy import LocalFrame
 from uavcore.mission import MavCmd, MavFrame, MissionItem

@@ -1,18 +1,23 @@
 """gcs: the ground-control mission service (FastAPI + SQLite or PostgreSQL + MAVLink).
 
-Read in this order:
-- `settings` (every default, overridable from BUOY_GCS_* variables), `status` (MissionStatus),
-  `schemas` (the REST contract, with the one TelemetrySample), `validation` (limits -> 422)
-- `planning` (request -> plan -> mission items; uses planner), `tracking_metrics` (pure: a flight's tracking
-  figures in numbers), `buoy_files` / `exports` (buoy files, track.geojson, QGC .plan and WPL 110)
+One sub-package per concern, each importing only those below it (import-linter's `gcs-layers` contract). Read
+from the bottom up:
+- `domain` the vocabulary, pure: `status` (MissionStatus), `schemas` (the REST contract, with the one
+  TelemetrySample), `planning` (request -> plan -> mission items; uses planner), `buoy_files` (buoy lists from
+  GeoJSON or CSV), `tracking_metrics` (a flight's tracking figures in numbers)
 - `storage` (the only package that knows SQL: SQLite or PostgreSQL, `open_storage`)
-- `link` (the MAVLink link manager; `link_errors` what it raises), `mission_protocol` (upload/download),
-  `parameters` (read by name)
-- `recorder` (a mission's samples and progress), `results` (a flown mission's figures),
-  `lifecycle` (upload, arm, start, watch to the end), `missions` (the service: the facade the routes call)
-- `report` (the mission report: PNG figures + index.html, cached per mission), `fleet_report`, `report_drawing`
-  (what both draw with)
-- `app` (create_app), `routes/*` (thin; `routes.deps` gives them the service), `views` (records -> documents),
-  `cli` (`python -m gcs serve | report`); the whole stack as supervised children (`buoy-gcs up`) is the `stack`
+- `vehicle` the MAVLink side, for any PX4 or ArduPilot: `connection` (udpin/udpout/tcp/serial), `link` (the link
+  manager; `errors` what it raises), `autopilots`, `mission_protocol` (upload/download), `parameters`
+- `reports` what is shown of stored missions: `views` (records -> documents), `report` (PNG figures +
+  index.html, cached per mission), `fleet_report`, `drawing` (what both draw with), `exports` (track.geojson,
+  QGC .plan and WPL 110), `track_display`
+- `settings` (every default, overridable from BUOY_GCS_* variables)
+- `missions` the work: `validation` (limits -> 422), `energy_planning`, `recorder` (a mission's samples and
+  progress), `results` (a flown mission's figures), `lifecycle` (upload, arm, start, watch to the end), the
+  fleet (`fleet_vehicle`, `fleet_planning`, `fleet_missions`), `read_cache`, `ownership`, and `service`
+  (MissionService: what the routes call)
+- `api` the HTTP face: `app` (create_app), `routes/*` (thin; `routes.deps` gives them the service), `security`,
+  `http_headers`, `body_limit`, `live_feed` (/ws)
+- `cli` (`python -m gcs serve | report`); the whole stack as supervised children (`buoy-gcs up`) is the `stack`
   package, above this one: the ground station starts no vehicle
 """

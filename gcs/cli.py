@@ -13,9 +13,9 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from gcs.connection import ConnectionStringError, parse_connection
 from gcs.settings import DB_FILENAME, Settings
 from gcs.storage import StorageError, is_postgres_url, open_storage
+from gcs.vehicle.connection import ConnectionStringError, parse_connection
 
 
 def option_help(text: str, field: str, default: object = None) -> str:
@@ -180,14 +180,14 @@ def check_serve(settings: Settings) -> str | None:
 def serve(settings: Settings) -> None:
     import uvicorn
 
-    from gcs.app import create_app
+    from gcs.api.app import create_app
 
     uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level="info")
 
 
 def report(args: argparse.Namespace) -> int:
     """`python -m gcs report`: a missing database or an unknown mission is a message and exit 2."""
-    from gcs.report import ReportError, cached_report, write_stored_report
+    from gcs.reports.report import ReportError, cached_report, write_stored_report
 
     settings = settings_from_args(args)
     if settings.db is None and not settings.db_path.is_file():

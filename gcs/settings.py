@@ -20,7 +20,7 @@ from typing import Annotated, Any
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
-from gcs.connection import parse_vehicle
+from gcs.vehicle.connection import parse_vehicle
 from uavcore.geodesy import DEFAULT_HOME
 from uavcore.mavlink import VEHICLE_UDP_PORT
 
@@ -83,7 +83,8 @@ class Settings(BaseSettings):
     telemetry_period_s: float = 0.1  # recorded sample spacing in the vehicle's simulated time (10 Hz)
     live_rate_hz: float = 20.0  # WebSocket push rate to each client
     mission_timeout_margin_s: float = 120.0  # simulated seconds allowed beyond the planned flight time
-    # several instances on one PostgreSQL database: one owns the vehicle link, the others stand by (gcs.ownership)
+    # several instances on one PostgreSQL database: one owns the vehicle link, the others stand by
+    # (gcs.missions.ownership)
     instance_name: str = Field(
         default_factory=lambda: f"{socket.gethostname()}:{os.getpid()}",
         description="this instance's name, shown by the others while it owns the vehicle link (default host:pid)",

@@ -1,6 +1,6 @@
 """The route energy model: what a buoy mission draws from the battery, phase by phase, in the forecast wind.
 
-A mission as the ground station uploads it (gcs.planning.mission_items) and the navigator flies it
+A mission as the ground station uploads it (gcs.domain.planning.mission_items) and the navigator flies it
 (sitl_quad.navigator, PX4's): the motors spool up, the vehicle climbs vertically to the mission altitude, then
 for each buoy it turns on the spot toward the buoy, flies a straight rest-to-rest leg at the commanded speed
 and hovers there for the dwell; the return (RTL) climbs to the return altitude if lower, turns home, flies the

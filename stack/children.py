@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gcs.connection import parse_connection
 from gcs.settings import Settings
+from gcs.vehicle.connection import parse_connection
 from planner.scenario import Weather
 from stack.options import ATTITUDE_LOOP, CONTROLLERS, UpOptions
 from stack.service_api import http_ok

@@ -21,8 +21,8 @@ from gcs.cli import (
     settings_from_args,
 )
 from gcs.cli import build_parser as gcs_parser
-from gcs.connection import parse_connection
 from gcs.settings import Settings
+from gcs.vehicle.connection import parse_connection
 from planner.scenario import Weather
 from stack.options import CONTROLLERS, UpOptions
 

@@ -4,8 +4,8 @@ The reference scenario in the paper's weather (planner.scenario.paper_weather: a
 longest leg, a 1-cosine gust halfway along it, Dryden turbulence, seeded by the vehicle's --seed), placed on the
 route the service will fly (planned here first with the same request: the planner is deterministic for a seed).
 The report says which loops flew, the weather, the route against the exact optimum, the tracking, the gust's
-effect from the recorded telemetry (gcs.tracking_metrics.gust_effect) and the lockstep speed; `comparison` puts two
-flights side by side, with a figure of the tracking error around the gust.
+effect from the recorded telemetry (gcs.domain.tracking_metrics.gust_effect) and the lockstep speed; `comparison` puts
+two flights side by side, with a figure of the tracking error around the gust.
 """
 
 from __future__ import annotations
@@ -18,11 +18,11 @@ from typing import Any
 
 import numpy as np
 
-from gcs.planning import FIRST_BUOY_SEQ, Plan, make_plan
-from gcs.report import draw_series, report_series
-from gcs.status import TERMINAL
+from gcs.domain.planning import FIRST_BUOY_SEQ, Plan, make_plan
+from gcs.domain.status import TERMINAL
+from gcs.domain.tracking_metrics import GUST_WINDOW_S, RECOVERED_M, GustEffect, climb_start_s, gust_effect
+from gcs.reports.report import draw_series, report_series
 from gcs.storage import redacted
-from gcs.tracking_metrics import GUST_WINDOW_S, RECOVERED_M, GustEffect, climb_start_s, gust_effect
 from planner.scenario import (
     ALTITUDE_M,
     CRUISE_SPEED_M_S,

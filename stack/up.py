@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from gcs.status import MissionStatus
+from gcs.domain.status import MissionStatus
 from gcs.storage import redacted
 from stack.children import children
 from stack.demo import COMPARISON_FIGURE, DemoFlight, DemoPlan, comparison, demo_report, fly_demo, prepare

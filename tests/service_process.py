@@ -32,7 +32,7 @@ def serving(
     `env`: added to the service's environment (a value None removes the variable); `program`: the command that
     runs the service's CLI (an installed `buoy-gcs`, say), run in `cwd`.
 
-    ready_s: the service answers only once the planner's kernels are compiled (gcs.app's lifespan), which takes
+    ready_s: the service answers only once the planner's kernels are compiled (gcs.api.app's lifespan), which takes
     up to a minute on a cold numba cache and longer beside other tests' processes on a loaded machine."""
     udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
     links = [f"{sysid}=udpout:127.0.0.1:{udp}" for sysid in sysids] or [f"udpout:127.0.0.1:{udp}"]

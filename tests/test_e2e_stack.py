@@ -29,8 +29,8 @@ from pymavlink.dialects.v20 import common as mavlink
 from sitl_process import GroundStation, short_mission
 from udp_relay import LossyUdpRelay
 
-from gcs.lifecycle import REATTACHED, RESTART_NOT_FLYING
-from gcs.planning import make_plan
+from gcs.domain.planning import make_plan
+from gcs.missions.lifecycle import REATTACHED, RESTART_NOT_FLYING
 from gcs.storage import open_storage
 from planner.scenario import reference_scenario
 from stack.demo import reference_request

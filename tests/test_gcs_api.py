@@ -10,10 +10,10 @@ import pytest
 from fastapi.testclient import TestClient
 from processes import free_udp_port
 
-from gcs.app import create_app
-from gcs.exports import read_qgc_plan, read_waypoints
+from gcs.api.app import create_app
+from gcs.domain.status import MissionStatus
+from gcs.reports.exports import read_qgc_plan, read_waypoints
 from gcs.settings import Limits, Settings
-from gcs.status import MissionStatus
 from planner import plan_tour
 from planner.scenario import reference_scenario
 from uavcore.geodesy import DEFAULT_HOME

@@ -10,7 +10,7 @@ import psycopg
 from fastapi.testclient import TestClient
 from test_gcs_api import BUOYS, free_udp_port
 
-from gcs.app import create_app
+from gcs.api.app import create_app
 from gcs.settings import Settings
 
 

@@ -23,11 +23,11 @@ from ardupilot_double import ArduCopterDouble
 from fastapi.testclient import TestClient
 from processes import free_udp_port
 
-from gcs.app import create_app
-from gcs.autopilots import ArduCopter
-from gcs.link import LinkManager
-from gcs.planning import FlightParams, make_plan, mission_items
+from gcs.api.app import create_app
+from gcs.domain.planning import FlightParams, make_plan, mission_items
 from gcs.settings import Settings
+from gcs.vehicle.autopilots import ArduCopter
+from gcs.vehicle.link import LinkManager
 from planner.scenario import ALTITUDE_M, CRUISE_SPEED_M_S, reference_scenario
 from uavcore.mavlink import mavlink
 from uavcore.mission import MavCmd, MissionItem

@@ -20,8 +20,8 @@ import pytest
 from processes import free_udp_port
 from sitl_process import WAIT_S
 
-from gcs.link import CommandDeniedError, LinkManager
-from gcs.parameters import ParameterError
+from gcs.vehicle.link import CommandDeniedError, LinkManager
+from gcs.vehicle.parameters import ParameterError
 from uavcore.mavlink import Encoder, mavlink, new_parser, parse_datagram
 
 pytestmark = pytest.mark.integration

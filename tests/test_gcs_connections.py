@@ -23,8 +23,8 @@ from processes import free_udp_port, stop_process
 from service_process import free_port
 from sitl_process import SitlProcess
 
-from gcs.connection import ConnectionStringError, parse_connection
-from gcs.link import LinkManager
+from gcs.vehicle.connection import ConnectionStringError, parse_connection
+from gcs.vehicle.link import LinkManager
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 from uavcore.mavlink import Encoder, mavlink
 from uavcore.mission import MavCmd, MavFrame, MissionItem
@@ -460,6 +460,6 @@ def test_up_listens_for_a_vehicle_streaming_to_it(tmp_path, vehicle):
     ],
 )
 def test_on_ground_from_the_landed_state_or_else_the_altitude(landed_state, alt_m, on_ground):
-    from gcs.link import VehicleStatus
+    from gcs.vehicle.link import VehicleStatus
 
     assert VehicleStatus(landed_state=landed_state, alt_m=alt_m).on_ground is on_ground

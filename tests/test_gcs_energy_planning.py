@@ -6,8 +6,8 @@ Flying the sorties (battery swaps, the failsafe) is tested on the real stack in 
 import pytest
 from test_gcs_api import BUOYS, errors_of, make_client
 
-from gcs.energy_planning import battery_plan, budget, model_pack, steady_load_w
-from gcs.schemas import PlanRequest
+from gcs.domain.schemas import PlanRequest
+from gcs.missions.energy_planning import battery_plan, budget, model_pack, steady_load_w
 from planner.energy import EnergyModel
 
 MODEL = EnergyModel.load()

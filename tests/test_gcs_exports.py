@@ -5,8 +5,8 @@ import math
 
 import pytest
 
-from gcs import exports
-from gcs.planning import FlightParams, make_plan, mission_items
+from gcs.domain.planning import FlightParams, make_plan, mission_items
+from gcs.reports import exports
 from planner.scenario import reference_scenario
 from uavcore.mission import MavCmd
 

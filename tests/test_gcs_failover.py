@@ -26,8 +26,8 @@ from bench.failover import (
     owns_a_connected_vehicle,
     poll,
 )
-from gcs.lifecycle import FLUSH_PERIOD_S, REATTACHED
-from gcs.ownership import LEASE_LOST_EXIT_CODE
+from gcs.missions.lifecycle import FLUSH_PERIOD_S, REATTACHED
+from gcs.missions.ownership import LEASE_LOST_EXIT_CODE
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 

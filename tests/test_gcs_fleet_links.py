@@ -15,10 +15,10 @@ from processes import free_udp_port, free_udp_port_block
 from service_process import free_port
 from sitl_process import SitlProcess
 
-from gcs.app import create_app
-from gcs.connection import TransportHub
-from gcs.link import LinkManager
+from gcs.api.app import create_app
 from gcs.settings import Settings
+from gcs.vehicle.connection import TransportHub
+from gcs.vehicle.link import LinkManager
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 from uavcore.mavlink import mavlink
 

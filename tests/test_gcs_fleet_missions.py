@@ -1,4 +1,4 @@
-"""Following a fleet mission (gcs.fleet_missions), the pure parts: the separation's minima, the fleet mission's
+"""Following a fleet mission (gcs.missions.fleet_missions), the pure parts: the separation's minima, the fleet mission's
 progress from its parts', and how it ends."""
 
 from __future__ import annotations
@@ -7,12 +7,12 @@ import math
 
 import pytest
 
-from gcs.fleet_missions import Separation, fleet_ending, fleet_vehicles, shares_progress
-from gcs.schemas import MissionRequest
+from gcs.domain.schemas import MissionRequest
+from gcs.domain.status import MissionStatus
+from gcs.missions.fleet_missions import Separation, fleet_ending, fleet_vehicles, shares_progress
+from gcs.missions.validation import RequestInvalidError
 from gcs.settings import Limits
-from gcs.status import MissionStatus
 from gcs.storage import MissionRecord
-from gcs.validation import RequestInvalidError
 
 
 def test_each_minimum_is_taken_on_its_own_over_every_pair_and_instant():

@@ -1,4 +1,4 @@
-"""A fleet mission's plan (gcs.fleet_planning): every buoy in one vehicle's share, each share an ordinary plan
+"""A fleet mission's plan (gcs.missions.fleet_planning): every buoy in one vehicle's share, each share an ordinary plan
 from its vehicle's home at its own altitude layer, the makespan the longest share."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gcs.fleet_planning import plan_fleet_mission
+from gcs.missions.fleet_planning import plan_fleet_mission
 from planner.fleet import check_fleet
 from planner.scenario import random_area_points
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
@@ -52,7 +52,7 @@ def test_the_share_times_are_the_fleet_planners_route_times_from_each_home():
 
 
 def test_a_lost_vehicles_buoys_go_where_they_lengthen_the_longest_remaining_flight_least():
-    from gcs.fleet_planning import reshare
+    from gcs.missions.fleet_planning import reshare
 
     home = np.zeros(2)
     # vehicle 1 is near the lost buoys' corner, vehicle 2 far away with a long way still to fly

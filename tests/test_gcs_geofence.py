@@ -21,7 +21,7 @@ from processes import free_udp_port
 from sitl_process import WAIT_S
 from test_sitl_mavsdk import FIELDS, mavsdk_system, wait_until
 
-from gcs.app import create_app
+from gcs.api.app import create_app
 from gcs.settings import Settings
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 from uavcore.geofence import CircleZone, Geofence, PolygonZone
@@ -199,8 +199,8 @@ def test_mavsdk_flying_through_the_fence_anyway_meets_gf_action_return(start_sit
 
 
 def test_zone_kinds_from_the_request_match_uavcore():
-    from gcs.schemas import FenceZoneIn
-    from gcs.validation import fence_from_request
+    from gcs.domain.schemas import FenceZoneIn
+    from gcs.missions.validation import fence_from_request
 
     fence = fence_from_request(
         [

@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from gcs.buoy_files import BuoyFileError, buoys_from_csv, buoys_from_file, buoys_from_geojson
+from gcs.domain.buoy_files import BuoyFileError, buoys_from_csv, buoys_from_file, buoys_from_geojson
 
 
 def point(lon, lat, **properties):

@@ -12,7 +12,7 @@ import pytest
 from fastapi.testclient import TestClient
 from processes import free_udp_port, stop_process
 
-from gcs.app import create_app
+from gcs.api.app import create_app
 from gcs.settings import Settings
 from planner import plan_tour
 from planner.scenario import reference_scenario

@@ -17,10 +17,10 @@ from fastapi.testclient import TestClient
 os.environ["MAVLINK20"] = "1"
 from pymavlink.dialects.v20 import common as mavlink
 
-from gcs.app import create_app
-from gcs.link import CommandTimeoutError, LinkManager
-from gcs.mission_protocol import MissionRejectedError, MissionTimeoutError, download_items, upload_items
+from gcs.api.app import create_app
 from gcs.settings import Settings
+from gcs.vehicle.link import CommandTimeoutError, LinkManager
+from gcs.vehicle.mission_protocol import MissionRejectedError, MissionTimeoutError, download_items, upload_items
 from uavcore.mavlink import item_message
 from uavcore.mission import MavCmd, MissionItem
 

@@ -1,4 +1,4 @@
-"""The live feed behind /ws (gcs.live_feed): one producer, the same encoded state for every client, a slow or
+"""The live feed behind /ws (gcs.api.live_feed): one producer, the same encoded state for every client, a slow or
 stalled client delaying nobody; and /ws of a real service (`python -m gcs serve`) with many clients."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import pytest
 import websockets
 from service_process import serving
 
-from gcs.live_feed import LiveFeed
+from gcs.api.live_feed import LiveFeed
 
 RATE_HZ = 200.0  # fast ticks: the tests wait on counts, not on time
 

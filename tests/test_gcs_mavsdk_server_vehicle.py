@@ -27,10 +27,10 @@ from fastapi.testclient import TestClient
 from processes import free_udp_port, stop_process
 from sitl_process import REPO
 
-from gcs.app import create_app
-from gcs.link import LinkManager
-from gcs.planning import FlightParams, make_plan, mission_items
+from gcs.api.app import create_app
+from gcs.domain.planning import FlightParams, make_plan, mission_items
 from gcs.settings import Settings
+from gcs.vehicle.link import LinkManager
 from planner.scenario import ALTITUDE_M, CRUISE_SPEED_M_S, reference_scenario
 from uavcore.geodesy import LocalFrame
 from uavcore.mavlink import mavlink

@@ -31,9 +31,9 @@ from schemathesis.specs.openapi.checks import (
     status_code_conformance,
 )
 
-from gcs.app import create_app
+from gcs.api.app import create_app
+from gcs.domain.status import TERMINAL
 from gcs.settings import Settings
-from gcs.status import TERMINAL
 from uavcore.geodesy import DEFAULT_HOME
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::DeprecationWarning")]

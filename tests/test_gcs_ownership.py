@@ -8,7 +8,7 @@ import asyncio
 import psycopg
 import pytest
 
-from gcs.ownership import LEASE_NAMESPACE, NotOwnerError, Ownership, PostgresLease, Role, SoleLease, lease_key
+from gcs.missions.ownership import LEASE_NAMESPACE, NotOwnerError, Ownership, PostgresLease, Role, SoleLease, lease_key
 
 VEHICLE = "udpout://127.0.0.1:14540"
 GRACE_S = 0.3

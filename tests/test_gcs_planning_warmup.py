@@ -1,5 +1,5 @@
 """Planning within the request's time limit: the service compiles (or loads from numba's cache) every planner kernel
-before it takes a request (gcs.app's lifespan, planner.warmup), so no request pays for a compile its time limit
+before it takes a request (gcs.api.app's lifespan, planner.warmup), so no request pays for a compile its time limit
 does not see. Before, a first fleet POST /missions with time_limit_s 2 answered after 56 s on a cold cache. The
 first fleet POST on a cold start is tested on the installed wheel (tests/test_wheel_install.py), whose fresh
 install compiles from an empty cache anyway: one cold compile in the suite, not two."""
@@ -20,7 +20,7 @@ WARM_CACHE_CHECK = """
 import json, sys, time
 from fastapi.testclient import TestClient
 from numba.core.registry import CPUDispatcher
-from gcs.app import create_app
+from gcs.api.app import create_app
 from gcs.settings import Settings
 
 def compiled():

@@ -1,4 +1,4 @@
-"""The read side's cache of encoded documents (gcs.read_cache) and the routes it serves.
+"""The read side's cache of encoded documents (gcs.missions.read_cache) and the routes it serves.
 
 - The cache itself: a document is built once per version, rebuilt when the version moves, evicted least
   recently used first.
@@ -14,12 +14,12 @@ from dataclasses import asdict
 from fastapi.testclient import TestClient
 from processes import free_udp_port
 
-from gcs.app import create_app
-from gcs.planning import FlightParams, make_plan
-from gcs.read_cache import VersionedCache
-from gcs.schemas import MissionOut, MissionSummary
+from gcs.api.app import create_app
+from gcs.domain.planning import FlightParams, make_plan
+from gcs.domain.schemas import MissionOut, MissionSummary
+from gcs.domain.status import MissionStatus
+from gcs.missions.read_cache import VersionedCache
 from gcs.settings import Settings
-from gcs.status import MissionStatus
 from gcs.storage import open_storage
 from planner.scenario import reference_scenario
 

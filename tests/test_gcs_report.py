@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from gcs.app import create_app
+from gcs.api.app import create_app
 from gcs.cli import main
-from gcs.planning import FIRST_BUOY_SEQ, FlightParams, leg_of_seq, make_plan
-from gcs.report import ENERGY_FIGURE, FIGURES, cached_report, report_series, summary_rows, write_report
-from gcs.results import flight_results
+from gcs.domain.planning import FIRST_BUOY_SEQ, FlightParams, leg_of_seq, make_plan
+from gcs.missions.results import flight_results
+from gcs.reports.report import ENERGY_FIGURE, FIGURES, cached_report, report_series, summary_rows, write_report
 from gcs.settings import Settings
 from gcs.storage import SqliteStorage, Storage
 from stack.demo import reference_request
@@ -203,7 +203,7 @@ def test_a_mission_that_never_flew_still_gets_a_report(tmp_path):
     storage.close()
 
 
-# What the vehicle reported after each sortie (gcs.recorder's sorties_flown), the last sortie not flown.
+# What the vehicle reported after each sortie (gcs.missions.recorder's sorties_flown), the last sortie not flown.
 SORTIES_FLOWN = [
     {"sortie": 0, "used_energy_wh": 10.4, "landing_charge_pct": 34.0, "battery_warning": None},
     {"sortie": 1, "used_energy_wh": 12.9, "landing_charge_pct": 14.0, "battery_warning": "low"},

@@ -23,11 +23,11 @@ from starlette.websockets import WebSocketDisconnect
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect as ws_connect
 
-from gcs.app import create_app
+from gcs.api.app import create_app
+from gcs.api.security import LIVE_SUBPROTOCOL
 from gcs.cli import build_parser, settings_from_args
-from gcs.report import report_html
-from gcs.schemas import MAX_BUOYS, MAX_FENCE_VERTICES, MAX_FENCE_ZONES
-from gcs.security import LIVE_SUBPROTOCOL
+from gcs.domain.schemas import MAX_BUOYS, MAX_FENCE_VERTICES, MAX_FENCE_ZONES
+from gcs.reports.report import report_html
 from gcs.settings import Settings
 from gcs.storage import MissionRecord
 from uavcore.geodesy import DEFAULT_HOME

@@ -1,4 +1,4 @@
-"""The flown track for display: the simplification (gcs.track_display) and GET /missions/{id}/track on a stored
+"""The flown track for display: the simplification (gcs.reports.track_display) and GET /missions/{id}/track on a stored
 two-hour mission (72 000 samples at 10 Hz), whose exports stay at full resolution."""
 
 from __future__ import annotations
@@ -11,12 +11,12 @@ from fastapi.testclient import TestClient
 from processes import free_udp_port
 
 from bench.long_mission import SAMPLES, store_long_mission
-from gcs.app import create_app
-from gcs.planning import Plan
-from gcs.schemas import TelemetrySample
+from gcs.api.app import create_app
+from gcs.domain.planning import Plan
+from gcs.domain.schemas import TelemetrySample
+from gcs.reports.track_display import arrival_indices, evenly_spaced, extremes_per_bucket, simplify_track
 from gcs.settings import Settings
 from gcs.storage import open_storage
-from gcs.track_display import arrival_indices, evenly_spaced, extremes_per_bucket, simplify_track
 
 DISPLAY_TOLERANCE_M = 1.0  # the page draws the 2-hour track within this of every recorded position
 

@@ -1,10 +1,10 @@
-"""Tracking figures (gcs.tracking_metrics) on hand-built tracks whose answers are known geometrically."""
+"""Tracking figures (gcs.domain.tracking_metrics) on hand-built tracks whose answers are known geometrically."""
 
 import numpy as np
 import pytest
 
-from gcs import tracking_metrics
-from gcs.tracking_metrics import TrackPoint
+from gcs.domain import tracking_metrics
+from gcs.domain.tracking_metrics import TrackPoint
 
 # depot -> (100, 0) -> depot: two legs along the east axis
 ROUTE = np.array([[0.0, 0.0], [100.0, 0.0], [0.0, 0.0]])

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from gcs.planning import FlightParams, Plan, mission_items
+from gcs.domain.planning import FlightParams, Plan, mission_items
 from planner.scenario import (
     CROSSWIND_M_S,
     GUST_HOLD_S,

@@ -321,7 +321,7 @@ def test_a_two_hour_mission_opens_with_its_track_drawn(service_with_a_long_missi
     assert errors == []
 
 
-# What the vehicle reported after each flown sortie (gcs.recorder's sorties_flown): the third never flew.
+# What the vehicle reported after each flown sortie (gcs.missions.recorder's sorties_flown): the third never flew.
 SORTIES_FLOWN = [
     {"sortie": 0, "used_energy_wh": 10.4, "landing_charge_pct": 34.0, "battery_warning": None},
     {"sortie": 1, "used_energy_wh": 12.9, "landing_charge_pct": 14.0, "battery_warning": "low"},
@@ -336,7 +336,7 @@ def post_json(url: str, body: dict) -> dict:
 
 def aborted_in_third_sortie(storage_path: Path, mission: dict) -> None:
     """Store what the recorder and the lifecycle leave of the mission after two sorties flown and a battery
-    failsafe early in the third: the progress (as gcs.recorder stores it) and the status."""
+    failsafe early in the third: the progress (as gcs.missions.recorder stores it) and the status."""
     first_two = [b for sortie in mission["sorties"][:2] for b in sortie["order"]]
     storage = open_storage(storage_path)
     storage.set_progress(
@@ -600,7 +600,7 @@ def test_plan_and_fly_wait_for_the_answer_and_a_superseded_plan_answer_changes_n
 
 
 def test_a_mission_waiting_for_a_battery_swap_asks_for_it_and_shows_its_preflight_checks(tmp_path):
-    """A mission between sorties, waiting for the operator's swap (as gcs.lifecycle stores it): the page opens
+    """A mission between sorties, waiting for the operator's swap (as gcs.missions.lifecycle stores it): the page opens
     on it, its status asks for attention and the pre-flight checks read as figures; "Pack swapped" asks for
     confirmation and shows the service's answer as text (here: no vehicle to tell)."""
     with serving(tmp_path / "gcs.sqlite", tmp_path / "service.log") as url:

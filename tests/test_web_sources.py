@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from gcs.app import create_app
+from gcs.api.app import create_app
 from gcs.settings import Settings
 
 WEB = Settings().web_dir

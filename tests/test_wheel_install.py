@@ -99,7 +99,7 @@ def test_the_wheel_installs_and_on_a_cold_start_serves_the_page_and_plans_within
     cold start (a fresh install whose numba cache is empty, as on a user's machine after `pip install`), configured
     with a fleet of two vehicles (none there: the fleet planner needs only their homes), serves the map page and its
     assets from the installed package; and its first fleet POST /missions (time_limit_s 2) answers within its time
-    limit, because the service compiled (or loaded) every planner kernel before it answered at all (gcs.app's
+    limit, because the service compiled (or loaded) every planner kernel before it answered at all (gcs.api.app's
     lifespan, planner.warmup). Before, that first POST answered after 56 s. One test: each wheel build and each cold
     start are costly (a full compile: 38 s idle, 80 s on a loaded machine), and a test's worker is not known in
     advance."""

@@ -1,7 +1,7 @@
 """A LiPo flight pack as the vehicle's parameters describe it (PX4's BAT1_* names), and the energy it holds.
 
 Shared by the simulator's battery (sitl_quad.battery, which discharges it) and the ground station's planning
-(gcs.energy_planning, which turns a charge reserve into the watt-hours a sortie may use). Pure computation.
+(gcs.missions.energy_planning, which turns a charge reserve into the watt-hours a sortie may use). Pure computation.
 
 The open-circuit voltage of a cell against its state of charge has the shape of the widely published LiPo
 rest-voltage chart (`OCV_CHART`), stretched to span [BAT1_V_EMPTY, BAT1_V_CHARGED]. The energy between two

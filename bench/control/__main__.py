@@ -32,7 +32,7 @@ from bench.control.flight import CONTROLLERS, LABELS, fly, step_response
 from bench.control.metrics import ESO_METRICS, METRICS, STEP_METRICS, TARGETS
 from bench.control.scenario import ACCEPTANCE_RADIUS_M, DWELL_S, Scenario, build_scenario
 from bench.control.statistics import summarise
-from gcs.tracking_metrics import GUST_WINDOW_S, RECOVERED_M
+from gcs.domain.tracking_metrics import GUST_WINDOW_S, RECOVERED_M
 from planner.scenario import TURBULENCE_SIGMA_M_S
 
 TUNINGS = ("shared", "own")  # operating points read from control_tuning.json

@@ -12,7 +12,7 @@ import numpy as np
 from bench.control import REPO
 from bench.control.flight import LABELS
 from bench.control.scenario import OUTER_RATE_HZ, STEP_M, Scenario
-from gcs.planning import FIRST_BUOY_SEQ
+from gcs.domain.planning import FIRST_BUOY_SEQ
 
 
 def draw_figures(scenario: Scenario, series: dict[str, dict], steps: dict[str, np.ndarray], out_dir: Path) -> list[str]:

@@ -7,7 +7,8 @@ vehicle above 1 m:
 - cross_track_rms_m / cross_track_max_m: horizontal distance to the planned leg (straight segment between
   consecutive waypoints, takeoff point first) while flying to each buoy;
 - gust_peak_m: largest 3-D error within 10 s of the gust onset; gust_recovery_s: time from the onset until
-  the error is back under 0.2 m for good within that window (10 s = not recovered): gcs.tracking_metrics.gust_effect,
+  the error is back under 0.2 m for good within that window (10 s = not recovered):
+  gcs.domain.tracking_metrics.gust_effect,
   the demo's (`buoy-gcs up --demo`) measure too;
 - altitude_rms_m: vertical error;
 - yaw_turn_rms_deg / yaw_turn_max_deg: yaw error during the on-the-spot turns at the buoys (reference yaw
@@ -41,8 +42,8 @@ import math
 import numpy as np
 
 from bench.control.scenario import OUTER_RATE_HZ, STEP_M, Scenario
-from gcs.planning import FIRST_BUOY_SEQ
-from gcs.tracking_metrics import GUST_WINDOW_S, gust_effect
+from gcs.domain.planning import FIRST_BUOY_SEQ
+from gcs.domain.tracking_metrics import GUST_WINDOW_S, gust_effect
 from uavcore.rotation import wrap_pi
 
 TRACKING_MIN_ALTITUDE_M = 1.0

@@ -2,8 +2,8 @@
 "scenario").
 
 - Mission: `planner.scenario.reference_scenario()` (13 buoys, depot at home), optimal order
-  (`plan_tour(method="exact")` through gcs.planning.make_plan), flown as the GCS would upload it
-  (gcs.planning.mission_items: takeoff, DO_CHANGE_SPEED 10 m/s, one NAV_WAYPOINT per buoy at 5 m with a
+  (`plan_tour(method="exact")` through gcs.domain.planning.make_plan), flown as the GCS would upload it
+  (gcs.domain.planning.mission_items: takeoff, DO_CHANGE_SPEED 10 m/s, one NAV_WAYPOINT per buoy at 5 m with a
   1 s inspection dwell and a 2 m acceptance radius, RTL), in-process lockstep (sitl_quad.lockstep_harness).
 - Weather: `planner.scenario.paper_weather` for the route, the one definition the demo (`buoy-gcs up --demo`)
   flies too: 5 m/s mean crosswind perpendicular to the route's longest leg (blowing from its right-hand side);
@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gcs.planning import FIRST_BUOY_SEQ, FlightParams, make_plan, mission_items
+from gcs.domain.planning import FIRST_BUOY_SEQ, FlightParams, make_plan, mission_items
 from planner.scenario import (
     ALTITUDE_M,
     CRUISE_SPEED_M_S,

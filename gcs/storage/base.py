@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any, ClassVar, Protocol
 
-from gcs.status import UNFINISHED, MissionStatus
+from gcs.domain.status import UNFINISHED, MissionStatus
 from gcs.storage.migrations import MIGRATIONS, TRACK_COLUMNS
 
 # The next version, taken inside the write's transaction, after the dialect's `_serialise_versions`: writers take

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from gcs.status import MissionStatus
+from gcs.domain.status import MissionStatus
 
 # The statuses of migration 1, as released (MissionStatus has grown since: migration 6)
 _FIRST_STATUSES = "'planned', 'uploading', 'uploaded', 'flying', 'completed', 'aborted', 'failed'"

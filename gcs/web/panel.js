@@ -120,7 +120,7 @@ export function clearPlanSummary() {
   byId("plan-summary").replaceChildren();
 }
 
-// A fleet mission's closest approach of two vehicles in the air, once it has ended (gcs.fleet_missions).
+// A fleet mission's closest approach of two vehicles in the air, once it has ended (gcs.missions.fleet_missions).
 function separationLines(fleet) {
   const s = fleet.separation;
   if (s.min_distance_m == null) return [];

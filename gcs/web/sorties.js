@@ -3,7 +3,7 @@
 // (SortieOut: index, order, route, predicted_energy_wh, ...) and `energy` (null without energy planning).
 import { svg } from "./dom.js";
 
-// Okabe & Ito's colour-blind-safe palette (the report draws with the same, gcs/report.py SORTIE_COLOURS),
+// Okabe & Ito's colour-blind-safe palette (the report draws with the same, gcs/reports/report.py SORTIE_COLOURS),
 // without its yellow and black, which vanish on the map's light grid or read as the vehicle's track.
 const PALETTE = ["#0072b2", "#e69f00", "#009e73", "#cc79a7", "#d55e00", "#56b4e9"];
 // Past six sorties the colours repeat with another dash, so no two routes look alike.

@@ -1,0 +1,174 @@
+"""The FastAPI application factory: wires settings, storage, link manager and mission service to the routes."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+import time
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+import xstatic.pkg.leaflet as leaflet
+from fastapi import FastAPI, Request
+from fastapi.exception_handlers import http_exception_handler
+from fastapi.exceptions import RequestValidationError
+from fastapi.middleware.cors import CORSMiddleware
+from fastapi.responses import FileResponse, JSONResponse
+from fastapi.routing import APIRoute
+from fastapi.staticfiles import StaticFiles
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.responses import Response
+
+from gcs.api.body_limit import BodyLimitMiddleware
+from gcs.api.http_headers import SecurityHeadersMiddleware
+from gcs.api.routes import buoy_files, live, missions, plans, vehicle
+from gcs.domain.buoy_files import BuoyFileError
+from gcs.missions.lifecycle import MissionConflictError
+from gcs.missions.ownership import NotOwnerError
+from gcs.missions.service import MissionNotFoundError, MissionService, VehicleNotFoundError
+from gcs.missions.validation import RequestInvalidError
+from gcs.settings import Settings
+from gcs.storage import open_storage
+from gcs.vehicle.connection import TransportHub
+from gcs.vehicle.link import LinkManager
+from planner.errors import PlannerError
+from planner.warmup import warm_up
+from uavcore.mavlink import parse_signing_key
+
+# uvicorn configures its own loggers only: this one prints at INFO beside "Application startup complete."
+log = logging.getLogger("uvicorn.error")
+
+
+async def warm_up_planner() -> float:
+    """Compile (or load from numba's cache) the planner's kernels, off the event loop; returns the seconds it took.
+
+    Awaited in the lifespan before it yields, so uvicorn takes no request until it ends: otherwise the first plan
+    of each kind compiles inside its request, whose time limit the compile does not see (a 2 s fleet plan answered
+    after 56 s on a cold cache). With the cache on disk it only loads the compiled code."""
+    started = time.perf_counter()
+    await asyncio.to_thread(warm_up)
+    return time.perf_counter() - started
+
+
+def _unprocessable(errors: list[tuple[tuple, str]], types: list[str] | None = None) -> JSONResponse:
+    """422 in the shape FastAPI gives its own validation errors: {"detail": [{type, loc, msg}]}."""
+    types = types or ["value_error"] * len(errors)
+    detail = [{"type": kind, "loc": list(loc), "msg": msg} for (loc, msg), kind in zip(errors, types, strict=True)]
+    return JSONResponse({"detail": detail}, status_code=422)
+
+
+def _install_error_handlers(app: FastAPI) -> None:
+    @app.exception_handler(RequestValidationError)
+    async def invalid_body(_: Request, error: RequestValidationError) -> JSONResponse:
+        # FastAPI's default echoes the input, which cannot be encoded when it is NaN or Infinity: a 500.
+        return _unprocessable(
+            [(tuple(e["loc"]), e["msg"]) for e in error.errors()], [e["type"] for e in error.errors()]
+        )
+
+    @app.exception_handler(StarletteHTTPException)
+    async def http_error(request: Request, error: StarletteHTTPException) -> Response:
+        if error.status_code == 400:  # FastAPI's answer to a body it cannot decode (not UTF-8): bad input too
+            return _unprocessable([(("body",), "the body is not JSON in UTF-8")], ["json_invalid"])
+        return await http_exception_handler(request, error)
+
+    @app.exception_handler(RequestInvalidError)
+    async def request_invalid(_: Request, error: RequestInvalidError) -> JSONResponse:
+        return _unprocessable(error.errors)
+
+    @app.exception_handler(PlannerError)
+    async def planner_error(_: Request, error: PlannerError) -> JSONResponse:
+        return _unprocessable([(("body", "buoys"), str(error))])
+
+    @app.exception_handler(BuoyFileError)
+    async def buoy_file_error(_: Request, error: BuoyFileError) -> JSONResponse:
+        return _unprocessable([(("body",), str(error))])
+
+    @app.exception_handler(MissionNotFoundError)
+    async def not_found(_: Request, error: MissionNotFoundError) -> JSONResponse:
+        return JSONResponse({"detail": f"no mission {error.args[0]}"}, status_code=404)
+
+    @app.exception_handler(VehicleNotFoundError)
+    async def no_vehicle(_: Request, error: VehicleNotFoundError) -> JSONResponse:
+        return JSONResponse({"detail": f"no vehicle with system id {error.args[0]}"}, status_code=404)
+
+    @app.exception_handler(MissionConflictError)
+    async def conflict(_: Request, error: MissionConflictError) -> JSONResponse:
+        return JSONResponse({"detail": str(error)}, status_code=409)
+
+    @app.exception_handler(NotOwnerError)
+    async def standby(request: Request, error: NotOwnerError) -> JSONResponse:
+        # a client may retry here (this instance takes over when the owner dies) or go to the owner
+        retry_s = max(1, math.ceil(request.app.state.settings.lease_poll_s))
+        return JSONResponse({"detail": str(error)}, status_code=503, headers={"Retry-After": str(retry_s)})
+
+
+def _operation_id(route: APIRoute) -> str:
+    """The OpenAPI operationId of a route: its function's name (get_mission), which the links between
+    operations name (POST /missions answers with links to get_mission, start_mission, ...)."""
+    return route.name
+
+
+def _install_middleware(app: FastAPI, settings: Settings) -> None:
+    """Each middleware added wraps those before it: the security headers, added last, go on every answer
+    (a 413 and a CORS preflight too); the body limit acts before CORS and the routes read anything."""
+    if settings.cors_origins:  # off by default: only the service's own page calls it
+        app.add_middleware(
+            CORSMiddleware,
+            allow_origins=list(settings.cors_origins),
+            allow_methods=["GET", "POST"],
+            allow_headers=["Authorization", "Content-Type", "X-API-Token"],
+        )
+    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
+    docs = frozenset(path for path in (app.docs_url, app.redoc_url, app.swagger_ui_oauth2_redirect_url) if path)
+    app.add_middleware(SecurityHeadersMiddleware, docs_paths=docs)
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """The service. Storage opens and the link starts with the app's lifespan, and close with it."""
+    settings = settings or Settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        # first, before the links start: a cold compile holds the GIL for much of its time, and a link started
+        # beside it could miss heartbeats
+        log.info("planner kernels compiled or loaded in %.1f s", await warm_up_planner())
+        storage = open_storage(settings.database)
+        key = None if settings.signing_key is None else parse_signing_key(settings.signing_key)
+        hub = TransportHub()  # a fleet's vehicles on one connection (a router's) share its socket
+        links = [
+            LinkManager(url, settings.heartbeat_timeout_s, signing_key=key, sysid=sysid, transports=hub.open_transport)
+            for sysid, url in settings.fleet
+        ]
+        # owner or stand-by: gcs.missions.ownership, by the settings
+        service = MissionService(settings, storage, links[0], fleet=links[1:])
+        app.state.service = service
+        await service.start()
+        try:
+            yield
+        finally:
+            await service.stop()
+            storage.close()
+
+    app = FastAPI(
+        title="buoy-gcs",
+        description="Mission service for UAV buoy inspection: plan (CHNN-GA), upload, fly, record, report.",
+        version="0.1.0",
+        lifespan=lifespan,
+        generate_unique_id_function=_operation_id,
+    )
+    app.state.settings = settings
+    _install_middleware(app, settings)
+    _install_error_handlers(app)
+    for module in (plans, missions, buoy_files, vehicle, live):
+        app.include_router(module.router)
+
+    index = settings.web_dir / "index.html"
+
+    @app.get("/", include_in_schema=False)
+    def page() -> FileResponse:
+        return FileResponse(index)
+
+    app.mount("/static/leaflet", StaticFiles(directory=leaflet.BASE_DIR), name="leaflet")
+    app.mount("/web", StaticFiles(directory=settings.web_dir), name="web")
+    return app

@@ -1,0 +1,170 @@
+"""Missions: create (plan + fly), list, read, telemetry, exports, start, abort."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from typing import Annotated
+
+from fastapi import APIRouter, Depends, HTTPException, Path, Query, Response
+from fastapi.responses import FileResponse, RedirectResponse, StreamingResponse
+
+from gcs.api.routes.deps import ServiceDep
+from gcs.api.routes.responses import CONFLICT, MUTATING, NOT_FOUND, WITH_BODY
+from gcs.api.security import require_token
+from gcs.domain.schemas import MissionOut, MissionRequest, MissionSummary, TelemetrySample, TrackOut
+from gcs.reports import exports, report
+from gcs.reports.views import mission_out, telemetry_chunks
+
+router = APIRouter(tags=["missions"])
+# POST /missions answers with links to what can be asked of the new mission (OpenAPI links: clients and
+# schemathesis's stateful tests follow them with the id from the answer).
+_MISSION_LINKS = {
+    name: {"operationId": name, "parameters": {"mission_id": "$response.body#/id"}}
+    for name in (
+        *("get_mission", "get_telemetry", "get_qgc_plan", "get_waypoints", "get_track", "get_report"),
+        *("get_display_track", "start_mission", "abort_mission"),
+    )
+}
+CREATED = {201: {"links": _MISSION_LINKS}}
+# start and abort: what they answer and need
+ACTION = {
+    "response_model": MissionOut,
+    "dependencies": [Depends(require_token)],
+    "responses": MUTATING | NOT_FOUND | CONFLICT,
+}
+
+
+def _file(*media_types: str) -> dict:
+    """A download's answer: a file of these media types, or 404."""
+    return {200: {"description": "the file", "content": {kind: {} for kind in media_types}}} | NOT_FOUND
+
+
+MissionId = Annotated[int, Path(ge=1, le=2**63 - 1, description="the mission's id (SQLite integer)")]
+
+
+@router.post(
+    "/missions",
+    status_code=201,
+    response_model=MissionOut,
+    dependencies=[Depends(require_token)],
+    responses=CREATED | WITH_BODY | CONFLICT,
+)
+async def create_mission(request: MissionRequest, service: ServiceDep) -> dict:
+    """Plan, store, and (start=true) upload, arm and fly.
+
+    Answers 201 as soon as the mission is planned and stored (status `planned`); the upload, arming and flight
+    run in the background: poll GET /missions/{id} or watch /ws. With no vehicle heard within the service's
+    vehicle wait (default 5 s) the mission ends `failed` with reason "no vehicle". 409 while another mission
+    uses the vehicle."""
+    mission_id = await service.create(request)
+    return mission_out(service.get(mission_id))
+
+
+def _encoded(body: bytes) -> Response:
+    """A document the service encoded once (gcs.missions.read_cache), served as it is: the route's response_model still
+    tells OpenAPI its shape, and the cache validated it against that model when it built it."""
+    return Response(body, media_type="application/json")
+
+
+# The read routes answer from the service's cache of encoded documents: one version query per request, then
+# the bytes. They run on the event loop (no thread hop): a cache hit is a few microseconds of work.
+@router.get("/missions", response_model=list[MissionSummary])
+async def list_missions(service: ServiceDep, limit: Annotated[int, Query(ge=1, le=1000)] = 100) -> Response:
+    """The latest missions, newest first; a fleet mission is listed, its part missions are in its `fleet`."""
+    return _encoded(service.missions_json(limit))
+
+
+@router.get("/missions/{mission_id}", response_model=MissionOut, responses=NOT_FOUND)
+async def get_mission(mission_id: MissionId, service: ServiceDep) -> Response:
+    return _encoded(service.mission_json(mission_id))
+
+
+@router.post("/missions/{mission_id}/start", **ACTION)
+async def start_mission(mission_id: MissionId, service: ServiceDep) -> dict:
+    """Fly a mission created with start=false."""
+    service.launch(mission_id)
+    return mission_out(service.get(mission_id))
+
+
+@router.post("/missions/{mission_id}/abort", **ACTION)
+async def abort_mission(mission_id: MissionId, service: ServiceDep) -> dict:
+    """Return to the depot (NAV_RETURN_TO_LAUNCH); a mission not yet flying simply ends."""
+    await service.abort(mission_id)
+    return mission_out(service.get(mission_id))
+
+
+@router.get("/missions/{mission_id}/telemetry", response_model=list[TelemetrySample], responses=NOT_FOUND)
+def get_telemetry(
+    mission_id: MissionId, service: ServiceDep, limit: Annotated[int | None, Query(ge=1, le=1_000_000)] = None
+) -> StreamingResponse:
+    """Every recorded sample, oldest first (the first `limit`): streamed in chunks, so a long flight's megabytes
+    never hold up the other requests."""
+    return StreamingResponse(telemetry_chunks(service.telemetry(mission_id, limit)), media_type="application/json")
+
+
+@router.get("/missions/{mission_id}/track", response_model=TrackOut, responses=NOT_FOUND)
+def get_display_track(
+    mission_id: MissionId,
+    service: ServiceDep,
+    max_points: Annotated[int, Query(ge=2, le=100_000, description="the most positions (and chart samples)")] = 2000,
+) -> Response:
+    """The flown track for the map page: at most `max_points` positions (the first, the last and every buoy
+    arrival always among them) within `tolerance_m` of every recorded one, and samples spread over the flight for
+    the charts. Every sample is in /telemetry and track.geojson."""
+    return _encoded(service.track_json(mission_id, max_points))
+
+
+def _download(content: str, media_type: str, filename: str) -> Response:
+    return Response(
+        content, media_type=media_type, headers={"Content-Disposition": f'attachment; filename="{filename}"'}
+    )
+
+
+@router.get("/missions/{mission_id}/track.geojson", response_class=Response, responses=_file("application/geo+json"))
+def get_track(mission_id: MissionId, service: ServiceDep) -> Response:
+    properties = {"mission": mission_id, "status": service.get(mission_id).status}
+    document = exports.track_geojson(service.telemetry(mission_id), properties)
+    return _download(json.dumps(document), "application/geo+json", f"mission-{mission_id}-track.geojson")
+
+
+@router.get("/missions/{mission_id}/plan", response_class=Response, responses=_file("application/json"))
+def get_qgc_plan(mission_id: MissionId, service: ServiceDep) -> Response:
+    items, home, flight = service.mission_file(mission_id)
+    document = exports.qgc_plan(items, home, cruise_speed=flight.speed_m_s, hover_speed=flight.speed_m_s)
+    return _download(json.dumps(document, indent=2), "application/json", f"mission-{mission_id}.plan")
+
+
+@router.get("/missions/{mission_id}/waypoints", response_class=Response, responses=_file("text/plain"))
+def get_waypoints(mission_id: MissionId, service: ServiceDep) -> Response:
+    items, home, _ = service.mission_file(mission_id)
+    return _download(exports.waypoints_text(items, home), "text/plain", f"mission-{mission_id}.waypoints")
+
+
+@router.get(
+    "/missions/{mission_id}/report",
+    response_class=RedirectResponse,
+    status_code=307,
+    responses={307: {"headers": {"Location": {"required": True, "schema": {"type": "string"}}}}} | NOT_FOUND,
+)
+def get_report(mission_id: MissionId, service: ServiceDep) -> RedirectResponse:
+    """The mission report (figures table and PNGs, the paper's Section VI from this flight): redirects to
+    its index.html, which names its figures relative to itself."""
+    service.get(mission_id)
+    return RedirectResponse(f"/missions/{mission_id}/report/index.html", status_code=307)
+
+
+@router.get(
+    "/missions/{mission_id}/report/{name}",
+    response_class=FileResponse,
+    responses=_file("text/html", "image/png"),
+)
+async def get_report_file(mission_id: MissionId, name: str, service: ServiceDep) -> FileResponse:
+    """index.html or one of its figures, drawn on first request and again only after the mission changed."""
+    service.get(mission_id)
+    if name not in report.REPORT_FILES:
+        raise HTTPException(404, f"no report file {name!r}")
+    index = await asyncio.to_thread(service.report_index, mission_id)
+    if not (index.parent / name).is_file():  # energy.png: only for a mission planned with energy figures
+        raise HTTPException(404, f"mission {mission_id}'s report has no {name}")
+    return FileResponse(index.parent / name, headers={"Cache-Control": "no-cache"})

@@ -1,0 +1,409 @@
+"""The REST contract as pydantic models (field names fixed by docs/architecture.md, section REST).
+
+Only structural checks live here (types, finite numbers, lat/lon ranges, 1..500 buoys); the checks that depend
+on settings (airframe limits, spacing, range) are in `gcs.missions.validation`, which answers in the same 422 shape.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from gcs.domain.buoy_files import BuoyFileError, buoys_from_geojson
+from gcs.domain.status import MissionStatus
+
+MAX_BUOYS = 500
+MAX_FENCE_ZONES = 50
+MAX_FENCE_VERTICES = 200
+PlannerMethod = Literal["auto", "chnn-ga", "chnn", "exact"]
+
+
+class Strict(BaseModel):
+    """Base: unknown fields are errors and NaN/Infinity (which Python's JSON parser accepts) are refused."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class LatLon(Strict):
+    lat: float = Field(ge=-90.0, le=90.0, description="WGS84 latitude, degrees")
+    lon: float = Field(ge=-180.0, le=180.0, description="WGS84 longitude, degrees")
+
+
+class BuoyIn(LatLon):
+    id: str | None = Field(default=None, max_length=64, description="the buoy's name; defaults to B<index>")
+
+
+class FenceZoneIn(Strict):
+    """One geofence zone, as MAVLink's fence items describe them: a polygon (3 or more vertices) or a circle."""
+
+    kind: Literal["polygon", "circle"]
+    inclusion: bool = Field(description="true: the vehicle must stay inside; false: it must stay out")
+    vertices: list[LatLon] | None = Field(default=None, min_length=3, max_length=MAX_FENCE_VERTICES)
+    center: LatLon | None = None
+    radius_m: float | None = Field(default=None, gt=0.0, le=100_000.0)
+
+    @model_validator(mode="after")
+    def _shape(self) -> FenceZoneIn:
+        if self.kind == "polygon" and (self.vertices is None or self.center is not None or self.radius_m is not None):
+            raise ValueError("a polygon zone has vertices (3 or more) and no center or radius_m")
+        if self.kind == "circle" and (self.center is None or self.radius_m is None or self.vertices is not None):
+            raise ValueError("a circle zone has a center and a radius_m and no vertices")
+        return self
+
+
+class PlannerOptions(Strict):
+    method: PlannerMethod = "auto"
+    seed: int = Field(default=0, ge=0, le=2**31 - 1)
+    time_limit_s: float = Field(default=2.0, gt=0.0, description="the planner's wall-clock budget")
+
+
+class WindIn(Strict):
+    """The forecast wind the energy prediction flies against."""
+
+    speed_m_s: float = Field(ge=0.0, le=30.0, description="mean wind speed")
+    from_deg: float = Field(ge=0.0, le=360.0, description="compass direction the wind blows from")
+    turbulence_w20_m_s: float | None = Field(
+        default=None, ge=0.0, le=30.0, description="Dryden intensity (wind at 20 ft); default: the mean wind speed"
+    )
+
+
+class BatteryIn(Strict):
+    """Energy planning: split the buoys into sorties that each fit one battery, and predict each one's energy."""
+
+    reserve_pct: Annotated[float, Field(ge=0.0, le=90.0)] | Literal["vehicle"] = Field(
+        default="vehicle",
+        description="charge left at landing, % of the pack; 'vehicle': the vehicle's BAT_LOW_THR (read from it), "
+        "so a sortie flown as predicted lands before the low-battery warning",
+    )
+    capacity_mah: float | None = Field(
+        default=None, gt=0.0, le=100_000.0, description="the pack's capacity; default: the vehicle's BAT1_CAPACITY"
+    )
+    margin_pct: float = Field(
+        default=5.0, ge=0.0, le=50.0, description="energy kept free in every sortie for prediction errors, %"
+    )
+    split: bool = Field(default=True, description="false: one sortie whatever the prediction (flown at your risk)")
+    objective: Literal["time", "distance"] = Field(default="time", description="what the sorties minimise in total")
+
+
+class PlanRequest(Strict):
+    depot: LatLon | None = Field(default=None, description="default: the vehicle's home")
+    buoys: list[BuoyIn] = Field(
+        min_length=1,
+        max_length=MAX_BUOYS,
+        description="a list of {id?, lat, lon} or a GeoJSON FeatureCollection of Points",
+    )
+    altitude_m: float = Field(default=5.0, description="flight altitude above home")
+    speed_m_s: float = Field(default=10.0, description="cruise speed")
+    dwell_s: float = Field(default=1.0, description="inspection time hovering at each buoy")
+    acceptance_radius_m: float = Field(default=2.0, description="how close counts as reaching a buoy")
+    planner: PlannerOptions = Field(default_factory=PlannerOptions)
+    geofence: list[FenceZoneIn] | None = Field(
+        default=None,
+        max_length=MAX_FENCE_ZONES,
+        description="zones the route must respect; default: the fence the vehicle holds, if any",
+    )
+    battery: BatteryIn | Literal["vehicle"] | None = Field(
+        default=None,
+        description="plan sorties within one battery each ('vehicle': every option from the vehicle); default: "
+        "one tour, no energy planning",
+    )
+    wind: WindIn | None = Field(default=None, description="the forecast wind, for the energy prediction; default: calm")
+    vehicle: int | None = Field(
+        default=None, ge=1, le=255, description="the fleet's vehicle to fly (its system id); default: the first"
+    )
+
+    @field_validator("battery", mode="after")
+    @classmethod
+    def _battery_shorthand(cls, value: Any) -> Any:
+        return BatteryIn() if value == "vehicle" else value
+
+    @field_validator("buoys", mode="before")
+    @classmethod
+    def _accept_geojson(cls, value: Any) -> Any:
+        # A FeatureCollection becomes the same list of {id, lat, lon} a client could have sent.
+        if isinstance(value, dict):
+            try:
+                return [b.as_dict() for b in buoys_from_geojson(value)]
+            except BuoyFileError as error:
+                raise ValueError(str(error)) from None
+        return value
+
+
+class MissionRequest(PlanRequest):
+    start: bool = Field(default=True, description="upload, arm and fly now")
+    override: bool = Field(
+        default=False,
+        description="fly even when the pre-flight check finds the vehicle's charge short of what the tour needs "
+        "(the override is recorded with the mission)",
+    )
+    vehicles: list[Annotated[int, Field(ge=1, le=255)]] | Literal["fleet"] | None = Field(
+        default=None,
+        max_length=64,
+        description="a fleet mission: the buoys shared among these vehicles (system ids; 'fleet': every vehicle of "
+        "the service), each flying its share from its own home; default: one vehicle (`vehicle`)",
+    )
+    layer_gap_m: float = Field(
+        default=3.0,
+        ge=1.0,
+        le=50.0,
+        description="a fleet mission's altitude layers: the k-th vehicle flies at altitude_m + k x layer_gap_m",
+    )
+
+
+class Buoy(BaseModel):
+    index: int
+    id: str
+    lat: float
+    lon: float
+    east_m: float
+    north_m: float
+
+
+class SortieOut(BaseModel):
+    """One sortie: take-off at the depot, its buoys, back and land; predicted, and once flown, measured."""
+
+    index: int
+    vehicle: int | None = Field(default=None, description="a fleet mission's share: the vehicle flying it")
+    order: list[int] = Field(description="its buoys' input indices in visiting order")
+    route: list[list[float]] = Field(description="[lat, lon] from the depot through its buoys back to it")
+    length_m: float
+    predicted_energy_wh: float | None = Field(description="the energy model's prediction (null: no energy planning)")
+    predicted_time_s: float | None
+    margin_wh: float | None = Field(description="budget left after the predicted energy (negative: over budget)")
+    margin_pct: float | None = Field(description="margin_wh in % of the budget")
+    predicted_landing_charge_pct: float | None = Field(description="charge predicted at landing, on a full pack")
+    used_energy_wh: float | None = Field(description="measured: the vehicle's BATTERY_STATUS energy consumed")
+    landing_charge_pct: float | None = Field(description="measured: the vehicle's remaining charge after landing")
+    battery_warning: str | None = Field(description="the worst battery state the vehicle reported in the sortie")
+
+
+class EnergyOut(BaseModel):
+    """The battery a multi-sortie plan was made for."""
+
+    capacity_wh: float = Field(description="a full pack's energy at the terminals")
+    usable_wh: float = Field(description="down to the reserve")
+    budget_wh: float = Field(description="what a sortie may be planned to use: usable less the margin")
+    reserve_pct: float
+    reserve_source: str
+    margin_pct: float
+    pack: dict[str, float]
+    pack_source: str = Field(description="'vehicle' (its parameters) or 'energy model' (the pack it was fitted on)")
+    wind: dict[str, float | None]
+    objective: str
+    split: bool
+
+
+class PlanOut(BaseModel):
+    order: list[int] = Field(description="the buoys' input indices in visiting order")
+    length_m: float
+    input_order_length_m: float = Field(description="the tour visiting the buoys in the order given")
+    improvement_pct: float = Field(description="how much shorter the plan is than the input order")
+    method: str
+    elapsed_s: float
+    depot: LatLon
+    buoys: list[Buoy]
+    route: list[list[float]] = Field(description="[lat, lon] from the depot through the buoys back to it")
+    sorties: list[SortieOut] = Field(description="one for a single tour")
+    energy: EnergyOut | None = Field(description="the battery and budget (null: no energy planning)")
+
+
+class BuoyResult(BaseModel):
+    index: int
+    id: str
+    closest_m: float | None
+    reached: bool
+    arrival_s: float | None = Field(description="vehicle time (time_boot_ms / 1000) when it was reached")
+
+
+class LegFigures(BaseModel):
+    leg: int
+    samples: int
+    rms_cross_track_m: float | None
+    max_cross_track_m: float | None
+
+
+class TrackingFigures(BaseModel):
+    legs: list[LegFigures]
+    rms_cross_track_m: float | None
+    max_cross_track_m: float | None
+    distance_flown_m: float
+    planned_length_m: float
+    flight_time_s: float | None
+
+
+class VehicleEvent(BaseModel):
+    """A STATUSTEXT of the vehicle, or a mode change ("mode OFFBOARD -> AUTO.RTL"), at the vehicle's time."""
+
+    t_s: float | None
+    text: str
+
+
+class PreflightCheck(BaseModel):
+    """A sortie's pre-flight check: the charge it needs (its predicted energy, landing with the reserve) against
+    the charge the vehicle reported before arming."""
+
+    sortie: int = Field(description="0-based")
+    needed_pct: float = Field(description="charge needed at take-off (over 100: no full pack of this kind suffices)")
+    energy_wh: float = Field(description="the sortie's predicted energy")
+    reserve_pct: float = Field(description="charge to land with")
+    remaining_pct: float | None = Field(description="charge the vehicle reported (null: none reported)")
+    override: bool = Field(description="flown short of charge because the request said override")
+    swapped: bool = Field(default=False, description="flown after the operator confirmed a battery swap")
+
+
+class BatterySwapIn(BaseModel):
+    charge_pct: float = Field(default=100.0, ge=1.0, le=100.0, description="the charge of the pack put in")
+
+
+class BatterySwapOut(BaseModel):
+    vehicle: str = Field(description="what the vehicle answered to MAV_CMD_BATTERY_RESET")
+    battery_remaining_pct: float | None = Field(description="the charge the vehicle reports now")
+    waiting_mission: int | None = Field(description="the mission that was waiting for this swap, if any")
+
+
+class Progress(BaseModel):
+    current_seq: int | None = None
+    total: int | None = None
+    mission_state: int | None = None
+    reached_seqs: list[int] = []
+    visited: int = 0
+    buoys: int = 0
+    vehicle_events: list[VehicleEvent] = []
+    sortie: int | None = Field(default=None, description="the sortie being flown (0-based)")
+    sorties: int = 1
+    visited_buoys: list[int] = Field(default=[], description="input indices of the buoys visited, every sortie")
+    preflight: list[PreflightCheck] = Field(default=[], description="each sortie's pre-flight charge check")
+
+
+class FleetShareOut(BaseModel):
+    """One vehicle's share of a fleet mission: its buoys, as planned, and its part mission as flown."""
+
+    sysid: int
+    mission_id: int = Field(description="the part mission it flies (GET /missions/{id} for its telemetry, report)")
+    buoys: list[int] = Field(description="input indices of its buoys in flying order")
+    altitude_m: float
+    predicted_time_s: float
+    length_m: float
+    route: list[list[float]] = Field(description="[lat, lon] from its home through its buoys back home")
+    status: MissionStatus
+    visited_buoys: list[int] = Field(description="input indices of its buoys inspected so far")
+    lost: str | None = Field(default=None, description="why this vehicle dropped out of the fleet mission, if it did")
+    handed_over: dict[str, list[int]] = Field(
+        default={}, description="a lost vehicle's buoys re-shared in flight: system id -> the buoys it took"
+    )
+
+
+class SeparationOut(BaseModel):
+    """The closest two vehicles came while both were in the air (null: never two in the air at once)."""
+
+    min_horizontal_m: float | None
+    min_vertical_m: float | None
+    min_distance_m: float | None
+
+
+class FleetOut(BaseModel):
+    makespan_s: float = Field(description="predicted: when the last vehicle is home")
+    total_time_s: float
+    layer_gap_m: float
+    shares: list[FleetShareOut]
+    inspected_by: dict[str, int] = Field(description="buoy id -> the system id of the vehicle that inspected it")
+    separation: SeparationOut
+
+
+class MissionOut(BaseModel):
+    id: int
+    status: MissionStatus
+    reason: str | None
+    created_at: str
+    updated_at: str
+    vehicle_sysid: int | None = Field(description="the fleet's vehicle it flies on (null: the service's one vehicle)")
+    fleet_id: int | None = Field(description="a fleet mission's part: the fleet mission (null: not a part)")
+    fleet: FleetOut | None = Field(description="a fleet mission: its shares, who inspected what, the separation")
+    order: list[int]
+    length_m: float
+    input_order_length_m: float
+    improvement_pct: float
+    method: str
+    elapsed_s: float = Field(description="planner time")
+    altitude_m: float
+    speed_m_s: float
+    dwell_s: float
+    acceptance_radius_m: float
+    depot: LatLon
+    buoys: list[Buoy]
+    route: list[list[float]]
+    sorties: list[SortieOut]
+    energy: EnergyOut | None
+    progress: Progress
+    buoy_results: list[BuoyResult]
+    tracking: TrackingFigures | None
+    events: list[dict[str, Any]]
+
+
+class MissionSummary(BaseModel):
+    id: int
+    status: MissionStatus
+    reason: str | None
+    created_at: str
+    updated_at: str
+    vehicle_sysid: int | None = Field(description="the fleet's vehicle it flies on (null: the service's one vehicle)")
+    fleet_id: int | None = Field(description="a fleet mission's part: the fleet mission; a fleet mission: its own id")
+    buoys: int
+    length_m: float
+    tracking: TrackingFigures | None
+
+
+class TelemetrySample(BaseModel):
+    """One recorded sample of the vehicle's state. The one definition of a sample: the recorder fills these
+    fields (TELEMETRY_FROM_STATUS from the link's vehicle status by name, the rest computed), storage keeps each
+    sample as this document, and the API, the exports and the report read these names."""
+
+    t_s: float = Field(description="vehicle time, time_boot_ms / 1000")
+    lat: float | None
+    lon: float | None
+    alt_m: float | None
+    north: float | None
+    east: float | None
+    down: float | None
+    vn: float | None
+    ve: float | None
+    vd: float | None
+    roll: float | None
+    pitch: float | None
+    yaw: float | None
+    ref_north: float | None
+    ref_east: float | None
+    ref_down: float | None
+    ref_yaw: float | None
+    mission_seq: int | None
+    landed_state: int | None
+    armed: bool
+    eso: dict[str, Any] | None = Field(description="the offboard controller's ESO estimates, by name")
+    cross_track_m: float | None = Field(default=None, description="distance to the leg being flown")
+    sortie: int | None = Field(default=None, description="the sortie being flown (0-based)")
+
+
+class TrackOut(BaseModel):
+    """A mission's flown track cut down for the page (GET /missions/{id}/track); the exports keep every sample."""
+
+    mission: int
+    samples: int = Field(description="samples recorded (every one is in /telemetry and track.geojson)")
+    tolerance_m: float = Field(description="every recorded position lies within this distance of `points`")
+    points: list[list[float]] = Field(
+        description="[lat, lon] of the kept samples: the first, the last, each buoy arrival, and the ones that "
+        "keep the polyline closest to the recorded track"
+    )
+    series: list[TelemetrySample] = Field(
+        description="samples over the whole flight for the charts (at most max_points, and 1000): in each stretch "
+        "of the flight, the ones with the lowest and the highest cross-track error"
+    )
+
+
+# The sample's fields the recorder copies from the link's VehicleStatus attribute of the same name.
+TELEMETRY_COMPUTED = ("t_s", "eso", "cross_track_m", "sortie")
+TELEMETRY_FROM_STATUS = tuple(name for name in TelemetrySample.model_fields if name not in TELEMETRY_COMPUTED)
+
+
+class ImportOut(BaseModel):
+    buoys: list[BuoyIn]

@@ -1,0 +1,374 @@
+"""The mission service: the one object the routes call. A thin facade over the pieces that do the work:
+
+- planning: `plan` validates a request and plans it (gcs.missions.validation, gcs.domain.planning);
+- the flight lifecycle: `launch`, `abort`, the live view (gcs.missions.lifecycle, which records with
+  gcs.missions.recorder);
+- queries over what is stored: missions, telemetry, mission files, reports (gcs.storage, gcs.reports.report);
+- ownership of the vehicle link (gcs.missions.ownership): with several instances on one database, only the owner starts
+  the link and flies; a stand-by answers reads and refuses the rest (NotOwnerError) until it takes over.
+
+The routes see no storage, link or lifecycle: only the methods here.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from collections.abc import Sequence
+from dataclasses import asdict, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gcs.domain.planning import FlightParams, Plan, fenced_legs, make_plan, mission_items, sorties_plan
+from gcs.domain.schemas import MissionRequest, PlanRequest
+from gcs.domain.status import TERMINAL, MissionStatus
+from gcs.missions.energy_planning import battery_plan, energy_plan
+from gcs.missions.fleet_missions import FleetCoordinator, fleet_vehicles, shares_progress
+from gcs.missions.fleet_planning import METHOD, plan_fleet_mission
+from gcs.missions.fleet_vehicle import FleetVehicle
+from gcs.missions.lifecycle import ABORTED_BEFORE_TAKEOFF, MissionConflictError
+from gcs.missions.ownership import Ownership, ownership_for
+from gcs.missions.read_cache import VersionedCache
+from gcs.missions.validation import (
+    RequestInvalidError,
+    fence_from_request,
+    validate_fence_points,
+    validate_fenced_route,
+    validate_request,
+    validate_route_length,
+)
+from gcs.reports import report, views
+from gcs.settings import Settings
+from gcs.storage import MissionRecord, Storage
+from gcs.vehicle.link import LinkManager
+from planner.energy import EnergyModel
+from uavcore.battery_pack import PackSpec
+from uavcore.geofence import Geofence
+from uavcore.mission import MissionItem
+
+
+def _named_buoys(request: PlanRequest) -> tuple[list[str], list[tuple[float, float]]]:
+    """The request's buoy ids (B<index> for an unnamed one) and (lat, lon) points, in input order."""
+    ids = [b.id or f"B{i + 1}" for i, b in enumerate(request.buoys)]
+    return ids, [(b.lat, b.lon) for b in request.buoys]
+
+
+class MissionNotFoundError(KeyError):
+    pass
+
+
+class VehicleNotFoundError(KeyError):
+    pass
+
+
+class MissionService:
+    """Plans, stores and flies missions over one LinkManager; answers what is stored."""
+
+    def __init__(
+        self,
+        settings: Settings,
+        storage: Storage,
+        link: LinkManager,
+        ownership: Ownership | None = None,
+        fleet: Sequence[LinkManager] = (),
+    ) -> None:
+        """`link`: the service's vehicle (a fleet's first: GET /vehicle, missions that name no vehicle); `fleet`:
+        the other vehicles' links. A fleet's vehicles are known by their system ids (Settings.vehicles)."""
+        self.settings = settings
+        self._storage = storage
+        self.energy_model = EnergyModel.load()  # planner/energy_params.json: the calibrated route energy model
+        first_key = link.sysid if fleet else None  # a lone vehicle's missions are stored without one, as ever
+        self._vehicles = [FleetVehicle(first_key, link, settings, storage, self.energy_model)]
+        self._vehicles += [FleetVehicle(other.sysid, other, settings, storage, self.energy_model) for other in fleet]
+        self._link, self._flights = link, self._vehicles[0].flights  # the first vehicle's, for its views
+        self._fleets = FleetCoordinator(
+            storage,
+            lambda sysid: self._vehicle(sysid).link,
+            lambda part, plan: self._vehicle_of(part).flights.replan(part.id, plan),
+        )
+        self._ownership = ownership or ownership_for(settings)
+        self.documents = VersionedCache()  # the read routes' encoded documents by version (gcs.missions.read_cache)
+
+    async def start(self) -> None:
+        """Own the vehicle link now, or stand by until the owner is gone (then take it over in the background)."""
+        await self._ownership.start(self._take_link)
+
+    async def _take_link(self) -> None:
+        """As the links' new owner: start them and re-attach each vehicle's mission left flying, as after a restart."""
+        # read before this run can start any mission
+        unfinished = [self._storage.unfinished_missions(vehicle.sysid) for vehicle in self._vehicles]
+        fleets = self._storage.unfinished_fleets()
+        for vehicle in self._vehicles:
+            await vehicle.link.start()
+        for vehicle, missions in zip(self._vehicles, unfinished, strict=True):
+            vehicle.flights.reattach(missions)
+        for fleet_id in fleets:
+            self._fleets.follow(fleet_id)
+
+    async def stop(self) -> None:
+        """Stop. On a shared database a mission in flight is handed over, not failed: a stand-by takes the link
+        as soon as this instance releases the lease (and this instance, restarted, would re-attach it)."""
+        await self._ownership.stop()
+        await self._fleets.stop()
+        for vehicle in self._vehicles:
+            await vehicle.flights.stop(hand_over=self._ownership.shared)
+        for vehicle in self._vehicles:
+            await vehicle.link.stop()
+        await self._ownership.release()  # only now may a stand-by talk to the vehicle
+
+    def _vehicle(self, sysid: int | None) -> FleetVehicle:
+        """The vehicle a request names (None: the first); raises RequestInvalidError at body.vehicle."""
+        if sysid is None:
+            return self._vehicles[0]
+        with contextlib.suppress(VehicleNotFoundError):
+            return self._known_vehicle(sysid)
+        known = ", ".join(str(v.system_id) for v in self._vehicles if v.system_id is not None) or "none heard yet"
+        raise RequestInvalidError([(("body", "vehicle"), f"no vehicle with system id {sysid} (the fleet's: {known})")])
+
+    def _known_vehicle(self, sysid: int) -> FleetVehicle:
+        """The fleet's vehicle with this system id; raises VehicleNotFoundError."""
+        found = next((vehicle for vehicle in self._vehicles if vehicle.system_id == sysid), None)
+        if found is None:
+            raise VehicleNotFoundError(sysid)
+        return found
+
+    def _vehicle_of(self, record: MissionRecord) -> FleetVehicle:
+        """The vehicle a stored mission flies on (a mission stored without one: the first)."""
+        return next((v for v in self._vehicles if v.sysid == record.vehicle_sysid), self._vehicles[0])
+
+    # ----- planning
+    def default_depot(self) -> tuple[float, float]:
+        return self._vehicles[0].depot()
+
+    async def plan(self, request: PlanRequest) -> tuple[Plan, FlightParams]:
+        """Validate and plan for the vehicle the request names (default: the first) against the request's
+        geofence, else the one the vehicle holds (read now), and with battery options against the vehicle's pack
+        (read now). Raises RequestInvalidError or InputError."""
+        vehicle = self._vehicle(request.vehicle)
+        fence = fence_from_request(request.geofence) if request.geofence else await vehicle.fence()
+        pack = await vehicle.pack() if request.battery is not None else None
+        return await asyncio.to_thread(self._plan, request, vehicle.depot(), fence, pack)
+
+    def _plan(
+        self, request: PlanRequest, home: tuple[float, float], fence: Geofence | None, pack: PackSpec | None
+    ) -> tuple[Plan, FlightParams]:
+        """The CPU-bound part of `plan` (runs in a worker thread); `home`: the depot when the request names none."""
+        depot = (request.depot.lat, request.depot.lon) if request.depot else home
+        validate_request(request, depot, self.settings.limits)
+        ids, buoys = _named_buoys(request)
+        fenced = {}
+        if fence is not None and not fence.empty:
+            validate_fence_points(depot, buoys, fence)
+            fenced = fenced_legs(depot, np.asarray(buoys), fence)
+        flight = FlightParams(request.altitude_m, request.speed_m_s, request.dwell_s, request.acceptance_radius_m)
+        options = request.planner
+        if request.battery is None:
+            plan = make_plan(depot, buoys, ids, options.method, options.seed, options.time_limit_s, fenced)
+            validate_route_length(plan.length_m, self.settings.limits)
+        else:
+            battery = battery_plan(request, pack, self.energy_model)
+            plan = energy_plan(depot, buoys, ids, flight, battery, options.seed, options.time_limit_s, fenced,
+                               options.method, self.energy_model)  # fmt: skip
+        validate_fenced_route(plan, fenced)
+        return plan, flight
+
+    # ----- the lifecycle
+    def active_mission(self) -> int | None:
+        return self._flights.active_mission()
+
+    async def create(self, request: MissionRequest) -> int:
+        """Plan and store a mission on the vehicle it names (default: the first); with start=true, also fly it
+        in the background."""
+        self._ownership.ensure_owner()
+        if request.vehicles is not None:
+            return await self._create_fleet_mission(request)
+        vehicle = self._vehicle(request.vehicle)
+        if request.start:
+            vehicle.flights.ensure_vehicle_free()
+        plan, flight = await self.plan(request)
+        flight = replace(flight, override=request.override)
+        mission_id = self._storage.create_mission(asdict(flight), plan.to_dict(), vehicle_sysid=vehicle.sysid)
+        if request.start:
+            try:
+                self.launch(mission_id)
+            except MissionConflictError as error:  # another mission started while this one was planned
+                raise MissionConflictError(
+                    f"{error}; mission {mission_id} is stored as planned: POST /missions/{mission_id}/start later"
+                ) from None
+        return mission_id
+
+    async def _create_fleet_mission(self, request: MissionRequest) -> int:
+        """Share the buoys among the vehicles named (gcs.missions.fleet_planning), store the fleet mission and a part
+        mission per vehicle given buoys, in one transaction; with start=true, fly every part."""
+        known = [v.system_id for v in self._vehicles if v.system_id is not None]
+        sysids = fleet_vehicles(request, known, self.settings.limits)
+        vehicles = [self._vehicle(sysid) for sysid in sysids]
+        if request.start:
+            for vehicle in vehicles:
+                vehicle.flights.ensure_vehicle_free()
+        homes = {vehicle.system_id: vehicle.depot() for vehicle in vehicles}
+        first_home = homes[sysids[0]]
+        validate_request(request, first_home, self.settings.limits)
+        ids, buoys = _named_buoys(request)
+        options = request.planner
+        planned = await asyncio.to_thread(
+            plan_fleet_mission, homes, buoys, ids, request.altitude_m, request.layer_gap_m, request.speed_m_s,
+            request.dwell_s, options.seed, options.time_limit_s,
+        )  # fmt: skip
+        flight = FlightParams(
+            request.altitude_m, request.speed_m_s, request.dwell_s, request.acceptance_radius_m, request.override
+        )
+        overview = sorties_plan(first_home, buoys, ids, [[b for s in planned.shares for b in s.buoys]], METHOD,
+                                planned.elapsed_s)  # fmt: skip
+        overview = replace(overview, length_m=sum(s.plan.length_m for s in planned.shares), fleet=planned.to_dict())
+        parts = [
+            (asdict(replace(flight, altitude_m=share.altitude_m)), share.plan.to_dict(), share.sysid)
+            for share in planned.shares
+        ]
+        fleet_id, _ = self._storage.create_fleet_mission(asdict(flight), overview.to_dict(), parts)
+        fleet = self.get(fleet_id)
+        # its shares' part missions, as the answer names them (the coordinator keeps this progress from here)
+        self._storage.set_progress(fleet_id, shares_progress(fleet, self._storage.fleet_parts(fleet_id)))
+        if request.start:
+            self._launch_fleet(fleet)
+        return fleet_id
+
+    def _launch_fleet(self, fleet: MissionRecord) -> None:
+        """Fly every part of a planned fleet mission (each vehicle must be free), and follow them."""
+        if fleet.status != MissionStatus.PLANNED:
+            raise MissionConflictError(f"mission {fleet.id} is {fleet.status}; only a planned mission can start")
+        parts = self._storage.fleet_parts(fleet.id)
+        for part in parts:
+            self._vehicle_of(part).flights.ensure_vehicle_free()
+        for part in parts:
+            self._vehicle_of(part).flights.launch(part)
+        self._fleets.follow(fleet.id)
+
+    def launch(self, mission_id: int) -> None:
+        self._ownership.ensure_owner()
+        record = self.get(mission_id)
+        if record.is_fleet:
+            self._launch_fleet(record)
+            return
+        flights = self._vehicle_of(record).flights
+        flights.ensure_vehicle_free()
+        flights.launch(record)
+
+    async def abort(self, mission_id: int) -> None:
+        """Abort a mission; a fleet mission's every part not yet ended (the fleet mission then ends aborted)."""
+        self._ownership.ensure_owner()
+        record = self.get(mission_id)
+        if not record.is_fleet:
+            await self._vehicle_of(record).flights.abort(record)
+            return
+        if record.status in TERMINAL:
+            raise MissionConflictError(f"mission {mission_id} is {record.status}; nothing to abort")
+        for part in self._storage.fleet_parts(mission_id):
+            if part.status not in TERMINAL:
+                await self._vehicle_of(part).flights.abort(part)
+        if not self._fleets.active(mission_id):  # never launched: its parts ended as they were aborted
+            self._storage.set_status(mission_id, MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF)
+
+    async def battery_swapped(self, sysid: int | None, charge_pct: float) -> dict[str, Any]:
+        """The operator swapped the pack of a vehicle (None: the first): the vehicle is told (gcs.missions.lifecycle
+        .FlightLifecycle.battery_swapped) and a mission waiting for the swap goes on. Raises VehicleNotFoundError,
+        MissionConflictError (a mission flies on it)."""
+        self._ownership.ensure_owner()
+        vehicle = self._vehicles[0] if sysid is None else self._known_vehicle(sysid)
+        waiting = vehicle.flights.waiting_for_battery()
+        answer = await vehicle.flights.battery_swapped(charge_pct)
+        return {
+            "vehicle": answer,
+            "battery_remaining_pct": vehicle.link.status.battery_remaining_pct,
+            "waiting_mission": waiting,
+        }
+
+    # ----- views
+    def live(self) -> dict[str, Any]:
+        """What /ws pushes: the vehicle, and the active mission's status, progress and latest sample."""
+        vehicle = self._link.status.as_dict() | self._ownership.as_dict()
+        return {"type": "state", "vehicle": vehicle, "mission": self._flights.live_mission()}
+
+    def vehicle(self) -> dict[str, Any]:
+        """The link's view of the vehicle, with the depot a plan would use and the mission flying, if any, and
+        who owns the link (`role` owner or standby, this `instance`, the `owner`'s name)."""
+        data = self._link.status.as_dict() | self._ownership.as_dict()
+        data["depot"] = dict(zip(("lat", "lon"), self.default_depot(), strict=True))
+        data["active_mission"] = self.active_mission()
+        return data
+
+    def vehicles(self) -> list[dict[str, Any]]:
+        """Every vehicle of the fleet (gcs.missions.fleet_vehicle.FleetVehicle.describe), with who owns the links."""
+        return [self._described(vehicle) for vehicle in self._vehicles]
+
+    def fleet_vehicle(self, sysid: int) -> dict[str, Any]:
+        """One vehicle of the fleet by system id; raises VehicleNotFoundError."""
+        return self._described(self._known_vehicle(sysid))
+
+    def _described(self, vehicle: FleetVehicle) -> dict[str, Any]:
+        return vehicle.describe() | {"role": self._ownership.as_dict()["role"]}
+
+    # ----- queries over what is stored
+    def get(self, mission_id: int) -> MissionRecord:
+        record = self._storage.get_mission(mission_id)
+        if record is None:
+            raise MissionNotFoundError(mission_id)
+        return record
+
+    def list_missions(self, limit: int) -> list[MissionRecord]:
+        """The latest missions, newest first."""
+        return self._storage.list_missions(limit)
+
+    def _version(self, mission_id: int) -> int:
+        version = self._storage.mission_version(mission_id)
+        if version is None:
+            raise MissionNotFoundError(mission_id)
+        return version
+
+    # The documents the read routes serve, encoded: built once per version of the mission (or, for the list, of
+    # the newest change to any mission) and served as bytes while the storage's version is unchanged.
+    def mission_json(self, mission_id: int) -> bytes:
+        """GET /missions/{id}: the MissionOut document."""
+        version = self._version(mission_id)
+        return self.documents.get(("mission", mission_id), version, lambda: views.mission_json(self.get(mission_id)))
+
+    def missions_json(self, limit: int) -> bytes:
+        """GET /missions: the latest `limit` MissionSummary documents, newest first."""
+        version = self._storage.latest_version()
+        return self.documents.get(("missions", limit), version, lambda: views.missions_json(self.list_missions(limit)))
+
+    def track_json(self, mission_id: int, max_points: int) -> bytes:
+        """GET /missions/{id}/track: the flown track cut to `max_points` for display (TrackOut). Samples are
+        stored without moving the mission's version, so the track's version also counts them. Reads every
+        sample when it builds: call it from a worker thread."""
+        version = (self._version(mission_id), self._storage.telemetry_count(mission_id))
+        return self.documents.get(
+            ("track", mission_id, max_points),
+            version,
+            lambda: views.track_json(
+                self.get(mission_id),
+                self._storage.track_columns(mission_id),
+                lambda times: self._storage.telemetry_at(mission_id, times),
+                max_points,
+            ),
+        )
+
+    def telemetry(self, mission_id: int, limit: int | None = None) -> list[dict[str, Any]]:
+        """A mission's recorded samples (TelemetrySample documents), oldest first."""
+        self._version(mission_id)  # 404 for no such mission: the one-row index lookup, not the whole record
+        return self._storage.telemetry(mission_id, limit)
+
+    def mission_file(self, mission_id: int) -> tuple[list[MissionItem], tuple[float, float, float], FlightParams]:
+        """What a mission file needs: the mission's items, its home (the depot, on the ground) and flight."""
+        record = self.get(mission_id)
+        plan, flight = Plan.from_dict(record.plan), FlightParams(**record.flight)
+        home = (plan.depot[0], plan.depot[1], 0.0)
+        return mission_items(plan, flight), home, flight
+
+    def report_index(self, mission_id: int) -> Path:
+        """The mission's report (drawn, or the cached drawing when the mission has not changed): its index.html.
+        Draws with matplotlib: call it from a worker thread."""
+        self.get(mission_id)
+        return report.cached_report(self._storage, mission_id, self.settings.reports_dir)

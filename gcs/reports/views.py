@@ -1,0 +1,230 @@
+"""Records and plans -> the REST contract's documents (pure), and those documents encoded as the read routes
+serve them (validated against the response model once, when the read cache builds them)."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import numpy as np
+from pydantic import TypeAdapter
+
+from gcs.domain.planning import Plan
+from gcs.domain.schemas import MissionOut, MissionSummary, TrackOut
+from gcs.reports import track_display
+from gcs.storage import MissionRecord
+
+MISSION_SUMMARIES = TypeAdapter(list[MissionSummary])
+TELEMETRY_CHUNK = 1000  # samples encoded at a time when streaming a mission's telemetry
+# what the recorder keeps in a mission's progress for itself (a restart restores it); the API shows it otherwise
+RECORDER_ONLY_PROGRESS = ("reached_at", "sorties_flown", "consumed_at_start")
+CHART_SAMPLES = 1000  # the most samples a track sends for the charts (a few hundred pixels wide each)
+
+
+def plan_out(plan: Plan) -> dict[str, Any]:
+    return {
+        "order": plan.order,
+        "length_m": plan.length_m,
+        "input_order_length_m": plan.input_order_length_m,
+        "improvement_pct": plan.improvement_pct,
+        "method": plan.method,
+        "elapsed_s": plan.elapsed_s,
+        "depot": {"lat": plan.depot[0], "lon": plan.depot[1]},
+        "buoys": [
+            {"index": i, "id": ident, "lat": ll[0], "lon": ll[1], "east_m": en[0], "north_m": en[1]}
+            for i, (ident, ll, en) in enumerate(zip(plan.buoy_ids, plan.buoys_lat_lon, plan.buoys_local, strict=True))
+        ],
+        "route": plan.route_lat_lon(),
+        "sorties": sorties_out(plan),
+        "energy": {k: v for k, v in plan.energy.items() if k != "sorties"} if plan.energy else None,
+    }
+
+
+def sorties_out(plan: Plan, flown: list[dict[str, Any]] | None = None) -> list[dict[str, Any]]:
+    """Each sortie as planned (with its prediction when the plan has an energy section) and, for the sorties
+    flown (`flown`, the recorder's per-sortie battery figures in the mission's progress), as measured."""
+    predicted = plan.energy["sorties"] if plan.energy else []
+    measured = {entry["sortie"]: entry for entry in flown or []}
+    out = []
+    for k in range(len(plan.sortie_orders())):
+        sortie = plan.sortie_plan(k)
+        prediction = predicted[k] if k < len(predicted) else {}
+        flight = measured.get(k, {})
+        out.append(
+            {
+                "index": k,
+                "order": sortie.order,
+                "route": sortie.route_lat_lon(),
+                "length_m": sortie.length_m,
+                "predicted_energy_wh": prediction.get("energy_wh"),
+                "predicted_time_s": prediction.get("time_s"),
+                "margin_wh": prediction.get("margin_wh"),
+                "margin_pct": prediction.get("margin_pct"),
+                "predicted_landing_charge_pct": prediction.get("landing_charge_pct"),
+                "used_energy_wh": flight.get("used_energy_wh"),
+                "landing_charge_pct": flight.get("landing_charge_pct"),
+                "battery_warning": flight.get("battery_warning"),
+            }
+        )
+    return out
+
+
+def _buoy_results(record: MissionRecord, plan: Plan) -> list[dict[str, Any]]:
+    if record.results is not None and "buoys" in record.results:
+        return record.results["buoys"]
+    if record.is_fleet:  # each part mission has the closest approaches and arrival times of its own buoys
+        visited = set(record.progress.get("visited_buoys", []))
+        return [
+            {"index": i, "id": ident, "closest_m": None, "reached": i in visited, "arrival_s": None}
+            for i, ident in enumerate(plan.buoy_ids)
+        ]
+    reached_at = {int(k): v for k, v in (record.progress.get("reached_at") or {}).items()}
+    return [
+        {"index": i, "id": ident, "closest_m": None, "reached": i in reached_at, "arrival_s": reached_at.get(i)}
+        for i, ident in enumerate(plan.buoy_ids)
+    ]
+
+
+def mission_out(record: MissionRecord) -> dict[str, Any]:
+    plan = Plan.from_dict(record.plan)
+    progress = {k: v for k, v in record.progress.items() if k not in (*RECORDER_ONLY_PROGRESS, "shares")}
+    progress.setdefault("buoys", len(plan.order))
+    progress.setdefault("sorties", len(plan.sortie_orders()))
+    out = {
+        "id": record.id,
+        "status": record.status,
+        "reason": record.reason,
+        "created_at": record.created_at,
+        "updated_at": record.updated_at,
+        "vehicle_sysid": record.vehicle_sysid,
+        "fleet_id": None if record.is_fleet else record.fleet_id,
+        "fleet": None,
+        **plan_out(plan),
+        "sorties": sorties_out(plan, record.progress.get("sorties_flown")),
+        **record.flight,
+        "progress": progress,
+        "buoy_results": _buoy_results(record, plan),
+        "tracking": (record.results or {}).get("tracking"),
+        "events": record.events,
+    }
+    if record.is_fleet:  # drawn as its shares: each vehicle's route from its own home, as a sortie is drawn
+        fleet = fleet_out(record, plan)
+        shares = [share_as_sortie(k, share) for k, share in enumerate(fleet["shares"])]
+        out |= {"fleet": fleet, "sorties": shares, "route": [point for s in shares for point in s["route"]]}
+    return out
+
+
+def share_as_sortie(index: int, share: dict[str, Any]) -> dict[str, Any]:
+    """A fleet mission's share in SortieOut's shape, so the page and clients draw a fleet's routes as they draw
+    sorties (one colour each), named by `vehicle`."""
+    energy = ("predicted_energy_wh", "margin_wh", "margin_pct", "predicted_landing_charge_pct", "used_energy_wh")
+    empty = dict.fromkeys((*energy, "landing_charge_pct", "battery_warning"))
+    return empty | {
+        "index": index,
+        "vehicle": share["sysid"],
+        "order": share["buoys"],
+        "route": share["route"],
+        "length_m": share["length_m"],
+        "predicted_time_s": share["predicted_time_s"],
+    }
+
+
+def fleet_out(record: MissionRecord, plan: Plan) -> dict[str, Any]:
+    """A fleet mission's shares as planned and as flown so far (its progress, kept by gcs.missions.fleet_missions), who
+    inspected what and the separation (once it has ended)."""
+    fleet = plan.fleet
+    flown = {s["sysid"]: s for s in record.progress.get("shares", [])}
+    shares = []
+    for share in fleet["shares"]:
+        state = flown.get(share["sysid"], {})
+        home = share["home"]
+        route = [home, *(plan.buoys_lat_lon[b] for b in share["buoys"]), home]
+        shares.append(
+            {k: share[k] for k in ("sysid", "buoys", "altitude_m", "predicted_time_s", "length_m")}
+            | {"route": route, "mission_id": state.get("mission_id", 0), "status": state.get("status", "planned")}
+            | {"visited_buoys": state.get("visited", [])}
+            | {"lost": share.get("lost"), "handed_over": share.get("handed_over", {})}
+        )
+    results = record.results or {}
+    separation = results.get("separation") or {"min_horizontal_m": None, "min_vertical_m": None, "min_distance_m": None}
+    return {
+        "makespan_s": fleet["makespan_s"],
+        "total_time_s": fleet["total_time_s"],
+        "layer_gap_m": fleet["layer_gap_m"],
+        "shares": shares,
+        "inspected_by": results.get("inspected_by", {}),
+        "separation": separation,
+    }
+
+
+def mission_summary(record: MissionRecord) -> dict[str, Any]:
+    return {
+        "id": record.id,
+        "status": record.status,
+        "reason": record.reason,
+        "created_at": record.created_at,
+        "updated_at": record.updated_at,
+        "vehicle_sysid": record.vehicle_sysid,
+        "fleet_id": record.fleet_id,
+        "buoys": len(record.plan["order"]),
+        "length_m": record.plan["length_m"],
+        "tracking": (record.results or {}).get("tracking"),
+    }
+
+
+def track_out(
+    record: MissionRecord,
+    columns: list[tuple[float, float | None, float | None, float | None]],
+    samples_at: Callable[[list[float]], list[dict[str, Any]]],
+    max_points: int,
+) -> dict[str, Any]:
+    """The flown track for display, from every sample's (t_s, lat, lon, cross_track_m): at most `max_points`
+    positions (more only if the buoy arrivals alone exceed them) within `tolerance_m` of every recorded one, and
+    at most as many whole samples (CHART_SAMPLES at most, read by `samples_at(times)`) for the charts."""
+    table = np.array(columns, dtype=float).reshape(-1, 4)  # None -> NaN
+    times, cross_track = table[:, 0], table[:, 3]
+    located = ~np.isnan(table[:, 1]) & ~np.isnan(table[:, 2])
+    lat_lon = table[located][:, 1:3]
+    arrivals = (record.progress.get("reached_at") or {}).values()
+    local = Plan.from_dict(record.plan).frame.project(lat_lon) if len(lat_lon) else lat_lon
+    track = track_display.simplify_track(local, max_points, track_display.arrival_indices(times[located], arrivals))
+    # the charts' series keeps the cross-track error's envelope (the figure the mission is judged by)
+    charted = track_display.extremes_per_bucket(cross_track, min(max_points, CHART_SAMPLES))
+    return {
+        "mission": record.id,
+        "samples": len(table),
+        "tolerance_m": track.tolerance_m,
+        "points": lat_lon[track.indices].tolist(),
+        "series": samples_at([float(times[i]) for i in charted]),
+    }
+
+
+# ----- encoded as served: the response model validates the document once, when the read cache builds it
+def mission_json(record: MissionRecord) -> bytes:
+    return MissionOut.model_validate(mission_out(record)).model_dump_json().encode()
+
+
+def missions_json(records: list[MissionRecord]) -> bytes:
+    return MISSION_SUMMARIES.dump_json(MISSION_SUMMARIES.validate_python([mission_summary(r) for r in records]))
+
+
+def track_json(
+    record: MissionRecord,
+    columns: list[tuple[float, float | None, float | None, float | None]],
+    samples_at: Callable[[list[float]], list[dict[str, Any]]],
+    max_points: int,
+) -> bytes:
+    return TrackOut.model_validate(track_out(record, columns, samples_at, max_points)).model_dump_json().encode()
+
+
+def telemetry_chunks(samples: list[dict[str, Any]]) -> Iterator[bytes]:
+    """GET /missions/{id}/telemetry as a JSON array, encoded TELEMETRY_CHUNK samples at a time. The samples are
+    stored as TelemetrySample documents (the recorder builds them with the model), so they are sent as they are:
+    validating and encoding 72 000 of them in one pydantic call held the GIL for about a second, during which
+    the event loop, and every other request, stood still."""
+    yield b"["
+    for start in range(0, len(samples), TELEMETRY_CHUNK):
+        chunk = json.dumps(samples[start : start + TELEMETRY_CHUNK], separators=(",", ":"), allow_nan=False)
+        yield (b"," if start else b"") + chunk[1:-1].encode()
+    yield b"]"
