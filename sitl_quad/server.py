@@ -50,6 +50,7 @@ class VehicleServer:
         self.running = True
         self.pacing = WallPacing(speed, time.monotonic(), vehicle.t)
         self._arrived_at = 0.0  # when the message being handled reached the socket (wall clock)
+        self._setpoint_arrived_at = 0.0  # when the newest offboard setpoint did
         if not lockstep:  # a setpoint read late belongs to the simulated time it arrived at (sitl_quad.pacing)
             vehicle.arrival_step = self.arrival_step
         self.handler_errors = 0
@@ -76,6 +77,7 @@ class VehicleServer:
         self.dispatch: dict = {}
         for capability in (self.parameters, self.commands, self.mission, self.offboard):
             self.dispatch.update(capability.handlers())
+        self._setpoint_types = set(self.offboard.handlers())
         self._log_file = None
         self._log_writer = None
         if flight_log is not None:
@@ -92,6 +94,8 @@ class VehicleServer:
             if handler is None:
                 continue
             self._arrived_at = at  # for arrival_step()
+            if msg.get_type() in self._setpoint_types:
+                self._setpoint_arrived_at = at
             try:
                 handler(peer, msg)
             except Exception:  # a bug in one handler must not take the vehicle down mid-flight
@@ -162,6 +166,9 @@ class VehicleServer:
             self._publish_event(event)
 
     def _publish_event(self, event: VehicleEvent) -> None:
+        if event.kind == "offboard_lost":
+            self._report_offboard_loss()
+            return
         if event.kind == "text" or (event.kind in ("armed", "mission_complete") and event.text):
             self.send(mavlink.MAVLink_statustext_message(event.severity, event.text.encode()[:50]))
         if event.kind in ("mode", "armed"):
@@ -172,6 +179,20 @@ class VehicleServer:
             self.send(self.telemetry.mission_current())
         if event.kind == "item_reached":
             self.send(mavlink.MAVLink_mission_item_reached_message(event.seq))
+
+    def _report_offboard_loss(self) -> None:
+        """Why the stream counted as lost, for whoever reads the vehicle's messages (a debug STATUSTEXT, as
+        SITL diagnostics go) and its log: the newest setpoint's age in simulated time (what OFFB_LOSS_T is
+        measured in) and on the wall clock since it reached the socket, and how far behind the wall clock the
+        vehicle itself is. A wall age under OFFB_LOSS_T / speed means the simulator, not the stream, fell behind."""
+        now = time.monotonic()
+        behind = 0.0 if self.lockstep else max(0.0, self.pacing.behind_s(now, self.vehicle.t))
+        text = (
+            f"OFFB lost: last {self.vehicle.offboard_age_s:.2f}s sim "
+            f"{now - self._setpoint_arrived_at:.2f}s wall lag {behind:.2f}s"
+        )
+        log.warning("%s", text)
+        self.send(mavlink.MAVLink_statustext_message(mavlink.MAV_SEVERITY_DEBUG, text.encode()[:50]))
 
     # ----- flight log (CSV: one row per outer tick)
     LOG_COLUMNS = (

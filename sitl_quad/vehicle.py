@@ -567,6 +567,7 @@ class Vehicle:
         if self.mode != FlightMode.OFFBOARD or self.offboard_fresh():
             return
         next_mode = offboard_loss_mode(self.config.failsafe)
+        self._emit("offboard_lost")  # the server reports the stream's ages (wall clock and simulated)
         self._emit("text", f"Failsafe: offboard setpoints lost, {next_mode.label}", 3)
         self._enter(next_mode)
 

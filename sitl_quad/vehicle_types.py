@@ -25,7 +25,8 @@ class CommandResult(IntEnum):
 
 @dataclass
 class VehicleEvent:
-    kind: str  # "text" | "mission_current" | "item_reached" | "mission_complete" | "mode" | "armed"
+    # "text" | "mission_current" | "item_reached" | "mission_complete" | "mode" | "armed" | "offboard_lost"
+    kind: str
     text: str = ""
     severity: int = 6  # MAV_SEVERITY for "text": 6 info, 4 warning, 3 error
     seq: int = -1

@@ -143,8 +143,14 @@ def test_attitude_stream_is_obeyed_and_its_loss_lands_gently(start_sitl, tmp_pat
         hold_roll(gcs, 0.0, 0.05)
         # stop streaming: the failsafe (land) takes over (timed below, in simulated time, from the flight log)
         stream.stop()
+        diagnostic = gcs.recv("STATUSTEXT", LOADED_BACKSTOP_S, lambda m: m.text.startswith("OFFB lost"))
         heartbeat = gcs.wait_heartbeat(lambda m: main_mode(m) != OFFBOARD, timeout=LOADED_BACKSTOP_S)
         assert heartbeat is not None and (main_mode(heartbeat), heartbeat.custom_mode >> 24) == (AUTO, 6)
+        # the vehicle says why: the newest setpoint older than OFFB_LOSS_T in simulated time, and on the wall clock
+        # at least OFFB_LOSS_T / speed since it arrived (the stream really stopped; the simulator did not lag)
+        assert diagnostic is not None, "no OFFB lost diagnostic"
+        sim_age, wall_age = (float(word[:-1]) for word in diagnostic.text.split()[3:6:2])
+        assert sim_age > LOSS_TIMEOUT_S and wall_age >= LOSS_TIMEOUT_S / 2.0 - 0.02, diagnostic.text
         # it lands and disarms without touching the water faster than 1 m/s
         worst = 0.0
         deadline = time.monotonic() + LOADED_BACKSTOP_S
