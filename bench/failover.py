@@ -22,6 +22,7 @@ with a fresh database per run. tests/test_gcs_failover.py runs the same scenario
 from __future__ import annotations
 
 import argparse
+import contextlib
 import itertools
 import json
 import math
@@ -52,6 +53,9 @@ TELEMETRY_PERIOD_S = 0.1  # the service's default sample spacing (simulated time
 TAKEOVER_REQUIREMENT_S = 5.0
 START_TIMEOUT_S = 120.0  # a loaded 2-core machine takes long to import numpy, numba and FastAPI
 FLIGHT_TIMEOUT_S = 180.0
+# wall seconds an instance may take to stop on SIGTERM: uvicorn's grace for open requests (gcs.cli's
+# SHUTDOWN_GRACE_S) plus storing what the mission recorded, on a loaded machine
+STOP_TIMEOUT_S = 30.0
 TERMINAL = {"completed", "failed", "aborted"}
 
 T = TypeVar("T")
@@ -89,6 +93,7 @@ class Instance:
 
     name: str
     client: httpx.Client
+    log_path: Path
     process: subprocess.Popen | None = None
 
     def get(self, path: str) -> dict[str, Any] | list[Any] | None:
@@ -103,9 +108,24 @@ class Instance:
         return self.get("/vehicle")
 
     def kill(self, how: signal.Signals = signal.SIGKILL) -> None:
-        """SIGKILL: the instance dies where it stands; SIGTERM: it stops, handing a flying mission over."""
+        """SIGKILL: the instance dies where it stands; SIGTERM: it stops, handing a flying mission over. An
+        instance still running STOP_TIMEOUT_S later is made to write its stacks (SIGUSR1), killed, and the error
+        carries its log's end: where it hung."""
         self.process.send_signal(how)
-        self.process.wait(30)
+        try:
+            self.process.wait(STOP_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            self.process.send_signal(signal.SIGUSR1)
+            with contextlib.suppress(RuntimeError):  # no dump (the loop itself hung): the threads' stacks say why
+                poll(self._log, lambda text: "stack dump:" in text, 10.0, "its stack dump", interval_s=0.2)
+            self.process.kill()
+            self.process.wait()
+            raise RuntimeError(
+                f"{self.name} still ran {STOP_TIMEOUT_S:g} s after {how.name}; its log ends:\n{self._log()[-12000:]}"
+            ) from None
+
+    def _log(self) -> str:
+        return self.log_path.read_text(errors="replace") if self.log_path.exists() else ""
 
 
 def owns_a_connected_vehicle(vehicle: dict[str, Any] | None) -> bool:
@@ -136,7 +156,8 @@ class FailoverStack:
         specs = [ChildSpec("vehicle", python_module("sitl_quad", "--port", str(vehicle_port), *pace))]
         for name, ready in (("gcs-a", owns_a_connected_vehicle), ("gcs-b", stands_by)):
             port = free_port(socket.SOCK_STREAM)
-            instance = Instance(name, httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10.0))
+            client = httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10.0)
+            instance = Instance(name, client, self.logs / f"{name}.log")
             self.instances.append(instance)
             specs.append(
                 ChildSpec(

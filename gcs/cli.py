@@ -6,6 +6,7 @@ the ground station itself starts no vehicle. The option helpers are public for t
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -16,6 +17,12 @@ from pydantic import ValidationError
 from gcs.settings import DB_FILENAME, Settings
 from gcs.storage import StorageError, is_postgres_url, open_storage
 from gcs.vehicle.connection import ConnectionStringError, parse_connection
+
+LOG_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
+# On SIGTERM uvicorn waits this long for requests in progress and /ws clients before it cancels them, then the
+# service stops (a mission in flight handed over or failed, its samples stored): a client that never closes its
+# connection must not keep a stopping service alive until its supervisor kills it mid-write.
+SHUTDOWN_GRACE_S = 5.0
 
 
 def option_help(text: str, field: str, default: object = None) -> str:
@@ -178,11 +185,23 @@ def check_serve(settings: Settings) -> str | None:
 
 
 def serve(settings: Settings) -> None:
+    """Run the service until SIGINT or SIGTERM; SIGUSR1 writes its threads' and tasks' stacks to the log."""
     import uvicorn
 
     from gcs.api.app import create_app
+    from gcs.api.stack_dump import install_stack_dump
 
-    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level="info")
+    # one format for uvicorn's lines and ours, with the time: a log read after an incident must say when
+    logging.basicConfig(level=logging.INFO, format=LOG_FORMAT)
+    install_stack_dump()
+    uvicorn.run(
+        create_app(settings),
+        host=settings.host,
+        port=settings.port,
+        log_level="info",
+        log_config=None,
+        timeout_graceful_shutdown=SHUTDOWN_GRACE_S,
+    )
 
 
 def report(args: argparse.Namespace) -> int:

@@ -16,7 +16,7 @@ from processes import free_port, stop_process
 
 
 @contextmanager
-def serving(
+def running_service(
     db: Path,
     log: Path,
     *options: str,
@@ -25,12 +25,12 @@ def serving(
     ready_s: float = 180.0,
     program: Sequence[str] = (sys.executable, "-m", "gcs"),
     cwd: Path | None = None,
-) -> Iterator[str]:
+) -> Iterator[tuple[str, subprocess.Popen]]:
     """The service over the database `db` with no vehicle (it sends to a UDP port nobody holds), its output in
-    `log`: yields its http:// URL once it answers, and stops it afterwards. `sysids`: a fleet of vehicles with
-    these system ids instead (each configured, so a fleet mission can be planned for them, none there to fly);
-    `env`: added to the service's environment (a value None removes the variable); `program`: the command that
-    runs the service's CLI (an installed `buoy-gcs`, say), run in `cwd`.
+    `log`: yields its http:// URL and its process once it answers, and stops it afterwards. `sysids`: a fleet of
+    vehicles with these system ids instead (each configured, so a fleet mission can be planned for them, none
+    there to fly); `env`: added to the service's environment (a value None removes the variable); `program`: the
+    command that runs the service's CLI (an installed `buoy-gcs`, say), run in `cwd`.
 
     ready_s: the service answers only once the planner's kernels are compiled (gcs.api.app's lifespan), which takes
     up to a minute on a cold numba cache and longer beside other tests' processes on a loaded machine."""
@@ -51,6 +51,13 @@ def serving(
                 except OSError:
                     assert service.poll() is None and time.monotonic() < deadline, log.read_text()
                     time.sleep(0.2)
-            yield url
+            yield url, service
         finally:
             stop_process(service, 30)
+
+
+@contextmanager
+def serving(db: Path, log: Path, *options: str, **keywords) -> Iterator[str]:
+    """running_service's URL alone."""
+    with running_service(db, log, *options, **keywords) as (url, _):
+        yield url

@@ -36,8 +36,7 @@ from planner.errors import PlannerError
 from planner.warmup import warm_up
 from uavcore.mavlink import parse_signing_key
 
-# uvicorn configures its own loggers only: this one prints at INFO beside "Application startup complete."
-log = logging.getLogger("uvicorn.error")
+log = logging.getLogger(__name__)
 
 
 async def warm_up_planner() -> float:
