@@ -22,7 +22,7 @@ LOG_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
 # On SIGTERM uvicorn waits this long for requests in progress and /ws clients before it cancels them, then the
 # service stops (a mission in flight handed over or failed, its samples stored): a client that never closes its
 # connection must not keep a stopping service alive until its supervisor kills it mid-write.
-SHUTDOWN_GRACE_S = 5.0
+SHUTDOWN_GRACE_S = 5  # whole seconds (uvicorn takes an int)
 
 
 def option_help(text: str, field: str, default: object = None) -> str:
