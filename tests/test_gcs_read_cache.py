@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import asyncio
 from dataclasses import asdict
 
 from fastapi.testclient import TestClient
@@ -29,12 +30,19 @@ def test_a_document_is_built_once_per_version():
     cache, builds = VersionedCache(), []
 
     def build(text: str):
-        return lambda: builds.append(text) or text.encode()
+        async def built() -> bytes:
+            builds.append(text)
+            return text.encode()
 
-    assert cache.get("a", 1, build("one")) == b"one"
-    assert cache.get("a", 1, build("again")) == b"one"  # same version: the cached bytes
-    assert cache.get("a", 2, build("two")) == b"two"  # the version moved: built again
-    assert cache.get("a", 1, build("old")) == b"old"  # any other version is a miss, older ones too
+        return built
+
+    def get(version: int, text: str) -> bytes:
+        return asyncio.run(cache.get("a", version, build(text)))
+
+    assert get(1, "one") == b"one"
+    assert get(1, "again") == b"one"  # same version: the cached bytes
+    assert get(2, "two") == b"two"  # the version moved: built again
+    assert get(1, "old") == b"old"  # any other version is a miss, older ones too
     assert builds == ["one", "two", "old"]
     assert (cache.hits, cache.misses) == (1, 3)
 

@@ -129,7 +129,7 @@ def test_the_display_track_of_a_two_hour_mission(long_mission):
             cursor += 1
         kept.append(cursor)
     assert kept[0] == 0 and kept[-1] == SAMPLES - 1
-    frame = Plan.from_dict(client.app.state.service.get(mission_id).plan).frame
+    frame = Plan.from_dict(client.portal.call(client.app.state.service.get, mission_id).plan).frame
     local = frame.project(recorded)
     assert deviations(local, np.array(kept)).max() <= track["tolerance_m"] + 1e-6
 

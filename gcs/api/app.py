@@ -30,6 +30,7 @@ from gcs.missions.service import MissionNotFoundError, MissionService, VehicleNo
 from gcs.missions.validation import RequestInvalidError
 from gcs.settings import Settings
 from gcs.storage import open_storage
+from gcs.storage.off_loop import AsyncStorage
 from gcs.vehicle.connection import TransportHub
 from gcs.vehicle.link import LinkManager
 from planner.errors import PlannerError
@@ -132,7 +133,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         # first, before the links start: a cold compile holds the GIL for much of its time, and a link started
         # beside it could miss heartbeats
         log.info("planner kernels compiled or loaded in %.1f s", await warm_up_planner())
-        storage = open_storage(settings.database)
+        storage = AsyncStorage(open_storage(settings.database))  # every query off the event loop
         key = None if settings.signing_key is None else parse_signing_key(settings.signing_key)
         hub = TransportHub()  # a fleet's vehicles on one connection (a router's) share its socket
         links = [
@@ -147,7 +148,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             yield
         finally:
             await service.stop()
-            storage.close()
+            await storage.close()
 
     app = FastAPI(
         title="buoy-gcs",

@@ -25,7 +25,8 @@ from gcs.missions.fleet_planning import reshare
 from gcs.missions.lifecycle import MissionConflictError
 from gcs.missions.validation import RequestInvalidError
 from gcs.settings import Limits
-from gcs.storage import MissionRecord, Storage
+from gcs.storage import MissionRecord
+from gcs.storage.off_loop import AsyncStorage
 from gcs.vehicle.link import LinkManager
 from uavcore.geodesy import LocalFrame
 
@@ -162,7 +163,7 @@ class FleetCoordinator:
 
     def __init__(
         self,
-        storage: Storage,
+        storage: AsyncStorage,
         link_of: Callable[[int], LinkManager],
         replan: Callable[[MissionRecord, Plan], None],
     ) -> None:
@@ -196,28 +197,30 @@ class FleetCoordinator:
             raise  # the service stops: the fleet mission is followed again when it restarts
         except Exception as error:  # never leave a fleet mission flying with nobody following it
             log.exception("fleet mission %s", fleet_id)
-            self.storage.set_status(fleet_id, MissionStatus.FAILED, f"internal error: {type(error).__name__}: {error}")
+            await self.storage.set_status(
+                fleet_id, MissionStatus.FAILED, f"internal error: {type(error).__name__}: {error}"
+            )
 
     async def _follow_parts(self, fleet_id: int) -> None:
-        fleet = self.storage.get_mission(fleet_id)
-        parts = self.storage.fleet_parts(fleet_id)
+        fleet = await self.storage.get_mission(fleet_id)
+        parts = await self.storage.fleet_parts(fleet_id)
         frame = Plan.from_dict(fleet.plan).frame
         monitor = SeparationMonitor(frame, {part.vehicle_sysid: self._link_of(part.vehicle_sysid) for part in parts})
         monitor.start()
         if fleet.status != MissionStatus.FLYING:
-            self.storage.set_status(fleet_id, MissionStatus.FLYING)
+            await self.storage.set_status(fleet_id, MissionStatus.FLYING)
         stored: dict[str, Any] | None = None
         lost: set[int] = {p.id for p in parts if p.status == MissionStatus.FAILED}  # before a restart: handled
         try:
             while True:
-                parts = self.storage.fleet_parts(fleet_id)
+                parts = await self.storage.fleet_parts(fleet_id)
                 for part in parts:
                     if part.status == MissionStatus.FAILED and part.id not in lost:
                         lost.add(part.id)
-                        fleet = self._reshare(fleet, part, parts)
+                        fleet = await self._reshare(fleet, part, parts)
                 progress = shares_progress(fleet, parts)
                 if progress != stored:
-                    self.storage.set_progress(fleet_id, progress)
+                    await self.storage.set_progress(fleet_id, progress)
                     stored = progress
                 if all(part.status in TERMINAL for part in parts):
                     break
@@ -226,12 +229,16 @@ class FleetCoordinator:
             monitor.stop()
         ids = fleet.plan["buoy_ids"]
         inspected_by = {ids[b]: share["sysid"] for share in progress["shares"] for b in share["visited"]}
-        self.storage.set_results(fleet_id, {"separation": asdict(monitor.separation), "inspected_by": inspected_by})
+        await self.storage.set_results(
+            fleet_id, {"separation": asdict(monitor.separation), "inspected_by": inspected_by}
+        )
         status, reason = fleet_ending(fleet, parts)
-        self.storage.set_status(fleet_id, status, reason)
+        await self.storage.set_status(fleet_id, status, reason)
         log.info("fleet mission %s %s%s", fleet_id, status, f": {reason}" if reason else "")
 
-    def _reshare(self, fleet: MissionRecord, lost_part: MissionRecord, parts: list[MissionRecord]) -> MissionRecord:
+    async def _reshare(
+        self, fleet: MissionRecord, lost_part: MissionRecord, parts: list[MissionRecord]
+    ) -> MissionRecord:
         """A part ended failed (its vehicle lost, or a failsafe brought it down): its buoys not inspected go to the
         vehicles still flying their shares (gcs.missions.fleet_planning.reshare), each uploaded in flight as its part's
         new plan. The fleet mission's plan records who took what; its events say so. Returns the fleet re-read."""
@@ -285,10 +292,12 @@ class FleetCoordinator:
                 shares[sysid]["buoys"] = [*shares[sysid]["buoys"], *added]
                 handed[sysid] = added
         lost_share["handed_over"] = {str(sysid): buoys for sysid, buoys in handed.items()}
-        self.storage.set_plan(fleet.id, plan.to_dict())
+        await self.storage.set_plan(fleet.id, plan.to_dict())
         names = {sysid: ", ".join(plan.buoy_ids[b] for b in buoys) for sysid, buoys in handed.items()}
         given = "; ".join(f"{names[sysid]} to vehicle {sysid}" for sysid in names) or "nobody left to take its buoys"
         why = f" ({lost_part.reason})" if lost_part.reason else ""
-        self.storage.set_status(fleet.id, MissionStatus.FLYING, f"vehicle {lost_part.vehicle_sysid} lost{why}: {given}")
+        await self.storage.set_status(
+            fleet.id, MissionStatus.FLYING, f"vehicle {lost_part.vehicle_sysid} lost{why}: {given}"
+        )
         log.warning("fleet mission %s: vehicle %s lost; %s", fleet.id, lost_part.vehicle_sysid, given)
-        return self.storage.get_mission(fleet.id)
+        return await self.storage.get_mission(fleet.id)

@@ -9,7 +9,7 @@ from typing import Any
 
 from gcs.missions.lifecycle import FlightLifecycle, vehicle_pack
 from gcs.settings import Settings
-from gcs.storage import Storage
+from gcs.storage.off_loop import AsyncStorage
 from gcs.vehicle.link import LinkError, LinkManager
 from gcs.vehicle.mission_protocol import MissionTransferError
 from planner.energy import EnergyModel
@@ -21,7 +21,12 @@ FENCE_READ_TIMEOUT_S = 1.5  # wall clock for the vehicle's geofence before a pla
 
 class FleetVehicle:
     def __init__(
-        self, sysid: int | None, link: LinkManager, settings: Settings, storage: Storage, energy_model: EnergyModel
+        self,
+        sysid: int | None,
+        link: LinkManager,
+        settings: Settings,
+        storage: AsyncStorage,
+        energy_model: EnergyModel,
     ) -> None:
         self.sysid = sysid  # what its missions store as vehicle_sysid (None: the service's one vehicle)
         self.link = link

@@ -47,7 +47,8 @@ from gcs.missions.energy_planning import ChargeNeed, charge_needed, model_pack
 from gcs.missions.recorder import MissionRecorder
 from gcs.missions.results import flight_results
 from gcs.settings import Settings
-from gcs.storage import MissionRecord, Storage
+from gcs.storage import MissionRecord
+from gcs.storage.off_loop import AsyncStorage
 from gcs.vehicle.link import CommandTimeoutError, LinkError, LinkManager
 from gcs.vehicle.mission_protocol import MissionTransferError
 from planner.energy import EnergyModel
@@ -149,7 +150,7 @@ def ended_early_reason(events: list[dict[str, Any]], visited: int, buoys: int) -
 class FlightLifecycle:
     """Flies stored missions over one LinkManager, one at a time, and records them."""
 
-    def __init__(self, settings: Settings, storage: Storage, link: LinkManager, energy_model: EnergyModel) -> None:
+    def __init__(self, settings: Settings, storage: AsyncStorage, link: LinkManager, energy_model: EnergyModel) -> None:
         """`energy_model`: the calibrated route energy model the service plans sorties with (the pre-flight check
         predicts with the same one)."""
         self.settings, self.storage, self.link = settings, storage, link
@@ -162,11 +163,11 @@ class FlightLifecycle:
         self._replans: dict[int, Plan] = {}  # new plans for flying missions, uploaded in flight by their monitor
         self._swapped = asyncio.Event()  # the operator confirmed a battery swap (a waiting mission goes on)
 
-    def reattach(self, unfinished: list[int]) -> None:
+    async def reattach(self, unfinished: list[int]) -> None:
         """At start-up, with the ids of the missions a previous run left unfinished (oldest first)."""
         # the vehicle flies one mission at a time: only the latest unfinished one can still be in the air
         for mission_id in unfinished[:-1]:
-            self._transition(mission_id, MissionStatus.FAILED, RESTART_NOT_FLYING)
+            await self._transition(mission_id, MissionStatus.FAILED, RESTART_NOT_FLYING)
         if unfinished:
             mission_id = unfinished[-1]
             log.warning("mission %s was unfinished at start-up: re-attaching if the vehicle still flies it", mission_id)
@@ -216,7 +217,7 @@ class FlightLifecycle:
             with contextlib.suppress(asyncio.CancelledError):
                 await task
         else:
-            self._transition(mission_id, MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF)
+            await self._transition(mission_id, MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF)
 
     def replan(self, mission_id: int, plan: Plan) -> None:
         """Fly a new plan (one tour: the mission's buoys in the same indices, then more) on a mission in flight:
@@ -246,7 +247,7 @@ class FlightLifecycle:
         self._tasks[mission_id] = asyncio.create_task(self._run(mission_id, resume), name=f"mission-{mission_id}")
 
     async def _run(self, mission_id: int, resume: bool = False) -> None:
-        record = self.storage.get_mission(mission_id)
+        record = await self.storage.get_mission(mission_id)
         plan, flight = Plan.from_dict(record.plan), FlightParams(**record.flight)
         recorder = MissionRecorder(self.link, plan, self.settings.telemetry_period_s, flight.acceptance_radius_m)
         status, reason = MissionStatus.FAILED, "internal error"
@@ -263,26 +264,27 @@ class FlightLifecycle:
         except (MissionTransferError, LinkError) as error:  # refused commands and transfers say why themselves
             reason = str(error)
         except asyncio.CancelledError:
-            if self._handing_over and self.storage.get_mission(mission_id).status == MissionStatus.FLYING:
-                self._detach(mission_id, recorder)
+            stored = await self.storage.get_mission(mission_id) if self._handing_over else None
+            if stored is not None and stored.status == MissionStatus.FLYING:
+                await self._detach(mission_id, recorder)
                 log.warning("mission %s handed over in flight: the next owner of the link re-attaches it", mission_id)
                 raise
             status, reason = MissionStatus.FAILED, "the service stopped during the mission"
             if mission_id in self._abort_requested:
                 status, reason = MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF
-            self._finish(mission_id, recorder.mission_plan, flight, recorder, status, reason)
+            await self._finish(mission_id, recorder.mission_plan, flight, recorder, status, reason)
             raise
         except Exception as error:  # never leave a mission hanging in a non-terminal state
             log.exception("mission %s failed", mission_id)
             reason = f"internal error: {type(error).__name__}: {error}"
-        self._finish(mission_id, recorder.mission_plan, flight, recorder, status, reason)
+        await self._finish(mission_id, recorder.mission_plan, flight, recorder, status, reason)
 
     def _record_with(self, mission_id: int, recorder: MissionRecorder) -> None:
         """From now on the recorder hears every message of the vehicle, and /ws shows its progress."""
         self.link.add_listener(recorder, recorder.end_of_chunk)
         self._recorders[mission_id] = recorder
 
-    def _finish(
+    async def _finish(
         self,
         mission_id: int,
         plan: Plan,
@@ -292,29 +294,29 @@ class FlightLifecycle:
         reason: str | None,
     ) -> None:
         self._abort_requested.discard(mission_id)
-        progress = self._detach(mission_id, recorder)
-        samples = self.storage.telemetry(mission_id)
+        progress = await self._detach(mission_id, recorder)
+        samples = await self.storage.telemetry(mission_id)
         if samples:
-            self.storage.set_results(mission_id, flight_results(plan, flight, samples, progress))
-        self._transition(mission_id, status, reason)
+            await self.storage.set_results(mission_id, flight_results(plan, flight, samples, progress))
+        await self._transition(mission_id, status, reason)
 
-    def _detach(self, mission_id: int, recorder: MissionRecorder) -> dict[str, Any]:
+    async def _detach(self, mission_id: int, recorder: MissionRecorder) -> dict[str, Any]:
         """Stop recording a mission, storing all it recorded: its samples and progress (returned). A mission
         that goes on flying (`stop(hand_over=True)`) is left there; `_finish` goes on to end it."""
         self.link.remove_listener(recorder, recorder.end_of_chunk)
         self._recorders.pop(mission_id, None)
-        self.storage.add_telemetry(mission_id, recorder.take())
+        await self.storage.add_telemetry(mission_id, recorder.take())
         progress = recorder.progress()
-        self.storage.set_progress(mission_id, progress)
+        await self.storage.set_progress(mission_id, progress)
         return progress
 
-    def _transition(self, mission_id: int, status: MissionStatus, reason: str | None = None) -> None:
-        self.storage.set_status(mission_id, status, reason)
+    async def _transition(self, mission_id: int, status: MissionStatus, reason: str | None = None) -> None:
+        await self.storage.set_status(mission_id, status, reason)
         self._statuses[mission_id] = status
 
-    def _note(self, mission_id: int, reason: str) -> None:
+    async def _note(self, mission_id: int, reason: str) -> None:
         """An event on the mission's record that leaves its status as it is."""
-        self._transition(mission_id, self._statuses[mission_id], reason)
+        await self._transition(mission_id, self._statuses[mission_id], reason)
 
     async def _fly(self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder) -> None:
         if not await self.link.wait_connected(self.settings.vehicle_wait_s):
@@ -332,26 +334,26 @@ class FlightLifecycle:
         on = f"sortie {sortie + 1} of {sorties}" if sorties > 1 else None
         self._check_abort_between_sorties(mission_id, sortie)
         if sortie == 0:
-            self._transition(mission_id, MissionStatus.UPLOADING, on)
+            await self._transition(mission_id, MissionStatus.UPLOADING, on)
             self._record_with(mission_id, recorder)  # from here: what the vehicle says is the mission's too
         else:
             recorder.begin_sortie(sortie)
         await self._preflight(mission_id, plan, flight, recorder, sortie)
         if sortie > 0:
-            self._transition(mission_id, MissionStatus.FLYING, on)
+            await self._transition(mission_id, MissionStatus.FLYING, on)
         incarnation = self.link.status.incarnation  # after the check: a pack swapped by hand reboots a vehicle
         sortie_plan = plan.sortie_plan(sortie)
         items = self._items(sortie_plan, flight)
         await self.link.upload_mission(items, self.link.status.home or self.settings.home)
         recorder.mission_uploaded()
         if sortie == 0:
-            self._transition(mission_id, MissionStatus.UPLOADED, on)
+            await self._transition(mission_id, MissionStatus.UPLOADED, on)
         self._check_abort_between_sorties(mission_id, sortie)
         recorder.sortie_took_off()
         await self.link.arm()
         await self.link.start_mission(items)
         if sortie == 0:
-            self._transition(mission_id, MissionStatus.FLYING, on)
+            await self._transition(mission_id, MissionStatus.FLYING, on)
         await self._monitor(mission_id, sortie_plan, flight, recorder, incarnation)
         await self._landed(recorder)
 
@@ -375,13 +377,13 @@ class FlightLifecycle:
                  "reserve_pct": need.reserve_pct, "remaining_pct": remaining, "override": False}  # fmt: skip
         short = remaining is not None and remaining < need.needed_pct
         if remaining is None:  # no battery monitor reported: nothing to check against, and the record says so
-            self._note(
+            await self._note(
                 mission_id,
                 f"pre-flight check not made: the vehicle reports no charge; the sortie needs {need_text(need)}",
             )
         elif short and flight.override:
             check["override"] = True
-            self._note(
+            await self._note(
                 mission_id,
                 f"pre-flight check overridden by the request: the vehicle reports {charge_text(remaining)}, "
                 f"the sortie needs {need_text(need)}",
@@ -398,7 +400,7 @@ class FlightLifecycle:
             check["remaining_pct"] = remaining = await self._wait_for_battery(mission_id, recorder, sortie, need)
             check["swapped"] = True
         recorder.preflight(check)
-        self.storage.set_progress(mission_id, recorder.progress())  # the check is on record before the arming
+        await self.storage.set_progress(mission_id, recorder.progress())  # the check is on record before the arming
 
     async def _wait_for_battery(
         self, mission_id: int, recorder: MissionRecorder, sortie: int, need: ChargeNeed
@@ -407,18 +409,18 @@ class FlightLifecycle:
         needs (or the operator aborts at the depot). Returns the charge then reported."""
         while True:
             remaining = self.link.status.battery_remaining_pct
-            self._transition(
+            self._swapped.clear()  # before the status is stored: a swap confirmed meanwhile counts
+            await self._transition(
                 mission_id,
                 MissionStatus.WAITING_FOR_BATTERY,
                 f"sortie {sortie + 1} needs {need_text(need)}; the vehicle reports {charge_text(remaining)}: swap "
                 "the pack and confirm the swap",
             )
-            self._swapped.clear()
             while not self._swapped.is_set():
                 self._check_abort_between_sorties(mission_id, sortie)
                 with contextlib.suppress(TimeoutError):
                     await asyncio.wait_for(self._swapped.wait(), FLUSH_PERIOD_S)
-                self.storage.add_telemetry(mission_id, recorder.take())
+                await self.storage.add_telemetry(mission_id, recorder.take())
             deadline = time.monotonic() + SWAPPED_CHARGE_WAIT_S
             while time.monotonic() < deadline:
                 remaining = self.link.status.battery_remaining_pct
@@ -487,7 +489,7 @@ class FlightLifecycle:
             if not (s.mission_complete and s.on_ground):
                 raise MissionEndError(MissionStatus.FAILED, RESTART_NOT_FLYING)
         else:
-            self._transition(mission_id, MissionStatus.FLYING, REATTACHED)
+            await self._transition(mission_id, MissionStatus.FLYING, REATTACHED)
             # seen armed just now: a sortie that lands before the first check is finished, not ended early
             await self._monitor(mission_id, sortie_plan, flight, recorder, s.incarnation, armed=True)
         await self._landed(recorder)
@@ -511,8 +513,8 @@ class FlightLifecycle:
         await self.link.upload_mission(items, self.link.status.home or self.settings.home)
         await self.link.set_current_item(FIRST_BUOY_SEQ - 1)  # the take-off is behind it; the speed, then buoys
         recorder.mission_uploaded()
-        self.storage.set_plan(mission_id, plan.to_dict())
-        self._transition(mission_id, MissionStatus.FLYING, f"re-planned in flight: {added} more buoys")
+        await self.storage.set_plan(mission_id, plan.to_dict())
+        await self._transition(mission_id, MissionStatus.FLYING, f"re-planned in flight: {added} more buoys")
 
     async def _monitor(
         self,
@@ -536,10 +538,10 @@ class FlightLifecycle:
         while True:
             await asyncio.sleep(FLUSH_PERIOD_S)
             s = self.link.status  # a new vehicle on the link gets a new status object
-            self.storage.add_telemetry(mission_id, recorder.take())
+            await self.storage.add_telemetry(mission_id, recorder.take())
             progress = recorder.progress()
             if progress != last_progress:
-                self.storage.set_progress(mission_id, progress)
+                await self.storage.set_progress(mission_id, progress)
                 last_progress = progress
             if (replanned := self._replans.pop(mission_id, None)) is not None and not aborting:
                 await self._upload_in_flight(mission_id, replanned, flight, recorder)
@@ -555,7 +557,9 @@ class FlightLifecycle:
             if mission_id in self._abort_requested and not aborting:
                 aborting = True
                 await self.link.return_to_launch()
-                self._transition(mission_id, MissionStatus.ABORTED, "aborted by the operator: returning to the depot")
+                await self._transition(
+                    mission_id, MissionStatus.ABORTED, "aborted by the operator: returning to the depot"
+                )
             was_armed = was_armed or s.armed
             on_ground_disarmed = not s.armed and s.on_ground
             # what the vehicle did, whichever messages showed it (gcs.missions.recorder): every buoy visited, back home

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import threading
 from collections import OrderedDict
-from collections.abc import Callable, Hashable
+from collections.abc import Awaitable, Callable, Hashable
 from dataclasses import dataclass
 
 # What a document's validity is checked against: the storage's change counter, or a tuple of such counters
@@ -33,7 +33,7 @@ class CachedDocument:
 class VersionedCache:
     """Encoded documents by key, each valid while its version is the current one; least recently used entries
     go first beyond `max_entries` or `max_bytes` (a track with a large max_points is megabytes: the byte budget
-    bounds the memory whatever keys clients ask for). Thread-safe (sync routes run in a thread pool)."""
+    bounds the memory whatever keys clients ask for). Thread-safe: documents are built in worker threads."""
 
     def __init__(self, max_entries: int = 256, max_bytes: int = 64 * 2**20) -> None:
         self.max_entries, self.max_bytes = max_entries, max_bytes
@@ -42,13 +42,13 @@ class VersionedCache:
         self._lock = threading.Lock()
         self.hits = self.misses = 0  # for tests and the benchmark: how often the cache answered
 
-    def get(self, key: Hashable, version: Version, build: Callable[[], bytes]) -> bytes:
+    async def get(self, key: Hashable, version: Version, build: Callable[[], Awaitable[bytes]]) -> bytes:
         """The document for `key` at `version` (read from storage before this call), built by `build` when the
         cache has none at that version. `build` runs outside the lock: two requests may build the same document
         at once, which is harmless (same bytes), while one slow build never holds up reads of other keys."""
         body = self.lookup(key, version)
         if body is None:
-            body = build()
+            body = await build()
             self.store(key, version, body)
         return body
 

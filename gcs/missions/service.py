@@ -41,7 +41,8 @@ from gcs.missions.validation import (
 )
 from gcs.reports import report, views
 from gcs.settings import Settings
-from gcs.storage import MissionRecord, Storage
+from gcs.storage import MissionRecord
+from gcs.storage.off_loop import AsyncStorage
 from gcs.vehicle.link import LinkManager
 from planner.energy import EnergyModel
 from uavcore.battery_pack import PackSpec
@@ -69,7 +70,7 @@ class MissionService:
     def __init__(
         self,
         settings: Settings,
-        storage: Storage,
+        storage: AsyncStorage,
         link: LinkManager,
         ownership: Ownership | None = None,
         fleet: Sequence[LinkManager] = (),
@@ -98,12 +99,12 @@ class MissionService:
     async def _take_link(self) -> None:
         """As the links' new owner: start them and re-attach each vehicle's mission left flying, as after a restart."""
         # read before this run can start any mission
-        unfinished = [self._storage.unfinished_missions(vehicle.sysid) for vehicle in self._vehicles]
-        fleets = self._storage.unfinished_fleets()
+        unfinished = [await self._storage.unfinished_missions(vehicle.sysid) for vehicle in self._vehicles]
+        fleets = await self._storage.unfinished_fleets()
         for vehicle in self._vehicles:
             await vehicle.link.start()
         for vehicle, missions in zip(self._vehicles, unfinished, strict=True):
-            vehicle.flights.reattach(missions)
+            await vehicle.flights.reattach(missions)
         for fleet_id in fleets:
             self._fleets.follow(fleet_id)
 
@@ -189,10 +190,10 @@ class MissionService:
             vehicle.flights.ensure_vehicle_free()
         plan, flight = await self.plan(request)
         flight = replace(flight, override=request.override)
-        mission_id = self._storage.create_mission(asdict(flight), plan.to_dict(), vehicle_sysid=vehicle.sysid)
+        mission_id = await self._storage.create_mission(asdict(flight), plan.to_dict(), vehicle_sysid=vehicle.sysid)
         if request.start:
             try:
-                self.launch(mission_id)
+                await self.launch(mission_id)
             except MissionConflictError as error:  # another mission started while this one was planned
                 raise MissionConflictError(
                     f"{error}; mission {mission_id} is stored as planned: POST /missions/{mission_id}/start later"
@@ -227,30 +228,31 @@ class MissionService:
             (asdict(replace(flight, altitude_m=share.altitude_m)), share.plan.to_dict(), share.sysid)
             for share in planned.shares
         ]
-        fleet_id, _ = self._storage.create_fleet_mission(asdict(flight), overview.to_dict(), parts)
-        fleet = self.get(fleet_id)
+        fleet_id, _ = await self._storage.create_fleet_mission(asdict(flight), overview.to_dict(), parts)
+        fleet = await self.get(fleet_id)
         # its shares' part missions, as the answer names them (the coordinator keeps this progress from here)
-        self._storage.set_progress(fleet_id, shares_progress(fleet, self._storage.fleet_parts(fleet_id)))
+        await self._storage.set_progress(fleet_id, shares_progress(fleet, await self._storage.fleet_parts(fleet_id)))
         if request.start:
-            self._launch_fleet(fleet)
+            await self._launch_fleet(fleet)
         return fleet_id
 
-    def _launch_fleet(self, fleet: MissionRecord) -> None:
+    async def _launch_fleet(self, fleet: MissionRecord) -> None:
         """Fly every part of a planned fleet mission (each vehicle must be free), and follow them."""
         if fleet.status != MissionStatus.PLANNED:
             raise MissionConflictError(f"mission {fleet.id} is {fleet.status}; only a planned mission can start")
-        parts = self._storage.fleet_parts(fleet.id)
+        parts = await self._storage.fleet_parts(fleet.id)
+        # from here to the launches nothing is awaited: no other request can take a vehicle in between
         for part in parts:
             self._vehicle_of(part).flights.ensure_vehicle_free()
         for part in parts:
             self._vehicle_of(part).flights.launch(part)
         self._fleets.follow(fleet.id)
 
-    def launch(self, mission_id: int) -> None:
+    async def launch(self, mission_id: int) -> None:
         self._ownership.ensure_owner()
-        record = self.get(mission_id)
+        record = await self.get(mission_id)
         if record.is_fleet:
-            self._launch_fleet(record)
+            await self._launch_fleet(record)
             return
         flights = self._vehicle_of(record).flights
         flights.ensure_vehicle_free()
@@ -259,17 +261,17 @@ class MissionService:
     async def abort(self, mission_id: int) -> None:
         """Abort a mission; a fleet mission's every part not yet ended (the fleet mission then ends aborted)."""
         self._ownership.ensure_owner()
-        record = self.get(mission_id)
+        record = await self.get(mission_id)
         if not record.is_fleet:
             await self._vehicle_of(record).flights.abort(record)
             return
         if record.status in TERMINAL:
             raise MissionConflictError(f"mission {mission_id} is {record.status}; nothing to abort")
-        for part in self._storage.fleet_parts(mission_id):
+        for part in await self._storage.fleet_parts(mission_id):
             if part.status not in TERMINAL:
                 await self._vehicle_of(part).flights.abort(part)
         if not self._fleets.active(mission_id):  # never launched: its parts ended as they were aborted
-            self._storage.set_status(mission_id, MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF)
+            await self._storage.set_status(mission_id, MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF)
 
     async def battery_swapped(self, sysid: int | None, charge_pct: float) -> dict[str, Any]:
         """The operator swapped the pack of a vehicle (None: the first): the vehicle is told (gcs.missions.lifecycle
@@ -310,65 +312,75 @@ class MissionService:
     def _described(self, vehicle: FleetVehicle) -> dict[str, Any]:
         return vehicle.describe() | {"role": self._ownership.as_dict()["role"]}
 
-    # ----- queries over what is stored
-    def get(self, mission_id: int) -> MissionRecord:
-        record = self._storage.get_mission(mission_id)
+    # ----- queries over what is stored (each storage call awaited in a thread: gcs.storage.off_loop)
+    async def get(self, mission_id: int) -> MissionRecord:
+        record = await self._storage.get_mission(mission_id)
         if record is None:
             raise MissionNotFoundError(mission_id)
         return record
 
-    def list_missions(self, limit: int) -> list[MissionRecord]:
+    async def list_missions(self, limit: int) -> list[MissionRecord]:
         """The latest missions, newest first."""
-        return self._storage.list_missions(limit)
+        return await self._storage.list_missions(limit)
 
-    def _version(self, mission_id: int) -> int:
-        version = self._storage.mission_version(mission_id)
+    async def _version(self, mission_id: int) -> int:
+        version = await self._storage.mission_version(mission_id)
         if version is None:
             raise MissionNotFoundError(mission_id)
         return version
 
     # The documents the read routes serve, encoded: built once per version of the mission (or, for the list, of
     # the newest change to any mission) and served as bytes while the storage's version is unchanged.
-    def mission_json(self, mission_id: int) -> bytes:
+    async def mission_json(self, mission_id: int) -> bytes:
         """GET /missions/{id}: the MissionOut document."""
-        version = self._version(mission_id)
-        return self.documents.get(("mission", mission_id), version, lambda: views.mission_json(self.get(mission_id)))
 
-    def missions_json(self, limit: int) -> bytes:
+        async def build() -> bytes:
+            return views.mission_json(await self.get(mission_id))
+
+        return await self.documents.get(("mission", mission_id), await self._version(mission_id), build)
+
+    async def missions_json(self, limit: int) -> bytes:
         """GET /missions: the latest `limit` MissionSummary documents, newest first."""
-        version = self._storage.latest_version()
-        return self.documents.get(("missions", limit), version, lambda: views.missions_json(self.list_missions(limit)))
 
-    def track_json(self, mission_id: int, max_points: int) -> bytes:
+        async def build() -> bytes:
+            return views.missions_json(await self.list_missions(limit))
+
+        return await self.documents.get(("missions", limit), await self._storage.latest_version(), build)
+
+    async def track_json(self, mission_id: int, max_points: int) -> bytes:
         """GET /missions/{id}/track: the flown track cut to `max_points` for display (TrackOut). Samples are
-        stored without moving the mission's version, so the track's version also counts them. Reads every
-        sample when it builds: call it from a worker thread."""
-        version = (self._version(mission_id), self._storage.telemetry_count(mission_id))
-        return self.documents.get(
-            ("track", mission_id, max_points),
-            version,
-            lambda: views.track_json(
-                self.get(mission_id),
-                self._storage.track_columns(mission_id),
-                lambda times: self._storage.telemetry_at(mission_id, times),
-                max_points,
-            ),
-        )
+        stored without moving the mission's version, so the track's version also counts them. Built in a worker
+        thread: it reads every sample."""
+        version = (await self._version(mission_id), await self._storage.telemetry_count(mission_id))
+        storage = self._storage.blocking  # read from the worker thread
 
-    def telemetry(self, mission_id: int, limit: int | None = None) -> list[dict[str, Any]]:
+        async def build() -> bytes:
+            record = await self.get(mission_id)
+            columns = storage.track_columns
+            return await asyncio.to_thread(
+                lambda: views.track_json(
+                    record, columns(mission_id), lambda times: storage.telemetry_at(mission_id, times), max_points
+                )
+            )
+
+        return await self.documents.get(("track", mission_id, max_points), version, build)
+
+    async def telemetry(self, mission_id: int, limit: int | None = None) -> list[dict[str, Any]]:
         """A mission's recorded samples (TelemetrySample documents), oldest first."""
-        self._version(mission_id)  # 404 for no such mission: the one-row index lookup, not the whole record
-        return self._storage.telemetry(mission_id, limit)
+        await self._version(mission_id)  # 404 for no such mission: the one-row index lookup, not the whole record
+        return await self._storage.telemetry(mission_id, limit)
 
-    def mission_file(self, mission_id: int) -> tuple[list[MissionItem], tuple[float, float, float], FlightParams]:
+    async def mission_file(self, mission_id: int) -> tuple[list[MissionItem], tuple[float, float, float], FlightParams]:
         """What a mission file needs: the mission's items, its home (the depot, on the ground) and flight."""
-        record = self.get(mission_id)
+        record = await self.get(mission_id)
         plan, flight = Plan.from_dict(record.plan), FlightParams(**record.flight)
         home = (plan.depot[0], plan.depot[1], 0.0)
         return mission_items(plan, flight), home, flight
 
-    def report_index(self, mission_id: int) -> Path:
+    async def report_index(self, mission_id: int) -> Path:
         """The mission's report (drawn, or the cached drawing when the mission has not changed): its index.html.
-        Draws with matplotlib: call it from a worker thread."""
-        self.get(mission_id)
-        return report.cached_report(self._storage, mission_id, self.settings.reports_dir)
+        Drawn with matplotlib in a worker thread."""
+        await self.get(mission_id)
+        return await asyncio.to_thread(
+            report.cached_report, self._storage.blocking, mission_id, self.settings.reports_dir
+        )

@@ -58,7 +58,7 @@ async def create_mission(request: MissionRequest, service: ServiceDep) -> dict:
     vehicle wait (default 5 s) the mission ends `failed` with reason "no vehicle". 409 while another mission
     uses the vehicle."""
     mission_id = await service.create(request)
-    return mission_out(service.get(mission_id))
+    return mission_out(await service.get(mission_id))
 
 
 def _encoded(body: bytes) -> Response:
@@ -67,44 +67,45 @@ def _encoded(body: bytes) -> Response:
     return Response(body, media_type="application/json")
 
 
-# The read routes answer from the service's cache of encoded documents: one version query per request, then
-# the bytes. They run on the event loop (no thread hop): a cache hit is a few microseconds of work.
+# The read routes answer from the service's cache of encoded documents: one version query per request (in a
+# storage thread, gcs.storage.off_loop), then the bytes.
 @router.get("/missions", response_model=list[MissionSummary])
 async def list_missions(service: ServiceDep, limit: Annotated[int, Query(ge=1, le=1000)] = 100) -> Response:
     """The latest missions, newest first; a fleet mission is listed, its part missions are in its `fleet`."""
-    return _encoded(service.missions_json(limit))
+    return _encoded(await service.missions_json(limit))
 
 
 @router.get("/missions/{mission_id}", response_model=MissionOut, responses=NOT_FOUND)
 async def get_mission(mission_id: MissionId, service: ServiceDep) -> Response:
-    return _encoded(service.mission_json(mission_id))
+    return _encoded(await service.mission_json(mission_id))
 
 
 @router.post("/missions/{mission_id}/start", **ACTION)
 async def start_mission(mission_id: MissionId, service: ServiceDep) -> dict:
     """Fly a mission created with start=false."""
-    service.launch(mission_id)
-    return mission_out(service.get(mission_id))
+    await service.launch(mission_id)
+    return mission_out(await service.get(mission_id))
 
 
 @router.post("/missions/{mission_id}/abort", **ACTION)
 async def abort_mission(mission_id: MissionId, service: ServiceDep) -> dict:
     """Return to the depot (NAV_RETURN_TO_LAUNCH); a mission not yet flying simply ends."""
     await service.abort(mission_id)
-    return mission_out(service.get(mission_id))
+    return mission_out(await service.get(mission_id))
 
 
 @router.get("/missions/{mission_id}/telemetry", response_model=list[TelemetrySample], responses=NOT_FOUND)
-def get_telemetry(
+async def get_telemetry(
     mission_id: MissionId, service: ServiceDep, limit: Annotated[int | None, Query(ge=1, le=1_000_000)] = None
 ) -> StreamingResponse:
-    """Every recorded sample, oldest first (the first `limit`): streamed in chunks, so a long flight's megabytes
-    never hold up the other requests."""
-    return StreamingResponse(telemetry_chunks(service.telemetry(mission_id, limit)), media_type="application/json")
+    """Every recorded sample, oldest first (the first `limit`): streamed in chunks (encoded in a worker thread),
+    so a long flight's megabytes never hold up the other requests."""
+    samples = await service.telemetry(mission_id, limit)
+    return StreamingResponse(telemetry_chunks(samples), media_type="application/json")
 
 
 @router.get("/missions/{mission_id}/track", response_model=TrackOut, responses=NOT_FOUND)
-def get_display_track(
+async def get_display_track(
     mission_id: MissionId,
     service: ServiceDep,
     max_points: Annotated[int, Query(ge=2, le=100_000, description="the most positions (and chart samples)")] = 2000,
@@ -112,7 +113,7 @@ def get_display_track(
     """The flown track for the map page: at most `max_points` positions (the first, the last and every buoy
     arrival always among them) within `tolerance_m` of every recorded one, and samples spread over the flight for
     the charts. Every sample is in /telemetry and track.geojson."""
-    return _encoded(service.track_json(mission_id, max_points))
+    return _encoded(await service.track_json(mission_id, max_points))
 
 
 def _download(content: str, media_type: str, filename: str) -> Response:
@@ -122,22 +123,23 @@ def _download(content: str, media_type: str, filename: str) -> Response:
 
 
 @router.get("/missions/{mission_id}/track.geojson", response_class=Response, responses=_file("application/geo+json"))
-def get_track(mission_id: MissionId, service: ServiceDep) -> Response:
-    properties = {"mission": mission_id, "status": service.get(mission_id).status}
-    document = exports.track_geojson(service.telemetry(mission_id), properties)
-    return _download(json.dumps(document), "application/geo+json", f"mission-{mission_id}-track.geojson")
+async def get_track(mission_id: MissionId, service: ServiceDep) -> Response:
+    properties = {"mission": mission_id, "status": (await service.get(mission_id)).status}
+    samples = await service.telemetry(mission_id)
+    content = await asyncio.to_thread(lambda: json.dumps(exports.track_geojson(samples, properties)))
+    return _download(content, "application/geo+json", f"mission-{mission_id}-track.geojson")
 
 
 @router.get("/missions/{mission_id}/plan", response_class=Response, responses=_file("application/json"))
-def get_qgc_plan(mission_id: MissionId, service: ServiceDep) -> Response:
-    items, home, flight = service.mission_file(mission_id)
+async def get_qgc_plan(mission_id: MissionId, service: ServiceDep) -> Response:
+    items, home, flight = await service.mission_file(mission_id)
     document = exports.qgc_plan(items, home, cruise_speed=flight.speed_m_s, hover_speed=flight.speed_m_s)
     return _download(json.dumps(document, indent=2), "application/json", f"mission-{mission_id}.plan")
 
 
 @router.get("/missions/{mission_id}/waypoints", response_class=Response, responses=_file("text/plain"))
-def get_waypoints(mission_id: MissionId, service: ServiceDep) -> Response:
-    items, home, _ = service.mission_file(mission_id)
+async def get_waypoints(mission_id: MissionId, service: ServiceDep) -> Response:
+    items, home, _ = await service.mission_file(mission_id)
     return _download(exports.waypoints_text(items, home), "text/plain", f"mission-{mission_id}.waypoints")
 
 
@@ -147,10 +149,10 @@ def get_waypoints(mission_id: MissionId, service: ServiceDep) -> Response:
     status_code=307,
     responses={307: {"headers": {"Location": {"required": True, "schema": {"type": "string"}}}}} | NOT_FOUND,
 )
-def get_report(mission_id: MissionId, service: ServiceDep) -> RedirectResponse:
+async def get_report(mission_id: MissionId, service: ServiceDep) -> RedirectResponse:
     """The mission report (figures table and PNGs, the paper's Section VI from this flight): redirects to
     its index.html, which names its figures relative to itself."""
-    service.get(mission_id)
+    await service.get(mission_id)
     return RedirectResponse(f"/missions/{mission_id}/report/index.html", status_code=307)
 
 
@@ -161,10 +163,10 @@ def get_report(mission_id: MissionId, service: ServiceDep) -> RedirectResponse:
 )
 async def get_report_file(mission_id: MissionId, name: str, service: ServiceDep) -> FileResponse:
     """index.html or one of its figures, drawn on first request and again only after the mission changed."""
-    service.get(mission_id)
+    await service.get(mission_id)
     if name not in report.REPORT_FILES:
         raise HTTPException(404, f"no report file {name!r}")
-    index = await asyncio.to_thread(service.report_index, mission_id)
+    index = await service.report_index(mission_id)
     if not (index.parent / name).is_file():  # energy.png: only for a mission planned with energy figures
         raise HTTPException(404, f"mission {mission_id}'s report has no {name}")
     return FileResponse(index.parent / name, headers={"Cache-Control": "no-cache"})

@@ -1,0 +1,107 @@
+"""The storage as code on the event loop uses it: each call runs in a thread, and the loop goes on meanwhile.
+
+The event loop that answers HTTP also runs every vehicle link: heartbeats, command retries, mission transfers.
+A query that waits on the database (a lock another instance holds, a slow disk, a PostgreSQL server far away)
+must not stop them, so the loop never calls `Storage` itself: it awaits `AsyncStorage`, which runs each call
+in a thread (`Storage` is thread-safe).
+
+- Writes run in one thread, in the order the loop issued them: a mission's events and samples are stored in
+  the order they happened, as when the loop wrote them itself. A write the caller stopped waiting for
+  (cancelled) still completes: each is one transaction, never half a record.
+- Reads run in a small pool: a long read (a two-hour mission's samples) holds up neither the writes nor other
+  reads. A read issued after an awaited write sees it.
+- Code already running in a worker thread (a report drawn, a track built for display) uses `blocking`, the
+  wrapped storage, directly.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import functools
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, ParamSpec, TypeVar
+
+from gcs.domain.status import MissionStatus
+from gcs.storage.base import MissionRecord, Storage
+
+P = ParamSpec("P")
+T = TypeVar("T")
+
+READ_THREADS = 4  # the PostgreSQL pool holds 4 connections (gcs.storage.postgres.POOL_SIZE) for these and the writer
+
+
+class AsyncStorage:
+    """`Storage`'s calls that the service makes from the event loop, as coroutines."""
+
+    def __init__(self, storage: Storage, read_threads: int = READ_THREADS) -> None:
+        self.blocking = storage
+        self.location = storage.location
+        self._writer = ThreadPoolExecutor(1, thread_name_prefix="storage-write")
+        self._readers = ThreadPoolExecutor(read_threads, thread_name_prefix="storage-read")
+
+    async def _run(self, pool: ThreadPoolExecutor, call: Callable[P, T], *args: P.args, **kwargs: P.kwargs) -> T:
+        return await asyncio.get_running_loop().run_in_executor(pool, functools.partial(call, *args, **kwargs))
+
+    async def close(self) -> None:
+        """Finish the writes issued, then close the storage."""
+        await asyncio.to_thread(self._close)
+
+    def _close(self) -> None:
+        self._writer.shutdown(wait=True)
+        self._readers.shutdown(wait=True)
+        self.blocking.close()
+
+    # ----- writes, one at a time in the order issued
+    async def create_mission(
+        self, flight: dict[str, Any], plan: dict[str, Any], vehicle_sysid: int | None = None
+    ) -> int:
+        return await self._run(self._writer, self.blocking.create_mission, flight, plan, vehicle_sysid=vehicle_sysid)
+
+    async def create_fleet_mission(
+        self, flight: dict[str, Any], plan: dict[str, Any], parts: list[tuple[dict[str, Any], dict[str, Any], int]]
+    ) -> tuple[int, list[int]]:
+        return await self._run(self._writer, self.blocking.create_fleet_mission, flight, plan, parts)
+
+    async def set_status(self, mission_id: int, status: MissionStatus, reason: str | None = None) -> None:
+        await self._run(self._writer, self.blocking.set_status, mission_id, status, reason)
+
+    async def set_progress(self, mission_id: int, progress: dict[str, Any]) -> None:
+        await self._run(self._writer, self.blocking.set_progress, mission_id, progress)
+
+    async def set_plan(self, mission_id: int, plan: dict[str, Any]) -> None:
+        await self._run(self._writer, self.blocking.set_plan, mission_id, plan)
+
+    async def set_results(self, mission_id: int, results: dict[str, Any]) -> None:
+        await self._run(self._writer, self.blocking.set_results, mission_id, results)
+
+    async def add_telemetry(self, mission_id: int, samples: list[dict[str, Any]]) -> None:
+        await self._run(self._writer, self.blocking.add_telemetry, mission_id, samples)
+
+    # ----- reads, side by side
+    async def get_mission(self, mission_id: int) -> MissionRecord | None:
+        return await self._run(self._readers, self.blocking.get_mission, mission_id)
+
+    async def list_missions(self, limit: int = 100) -> list[MissionRecord]:
+        return await self._run(self._readers, self.blocking.list_missions, limit)
+
+    async def fleet_parts(self, fleet_id: int) -> list[MissionRecord]:
+        return await self._run(self._readers, self.blocking.fleet_parts, fleet_id)
+
+    async def unfinished_missions(self, vehicle_sysid: int | None = None) -> list[int]:
+        return await self._run(self._readers, self.blocking.unfinished_missions, vehicle_sysid)
+
+    async def unfinished_fleets(self) -> list[int]:
+        return await self._run(self._readers, self.blocking.unfinished_fleets)
+
+    async def mission_version(self, mission_id: int) -> int | None:
+        return await self._run(self._readers, self.blocking.mission_version, mission_id)
+
+    async def latest_version(self) -> int:
+        return await self._run(self._readers, self.blocking.latest_version)
+
+    async def telemetry(self, mission_id: int, limit: int | None = None) -> list[dict[str, Any]]:
+        return await self._run(self._readers, self.blocking.telemetry, mission_id, limit)
+
+    async def telemetry_count(self, mission_id: int) -> int:
+        return await self._run(self._readers, self.blocking.telemetry_count, mission_id)
