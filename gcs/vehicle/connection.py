@@ -373,13 +373,11 @@ class SharedTransport(Transport):
 
     def __init__(self, connection: Connection, hub: TransportHub) -> None:
         super().__init__(connection)
+        # as the transport it shares; set once (the connection is frozen), an attribute like the other transports'
+        self.datagrams = connection.kind in ("udpin", "udpout")
         self._hub = hub
         self._inner: Transport | None = None
         self.peer: tuple[str, int] | None = None
-
-    @property
-    def datagrams(self) -> bool:  # type: ignore[override]
-        return self.connection.kind in ("udpin", "udpout")
 
     async def open(self, on_data: DataCallback) -> None:
         await super().open(on_data)
