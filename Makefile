@@ -40,6 +40,7 @@ test: $(STAMP) $(MAVSDK3_STAMP) chromium postgresql
 	$(BIN)/python -m ruff check .
 	$(BIN)/python -m ruff format --check .
 	$(BIN)/lint-imports
+	$(BIN)/python -m mypy
 	$(BIN)/python -m pytest -n $(TEST_WORKERS) --durations=15
 
 # The browser tests drive Debian's Chromium (Playwright's own browser download does not work here).
@@ -54,6 +55,7 @@ lint: $(STAMP)
 	$(BIN)/python -m ruff check .
 	$(BIN)/python -m ruff format --check .
 	$(BIN)/lint-imports
+	$(BIN)/python -m mypy
 
 bench: $(STAMP)
 	$(BIN)/python -m bench.planner_bench
@@ -63,4 +65,4 @@ bench: $(STAMP)
 	$(BIN)/python -m bench.failover
 
 clean:
-	rm -rf $(VENV) $(MAVSDK3_VENV) .pytest_cache .ruff_cache
+	rm -rf $(VENV) $(MAVSDK3_VENV) .pytest_cache .ruff_cache .mypy_cache

@@ -144,8 +144,8 @@ def _initial_population(
         valid = [k for k in range(size) if tours[k] is not None]
         if valid:
             info["chnn_best_length"] = min(tour_length(tours[k], dist) for k in valid)
-    tours = [t if t is not None else rng.permutation(n).astype(np.int64) for t in tours]
-    return tours, info, activations
+    population = [t if t is not None else rng.permutation(n).astype(np.int64) for t in tours]
+    return population, info, activations
 
 
 def _edge_prior(

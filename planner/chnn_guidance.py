@@ -43,19 +43,20 @@ class Windows:
         until every node is in some window (a cover, not one window per node: fewer, cheaper networks)."""
         nearest = neighbour_lists(dist, size)
         covered = np.zeros(len(dist), dtype=bool)
-        centres = []
+        drawn = []
         for centre in rng.permutation(len(dist)):
             if not covered[centre]:
-                centres.append(centre)
+                drawn.append(centre)
                 covered[centre] = True
                 covered[nearest[centre]] = True
-        centres = np.array(centres, dtype=np.int64)
+        centres = np.array(drawn, dtype=np.int64)
         return cls(nearest[centres], centres, centres)
 
     def distances(self, dist: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each window's normalised distances (chnn.normalised), stacked: (K, m, m), (K, m), (K, m)."""
         parts = [chnn.normalised(dist, f, s, e) for f, s, e in zip(self.free, self.start, self.end, strict=True)]
-        return tuple(np.stack(column) for column in zip(*parts, strict=True))
+        d, d_start, d_end = (np.stack(column) for column in zip(*parts, strict=True))
+        return d, d_start, d_end
 
 
 def expected_successors(v: np.ndarray) -> np.ndarray:

@@ -53,6 +53,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
@@ -358,7 +359,7 @@ class RouteEnergy:
         return out
 
 
-def _evaluate(model: EnergyModel, parts: list[Phase | _Block]) -> list[Phase]:
+def _evaluate(model: EnergyModel, parts: Sequence[Phase | _Block]) -> list[Phase]:
     """Eq. (1) over every block's samples in one call; phases already evaluated pass through."""
     blocks = [p for p in parts if isinstance(p, _Block) and p.dt.size]
     energy_j = {}
@@ -534,7 +535,7 @@ def route_energy(route_en, flight: RouteFlight, wind: WindForecast, model: Energ
         ]
         heading = bearing
     if len(route) == 1:
-        return RouteEnergy(_evaluate(model, parts + _landing(model, flight.altitude_m, heading, wind)))
+        return RouteEnergy(_evaluate(model, [*parts, *_landing(model, flight.altitude_m, heading, wind)]))
     parts += _return_climb(model, flight, heading, wind)
     home_air = _Air(wind, _return_altitude(model, flight))
     bearing = _bearing(route[-1], route[0])
@@ -542,7 +543,7 @@ def route_energy(route_en, flight: RouteFlight, wind: WindForecast, model: Energ
         _turn(model, -1, heading, bearing, home_air),
         _leg(model, -1, route[-1], route[0], flight.speed_m_s, home_air),
     ]
-    return RouteEnergy(_evaluate(model, parts + _landing(model, _return_altitude(model, flight), bearing, wind)))
+    return RouteEnergy(_evaluate(model, [*parts, *_landing(model, _return_altitude(model, flight), bearing, wind)]))
 
 
 # ----- the planner's SortieCost

@@ -26,6 +26,7 @@ max_iterations (the annealing then follows the rounds, not the clock).
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -157,7 +158,9 @@ def check_fleet(points, depot_of_vehicle, speed_m_s, dwell_s, takeoff_landing_s)
     )
 
 
-def _split_candidates(fleet: Fleet, tour: np.ndarray, params: FleetSearchParameters, rng: np.random.Generator):
+def _split_candidates(
+    fleet: Fleet, tour: np.ndarray, params: FleetSearchParameters, rng: np.random.Generator
+) -> Iterator[tuple[list[list[int]], float, float]]:
     """(routes, makespan, total) of the min-max split for rotations and both directions of the buoy order
     ``tour``, and, when the vehicles differ, for a few orders of them (first: by where along the tour the
     buoy nearest to each depot lies)."""
@@ -176,7 +179,7 @@ def _split_candidates(fleet: Fleet, tour: np.ndarray, params: FleetSearchParamet
                     order, fleet.distance, fleet.dwell, fleet.depot[vehicles], fleet.inv_speed[vehicles],
                     fleet.fixed[vehicles],
                 )  # fmt: skip
-                by_vehicle = [[] for _ in range(K)]
+                by_vehicle: list[list[int]] = [[] for _ in range(K)]
                 for position, k in enumerate(vehicles):
                     by_vehicle[k] = routes[position]
                 yield by_vehicle, makespan, total

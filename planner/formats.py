@@ -103,10 +103,11 @@ def parse_csv(text: str, depot: tuple[float, float] | None = None) -> np.ndarray
     try:
         float(header[0])
     except ValueError:
-        lat_col = next((i for i, c in enumerate(header) if c in _LAT_NAMES), None)
-        lon_col = next((i for i, c in enumerate(header) if c in _LON_NAMES), None)
-        if lat_col is None or lon_col is None:
+        lat_named = next((i for i, c in enumerate(header) if c in _LAT_NAMES), None)
+        lon_named = next((i for i, c in enumerate(header) if c in _LON_NAMES), None)
+        if lat_named is None or lon_named is None:
             raise InputError(f"the CSV header {rows[0]} names no lat and lon columns") from None
+        lat_col, lon_col = lat_named, lon_named
         role_col = header.index("role") if "role" in header else None
         rows = rows[1:]
     points, roles = [], []

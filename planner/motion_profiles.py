@@ -26,7 +26,9 @@ descent_spans = partial(motion_profiles.descent_spans, to_touchdown=True)
 def sample_spans(spans: list[Span], step_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(dt, speed, acceleration) at the midpoints of a grid over the spans (midpoint rule): a constant-speed span
     as one sample (exact), the others every step_s at most."""
-    dts, speeds, accels = [np.zeros(0)], [np.zeros(0)], [np.zeros(0)]
+    dts: list[np.ndarray] = [np.zeros(0)]
+    speeds: list[np.ndarray] = [np.zeros(0)]
+    accels: list[np.ndarray] = [np.zeros(0)]
     v = 0.0
     for duration, a0, jerk in spans:
         if duration <= 0.0:

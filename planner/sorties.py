@@ -121,6 +121,11 @@ def giant_tour(C: np.ndarray, method: str, seed: int, time_limit_s: float) -> np
     return np.roll(tour, -int(np.flatnonzero(tour == 0)[0]))
 
 
+# The working solution's eight arrays, spelled out: the kernels take positional arguments after them, which mypy
+# accepts only after a star-argument of known length.
+_Working = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
 class _Search:
     """One instance's arrays for the numba kernels (planner.sortie_search): the arc matrices, the candidate
     lists, and the working, current and best solutions."""
@@ -150,7 +155,7 @@ class _Search:
         self.costs = np.zeros(2)  # [current, best]
 
     @property
-    def _working(self) -> tuple:
+    def _working(self) -> _Working:
         return (self.routes, self.rlen, self.info, self.route_of, self.pos, self.pref, self.stamp, self.tested)
 
     def local_search(self) -> float:

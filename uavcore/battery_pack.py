@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import bisect
 from dataclasses import dataclass
+from typing import Any
 
 # Rest (open-circuit) voltage of one LiPo cell at 0 %, 5 %, ..., 100 % charge: the widely published LiPo
 # voltage chart. Only its shape is used (normalised, then stretched between BAT1_V_EMPTY and BAT1_V_CHARGED).
@@ -70,7 +71,10 @@ class PackSpec:
     @classmethod
     def from_parameters(cls, values: dict[str, float]) -> PackSpec:
         """From the vehicle's parameters by PX4 name (PACK_PARAMETERS); the ones missing keep their default."""
-        fields = {PACK_PARAMETERS[name]: value for name, value in values.items() if name in PACK_PARAMETERS}
+        # keyword arguments of the dataclass, each of its field's type (cells an int below, the others floats)
+        fields: dict[str, Any] = {
+            PACK_PARAMETERS[name]: value for name, value in values.items() if name in PACK_PARAMETERS
+        }
         if "cells" in fields:
             fields["cells"] = int(fields["cells"])
         return cls(**fields)

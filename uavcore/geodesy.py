@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pymap3d
+from numpy.typing import ArrayLike
 
 # Default home: the depot, on a pier in the approaches to Dalian harbour (the paper's authors' port).
 DEFAULT_HOME = (38.9210, 121.6630, 0.0)  # lat deg, lon deg, alt m AMSL
@@ -60,13 +61,13 @@ class LocalFrame:
         """(north, east, down) metres -> (lat, lon, alt)."""
         return self.from_enu(east, north, -down)
 
-    def project(self, lat_lon: np.ndarray) -> np.ndarray:
+    def project(self, lat_lon: ArrayLike) -> np.ndarray:
         """An (n, 2) array of [lat, lon] -> an (n, 2) array of [east, north] metres."""
         lat_lon = np.asarray(lat_lon, dtype=float)
         e, n, _ = self.to_enu(lat_lon[:, 0], lat_lon[:, 1], np.full(len(lat_lon), self.alt0))
         return np.column_stack([e, n])
 
-    def unproject(self, east_north: np.ndarray) -> np.ndarray:
+    def unproject(self, east_north: ArrayLike) -> np.ndarray:
         """An (n, 2) array of [east, north] metres -> an (n, 2) array of [lat, lon]."""
         east_north = np.asarray(east_north, dtype=float)
         lat, lon, _ = self.from_enu(east_north[:, 0], east_north[:, 1], np.zeros(len(east_north)))

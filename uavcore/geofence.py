@@ -37,11 +37,12 @@ LatLon = tuple[float, float]  # degrees
 NorthEast = tuple[float, float]  # metres on a local tangent plane
 Interval = tuple[float, float]  # a part of a segment, as fractions 0..1 of its length
 
-POLYGON_COMMANDS = {
+# Keyed by MavCmd members, looked up by a MissionItem's plain int command (an IntEnum hashes as its value).
+POLYGON_COMMANDS: dict[int, bool] = {
     MavCmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION: True,  # command -> is an inclusion zone
     MavCmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION: False,
 }
-CIRCLE_COMMANDS = {MavCmd.NAV_FENCE_CIRCLE_INCLUSION: True, MavCmd.NAV_FENCE_CIRCLE_EXCLUSION: False}
+CIRCLE_COMMANDS: dict[int, bool] = {MavCmd.NAV_FENCE_CIRCLE_INCLUSION: True, MavCmd.NAV_FENCE_CIRCLE_EXCLUSION: False}
 MIN_POLYGON_VERTICES = 3
 _EPS = 1e-12  # fractions of a segment closer than this are the same point
 
@@ -280,6 +281,7 @@ class Geofence:
         return self.in_plane(self._frame) if self._frame is not None else PlanarFence(())
 
     def _north_east(self, point: LatLon) -> NorthEast:
+        assert self._frame is not None, "callers return early on an empty fence, the only one without a frame"
         north, east, _ = self._frame.to_ned(point[0], point[1], 0.0)
         return float(north), float(east)
 

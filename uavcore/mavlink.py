@@ -127,6 +127,8 @@ def parse_datagram(parser: mavlink.MAVLink, data: bytes) -> list:
 def item_message(item: MissionItem, target_system: int, target_component: int, integer: bool = True) -> Any:
     """The MISSION_ITEM_INT that carries a `MissionItem` verbatim; with integer=False the legacy MISSION_ITEM
     (lat/lon as float degrees) that answers a plain MISSION_REQUEST."""
+    x: float  # int (degrees * 1e7) in MISSION_ITEM_INT, float degrees in MISSION_ITEM
+    y: float
     if integer:
         message, x, y = mavlink.MAVLink_mission_item_int_message, item.x, item.y
     else:

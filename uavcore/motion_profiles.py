@@ -124,7 +124,8 @@ def descent_spans(
 
 def cut_at_distance(spans: list[Span], distance: float) -> list[Span]:
     """The spans up to the instant the distance covered reaches `distance`."""
-    out, s, v = [], 0.0, 0.0
+    out: list[Span] = []
+    s, v = 0.0, 0.0
     for duration, a0, jerk in spans:
 
         def covered(t: float, s=s, v=v, a0=a0, jerk=jerk) -> float:

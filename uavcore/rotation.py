@@ -133,7 +133,9 @@ def acceleration_to_attitude(
     return AttitudeTarget(quaternion=quaternion, thrust=thrust, body_rates=body_rates)
 
 
-def _quat_from_matrix(m00, m01, m02, m10, m11, m12, m20, m21, m22) -> np.ndarray:
+def _quat_from_matrix(
+    m00: float, m01: float, m02: float, m10: float, m11: float, m12: float, m20: float, m21: float, m22: float
+) -> np.ndarray:
     """Rotation matrix (columns = body axes in world) -> unit quaternion, Shepperd's method."""
     trace = m00 + m11 + m22
     if trace > 0:
@@ -148,7 +150,7 @@ def _quat_from_matrix(m00, m01, m02, m10, m11, m12, m20, m21, m22) -> np.ndarray
     else:
         s = 2.0 * math.sqrt(1.0 + m22 - m00 - m11)
         q = ((m10 - m01) / s, (m02 + m20) / s, (m12 + m21) / s, 0.25 * s)
-    q = np.array(q)
-    if q[0] < 0:
-        q = -q
-    return q / np.linalg.norm(q)
+    quaternion = np.array(q)
+    if quaternion[0] < 0:
+        quaternion = -quaternion
+    return quaternion / np.linalg.norm(quaternion)

@@ -39,7 +39,8 @@ class BodyLimitMiddleware:
                 raise BodyTooLargeError  # a length that is no number cannot be trusted either
 
     async def _read_body(self, receive: Receive) -> bytes:
-        chunks, size = [], 0
+        chunks: list[bytes] = []
+        size = 0
         while True:
             message = await receive()
             if message["type"] != "http.request":  # the client went away: the route sees an empty body

@@ -49,6 +49,7 @@ def buoys_from_geojson(document: Any) -> list[ImportedBuoy]:
     if not isinstance(document, dict):
         raise BuoyFileError("GeoJSON: expected an object")
     kind = document.get("type")
+    features: object  # whatever the document holds, until checked to be a list
     if kind == "Feature":
         features = [document]
     elif kind == "FeatureCollection":

@@ -7,6 +7,7 @@ depot's tangent plane (uavcore.geodesy) so the planner works in metres.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
 from typing import Any
 
@@ -114,7 +115,7 @@ def fenced_legs(depot: tuple[float, float], lat_lon: np.ndarray, fence: Geofence
 
 
 def local_nodes(
-    depot: tuple[float, float], buoys: list[tuple[float, float]]
+    depot: tuple[float, float], buoys: Sequence[Sequence[float]]
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The buoys' [lat, lon] (n, 2), their local [east, north] (n, 2), and the distances between the n + 1 nodes
     (node 0 the depot)."""
@@ -151,7 +152,7 @@ def make_plan(
 
 def sorties_plan(
     depot: tuple[float, float],
-    buoys: list[tuple[float, float]],
+    buoys: Sequence[Sequence[float]],  # [lat, lon] each: a request's tuples or a stored plan's lists
     buoy_ids: list[str],
     sorties: list[list[int]],
     method: str,

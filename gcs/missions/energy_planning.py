@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from gcs.domain.planning import FlightParams, Plan, local_nodes, make_plan, sorties_plan
-from gcs.domain.schemas import PlanRequest
+from gcs.domain.schemas import BatteryIn, PlanRequest
 from gcs.missions.validation import RequestInvalidError
 from planner.energy import EnergyModel, RouteFlight, WindForecast, calibrated_sortie_cost, route_energy
 from planner.errors import UnreachableBuoyError
@@ -62,7 +62,8 @@ def battery_plan(request: PlanRequest, vehicle_pack: PackSpec | None, model: Ene
     """The request's battery options over the vehicle's pack (None: the vehicle did not say; the energy model's
     pack stands in, and the answer says so)."""
     options = request.battery
-    assert options is not None
+    # asked only of a request with battery options; its validator turns the "vehicle" shorthand into BatteryIn()
+    assert isinstance(options, BatteryIn)
     pack, source = (vehicle_pack, "vehicle") if vehicle_pack is not None else (model_pack(model), "energy model")
     if options.capacity_mah is not None:
         pack = dataclasses.replace(pack, capacity_mah=options.capacity_mah)

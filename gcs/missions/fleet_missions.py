@@ -97,6 +97,12 @@ class SeparationMonitor:
             self.separation.fold(self._positions)
 
 
+def _vehicle_of(part: MissionRecord) -> int:
+    """The system id a fleet mission's part flies on: every part is stored with its vehicle's."""
+    assert part.vehicle_sysid is not None
+    return part.vehicle_sysid
+
+
 def shares_progress(fleet: MissionRecord, parts: list[MissionRecord]) -> dict[str, Any]:
     """Each share's part mission, status and inspected buoys (input indices of the fleet mission)."""
     shares = []
@@ -202,10 +208,10 @@ class FleetCoordinator:
             )
 
     async def _follow_parts(self, fleet_id: int) -> None:
-        fleet = await self.storage.get_mission(fleet_id)
+        fleet = await self._stored(fleet_id)
         parts = await self.storage.fleet_parts(fleet_id)
         frame = Plan.from_dict(fleet.plan).frame
-        monitor = SeparationMonitor(frame, {part.vehicle_sysid: self._link_of(part.vehicle_sysid) for part in parts})
+        monitor = SeparationMonitor(frame, {sysid: self._link_of(sysid) for sysid in map(_vehicle_of, parts)})
         monitor.start()
         if fleet.status != MissionStatus.FLYING:
             await self.storage.set_status(fleet_id, MissionStatus.FLYING)
@@ -243,8 +249,9 @@ class FleetCoordinator:
         vehicles still flying their shares (gcs.missions.fleet_planning.reshare), each uploaded in flight as its part's
         new plan. The fleet mission's plan records who took what; its events say so. Returns the fleet re-read."""
         plan = Plan.from_dict(fleet.plan)
+        assert plan.fleet is not None  # a fleet mission's plan has its fleet section
         shares = {share["sysid"]: share for share in plan.fleet["shares"]}
-        lost_share = shares[lost_part.vehicle_sysid]
+        lost_share = shares[_vehicle_of(lost_part)]
         visited = set(lost_part.progress.get("visited_buoys", []))
         orphans = [b for i, b in enumerate(lost_share["buoys"]) if i not in visited]
         lost_share["lost"] = lost_part.reason or "failed"
@@ -252,18 +259,20 @@ class FleetCoordinator:
         # buoy share["buoys"][i] there
         points = np.asarray(plan.buoys_local)
         receivers: dict[int, tuple[MissionRecord, Plan, list[int]]] = {}  # sysid -> part, its plan, buoys left
-        positions = {}  # sysid -> (where it is, its buoys left, its home) for reshare
+        # sysid -> (where it is, its buoys left, its home) for reshare
+        positions: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         for part in parts:
-            status = self._link_of(part.vehicle_sysid).status
+            sysid = _vehicle_of(part)
+            status = self._link_of(sysid).status
             flying = status.connected and status.armed and not status.mission_complete and status.lat is not None
             if part.status != MissionStatus.FLYING or not flying:
                 continue
             part_plan, done = Plan.from_dict(part.plan), set(part.progress.get("visited_buoys", []))
             left = [i for i in part_plan.order if i not in done]
-            share = shares[part.vehicle_sysid]
+            share = shares[sysid]
             here, home = plan.frame.project([[status.lat, status.lon], share["home"]])
-            receivers[part.vehicle_sysid] = (part, part_plan, left)
-            positions[part.vehicle_sysid] = (here, points[[share["buoys"][i] for i in left]].reshape(-1, 2), home)
+            receivers[sysid] = (part, part_plan, left)
+            positions[sysid] = (here, points[[share["buoys"][i] for i in left]].reshape(-1, 2), home)
         handed: dict[int, list[int]] = {}
         if orphans and receivers:
             routes = reshare(positions, points[orphans], fleet.flight["speed_m_s"], fleet.flight["dwell_s"])
@@ -300,4 +309,10 @@ class FleetCoordinator:
             fleet.id, MissionStatus.FLYING, f"vehicle {lost_part.vehicle_sysid} lost{why}: {given}"
         )
         log.warning("fleet mission %s: vehicle %s lost; %s", fleet.id, lost_part.vehicle_sysid, given)
-        return await self.storage.get_mission(fleet.id)
+        return await self._stored(fleet.id)
+
+    async def _stored(self, fleet_id: int) -> MissionRecord:
+        """A fleet mission this coordinator follows, as stored now (missions are never deleted)."""
+        record = await self.storage.get_mission(fleet_id)
+        assert record is not None
+        return record

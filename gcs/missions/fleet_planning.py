@@ -141,7 +141,7 @@ def reshare(
     # the farthest from every flying vehicle first: it constrains the makespan most
     nearest = [min(float(np.hypot(*(b - flying[s][0]))) for s in flying) for b in lost]
     for j in sorted(range(len(lost)), key=lambda j: -nearest[j]):
-        best = None
+        best: tuple[tuple[float, float], int, list[int], float] | None = None  # (key, sysid, order, its time)
         for sysid, order in routes.items():
             node = len(flying[sysid][1]) + j
             for at in range(len(order) + 1):
@@ -151,6 +151,7 @@ def reshare(
                 key = (makespan, t - times[sysid])
                 if best is None or key < best[0]:
                     best = (key, sysid, trial, t)
+        assert best is not None  # `nearest` needed a flying vehicle, and each offers at least one place
         _, sysid, trial, t = best
         routes[sysid], times[sysid] = trial, t
     return routes

@@ -209,7 +209,7 @@ class MissionService:
         if request.start:
             for vehicle in vehicles:
                 vehicle.flights.ensure_vehicle_free()
-        homes = {vehicle.system_id: vehicle.depot() for vehicle in vehicles}
+        homes = {sysid: vehicle.depot() for sysid, vehicle in zip(sysids, vehicles, strict=True)}
         first_home = homes[sysids[0]]
         validate_request(request, first_home, self.settings.limits)
         ids, buoys = _named_buoys(request)

@@ -104,9 +104,12 @@ def fence_from_request(zones: list[FenceZoneIn]) -> Geofence:
     """The request's zones as a uavcore Geofence."""
     built: list[PolygonZone | CircleZone] = []
     for zone in zones:
+        # FenceZoneIn's validator gives a polygon its vertices, a circle its center and radius
         if zone.kind == "polygon":
+            assert zone.vertices is not None
             built.append(PolygonZone(tuple((v.lat, v.lon) for v in zone.vertices), zone.inclusion))
         else:
+            assert zone.center is not None and zone.radius_m is not None
             built.append(CircleZone((zone.center.lat, zone.center.lon), zone.radius_m, zone.inclusion))
     return Geofence(tuple(built))
 

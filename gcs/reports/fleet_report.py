@@ -60,7 +60,8 @@ def _draw_fleet(
             flown = frame.project(np.column_stack([lat[located], lon[located]]))
             ax.plot(flown[:, 0], flown[:, 1], color=style["color"], lw=0.8, alpha=0.6)
             if share["lost"]:
-                ax.scatter(*flown[-1], marker="x", s=80, color="k", zorder=4, label=f"vehicle {share['sysid']} lost")
+                east, north = flown[-1]
+                ax.scatter(east, north, marker="x", s=80, color="k", zorder=4, label=f"vehicle {share['sysid']} lost")
         home = route[0]
         ax.scatter(*home, marker="s", color=style["color"], edgecolor="k", zorder=4)
     inspected = set(fleet["inspected_by"])

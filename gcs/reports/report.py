@@ -320,7 +320,7 @@ def write_report(record: MissionRecord, samples: list[dict[str, Any]], out_dir: 
     )
     _draw_eso(series, out_dir / "eso.png")
     sorties = sorties_out(plan, record.progress.get("sorties_flown"))
-    figures = FIGURES
+    figures: tuple[str, ...] = FIGURES
     if plan.energy:
         _draw_energy(sorties, plan.energy["budget_wh"], out_dir / ENERGY_FIGURE)
         figures = (*FIGURES, ENERGY_FIGURE)

@@ -134,6 +134,7 @@ def fleet_out(record: MissionRecord, plan: Plan) -> dict[str, Any]:
     """A fleet mission's shares as planned and as flown so far (its progress, kept by gcs.missions.fleet_missions), who
     inspected what and the separation (once it has ended)."""
     fleet = plan.fleet
+    assert fleet is not None  # asked only of a fleet mission, whose plan has its fleet section
     flown = {s["sysid"]: s for s in record.progress.get("shares", [])}
     shares = []
     for share in fleet["shares"]:

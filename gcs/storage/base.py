@@ -35,7 +35,8 @@ class ConstraintError(StorageError):
 
 
 class Cursor(Protocol):
-    rowcount: int
+    @property  # read-only: the drivers' cursors (sqlite3's, psycopg's) do not let it be set
+    def rowcount(self) -> int: ...
 
     def fetchone(self) -> Any: ...
 
@@ -44,11 +45,11 @@ class Cursor(Protocol):
 
 class Connection(Protocol):
     """What `transaction()` yields: sqlite3.Connection's execute/executemany (`?` placeholders). Rows are read
-    by column name."""
+    by column name. Positional-only arguments, as sqlite3's take them."""
 
-    def execute(self, sql: str, parameters: Sequence[Any] = ...) -> Cursor: ...
+    def execute(self, sql: str, parameters: Sequence[Any] = ..., /) -> Cursor: ...
 
-    def executemany(self, sql: str, rows: Iterable[Sequence[Any]]) -> Any: ...
+    def executemany(self, sql: str, rows: Iterable[Sequence[Any]], /) -> Any: ...
 
 
 @dataclass
@@ -318,10 +319,10 @@ class Storage(ABC):
         if not samples:
             return
         # in time order: two instances recording the same instants lock them in the same order, never a deadlock
-        rows = sorted(
-            ((mission_id, float(s["t_s"]), _json(s), *(s.get(c) for c in TRACK_COLUMNS)) for s in samples),
-            key=lambda row: row[1],
-        )
+        rows = [
+            (mission_id, float(s["t_s"]), _json(s), *(s.get(c) for c in TRACK_COLUMNS))
+            for s in sorted(samples, key=lambda s: float(s["t_s"]))
+        ]
         with self.transaction() as db:
             db.executemany(
                 f"INSERT INTO telemetry (mission_id, t_s, sample, {', '.join(TRACK_COLUMNS)})"

@@ -194,6 +194,7 @@ class UdpTransport(Transport):
     async def close(self) -> None:
         if self._socket is not None:
             self._socket.close()
+            assert self._protocol is not None  # open() sets it with the socket
             # asyncio closes the socket on a later turn of the loop: wait, so its port is free on return
             with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(self._protocol.closed, UDP_CLOSE_WAIT_S)
@@ -280,6 +281,7 @@ class SerialTransport(Transport):
         asyncio.get_running_loop().add_reader(fd, self._readable)
 
     def _readable(self) -> None:
+        assert self._fd is not None  # registered only while the device is open (close() unregisters first)
         try:
             data = os.read(self._fd, 65536)
         except (BlockingIOError, InterruptedError):
@@ -296,6 +298,7 @@ class SerialTransport(Transport):
         self._flush()
 
     def _flush(self) -> None:
+        assert self._fd is not None  # called by send() on an open device, or as its writer until close()
         loop = asyncio.get_running_loop()
         try:
             written = os.write(self._fd, self._pending)
@@ -341,8 +344,14 @@ class TransportHub:
         if entry is None:
             inner: Transport = open_transport(view.connection)
             entry = self._shared[view.connection] = (inner, [])
+            views = entry[1]
+
+            def fan_out(data: bytes, source: object) -> None:
+                for v in list(views):  # a copy: a view may attach or detach while a chunk is handed out
+                    v._received(data, source)
+
             try:
-                await inner.open(lambda data, source: [v._received(data, source) for v in list(entry[1])])
+                await inner.open(fan_out)
             except BaseException:
                 del self._shared[view.connection]
                 raise
@@ -364,13 +373,11 @@ class SharedTransport(Transport):
 
     def __init__(self, connection: Connection, hub: TransportHub) -> None:
         super().__init__(connection)
+        # as the transport it shares; set once (the connection is frozen), an attribute like the other transports'
+        self.datagrams = connection.kind in ("udpin", "udpout")
         self._hub = hub
         self._inner: Transport | None = None
         self.peer: tuple[str, int] | None = None
-
-    @property
-    def datagrams(self) -> bool:  # type: ignore[override]
-        return self.connection.kind in ("udpin", "udpout")
 
     async def open(self, on_data: DataCallback) -> None:
         await super().open(on_data)

@@ -452,7 +452,7 @@ class LinkManager:
     @contextlib.contextmanager
     def subscribe(self, names: set[str]) -> Iterator[asyncio.Queue]:
         """A queue receiving every message of these types from the autopilot while the block runs."""
-        entry = (frozenset(names), asyncio.Queue())
+        entry: tuple[frozenset[str], asyncio.Queue] = (frozenset(names), asyncio.Queue())
         self._queues.append(entry)
         try:
             yield entry[1]
@@ -472,8 +472,9 @@ class LinkManager:
     def remove_listener(self, listener: Callable[[Any], None], end_of_chunk: Callable[[], None] | None = None) -> None:
         with contextlib.suppress(ValueError):
             self._listeners.remove(listener)
-        with contextlib.suppress(ValueError):
-            self._chunk_ends.remove(end_of_chunk)
+        if end_of_chunk is not None:
+            with contextlib.suppress(ValueError):
+                self._chunk_ends.remove(end_of_chunk)
 
     def _received(self, data: bytes, source: object) -> None:
         try:
@@ -544,6 +545,7 @@ class LinkManager:
         if kind == "NAMED_VALUE_FLOAT":
             s.estimates[m.name] = _finite(m.value)
             return
+        assert self.vehicle is not None  # _received folds only the adopted vehicle's messages
         if m.get_srcComponent() != self.vehicle.compid:
             return
         if kind == "HEARTBEAT":

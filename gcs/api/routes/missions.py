@@ -10,7 +10,7 @@ from fastapi import APIRouter, Depends, HTTPException, Path, Query, Response
 from fastapi.responses import FileResponse, RedirectResponse, StreamingResponse
 
 from gcs.api.routes.deps import ServiceDep
-from gcs.api.routes.responses import CONFLICT, MUTATING, NOT_FOUND, WITH_BODY
+from gcs.api.routes.responses import CONFLICT, MUTATING, NOT_FOUND, WITH_BODY, Responses, RouteOptions
 from gcs.api.security import require_token
 from gcs.domain.schemas import MissionOut, MissionRequest, MissionSummary, TelemetrySample, TrackOut
 from gcs.reports import exports, report
@@ -26,20 +26,21 @@ _MISSION_LINKS = {
         *("get_display_track", "start_mission", "abort_mission"),
     )
 }
-CREATED = {201: {"links": _MISSION_LINKS}}
+CREATED: Responses = {201: {"links": _MISSION_LINKS}}
 # start and abort: what they answer and need
-ACTION = {
+ACTION: RouteOptions = {
     "response_model": MissionOut,
     "dependencies": [Depends(require_token)],
     "responses": MUTATING | NOT_FOUND | CONFLICT,
 }
 
 
-def _file(*media_types: str) -> dict:
+def _file(*media_types: str) -> Responses:
     """A download's answer: a file of these media types, or 404."""
     return {200: {"description": "the file", "content": {kind: {} for kind in media_types}}} | NOT_FOUND
 
 
+REDIRECT: Responses = {307: {"headers": {"Location": {"required": True, "schema": {"type": "string"}}}}}
 MissionId = Annotated[int, Path(ge=1, le=2**63 - 1, description="the mission's id (SQLite integer)")]
 
 
@@ -147,7 +148,7 @@ async def get_waypoints(mission_id: MissionId, service: ServiceDep) -> Response:
     "/missions/{mission_id}/report",
     response_class=RedirectResponse,
     status_code=307,
-    responses={307: {"headers": {"Location": {"required": True, "schema": {"type": "string"}}}}} | NOT_FOUND,
+    responses=REDIRECT | NOT_FOUND,
 )
 async def get_report(mission_id: MissionId, service: ServiceDep) -> RedirectResponse:
     """The mission report (figures table and PNGs, the paper's Section VI from this flight): redirects to

@@ -6,9 +6,22 @@ Every error body is `{"detail": text}`, except 422, which lists the problems: `{
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, TypedDict
 
+from fastapi import params
 from pydantic import BaseModel
+
+# What a route's `responses=` takes (FastAPI's type): status code -> what OpenAPI says of that answer.
+Responses = dict[int | str, dict[str, Any]]
+
+
+class RouteOptions(TypedDict, total=False):
+    """Decorator arguments several routes share (`@router.post(path, **OPTIONS)`): typed, so each is checked."""
+
+    response_model: Any
+    dependencies: Sequence[params.Depends]
+    responses: Responses
 
 
 class ErrorOut(BaseModel):
@@ -19,17 +32,19 @@ def _error(description: str, **extra: Any) -> dict[str, Any]:
     return {"model": ErrorOut, "description": description, **extra}
 
 
-UNAUTHORIZED = {
+UNAUTHORIZED: Responses = {
     401: _error(
         "the service has an API token and the request did not carry it (Authorization: Bearer <token>)",
         headers={"WWW-Authenticate": {"required": True, "schema": {"type": "string", "const": "Bearer"}}},
     )
 }
-NOT_FOUND = {404: _error("no mission with this id")}
-NO_VEHICLE = {404: _error("no vehicle with this system id")}
-CONFLICT = {409: _error("another mission uses the vehicle, or this mission is not in a state that allows it")}
-TOO_LARGE = {413: _error("the request body is larger than the service's max_body_bytes")}
-UNAVAILABLE = {
+NOT_FOUND: Responses = {404: _error("no mission with this id")}
+NO_VEHICLE: Responses = {404: _error("no vehicle with this system id")}
+CONFLICT: Responses = {
+    409: _error("another mission uses the vehicle, or this mission is not in a state that allows it")
+}
+TOO_LARGE: Responses = {413: _error("the request body is larger than the service's max_body_bytes")}
+UNAVAILABLE: Responses = {
     503: _error(
         "this service is on stand-by: another instance owns the vehicle link (the detail names it)",
         headers={"Retry-After": {"required": True, "schema": {"type": "integer", "minimum": 1}}},

@@ -8,7 +8,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Depends, Path
 
 from gcs.api.routes.deps import ServiceDep
-from gcs.api.routes.responses import CONFLICT, MUTATING, NO_VEHICLE
+from gcs.api.routes.responses import CONFLICT, MUTATING, NO_VEHICLE, RouteOptions
 from gcs.api.security import require_token
 from gcs.domain.schemas import BatterySwapIn, BatterySwapOut
 
@@ -38,7 +38,7 @@ def get_fleet_vehicle(service: ServiceDep, sysid: SystemId) -> dict[str, Any]:
     return service.fleet_vehicle(sysid)
 
 
-SWAP = {"dependencies": [Depends(require_token)], "responses": MUTATING | CONFLICT}
+SWAP: RouteOptions = {"dependencies": [Depends(require_token)], "responses": MUTATING | CONFLICT}
 
 
 @router.post("/vehicle/battery-swap", **SWAP)
