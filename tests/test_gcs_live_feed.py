@@ -148,6 +148,8 @@ def test_many_websocket_clients_each_receive_the_live_state(service_url):
         for messages in received:
             assert len(messages) == 10
             assert all(m["type"] == "state" and m["vehicle"]["connected"] is False for m in messages)
+            # every vehicle of the service, as GET /vehicles lists them (here the one, not heard)
+            assert all([v["connected"] for v in m["vehicles"]] == [False] for m in messages)
 
     async def receive(ws, count: int) -> list[dict]:
         return [json.loads(await asyncio.wait_for(ws.recv(), 30)) for _ in range(count)]

@@ -525,11 +525,27 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
     with sync_playwright() as p:
         browser, page = open_page(p, errors)
         page.on("console", lambda m: errors.append(m.text) if "Content Security" in m.text else None)
+        polled: list[str] = []  # the page's requests for vehicle state: the live stream carries it
+        page.on("request", lambda r: polled.append(r.url) if "/vehicles" in r.url else None)
         page.goto(url)
         # every vehicle on the map, titled by its system id, and no other vehicle marker
         for sysid in (1, 2, 3):
             expect(page.locator(f".leaflet-marker-icon[title='vehicle {sysid}']")).to_have_count(1, timeout=30_000)
         expect(page.locator(".leaflet-marker-icon.vehicle-icon")).to_have_count(3)
+        # and they move as the stream says: a vehicle flying its share leaves where it was first drawn (measured
+        # from a buoy's icon, so that the map panning or zooming meanwhile moves nothing)
+        offset = """() => {
+            const vehicle = document.querySelector(".leaflet-marker-icon[title='vehicle 3']").getBoundingClientRect();
+            const buoy = document.querySelector(".buoy-icon").getBoundingClientRect();
+            return [vehicle.x - buoy.x, vehicle.y - buoy.y];
+        }"""
+        expect(page.locator("#mission-status")).to_contain_text("flying", timeout=120_000)
+        first_drawn = page.evaluate(offset)
+        page.wait_for_function(
+            f"(first) => {{ const [x, y] = ({offset})(); return Math.hypot(x - first[0], y - first[1]) > 3; }}",
+            arg=first_drawn,
+            timeout=120_000,
+        )
         # each vehicle's route in its own colour, and the legend naming each one's share
         routes = page.locator(".leaflet-overlay-pane path[stroke-dasharray]")
         expect(routes).to_have_count(len(shares))
@@ -550,6 +566,7 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         page.screenshot(path=str(ARTIFACTS / "fleet-mission.png"))
         browser.close()
     assert errors == []
+    assert polled == []  # one live path: the positions came from /ws alone
 
 
 def test_plan_and_fly_wait_for_the_answer_and_a_superseded_plan_answer_changes_nothing(tmp_path):

@@ -289,9 +289,16 @@ class MissionService:
 
     # ----- views
     def live(self) -> dict[str, Any]:
-        """What /ws pushes: the vehicle, and the active mission's status, progress and latest sample."""
+        """What /ws pushes: the (first) vehicle, every vehicle of the fleet as GET /vehicles lists them (one live
+        path for a fleet's positions: the page polls nothing for them), and the first vehicle's active mission's
+        status, progress and latest sample."""
         vehicle = self._link.status.as_dict() | self._ownership.as_dict()
-        return {"type": "state", "vehicle": vehicle, "mission": self._flights.live_mission()}
+        return {
+            "type": "state",
+            "vehicle": vehicle,
+            "vehicles": self.vehicles(),
+            "mission": self._flights.live_mission(),
+        }
 
     def vehicle(self) -> dict[str, Any]:
         """The link's view of the vehicle, with the depot a plan would use and the mission flying, if any, and

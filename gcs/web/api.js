@@ -47,10 +47,6 @@ export class GcsApi {
     return this.request("GET", "/openapi.json");
   }
 
-  vehicles() {
-    return this.request("GET", "/vehicles");
-  }
-
   vehicle() {
     return this.request("GET", "/vehicle");
   }

@@ -145,12 +145,14 @@ const pollMission = showingErrors(async () => {
   if (wasActive && isFinished(mission.status)) refreshHistory();
 });
 
-// A /ws message: the vehicle's state and, while one runs, the mission's progress and latest sample.
+// A /ws message: the vehicle's state, every vehicle of a fleet, and, while one runs, the mission's progress and
+// latest sample. The stream is the one live path: nothing is polled for the vehicles' positions.
 function onLiveMessage(message) {
   const vehicle = message.vehicle;
   panel.showVehicleLink(vehicle);
   panel.showBattery(vehicle);
-  if (state.fleetSize < 2 && vehicle.connected && vehicle.lat != null) {
+  if (message.vehicles.length > 1) showFleet(message.vehicles);
+  else if (vehicle.connected && vehicle.lat != null) {
     map.showVehicle(vehicle.lat, vehicle.lon, ((vehicle.yaw ?? 0) * 180) / Math.PI);
   }
   const mission = message.mission;
@@ -164,15 +166,14 @@ function onLiveMessage(message) {
 }
 
 // A fleet (more than one vehicle): every vehicle on the map, in its share's colour while a fleet mission is shown.
-const pollFleet = showingErrors(async () => {
-  const vehicles = await api.vehicles();
+function showFleet(vehicles) {
   const shares = (state.mission && state.mission.fleet && state.mission.sorties) || [];
   const colourOf = (sysid) => {
     const share = shares.find((s) => s.vehicle === sysid);
     return share ? sortieLook(share.index).colour : null;
   };
   map.showVehicles(vehicles, colourOf);
-});
+}
 
 // ----- history
 const refreshHistory = showingErrors(async () => {
@@ -286,11 +287,7 @@ async function start() {
   map.showBaseLayers(depot);
   setDepot(depot);
   wireControls();
-  // the service's vehicles are fixed at its start: a lone vehicle is drawn from the live stream, a fleet polled
-  const fleet = await showingErrors(() => api.vehicles(), [])();
-  state.fleetSize = fleet.length;
-  if (fleet.length > 1) setInterval(pollFleet, 1000);
-  api.openLiveStream(onLiveMessage);
+  api.openLiveStream(onLiveMessage); // the vehicles, a fleet's every one, as they move
   setInterval(pollMission, 1000);
   setInterval(() => {
     charts.redraw();

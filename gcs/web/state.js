@@ -11,7 +11,6 @@ export const state = {
   mission: null, // the latest GET /missions/{id}
   progress: null, // the mission's progress, from the mission or, fresher, from the live stream
   firstBuoySeq: 2, // the mission item sequence number of the first buoy (after home and takeoff)
-  fleetSize: 1, // the service's vehicles (GET /vehicles): past one, each is drawn from that list
 };
 
 // The buoys may be edited unless the watched mission is on its way to or on the vehicle.
