@@ -162,6 +162,7 @@ def test_mission_without_start_is_stored_planned_and_listed(client):
     assert [e["status"] for e in mission["events"]] == ["planned"]
     listed = client.get("/missions").json()
     assert [m["id"] for m in listed] == [mission["id"]] and listed[0]["buoys"] == 13
+    assert [(m["kind"], m["fleet_id"]) for m in (mission, listed[0])] == [("single", None)] * 2
     assert client.get(f"/missions/{mission['id']}").json()["order"] == mission["order"]
 
 

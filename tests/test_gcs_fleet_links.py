@@ -218,12 +218,17 @@ def test_a_fleet_mission_shares_the_buoys_flies_each_share_at_its_layer_and_comp
         fleet_id = created.json()["id"]
         mission = _wait_ended(client, fleet_id)
         assert (mission["status"], mission["reason"]) == ("completed", None)
+        # `fleet_id` means one thing in every document: the fleet mission a part belongs to
+        listed = next(m for m in client.get("/missions").json() if m["id"] == fleet_id)
+        for document in (mission, listed):
+            assert (document["kind"], document["fleet_id"]) == ("fleet", None)
         fleet = mission["fleet"]
         assert sorted(b for share in fleet["shares"] for b in share["buoys"]) == list(range(9))
         assert set(fleet["inspected_by"]) == {b["id"] for b in buoys}  # each buoy inspected by someone
         for share in fleet["shares"]:
             part = client.get(f"/missions/{share['mission_id']}").json()
             assert (part["status"], part["vehicle_sysid"], part["fleet_id"]) == ("completed", share["sysid"], fleet_id)
+            assert part["kind"] == "fleet_part"
             assert part["altitude_m"] == 5.0 + 4.0 * (share["sysid"] - 1)  # its layer
             assert all(fleet["inspected_by"][buoys[b]["id"]] == share["sysid"] for b in share["buoys"])
         separation = fleet["separation"]  # homes 160 m apart: they climb far apart, and cross a layer apart

@@ -11,7 +11,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from gcs.domain.buoy_files import BuoyFileError, buoys_from_geojson
-from gcs.domain.status import MissionStatus
+from gcs.domain.status import MissionKind, MissionStatus
 
 MAX_BUOYS = 500
 MAX_FENCE_ZONES = 50
@@ -311,6 +311,9 @@ class FleetOut(BaseModel):
     separation: SeparationOut
 
 
+FLEET_ID = "the fleet mission this mission is a part of (null: not a part; a fleet mission's kind is `fleet`)"
+
+
 class MissionOut(BaseModel):
     id: int
     status: MissionStatus
@@ -318,7 +321,8 @@ class MissionOut(BaseModel):
     created_at: str
     updated_at: str
     vehicle_sysid: int | None = Field(description="the fleet's vehicle it flies on (null: the service's one vehicle)")
-    fleet_id: int | None = Field(description="a fleet mission's part: the fleet mission (null: not a part)")
+    kind: MissionKind = Field(description="flown by one vehicle, shared by a fleet, or a vehicle's part of one")
+    fleet_id: int | None = Field(description=FLEET_ID)
     fleet: FleetOut | None = Field(description="a fleet mission: its shares, who inspected what, the separation")
     order: list[int]
     length_m: float
@@ -348,7 +352,8 @@ class MissionSummary(BaseModel):
     created_at: str
     updated_at: str
     vehicle_sysid: int | None = Field(description="the fleet's vehicle it flies on (null: the service's one vehicle)")
-    fleet_id: int | None = Field(description="a fleet mission's part: the fleet mission; a fleet mission: its own id")
+    kind: MissionKind = Field(description="flown by one vehicle, shared by a fleet, or a vehicle's part of one")
+    fleet_id: int | None = Field(description=FLEET_ID)
     buoys: int
     length_m: float
     tracking: TrackingFigures | None

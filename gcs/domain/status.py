@@ -34,3 +34,12 @@ UNFINISHED: tuple[MissionStatus, ...] = (
 )
 # Ended: nothing more happens to a mission in one of these.
 TERMINAL: tuple[MissionStatus, ...] = (MissionStatus.COMPLETED, MissionStatus.ABORTED, MissionStatus.FAILED)
+
+
+class MissionKind(StrEnum):
+    """What a mission is: flown by one vehicle, shared by a fleet (flown by its parts, never by a vehicle
+    itself), or one vehicle's part of a fleet mission."""
+
+    SINGLE = "single"
+    FLEET = "fleet"
+    FLEET_PART = "fleet_part"

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any, ClassVar, Protocol
 
-from gcs.domain.status import UNFINISHED, MissionStatus
+from gcs.domain.status import UNFINISHED, MissionKind, MissionStatus
 from gcs.storage.migrations import MIGRATIONS, TRACK_COLUMNS
 
 # The next version, taken inside the write's transaction, after the dialect's `_serialise_versions`: writers take
@@ -65,12 +65,25 @@ class MissionRecord:
     results: dict[str, Any] | None
     events: list[dict[str, Any]] = field(default_factory=list)
     vehicle_sysid: int | None = None  # the vehicle it flies on (None: the service's one vehicle)
-    fleet_id: int | None = None  # a fleet mission's part: the fleet mission's id; a fleet mission: its own id
+    # the column grouping a fleet mission with its parts: a part's fleet mission, and a fleet mission's own id (so
+    # one index finds the group); outside storage, ask `kind` and `part_of`
+    fleet_id: int | None = None
 
     @property
     def is_fleet(self) -> bool:
         """A fleet mission (flown by its parts, never by a vehicle itself)."""
         return self.fleet_id == self.id
+
+    @property
+    def part_of(self) -> int | None:
+        """The fleet mission this one is a part of (None: not a part)."""
+        return None if self.is_fleet else self.fleet_id
+
+    @property
+    def kind(self) -> MissionKind:
+        if self.is_fleet:
+            return MissionKind.FLEET
+        return MissionKind.SINGLE if self.fleet_id is None else MissionKind.FLEET_PART
 
 
 def _now() -> str:
