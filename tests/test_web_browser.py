@@ -519,8 +519,8 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         for i, (lat, lon, _) in enumerate(frame.from_ned(n, e, 0.0) for n, e in places)
     ]
     mission = post_json(f"{url}/missions", {"vehicles": "fleet", "buoys": buoys})
-    shares = mission["sorties"]
-    assert [s["vehicle"] for s in shares] == [s["sysid"] for s in mission["fleet"]["shares"]]
+    shares = mission["fleet"]["shares"]  # a fleet mission flies its shares (FleetShareOut), no tour of its own
+    assert mission["sorties"] == [] and mission["route"] == []
     errors: list[str] = []
     with sync_playwright() as p:
         browser, page = open_page(p, errors)
@@ -533,12 +533,14 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
             expect(page.locator(f".leaflet-marker-icon[title='vehicle {sysid}']")).to_have_count(1, timeout=30_000)
         expect(page.locator(".leaflet-marker-icon.vehicle-icon")).to_have_count(3)
         # and they move as the stream says: a vehicle flying its share leaves where it was first drawn (measured
-        # from a buoy's icon, so that the map panning or zooming meanwhile moves nothing)
-        offset = """() => {
-            const vehicle = document.querySelector(".leaflet-marker-icon[title='vehicle 3']").getBoundingClientRect();
+        # from a buoy's icon, so that the map panning meanwhile moves nothing; the view is fitted to the routes
+        # before the mission shows as flying)
+        flier = f".leaflet-marker-icon[title='vehicle {shares[0]['sysid']}']"  # a vehicle given buoys
+        offset = f"""() => {{
+            const vehicle = document.querySelector("{flier}").getBoundingClientRect();
             const buoy = document.querySelector(".buoy-icon").getBoundingClientRect();
             return [vehicle.x - buoy.x, vehicle.y - buoy.y];
-        }"""
+        }}"""
         expect(page.locator("#mission-status")).to_contain_text("flying", timeout=120_000)
         first_drawn = page.evaluate(offset)
         page.wait_for_function(
@@ -552,7 +554,7 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         assert len({routes.nth(k).get_attribute("stroke") for k in range(len(shares))}) == len(shares)
         legend = page.get_by_test_id("sortie-legend").locator("li")
         expect(legend).to_have_text(
-            [f"vehicle {s['vehicle']}: {len(s['order'])} buoys, about {round(s['predicted_time_s'])} s" for s in shares]
+            [f"vehicle {s['sysid']}: {len(s['buoys'])} buoys, about {round(s['predicted_time_s'])} s" for s in shares]
         )
         expect(page.get_by_test_id("sortie-progress")).to_have_text(f"{len(shares)} vehicles")
         # the fleet's table, a row per vehicle, and once every part has landed the closest approach
@@ -560,7 +562,8 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         expect(rows).to_have_count(len(shares))
         expect(page.locator("#mission-status")).to_contain_text("completed", timeout=240_000)
         expect(page.locator("#figures")).to_contain_text("closest approach")
-        for k, share in enumerate(mission["fleet"]["shares"]):
+        for k, share in enumerate(shares):
+            expect(rows.nth(k).locator("td").nth(0)).to_have_text(str(share["sysid"]))
             expect(rows.nth(k).locator("td").nth(2)).to_have_text(str(len(share["buoys"])))  # all inspected
         ARTIFACTS.mkdir(exist_ok=True)
         page.screenshot(path=str(ARTIFACTS / "fleet-mission.png"))

@@ -164,7 +164,6 @@ class SortieOut(BaseModel):
     """One sortie: take-off at the depot, its buoys, back and land; predicted, and once flown, measured."""
 
     index: int
-    vehicle: int | None = Field(default=None, description="a fleet mission's share: the vehicle flying it")
     order: list[int] = Field(description="its buoys' input indices in visiting order")
     route: list[list[float]] = Field(description="[lat, lon] from the depot through its buoys back to it")
     length_m: float
@@ -203,8 +202,11 @@ class PlanOut(BaseModel):
     elapsed_s: float
     depot: LatLon
     buoys: list[Buoy]
-    route: list[list[float]] = Field(description="[lat, lon] from the depot through the buoys back to it")
-    sorties: list[SortieOut] = Field(description="one for a single tour")
+    route: list[list[float]] = Field(
+        description="[lat, lon] from the depot through the buoys back to it (a fleet mission: none, its shares' "
+        "routes are in fleet.shares)"
+    )
+    sorties: list[SortieOut] = Field(description="one for a single tour; none for a fleet mission (fleet.shares)")
     energy: EnergyOut | None = Field(description="the battery and budget (null: no energy planning)")
 
 
@@ -336,8 +338,8 @@ class MissionOut(BaseModel):
     acceptance_radius_m: float
     depot: LatLon
     buoys: list[Buoy]
-    route: list[list[float]]
-    sorties: list[SortieOut]
+    route: list[list[float]] = Field(description="as in PlanOut: none for a fleet mission (fleet.shares' routes)")
+    sorties: list[SortieOut] = Field(description="as in PlanOut: none for a fleet mission (fleet.shares)")
     energy: EnergyOut | None
     progress: Progress
     buoy_results: list[BuoyResult]

@@ -109,26 +109,9 @@ def mission_out(record: MissionRecord) -> dict[str, Any]:
         "tracking": (record.results or {}).get("tracking"),
         "events": record.events,
     }
-    if record.is_fleet:  # drawn as its shares: each vehicle's route from its own home, as a sortie is drawn
-        fleet = fleet_out(record, plan)
-        shares = [share_as_sortie(k, share) for k, share in enumerate(fleet["shares"])]
-        out |= {"fleet": fleet, "sorties": shares, "route": [point for s in shares for point in s["route"]]}
+    if record.is_fleet:  # flown as its shares (FleetShareOut, each with its route): no tour or sortie of its own
+        out |= {"fleet": fleet_out(record, plan), "sorties": [], "route": []}
     return out
-
-
-def share_as_sortie(index: int, share: dict[str, Any]) -> dict[str, Any]:
-    """A fleet mission's share in SortieOut's shape, so the page and clients draw a fleet's routes as they draw
-    sorties (one colour each), named by `vehicle`."""
-    energy = ("predicted_energy_wh", "margin_wh", "margin_pct", "predicted_landing_charge_pct", "used_energy_wh")
-    empty = dict.fromkeys((*energy, "landing_charge_pct", "battery_warning"))
-    return empty | {
-        "index": index,
-        "vehicle": share["sysid"],
-        "order": share["buoys"],
-        "route": share["route"],
-        "length_m": share["length_m"],
-        "predicted_time_s": share["predicted_time_s"],
-    }
 
 
 def fleet_out(record: MissionRecord, plan: Plan) -> dict[str, Any]:

@@ -167,10 +167,10 @@ function onLiveMessage(message) {
 
 // A fleet (more than one vehicle): every vehicle on the map, in its share's colour while a fleet mission is shown.
 function showFleet(vehicles) {
-  const shares = (state.mission && state.mission.fleet && state.mission.sorties) || [];
+  const shares = (state.mission && state.mission.fleet && state.mission.fleet.shares) || [];
   const colourOf = (sysid) => {
-    const share = shares.find((s) => s.vehicle === sysid);
-    return share ? sortieLook(share.index).colour : null;
+    const index = shares.findIndex((share) => share.sysid === sysid);
+    return index < 0 ? null : sortieLook(index).colour;
   };
   map.showVehicles(vehicles, colourOf);
 }

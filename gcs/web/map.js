@@ -3,7 +3,7 @@
 // and the vehicle. Icons and the legend are built as DOM elements, never HTML.
 import { h, svg } from "./dom.js";
 import { metricGridLayer, tilesReachable } from "./grid.js";
-import { hasSortieFigures, isMultiSortie, routeLook, sortieLabel, sortieLook, swatch } from "./sorties.js";
+import { hasSortieFigures, legsOf, routeLook, sortieLook, swatch } from "./sorties.js";
 
 const L = window.L;
 const OSM_URL = "https://tile.openstreetmap.org/{z}/{x}/{y}.png";
@@ -29,7 +29,8 @@ function vehicleIcon(yawDeg, colour = "#c2185b") {
   return L.divIcon({ className: "vehicle-icon", html: arrow, iconSize: [28, 28], iconAnchor: [14, 14] });
 }
 
-// The legend of a plan's sorties, bottom right: a swatch and "sortie k: n buoys, predicted X Wh" for each.
+// The legend of a plan's legs, bottom right: a swatch and "sortie k: n buoys, predicted X Wh" (a fleet's share:
+// "vehicle N: n buoys, about T s") for each.
 const SortieLegend = L.Control.extend({
   options: { position: "bottomright" },
   onAdd() {
@@ -37,8 +38,8 @@ const SortieLegend = L.Control.extend({
     return h("div", { class: "sortie-legend", "data-testid": "sortie-legend" }, this.list);
   },
   show(plan) {
-    const line = (sortie) => h("li", {}, swatch(routeLook(plan, sortie.index)), sortieLabel(sortie));
-    this.list.replaceChildren(...plan.sorties.map(line));
+    const line = (leg) => h("li", {}, swatch(routeLook(plan, leg.index)), leg.label);
+    this.list.replaceChildren(...legsOf(plan).map(line));
   },
 });
 
@@ -129,20 +130,20 @@ export class MissionMap {
     if (buoys.length) this.map.fitBounds(L.latLngBounds(buoys.map((b) => [b.lat, b.lon])).pad(0.2));
   }
 
-  // plan: a POST /plans answer or a mission. Its route ([[lat, lon], ...] from the depot round the buoys and
-  // back) dashed as it always was, or, for several sorties, each sortie's route in its own look.
+  // plan: a POST /plans answer or a mission. Each leg's route ([[lat, lon], ...] from the depot, or a fleet
+  // vehicle's home, round its buoys and back): one dashed as a route always looked, several each in its own look.
   showRoute(plan) {
     this.clearRoute();
-    // each sortie's own route (a single tour's is the plan's route)
-    for (const sortie of isMultiSortie(plan) ? plan.sorties : [{ index: 0, route: plan.route }]) {
-      const look = routeLook(plan, sortie.index);
-      L.polyline(sortie.route, { color: look.colour, weight: 3, dashArray: look.dash }).addTo(this.routeLayer);
+    for (const leg of legsOf(plan)) {
+      const look = routeLook(plan, leg.index);
+      L.polyline(leg.route, { color: look.colour, weight: 3, dashArray: look.dash }).addTo(this.routeLayer);
     }
     if (hasSortieFigures(plan)) {
       this.legend.addTo(this.map);
       this.legend.show(plan);
     }
-    if (plan.route.length) this.map.fitBounds(this.routeLayer.getBounds(), { padding: [30, 30] });
+    const bounds = this.routeLayer.getBounds();
+    if (bounds.isValid()) this.map.fitBounds(bounds, { padding: [30, 30] });
   }
 
   clearRoute() {

@@ -192,11 +192,11 @@ const FLEET_COLUMNS = [
 
 // A fleet mission: a row per vehicle's share, in its route's colour.
 function showFleetTable(mission) {
-  const row = (s, share) =>
+  const row = (share, index) =>
     h(
       "tr",
       {},
-      h("td", {}, swatch(routeLook(mission, s.index)), String(share.sysid)),
+      h("td", {}, swatch(routeLook(mission, index)), String(share.sysid)),
       ...[
         String(share.buoys.length),
         String(share.visited_buoys.length),
@@ -206,7 +206,7 @@ function showFleetTable(mission) {
       ].map((text) => h("td", {}, text)),
     );
   const head = h("thead", {}, h("tr", {}, ...FLEET_COLUMNS.map(([name, title]) => h("th", { title }, name))));
-  const rows = mission.sorties.map((s, k) => row(s, mission.fleet.shares[k]));
+  const rows = mission.fleet.shares.map(row);
   byId("sortie-table").replaceChildren(head, h("tbody", {}, ...rows));
 }
 

@@ -1,6 +1,8 @@
-// A multi-sortie plan as the page draws it: each sortie's look (colour and dash), which buoy flies in which
-// sortie, and the words for a sortie. A plan here is a POST /plans answer or a mission: both carry `sorties`
-// (SortieOut: index, order, route, predicted_energy_wh, ...) and `energy` (null without energy planning).
+// The routes a plan flies as the page draws them (its legs): each leg's look (colour and dash), which buoy
+// flies in which leg, and the words for a leg. A plan here is a POST /plans answer or a mission: both carry
+// `sorties` (SortieOut: index, order, route, predicted_energy_wh, ...) and `energy` (null without energy
+// planning); a fleet mission flies none of its own but its `fleet.shares` (FleetShareOut: sysid, buoys, route),
+// one leg per vehicle.
 import { svg } from "./dom.js";
 
 // Okabe & Ito's colour-blind-safe palette (the report draws with the same, gcs/reports/report.py SORTIE_COLOURS),
@@ -10,10 +12,25 @@ const PALETTE = ["#0072b2", "#e69f00", "#009e73", "#cc79a7", "#d55e00", "#56b4e9
 const DASHES = ["8 6", "2 5", "12 4 2 4"];
 const SINGLE_TOUR = { colour: "#1f6fb2", dash: "8 6" }; // one sortie: the route as it always looked
 
-export const isMultiSortie = (plan) => Boolean(plan && plan.sorties && plan.sorties.length > 1);
+// The plan's legs, [{index, order, route, label}]: a fleet mission's shares, else its sorties (a single tour's
+// one sortie is its route).
+export function legsOf(plan) {
+  if (!plan) return [];
+  if (plan.fleet) {
+    return plan.fleet.shares.map((share, index) => ({
+      index,
+      order: share.buoys,
+      route: share.route,
+      label: `vehicle ${share.sysid}: ${share.buoys.length} buoys, about ${Math.round(share.predicted_time_s)} s`,
+    }));
+  }
+  return plan.sorties.map((sortie) => ({ ...sortie, label: sortieLabel(sortie) }));
+}
 
-// Whether the plan has anything per sortie to show: several sorties, or one with an energy prediction.
-export const hasSortieFigures = (plan) => isMultiSortie(plan) || Boolean(plan && plan.energy);
+const severalLegs = (plan) => legsOf(plan).length > 1;
+
+// Whether the plan has anything per leg to show: several legs, or one with an energy prediction.
+export const hasSortieFigures = (plan) => severalLegs(plan) || Boolean(plan && plan.energy);
 
 // sortie: 0-based index -> {colour, dash} of its route, legend swatch and buoy markers
 export function sortieLook(sortie) {
@@ -23,24 +40,20 @@ export function sortieLook(sortie) {
   };
 }
 
-// How the plan draws sortie k's route: in the sortie's look, or as the one route always looked.
-export const routeLook = (plan, sortie) => (isMultiSortie(plan) ? sortieLook(sortie) : SINGLE_TOUR);
+// How the plan draws leg k's route: in the leg's look, or as the one route always looked.
+export const routeLook = (plan, leg) => (severalLegs(plan) ? sortieLook(leg) : SINGLE_TOUR);
 
-// Map buoy index -> the 0-based sortie that visits it (empty for a single tour, whose buoys keep their look).
+// Map buoy index -> the 0-based leg that visits it (empty for a single tour, whose buoys keep their look).
 export function sortieOfBuoy(plan) {
   const sortieOf = new Map();
-  if (isMultiSortie(plan)) plan.sorties.forEach((s) => s.order.forEach((buoy) => sortieOf.set(buoy, s.index)));
+  if (severalLegs(plan)) legsOf(plan).forEach((leg) => leg.order.forEach((buoy) => sortieOf.set(buoy, leg.index)));
   return sortieOf;
 }
 
 const wattHours = (value) => (value == null ? "–" : `${Number(value).toFixed(1)} Wh`);
 
-// The legend's line for one sortie: "sortie 2: 5 buoys, predicted 12.1 Wh"; a fleet mission's share (a sortie
-// with a vehicle): "vehicle 3: 4 buoys, about 95 s".
-export function sortieLabel(sortie) {
-  if (sortie.vehicle != null) {
-    return `vehicle ${sortie.vehicle}: ${sortie.order.length} buoys, about ${Math.round(sortie.predicted_time_s)} s`;
-  }
+// The legend's line for one sortie: "sortie 2: 5 buoys, predicted 12.1 Wh".
+function sortieLabel(sortie) {
   const predicted = sortie.predicted_energy_wh == null ? "" : `, predicted ${wattHours(sortie.predicted_energy_wh)}`;
   return `sortie ${sortie.index + 1}: ${sortie.order.length} buoys${predicted}`;
 }

@@ -22,11 +22,12 @@ export function buoysEditable() {
 // board (its seqs from that sortie's first buoy); the buoys of earlier sorties come from the live stream's
 // visited_buoys and the mission's buoy_results.
 function visitedAndCurrent(plan, progress) {
-  const onBoard = progress.sortie ?? 0;
-  const order = plan.sorties && plan.sorties.length > onBoard ? plan.sorties[onBoard].order : plan.order;
   const visited = new Set(progress.visited_buoys || []);
   const results = (state.mission && state.mission.buoy_results) || [];
   results.filter((b) => b.reached).forEach((b) => visited.add(b.index));
+  if (plan.fleet) return { visited, current: null }; // each vehicle's sequence numbers count its own part mission
+  const onBoard = progress.sortie ?? 0;
+  const order = plan.sorties.length > onBoard ? plan.sorties[onBoard].order : plan.order;
   for (const seq of progress.reached_seqs || []) {
     const rank = seq - state.firstBuoySeq;
     if (rank >= 0 && rank < order.length) visited.add(order[rank]);
