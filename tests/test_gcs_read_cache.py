@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import asdict
 
+import pytest
 from fastapi.testclient import TestClient
 from processes import free_udp_port
 
@@ -109,6 +110,7 @@ def test_reads_follow_another_writer_on_sqlite(tmp_path):
             other.close()
 
 
+@pytest.mark.integration
 def test_reads_follow_another_writer_on_postgresql(tmp_path, postgres_url):
     settings = Settings(db=postgres_url, data_dir=tmp_path, vehicle_url=f"udpout:127.0.0.1:{free_udp_port()}")
     with TestClient(create_app(settings)) as client:
