@@ -9,8 +9,9 @@ import sys
 import psycopg
 import pytest
 from fastapi.testclient import TestClient
-from test_gcs_api import BUOYS, free_udp_port
+from test_gcs_api import BUOYS
 
+from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.settings import Settings
 

@@ -13,8 +13,8 @@ from dataclasses import asdict
 
 import pytest
 from fastapi.testclient import TestClient
-from processes import free_udp_port
 
+from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.domain.planning import FlightParams, make_plan
 from gcs.domain.schemas import MissionOut, MissionSummary

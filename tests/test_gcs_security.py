@@ -17,12 +17,12 @@ from pathlib import Path
 import pytest
 from fastapi.routing import APIRoute
 from fastapi.testclient import TestClient
-from processes import free_udp_port
 from service_process import serving
 from starlette.websockets import WebSocketDisconnect
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect as ws_connect
 
+from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.api.security import LIVE_SUBPROTOCOL
 from gcs.cli import build_parser, settings_from_args

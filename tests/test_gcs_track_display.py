@@ -8,9 +8,9 @@ import itertools
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from processes import free_udp_port
 
 from bench.long_mission import SAMPLES, store_long_mission
+from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.domain.planning import Plan
 from gcs.domain.schemas import TelemetrySample
