@@ -30,7 +30,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import socket
 import statistics
 import subprocess
 import sys
@@ -43,7 +42,8 @@ from typing import Any
 import httpx
 import numpy as np
 
-from bench.failover import free_port, poll, rounded
+from bench.failover import poll, rounded
+from bench.processes import free_tcp_port, free_udp_port
 from stack.demo import reference_request
 from stack.options import UpOptions
 from stack.supervisor import ChildSpec, Supervisor, SupervisorError, python_module
@@ -138,8 +138,8 @@ class MissionStack:
     """Vehicle (lockstep), ADRC offboard and service for one case on free loopback ports; `close()` stops them."""
 
     def __init__(self, case: Case, logs: Path) -> None:
-        vehicle_port = free_port(socket.SOCK_DGRAM)
-        http_port = free_port(socket.SOCK_STREAM)
+        vehicle_port = free_udp_port()
+        http_port = free_tcp_port()
         self.api = httpx.Client(base_url=f"http://127.0.0.1:{http_port}", timeout=60.0)
         self.logs = logs
         params = [arg for name, value in case.vehicle_params().items() for arg in ("--param", f"{name}={value:g}")]

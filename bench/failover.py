@@ -28,7 +28,6 @@ import json
 import math
 import os
 import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -41,6 +40,7 @@ from typing import Any, TypeVar
 
 import httpx
 
+from bench.processes import free_tcp_port, free_udp_port
 from gcs.missions.lifecycle import REATTACHED
 from stack.supervisor import ChildSpec, Supervisor, SupervisorError, python_module
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
@@ -59,12 +59,6 @@ STOP_TIMEOUT_S = 30.0
 TERMINAL = {"completed", "failed", "aborted"}
 
 T = TypeVar("T")
-
-
-def free_port(kind: int) -> int:
-    with socket.socket(socket.AF_INET, kind) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def close_buoys() -> list[dict[str, float | str]]:
@@ -151,11 +145,11 @@ class FailoverStack:
     supervisor: Supervisor | None = None
 
     def start(self) -> FailoverStack:
-        vehicle_port = free_port(socket.SOCK_DGRAM)
+        vehicle_port = free_udp_port()
         pace = ("--speed", f"{self.speed:g}")
         specs = [ChildSpec("vehicle", python_module("sitl_quad", "--port", str(vehicle_port), *pace))]
         for name, ready in (("gcs-a", owns_a_connected_vehicle), ("gcs-b", stands_by)):
-            port = free_port(socket.SOCK_STREAM)
+            port = free_tcp_port()
             client = httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10.0)
             instance = Instance(name, client, self.logs / f"{name}.log")
             self.instances.append(instance)

@@ -28,7 +28,6 @@ from __future__ import annotations
 import asyncio
 import json
 import os
-import socket
 import statistics
 import subprocess
 import sys
@@ -44,6 +43,7 @@ import numpy as np
 import websockets
 
 from bench.long_mission import SAMPLES, store_long_mission
+from bench.processes import free_tcp_port, free_udp_port, stop_process
 from gcs.storage import open_storage
 from planner.scenario import reference_scenario
 
@@ -64,12 +64,6 @@ class Mode:
 
 FULL = Mode(runs=3, read_requests=READ_REQUESTS, ws_seconds=10.0, track_repeats=5)
 QUICK = Mode(runs=1, read_requests=10, ws_seconds=3.0, track_repeats=2)
-
-
-def free_port(kind: int) -> int:
-    with socket.socket(socket.AF_INET, kind) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def load() -> float:
@@ -284,7 +278,7 @@ class CpuBurners:
 
 # ----- the run
 def start_stack(tmp: Path, speed: str, live_rate_hz: float, log) -> tuple[subprocess.Popen, subprocess.Popen, int]:
-    udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
+    udp, http = free_udp_port(), free_tcp_port()
     vehicle = subprocess.Popen(
         [sys.executable, "-m", "sitl_quad", "--port", str(udp), "--speed", speed],
         stdout=log,
@@ -351,8 +345,7 @@ def measure(mode: Mode, speed: str, live_rate_hz: float) -> dict:
                     results["create_mission_13"] = {"quiet": quiet, "loaded": loaded}
             finally:
                 for process in (service, vehicle):
-                    process.terminate()
-                    process.wait(10)
+                    stop_process(process, 10)
     return results
 
 

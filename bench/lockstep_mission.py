@@ -18,13 +18,12 @@ from __future__ import annotations
 import json
 import os
 import re
-import socket
 import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bench.gcs_bench import free_port
+from bench.processes import free_tcp_port, free_udp_port
 from gcs.settings import Settings
 from stack.options import CASCADE_NAMES, UpOptions
 from stack.up import run_up
@@ -61,8 +60,8 @@ class Transcript:
 def fly(controller: str, data_dir: Path) -> dict:
     """One `up --demo --exit-after-demo` run with this cascade; its figures."""
     settings = Settings(
-        port=free_port(socket.SOCK_STREAM),
-        vehicle_url=f"udpout:127.0.0.1:{free_port(socket.SOCK_DGRAM)}",
+        port=free_tcp_port(),
+        vehicle_url=f"udpout:127.0.0.1:{free_udp_port()}",
         data_dir=data_dir,
     )
     options = UpOptions(settings=settings, demo=True, exit_after_demo=True, controller=controller)

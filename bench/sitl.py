@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.processes import stop_process
 from bench.sitl_physics import physics_alone, vehicle_loop
 from tests.sitl_process import GroundStation, SitlProcess
 from uavcore.mavlink import mavlink
@@ -65,8 +66,7 @@ def lockstep_full_loop(controller: list[str]) -> dict:
         return {"sim_s": sim, "wall_s": wall, "real_time_factor": sim / wall}
     finally:
         gcs.close()
-        process.terminate()
-        process.wait(10)
+        stop_process(process, 10)
         vehicle.cleanup()
 
 

@@ -8,6 +8,25 @@ import pytest
 from postgres_server import PostgresServer, postgres_bindir
 from sitl_process import GroundStation, SitlProcess
 
+# The fixtures below that start a real process: the vehicle (`python -m sitl_quad`) or a PostgreSQL server.
+# `make test-fast` leaves the integration tier out, so a test using one must carry that marker.
+PROCESS_FIXTURES = frozenset({"start_sitl", "shared_sitl", "postgres_server"})
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Refuse to run a test that starts the vehicle or PostgreSQL through a fixture (directly or through one
+    that needs it, as `gcs` and `postgres_url` do) without the integration marker: unmarked, it would land in
+    the fast tier and make it need those processes."""
+    unmarked = [
+        item.nodeid
+        for item in items
+        if PROCESS_FIXTURES & set(getattr(item, "fixturenames", ())) and item.get_closest_marker("integration") is None
+    ]
+    if unmarked:
+        raise pytest.UsageError(
+            "these tests start a process through a fixture but are not marked integration:\n  " + "\n  ".join(unmarked)
+        )
+
 
 class VehicleStarter:
     """Starts vehicles on free ports and, at the end, stops them and reports any that misbehaved."""

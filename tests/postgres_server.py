@@ -18,7 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from processes import free_tcp_port
+from bench.processes import free_tcp_port
 
 START_TIMEOUT_S = 60.0
 

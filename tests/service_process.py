@@ -12,7 +12,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from processes import free_port, stop_process
+from bench.processes import free_port, stop_process
 
 
 @contextmanager

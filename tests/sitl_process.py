@@ -21,9 +21,10 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from processes import free_udp_port, stop_process
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink
+
+from bench.processes import free_udp_port, stop_process
 
 REPO = Path(__file__).resolve().parent.parent
 VEHICLE_SYSID, VEHICLE_COMPID = 1, 1

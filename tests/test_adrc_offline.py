@@ -8,10 +8,10 @@ import math
 import time
 
 import pytest
-from processes import free_udp_port
 from sitl_process import GroundStation, start_lockstep_pair
 
 from adrc_offboard.cli import make_controller
+from bench.processes import free_udp_port, stop_reading_output
 from sitl_quad.config import VehicleConfig
 from sitl_quad.lockstep_harness import LockstepHarness
 from sitl_quad.server import VehicleServer
@@ -73,9 +73,7 @@ def fly_over_udp(tmp_path) -> list[list[str]]:
             pytest.fail("the UDP mission did not finish")
     finally:
         gcs.close()
-        for process in (controller, vehicle):
-            process.terminate()
-        errors = [p.communicate(timeout=20)[1] for p in (controller, vehicle)]
+        errors = [stop_reading_output(p, 20)[1] for p in (controller, vehicle)]
     assert all("Traceback" not in e for e in errors), errors
     with open(log) as f:
         return list(csv.reader(f))

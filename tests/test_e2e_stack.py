@@ -24,11 +24,11 @@ from pathlib import Path
 import httpx
 import numpy as np
 import pytest
-from processes import free_tcp_port, free_udp_port, stop_process
 from pymavlink.dialects.v20 import common as mavlink
 from sitl_process import GroundStation, short_mission
 from udp_relay import LossyUdpRelay
 
+from bench.processes import free_tcp_port, free_udp_port, stop_process
 from gcs.domain.planning import make_plan
 from gcs.missions.lifecycle import REATTACHED, RESTART_NOT_FLYING
 from gcs.storage import open_storage

@@ -8,8 +8,8 @@ import time
 
 import pytest
 from fastapi.testclient import TestClient
-from processes import free_udp_port
 
+from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.domain.status import MissionStatus
 from gcs.reports.exports import read_qgc_plan, read_waypoints

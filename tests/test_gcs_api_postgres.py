@@ -7,11 +7,15 @@ import subprocess
 import sys
 
 import psycopg
+import pytest
 from fastapi.testclient import TestClient
-from test_gcs_api import BUOYS, free_udp_port
+from test_gcs_api import BUOYS
 
+from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.settings import Settings
+
+pytestmark = pytest.mark.integration  # a PostgreSQL server, and `python -m gcs serve`
 
 
 def test_missions_are_stored_in_and_read_from_postgresql(postgres_url, tmp_path):

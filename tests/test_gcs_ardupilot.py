@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 from ardupilot_double import ArduCopterDouble
 from fastapi.testclient import TestClient
-from processes import free_udp_port
 
+from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.domain.planning import FlightParams, make_plan, mission_items
 from gcs.settings import Settings

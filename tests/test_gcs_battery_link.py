@@ -17,9 +17,9 @@ import time
 from collections.abc import AsyncIterator, Callable
 
 import pytest
-from processes import free_udp_port
 from sitl_process import WAIT_S
 
+from bench.processes import free_udp_port
 from gcs.vehicle.link import CommandDeniedError, LinkManager
 from gcs.vehicle.parameters import ParameterError
 from uavcore.mavlink import Encoder, mavlink, new_parser, parse_datagram

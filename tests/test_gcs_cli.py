@@ -58,12 +58,14 @@ def test_settings_from_the_documented_options(tmp_path, monkeypatch):
     assert settings_from_args(build_parser().parse_args(["serve"])).host == "127.0.0.1"  # loopback by default
 
 
+@pytest.mark.integration  # a fresh interpreter per entry point
 @pytest.mark.parametrize(("module", "usage"), [("gcs", "usage: python -m gcs"), ("stack", "usage: buoy-gcs")])
 def test_module_entry_point_without_a_command_shows_usage(module, usage):
     result = subprocess.run([sys.executable, "-m", module], capture_output=True, text=True, timeout=60)
     assert result.returncode == 2 and usage in result.stderr and "Traceback" not in result.stderr
 
 
+@pytest.mark.integration
 def test_the_ground_station_alone_starts_no_vehicle_and_says_where_up_is():
     result = subprocess.run([sys.executable, "-m", "gcs", "up"], capture_output=True, text=True, timeout=60)
     assert result.returncode == 2 and "invalid choice: 'up'" in result.stderr

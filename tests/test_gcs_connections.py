@@ -19,10 +19,9 @@ import time
 import tty
 
 import pytest
-from processes import free_udp_port, stop_process
-from service_process import free_port
 from sitl_process import SitlProcess
 
+from bench.processes import free_port, free_udp_port, stop_process
 from gcs.vehicle.connection import ConnectionStringError, parse_connection
 from gcs.vehicle.link import LinkManager
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame

@@ -5,16 +5,14 @@ processes (`python -m sitl_quad --sysid N`)."""
 from __future__ import annotations
 
 import asyncio
-import socket
 import time
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from processes import free_udp_port, free_udp_port_block
-from service_process import free_port
 from sitl_process import SitlProcess
 
+from bench.processes import free_tcp_port, free_udp_port, free_udp_port_block, stop_reading_output
 from gcs.api.app import create_app
 from gcs.settings import Settings
 from gcs.vehicle.connection import TransportHub
@@ -101,12 +99,11 @@ def test_up_starts_a_fleet_that_the_service_lists_and_stops_it_whole(tmp_path):
     own pads at the depot, one service linked to each; SIGTERM stops every child."""
     import json
     import os
-    import signal
     import subprocess
     import sys
     import urllib.request
 
-    first_port, http_port = free_udp_port_block(3), free_port(socket.SOCK_STREAM)  # HTTP is TCP
+    first_port, http_port = free_udp_port_block(3), free_tcp_port()
     env = {k: v for k, v in os.environ.items() if not k.startswith("BUOY_GCS_")}
     argv = [sys.executable, "-m", "stack", "up", "--vehicles", "3", "--speed", "1", "--vehicle-port", str(first_port)]
     up = subprocess.Popen(
@@ -136,8 +133,7 @@ def test_up_starts_a_fleet_that_the_service_lists_and_stops_it_whole(tmp_path):
         for name in ("sitl_quad", "sitl_quad-2", "sitl_quad-3", "adrc_offboard-3"):
             assert (tmp_path / "logs" / f"{name}.log").is_file()
     finally:
-        up.send_signal(signal.SIGTERM)
-        output, _ = up.communicate(timeout=60)
+        output, _ = stop_reading_output(up, 60)  # SIGTERM; a SIGKILL 60 s later would show in the exit code
     assert up.returncode == 0, output
     assert "starting 3 vehicles, system ids 1-3" in output and "stopped" in output
 

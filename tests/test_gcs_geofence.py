@@ -17,10 +17,10 @@ from mavsdk.plugins.mission_raw import MissionItem as MavsdkItem
 from mavsdk.plugins.mission_raw import MissionRaw
 from mavsdk.plugins.param import Param
 from mavsdk.plugins.telemetry import FlightMode, Telemetry
-from processes import free_udp_port
 from sitl_process import WAIT_S
 from test_sitl_mavsdk import FIELDS, mavsdk_system, wait_until
 
+from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.settings import Settings
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame

@@ -10,8 +10,8 @@ import time
 
 import pytest
 from fastapi.testclient import TestClient
-from processes import free_udp_port, stop_process
 
+from bench.processes import free_udp_port, stop_process
 from gcs.api.app import create_app
 from gcs.settings import Settings
 from planner import plan_tour

@@ -16,6 +16,10 @@ from gcs.vehicle.link import CommandTimeoutError, LinkManager
 from gcs.vehicle.mission_protocol import MissionRejectedError, MissionTimeoutError, download_items, upload_items
 from uavcore.mission import MavCmd, MissionItem
 
+# The scripted vehicle answers over loopback UDP, in real time: the lifecycle tests wait out the service's
+# timeouts and graces (3 to 8 s each).
+pytestmark = pytest.mark.integration
+
 ITEMS = [
     MissionItem(seq=i, frame=6, command=MavCmd.NAV_WAYPOINT, param1=1.0, x=389210000 + i, y=1216630000, z=5.0)
     for i in range(4)

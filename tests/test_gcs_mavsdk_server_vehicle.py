@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from processes import free_udp_port, stop_process
 from sitl_process import REPO
 
+from bench.processes import free_udp_port, stop_process
 from gcs.api.app import create_app
 from gcs.domain.planning import FlightParams, make_plan, mission_items
 from gcs.settings import Settings

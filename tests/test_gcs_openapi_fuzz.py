@@ -21,7 +21,6 @@ import pytest
 import schemathesis
 from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, settings
-from processes import free_udp_port
 from schemathesis.checks import not_a_server_error
 from schemathesis.core.transport import Response
 from schemathesis.specs.openapi.checks import (
@@ -31,6 +30,7 @@ from schemathesis.specs.openapi.checks import (
     status_code_conformance,
 )
 
+from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.domain.status import TERMINAL
 from gcs.settings import Settings

@@ -19,6 +19,7 @@ def run(coroutine):
     return asyncio.run(coroutine)
 
 
+@pytest.mark.integration
 def test_one_owner_per_vehicle_and_the_others_see_who(postgres_url):
     async def scenario() -> None:
         first, second = PostgresLease(postgres_url, VEHICLE, "gcs-a"), PostgresLease(postgres_url, VEHICLE, "gcs-b")
@@ -38,6 +39,7 @@ def test_one_owner_per_vehicle_and_the_others_see_who(postgres_url):
     run(scenario())
 
 
+@pytest.mark.integration
 def test_an_owner_whose_session_is_killed_loses_the_lease_and_a_standby_takes_it(postgres_url):
     async def scenario() -> None:
         owner, standby = PostgresLease(postgres_url, VEHICLE, "gcs-a"), PostgresLease(postgres_url, VEHICLE, "gcs-b")
@@ -55,6 +57,7 @@ def test_an_owner_whose_session_is_killed_loses_the_lease_and_a_standby_takes_it
     run(scenario())
 
 
+@pytest.mark.integration
 def test_the_key_is_namespaced_and_shown_in_pg_locks_as_given(postgres_url):
     async def scenario() -> None:
         lease = PostgresLease(postgres_url, VEHICLE, "gcs-a")
@@ -71,6 +74,7 @@ def test_the_key_is_namespaced_and_shown_in_pg_locks_as_given(postgres_url):
     run(scenario())
 
 
+@pytest.mark.integration
 def test_a_standby_takes_over_within_a_poll_period_and_an_owner_that_loses_the_lease_says_so(postgres_url):
     async def scenario() -> tuple[list[str], list[str], float]:
         events: list[str] = []

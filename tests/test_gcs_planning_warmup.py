@@ -11,7 +11,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from planner.scenario import reference_scenario
+
+pytestmark = pytest.mark.integration  # the check runs in a fresh interpreter, which it must
 
 BUOYS = [{"lat": lat, "lon": lon} for lat, lon in reference_scenario(1).buoys_lat_lon]
 

@@ -12,9 +12,10 @@ from __future__ import annotations
 import asyncio
 from dataclasses import asdict
 
+import pytest
 from fastapi.testclient import TestClient
-from processes import free_udp_port
 
+from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.domain.planning import FlightParams, make_plan
 from gcs.domain.schemas import MissionOut, MissionSummary
@@ -117,6 +118,7 @@ def test_reads_follow_another_writer_on_sqlite(tmp_path):
             other.close()
 
 
+@pytest.mark.integration
 def test_reads_follow_another_writer_on_postgresql(tmp_path, postgres_url):
     settings = Settings(db=postgres_url, data_dir=tmp_path, vehicle_url=f"udpout:127.0.0.1:{free_udp_port()}")
     with TestClient(create_app(settings)) as client:

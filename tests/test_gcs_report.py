@@ -8,7 +8,6 @@ of predicted against used energy, the used energies being the ones stored in its
 
 import math
 import re
-import socket
 import sqlite3
 from dataclasses import asdict
 
@@ -16,6 +15,7 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.cli import main
 from gcs.domain.planning import FIRST_BUOY_SEQ, FlightParams, leg_of_seq, make_plan
@@ -164,10 +164,7 @@ def test_cli_writes_the_report_and_refuses_bad_input(stored, tmp_path, capsys):
 
 def settings_without_vehicle(db_path) -> Settings:
     """The service's settings over db_path, its vehicle a UDP port nobody holds."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        port = sock.getsockname()[1]
-    return Settings(db_path=db_path, vehicle_url=f"udpout:127.0.0.1:{port}")
+    return Settings(db_path=db_path, vehicle_url=f"udpout:127.0.0.1:{free_udp_port()}")
 
 
 def test_report_route_serves_the_page_and_its_figures(stored, tmp_path):

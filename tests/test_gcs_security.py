@@ -17,12 +17,12 @@ from pathlib import Path
 import pytest
 from fastapi.routing import APIRoute
 from fastapi.testclient import TestClient
-from processes import free_udp_port
 from service_process import serving
 from starlette.websockets import WebSocketDisconnect
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect as ws_connect
 
+from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.api.security import LIVE_SUBPROTOCOL
 from gcs.cli import build_parser, settings_from_args
@@ -264,6 +264,7 @@ def test_the_default_limit_is_one_mebibyte(client):
     assert answer.status_code == 413
 
 
+@pytest.mark.integration
 def test_a_streamed_body_over_the_limit_is_refused_by_the_real_server(served):
     """Chunked transfer encoding, no Content-Length: uvicorn hands the body over in pieces as it arrives."""
     url, _ = served
@@ -338,6 +339,7 @@ def served(tmp_path):
         yield url, log
 
 
+@pytest.mark.integration
 def test_the_token_never_reaches_the_log(served):
     url, log = served
     host = url.removeprefix("http://")

@@ -20,7 +20,7 @@ FLIGHT = {"altitude_m": 5.0}
 THREAD_DEADLINE_S = 120.0  # generous: the machine may be loaded; a correct run takes a second or two
 
 
-@pytest.fixture(params=["sqlite", "postgresql"])
+@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.integration)])
 def database(request: pytest.FixtureRequest, tmp_path: Path) -> str | Path:
     """Where a test's database is: a SQLite file, or a fresh database on the test PostgreSQL server."""
     if request.param == "sqlite":
@@ -316,6 +316,7 @@ def _in_threads(*jobs: Callable[[], object]) -> list[object]:
         return [future.result(timeout=THREAD_DEADLINE_S) for future in futures]
 
 
+@pytest.mark.integration
 def test_concurrent_writers_on_one_database_keep_versions_unique_and_visible_in_order(two_instances):
     writers_done = threading.Event()
 
@@ -359,6 +360,7 @@ def test_concurrent_writers_on_one_database_keep_versions_unique_and_visible_in_
     assert two_instances[0].latest_version() == max(every_version)
 
 
+@pytest.mark.integration
 def test_two_instances_recording_the_same_flight_store_each_sample_once(two_instances):
     owner, stand_by = two_instances
     mission_id = owner.create_mission(FLIGHT, PLAN)
@@ -372,6 +374,7 @@ def test_two_instances_recording_the_same_flight_store_each_sample_once(two_inst
     assert owner.telemetry_count(mission_id) == 200
 
 
+@pytest.mark.integration
 def test_instances_starting_at_once_migrate_once(postgres_url):
     start = threading.Barrier(4, timeout=THREAD_DEADLINE_S)
 
@@ -390,6 +393,7 @@ def test_instances_starting_at_once_migrate_once(postgres_url):
             storage.close()
 
 
+@pytest.mark.integration
 def test_a_read_does_not_wait_for_an_open_write(postgres_url):
     storage = open_storage(postgres_url)
     try:

@@ -8,9 +8,9 @@ import itertools
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from processes import free_udp_port
 
 from bench.long_mission import SAMPLES, store_long_mission
+from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.domain.planning import Plan
 from gcs.domain.schemas import TelemetrySample
@@ -90,6 +90,8 @@ def test_evenly_spaced_and_arrival_indices():
 
 
 # ----- the endpoint on a stored 2-hour mission
+# Storing its 72 000 samples takes 2 to 3 s and the track and export tests read them all (1.5 to 5.6 s each), so
+# they are slow; so is the test that needs the mission only for an id, which alone would pay for storing it.
 @pytest.fixture(scope="module")
 def long_mission(tmp_path_factory):
     """A client of a service whose database holds a completed 72 000-sample mission, and the mission's id."""
@@ -102,6 +104,7 @@ def long_mission(tmp_path_factory):
         yield client, mission_id
 
 
+@pytest.mark.slow
 def test_the_display_track_of_a_two_hour_mission(long_mission):
     client, mission_id = long_mission
     mission = client.get(f"/missions/{mission_id}").json()
@@ -161,12 +164,14 @@ def test_the_display_track_is_cached_until_a_sample_is_added(tmp_path):
     storage.close()
 
 
+@pytest.mark.slow
 def test_the_track_export_keeps_every_sample(long_mission):
     client, mission_id = long_mission
     geojson = client.get(f"/missions/{mission_id}/track.geojson").json()
     assert len(geojson["geometry"]["coordinates"]) == SAMPLES
 
 
+@pytest.mark.slow
 def test_the_track_of_an_unknown_mission_and_bad_budgets(long_mission):
     client, mission_id = long_mission
     assert client.get("/missions/999999/track").status_code == 404

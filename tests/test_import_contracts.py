@@ -48,6 +48,7 @@ def _lint_imports(root: Path) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.integration  # runs lint-imports
 def test_the_repository_keeps_every_contract():
     result = _lint_imports(REPO)
     assert result.returncode == 0, result.stdout + result.stderr
@@ -72,6 +73,7 @@ VIOLATIONS = [
 ]
 
 
+@pytest.mark.integration  # runs lint-imports on a copy of the tree
 @pytest.mark.parametrize(("path", "line", "contract"), VIOLATIONS, ids=[v[0] + ":" + v[1] for v in VIOLATIONS])
 def test_a_cross_import_breaks_its_contract(tmp_path, path, line, contract):
     for package in PACKAGES:

@@ -31,9 +31,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
-from processes import free_tcp_port, free_udp_port
 from sitl_process import REPO, VEHICLE_SYSID, GroundStation, SitlProcess, mavlink
 
+from bench.processes import free_tcp_port, free_udp_port
 from uavcore.geodesy import LocalFrame
 from uavcore.modes import FlightMode
 

@@ -14,6 +14,9 @@ from planner.scenario import reference_scenario
 from planner.tsplib import parse_tsp
 from uavcore.geodesy import LocalFrame
 
+# Each test starts `python -m planner` (a fresh interpreter importing numpy and numba: about a second apiece).
+pytestmark = pytest.mark.integration
+
 REPO = Path(__file__).resolve().parents[1]
 TSPLIB = REPO / "tests" / "data" / "tsplib"
 

@@ -165,6 +165,8 @@ def test_turn_angles_of_a_route():
     assert turn_angles_deg(square) == pytest.approx([0.0, 90.0, 90.0, 90.0])
 
 
+# A whole mission in simulated time: 4.7 s on an idle machine, 7.5 to 11 s on a loaded one, the fast tier's longest.
+@pytest.mark.slow
 def test_one_simulated_flight_uses_the_predicted_energy():
     """A short mission flown by the whole stack in simulated time (ADRC cascade, lockstep, in-process): the
     battery's count from the start command to the disarm is within 5 % of the committed model's prediction."""

@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import time
 
+import pytest
 from sitl_process import WAIT_S, GroundStation, mission_item
 
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 from uavcore.mavlink import mavlink
 from uavcore.modes import FlightMode
+
+pytestmark = pytest.mark.integration
 
 MAV_CMD_BATTERY_RESET = 42651  # ardupilotmega.xml: param1 battery mask, param2 percentage
 BATTERY_1 = 1

@@ -163,6 +163,7 @@ def test_gf_action_parameter_refuses_flight_termination():
     assert table.get("GF_ACTION") == 3
 
 
+@pytest.mark.integration
 def test_fence_upload_download_and_sys_status_over_udp(start_sitl):
     vehicle = start_sitl(speed=5.0, extra_args=("--param", "GF_ACTION=3"))
     gcs = GroundStation(vehicle.port)

@@ -6,9 +6,9 @@ import socket
 import time
 
 import pytest
-from processes import free_udp_port
 from sitl_process import WAIT_S, GroundStation
 
+from bench.processes import free_udp_port
 from sitl_quad.mavlink.link import UdpLink
 from uavcore.mavlink import mavlink
 

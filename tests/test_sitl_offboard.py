@@ -15,10 +15,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from processes import free_udp_port
 from sitl_process import GroundStation, start_lockstep_pair
 from test_sitl_vehicle import FRAME
 
+from bench.processes import free_udp_port, stop_reading_output
 from uavcore.mavlink import mavlink
 from uavcore.rotation import quat_from_euler
 
@@ -272,9 +272,7 @@ def _fly_lockstep_mission(tmp_path, tag: str, seed: int) -> list[list[str]]:
             pytest.fail(f"mission did not finish; modes seen {modes}")
     finally:
         gcs.close()
-        for process in (controller, vehicle):
-            process.terminate()
-        errors = [p.communicate(timeout=20)[1] for p in (controller, vehicle)]
+        errors = [stop_reading_output(p, 20)[1] for p in (controller, vehicle)]
     assert all("Traceback" not in e for e in errors), errors
     with open(log) as f:
         return list(csv.reader(f))

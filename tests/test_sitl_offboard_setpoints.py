@@ -147,6 +147,7 @@ def test_position_stream_loss_triggers_offb_loss_act_in_simulated_time():
     assert not vehicle.armed and -vehicle.truth.position[2] < 0.1
 
 
+@pytest.mark.integration
 def test_position_targets_over_udp(start_sitl):
     """SET_POSITION_TARGET_LOCAL_NED then _GLOBAL_INT from a ground station, as MAVSDK sends them."""
     # OFFB_LOSS_T is simulated time: at 4x the default 0.5 s is 0.125 s of the stream's wall clock, which a loaded

@@ -94,6 +94,7 @@ def test_nan_parameters_keep_the_orbit_under_way_and_speed_is_capped():
     assert not reversed_by_speed.clockwise
 
 
+@pytest.mark.integration
 def test_do_orbit_over_udp_reports_posctl_orbit(start_sitl):
     vehicle = start_sitl(speed=5.0)
     gcs = GroundStation(vehicle.port)

@@ -83,6 +83,7 @@ def test_the_gust_hold_reaches_the_wind_model_and_its_default_inf_survives_the_f
         fresh.set("SIM_WIND_SPD", math.inf)  # inf only where it is the parameter's maximum
 
 
+@pytest.mark.integration  # each runs `python -m sitl_quad --list-params`
 @pytest.mark.parametrize(
     "argv, message",
     [
@@ -104,6 +105,7 @@ def test_cli_rejects_bad_input_with_a_message(tmp_path, argv, message):
     assert "Traceback" not in result.stderr
 
 
+@pytest.mark.integration
 def test_cli_lists_parameters():
     result = subprocess.run(
         [sys.executable, "-m", "sitl_quad", "--param", "SIM_WIND_SPD=4", "--list-params"],

@@ -124,6 +124,7 @@ def test_the_demo_flies_the_papers_weather_placed_on_the_route_the_service_will_
     assert _vehicle_params(children(calm)[0].argv)["SIM_GUST_AMP"] == 0.0
 
 
+@pytest.mark.integration  # the vehicle's own CLI lists them
 def test_the_vehicle_takes_every_parameter_up_gives_it(tmp_path):
     options, _ = prepare(_options(tmp_path, demo=True))
     argv = children(options)[0].argv

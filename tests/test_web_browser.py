@@ -23,11 +23,11 @@ from urllib.parse import urlsplit
 import pytest
 from ardupilot_double import ArduCopterDouble
 from playwright.sync_api import Browser, Page, Playwright, expect, sync_playwright
-from processes import free_port, stop_process
 from service_process import serving
 from sitl_process import SitlProcess
 
 from bench.long_mission import store_long_mission
+from bench.processes import free_port, stop_process
 from gcs.storage import open_storage
 from stack.demo import reference_request
 from stack.options import UpOptions

@@ -11,7 +11,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import stats
+
+# scipy.stats is imported where it is used: it takes a second to import, and the test suite imports this module
+# (through bench.control.__main__) on every run to collect tests that never call it.
 
 
 def mean_ci(values: np.ndarray) -> dict:
@@ -24,6 +26,8 @@ def mean_ci(values: np.ndarray) -> dict:
     mean = float(values.mean())
     if n < 2:
         return {"mean": mean, "ci95": None, "n": int(n)}
+    from scipy import stats
+
     half = float(stats.t.ppf(0.975, n - 1)) * float(values.std(ddof=1)) / math.sqrt(n)
     return {"mean": mean, "ci95": [mean - half, mean + half], "n": int(n)}
 
@@ -35,6 +39,8 @@ def paired_t_test(a: np.ndarray, b: np.ndarray) -> float:
     d = a - b
     if float(d.std(ddof=1)) == 0.0:
         return 1.0 if float(d.mean()) == 0.0 else 0.0
+    from scipy import stats
+
     return float(stats.ttest_rel(a, b).pvalue)
 
 
@@ -49,6 +55,8 @@ def wilcoxon_signed_rank(a: np.ndarray, b: np.ndarray) -> float:
     if d.size == 0:
         return 1.0
     ties = np.unique(np.abs(d)).size < d.size
+    from scipy import stats
+
     return float(stats.wilcoxon(d, correction=True, method="asymptotic" if ties else "exact").pvalue)
 
 

@@ -1,9 +1,12 @@
-"""What every test that starts processes shares: free loopback ports, and stopping a child process for good."""
+"""What every bench and test that starts processes shares: free loopback ports, and stopping a child process for
+good. It lives in bench/ because both use it: tests import bench modules (pytest's pythonpath is the repository
+root), while a bench, run as `python -m bench.X`, cannot import from tests/, which is no package."""
 
 from __future__ import annotations
 
 import socket
 import subprocess
+from typing import AnyStr
 
 
 def free_port(kind: int) -> int:
@@ -52,3 +55,18 @@ def stop_process(process: subprocess.Popen, grace_s: float = 10.0) -> int:
             process.kill()
             process.wait()
     return process.returncode
+
+
+def stop_reading_output(
+    process: subprocess.Popen[AnyStr], grace_s: float = 10.0
+) -> tuple[AnyStr | None, AnyStr | None]:
+    """stop_process for a child whose output is piped: what it wrote, (stdout, stderr), read while it stops (a
+    child blocked on a full pipe would never exit while we only waited); SIGKILL if it has not exited within
+    `grace_s`, after which its returncode says so."""
+    if process.poll() is None:
+        process.terminate()
+    try:
+        return process.communicate(timeout=grace_s)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        return process.communicate()
