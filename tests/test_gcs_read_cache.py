@@ -48,6 +48,34 @@ def test_a_document_is_built_once_per_version():
     assert (cache.hits, cache.misses) == (1, 3)
 
 
+def test_requests_missing_together_build_the_document_once_and_share_a_failure():
+    async def scenario() -> None:
+        cache, builds, gate = VersionedCache(), [], asyncio.Event()
+
+        async def build() -> bytes:
+            builds.append(1)
+            await gate.wait()  # still building while the others ask
+            return b"doc"
+
+        waiting = [asyncio.ensure_future(cache.get("m", 7, build)) for _ in range(50)]
+        await asyncio.sleep(0)
+        gate.set()
+        assert await asyncio.gather(*waiting) == [b"doc"] * 50
+        assert len(builds) == 1 and cache.lookup("m", 7) == b"doc"
+
+        async def broken() -> bytes:
+            builds.append(1)
+            await asyncio.sleep(0)
+            raise LookupError("no such mission")
+
+        failing = [asyncio.ensure_future(cache.get("m", 8, broken)) for _ in range(3)]
+        outcomes = await asyncio.gather(*failing, return_exceptions=True)
+        assert all(isinstance(outcome, LookupError) for outcome in outcomes) and len(builds) == 2
+        assert await cache.get("m", 8, build) == b"doc"  # nothing left behind: the next request builds again
+
+    asyncio.run(scenario())
+
+
 def test_least_recently_used_documents_go_first():
     cache = VersionedCache(max_entries=2)
     cache.store("a", 1, b"a")

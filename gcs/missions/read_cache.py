@@ -14,6 +14,7 @@ builds again); it can never be older than the version it is filed under.
 
 from __future__ import annotations
 
+import asyncio
 import threading
 from collections import OrderedDict
 from collections.abc import Awaitable, Callable, Hashable
@@ -33,24 +34,37 @@ class CachedDocument:
 class VersionedCache:
     """Encoded documents by key, each valid while its version is the current one; least recently used entries
     go first beyond `max_entries` or `max_bytes` (a track with a large max_points is megabytes: the byte budget
-    bounds the memory whatever keys clients ask for). Thread-safe: documents are built in worker threads."""
+    bounds the memory whatever keys clients ask for). `lookup` and `store` are thread-safe; `get` runs on the
+    event loop."""
 
     def __init__(self, max_entries: int = 256, max_bytes: int = 64 * 2**20) -> None:
         self.max_entries, self.max_bytes = max_entries, max_bytes
         self._entries: OrderedDict[Hashable, CachedDocument] = OrderedDict()
         self._bytes = 0
         self._lock = threading.Lock()
+        self._building: dict[tuple[Hashable, Version], asyncio.Future[bytes]] = {}  # on the event loop only
         self.hits = self.misses = 0  # for tests and the benchmark: how often the cache answered
 
     async def get(self, key: Hashable, version: Version, build: Callable[[], Awaitable[bytes]]) -> bytes:
         """The document for `key` at `version` (read from storage before this call), built by `build` when the
-        cache has none at that version. `build` runs outside the lock: two requests may build the same document
-        at once, which is harmless (same bytes), while one slow build never holds up reads of other keys."""
+        cache has none at that version: once, however many requests miss together (after a write moved the
+        version, 50 clients polling a flying mission would otherwise each read and encode it again). One slow
+        build never holds up reads of other keys or versions. Called on the event loop."""
         body = self.lookup(key, version)
-        if body is None:
+        if body is not None:
+            return body
+        pending = self._building.get((key, version))
+        if pending is None:
+            pending = self._building[(key, version)] = asyncio.ensure_future(self._build(key, version, build))
+        return await asyncio.shield(pending)  # a request cancelled leaves the build to the others
+
+    async def _build(self, key: Hashable, version: Version, build: Callable[[], Awaitable[bytes]]) -> bytes:
+        try:
             body = await build()
             self.store(key, version, body)
-        return body
+            return body
+        finally:
+            del self._building[(key, version)]
 
     def lookup(self, key: Hashable, version: Version) -> bytes | None:
         """The document for `key` if the cache holds it at exactly `version`."""
