@@ -81,6 +81,11 @@ def poll(
     raise RuntimeError(f"{what}: not within {timeout_s:g} s (last answer: {value})")
 
 
+def read_log(path: Path) -> str:
+    """A child's log as written so far ("" before it has written one)."""
+    return path.read_text(errors="replace") if path.exists() else ""
+
+
 @dataclass
 class Instance:
     """One `python -m gcs serve` process (once started) and an HTTP client for it."""
@@ -119,7 +124,7 @@ class Instance:
             ) from None
 
     def _log(self) -> str:
-        return self.log_path.read_text(errors="replace") if self.log_path.exists() else ""
+        return read_log(self.log_path)
 
 
 def owns_a_connected_vehicle(vehicle: dict[str, Any] | None) -> bool:
@@ -178,8 +183,7 @@ class FailoverStack:
         return python_module("gcs", "serve", *vehicle, "--db", self.db_url, "--port", str(port))
 
     def log(self, name: str) -> str:
-        path = self.logs / f"{name}.log"
-        return path.read_text(errors="replace") if path.exists() else ""
+        return read_log(self.logs / f"{name}.log")
 
     def close(self) -> None:
         for instance in self.instances:

@@ -208,7 +208,7 @@ class FleetCoordinator:
             )
 
     async def _follow_parts(self, fleet_id: int) -> None:
-        fleet = await self._stored(fleet_id)
+        fleet = await self.storage.existing_mission(fleet_id)
         parts = await self.storage.fleet_parts(fleet_id)
         frame = Plan.from_dict(fleet.plan).frame
         monitor = SeparationMonitor(frame, {sysid: self._link_of(sysid) for sysid in map(_vehicle_of, parts)})
@@ -309,10 +309,4 @@ class FleetCoordinator:
             fleet.id, MissionStatus.FLYING, f"vehicle {lost_part.vehicle_sysid} lost{why}: {given}"
         )
         log.warning("fleet mission %s: vehicle %s lost; %s", fleet.id, lost_part.vehicle_sysid, given)
-        return await self._stored(fleet.id)
-
-    async def _stored(self, fleet_id: int) -> MissionRecord:
-        """A fleet mission this coordinator follows, as stored now (missions are never deleted)."""
-        record = await self.storage.get_mission(fleet_id)
-        assert record is not None
-        return record
+        return await self.storage.existing_mission(fleet.id)

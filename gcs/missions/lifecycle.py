@@ -247,7 +247,7 @@ class FlightLifecycle:
         self._tasks[mission_id] = asyncio.create_task(self._run(mission_id, resume), name=f"mission-{mission_id}")
 
     async def _run(self, mission_id: int, resume: bool = False) -> None:
-        record = await self._stored(mission_id)
+        record = await self.storage.existing_mission(mission_id)
         plan, flight = Plan.from_dict(record.plan), FlightParams(**record.flight)
         recorder = MissionRecorder(self.link, plan, self.settings.telemetry_period_s, flight.acceptance_radius_m)
         status = MissionStatus.FAILED
@@ -265,7 +265,7 @@ class FlightLifecycle:
         except (MissionTransferError, LinkError) as error:  # refused commands and transfers say why themselves
             reason = str(error)
         except asyncio.CancelledError:
-            if self._handing_over and (await self._stored(mission_id)).status == MissionStatus.FLYING:
+            if self._handing_over and (await self.storage.existing_mission(mission_id)).status == MissionStatus.FLYING:
                 await self._detach(mission_id, recorder)
                 log.warning("mission %s handed over in flight: the next owner of the link re-attaches it", mission_id)
                 raise
@@ -299,13 +299,6 @@ class FlightLifecycle:
         if samples:
             await self.storage.set_results(mission_id, flight_results(plan, flight, samples, progress))
         await self._transition(mission_id, status, reason)
-
-    async def _stored(self, mission_id: int) -> MissionRecord:
-        """A mission this lifecycle flies, as stored now: it was started from its record, and missions are never
-        deleted."""
-        record = await self.storage.get_mission(mission_id)
-        assert record is not None
-        return record
 
     async def _detach(self, mission_id: int, recorder: MissionRecorder) -> dict[str, Any]:
         """Stop recording a mission, storing all it recorded: its samples and progress (returned). A mission

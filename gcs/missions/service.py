@@ -363,10 +363,12 @@ class MissionService:
 
         async def build() -> bytes:
             record = await self.get(mission_id)
-            columns = storage.track_columns
             return await asyncio.to_thread(
                 lambda: views.track_json(
-                    record, columns(mission_id), lambda times: storage.telemetry_at(mission_id, times), max_points
+                    record,
+                    storage.track_columns(mission_id),
+                    lambda times: storage.telemetry_at(mission_id, times),
+                    max_points,
                 )
             )
 

@@ -37,7 +37,6 @@ class AsyncStorage:
 
     def __init__(self, storage: Storage, read_threads: int = READ_THREADS) -> None:
         self.blocking = storage
-        self.location = storage.location
         self._writer = ThreadPoolExecutor(1, thread_name_prefix="storage-write")
         self._readers = ThreadPoolExecutor(read_threads, thread_name_prefix="storage-read")
         self._queued: dict[Hashable, asyncio.Future[Any]] = {}  # coalesced reads not begun yet, by what they read
@@ -102,6 +101,12 @@ class AsyncStorage:
     # ----- reads, side by side
     async def get_mission(self, mission_id: int) -> MissionRecord | None:
         return await self._run(self._readers, self.blocking.get_mission, mission_id)
+
+    async def existing_mission(self, mission_id: int) -> MissionRecord:
+        """A mission known to be stored (one being flown or followed: missions are never deleted)."""
+        record = await self.get_mission(mission_id)
+        assert record is not None, f"mission {mission_id} is not stored"
+        return record
 
     async def list_missions(self, limit: int = 100) -> list[MissionRecord]:
         return await self._run(self._readers, self.blocking.list_missions, limit)

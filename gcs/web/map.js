@@ -162,8 +162,8 @@ export class MissionMap {
     if (!last || last.lat !== lat || last.lng !== lon) this.track.addLatLng([lat, lon]);
   }
 
-  // A fleet: a marker per vehicle (/ws `vehicles`, as GET /vehicles lists them), titled "vehicle N", in the colour colourOf(sysid) gives it
-  // (its share's in the fleet mission shown; null: the one vehicle's colour).
+  // A fleet: a marker per vehicle (/ws `vehicles`, as GET /vehicles lists them), titled "vehicle N", in the colour
+  // colourOf(sysid) gives it (its share's in the fleet mission shown; null: the one vehicle's colour).
   showVehicles(vehicles, colourOf) {
     this.fleetMarkers ??= new Map(); // sysid -> marker
     for (const vehicle of vehicles) {
