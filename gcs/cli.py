@@ -195,7 +195,7 @@ def serve(settings: Settings) -> None:
     logging.basicConfig(level=logging.INFO, format=LOG_FORMAT)
     install_stack_dump()
     uvicorn.run(
-        create_app(settings),
+        create_app(settings, freeze_startup_heap=True),
         host=settings.host,
         port=settings.port,
         log_level="info",

@@ -3,6 +3,7 @@
 Flying is covered by the integration test against the real vehicle (test_gcs_integration.py).
 """
 
+import gc
 import json
 import time
 
@@ -47,6 +48,22 @@ def wait_status(client, mission_id, statuses, timeout_s=60.0):  # a backstop on 
 def errors_of(response) -> list[tuple[list, str]]:
     assert response.status_code == 422, response.text
     return [(e["loc"], e["msg"]) for e in response.json()["detail"]]
+
+
+# ----- the app
+def test_the_serving_app_keeps_its_start_up_objects_out_of_full_collections_while_it_runs(tmp_path):
+    # gcs serve's app: a full collection walking the start-up's objects held the GIL ~90 ms (gcs.api.app)
+    settings = Settings(db_path=tmp_path / "gcs.sqlite", vehicle_url=f"udpout:127.0.0.1:{free_udp_port()}")
+    frozen_before = gc.get_freeze_count()
+    with TestClient(create_app(settings, freeze_startup_heap=True)) as client:
+        service = client.app.state.service
+        assert gc.get_freeze_count() > frozen_before
+        assert not any(o is service for o in gc.get_objects())  # no collection walks it
+        assert client.get("/missions").status_code == 200
+    assert gc.get_freeze_count() == frozen_before  # given back to the collector when the service stops
+    with TestClient(create_app(settings)) as client:  # tests' apps (many in one process) freeze nothing
+        assert gc.get_freeze_count() == frozen_before
+        assert any(o is client.app.state.service for o in gc.get_objects())
 
 
 # ----- planning
