@@ -8,12 +8,12 @@ dwell at each buoy, a lateral wobble (0.4 m, 15 s period, as a gusty crosswind l
 
 from __future__ import annotations
 
-from dataclasses import asdict
 from typing import Any
 
 import numpy as np
 
 from gcs.domain.planning import FlightParams, Plan, make_plan
+from gcs.domain.records import MissionProgress
 from gcs.domain.schemas import TelemetrySample
 from gcs.domain.status import MissionStatus
 from gcs.storage import Storage
@@ -32,7 +32,7 @@ def reference_plan() -> Plan:
     return make_plan(scenario.home[:2], buoys, [f"B{i + 1}" for i in range(len(buoys))], "exact")
 
 
-def flight_samples(plan: Plan, n: int = SAMPLES, seed: int = 0) -> tuple[list[dict[str, Any]], dict[str, float]]:
+def flight_samples(plan: Plan, n: int = SAMPLES, seed: int = 0) -> tuple[list[dict[str, Any]], dict[int, float]]:
     """n TelemetrySample documents of a flight along the plan's route, and the buoy arrivals (progress'
     reached_at: buoy index -> vehicle time)."""
     rng = np.random.default_rng(seed)
@@ -80,7 +80,7 @@ def flight_samples(plan: Plan, n: int = SAMPLES, seed: int = 0) -> tuple[list[di
         ).model_dump()
         for i in range(n)
     ]
-    reached_at = {str(plan.order[k]): float(starts[k] + leg_times[k]) for k in range(n_buoys)}
+    reached_at = {plan.order[k]: float(starts[k] + leg_times[k]) for k in range(n_buoys)}
     return samples, reached_at
 
 
@@ -88,10 +88,10 @@ def store_long_mission(storage: Storage, n: int = SAMPLES) -> int:
     """Store a completed mission of n samples (default: two hours at 10 Hz); its id."""
     plan = reference_plan()
     flight = FlightParams(ALTITUDE_M, 10.0, DWELL_S, 2.0)
-    mission_id = storage.create_mission(asdict(flight), plan.to_dict())
+    mission_id = storage.create_mission(flight, plan)
     samples, reached_at = flight_samples(plan, n)
     storage.add_telemetry(mission_id, samples)
     visited = len(reached_at)
-    storage.set_progress(mission_id, {"reached_at": reached_at, "visited": visited, "buoys": visited})
+    storage.set_progress(mission_id, MissionProgress(reached_at=reached_at, visited=visited, buoys=visited))
     storage.set_status(mission_id, MissionStatus.COMPLETED)
     return mission_id

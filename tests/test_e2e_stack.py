@@ -29,7 +29,7 @@ from sitl_process import GroundStation, short_mission
 from udp_relay import LossyUdpRelay
 
 from bench.processes import free_tcp_port, free_udp_port, stop_process
-from gcs.domain.planning import make_plan
+from gcs.domain.planning import FlightParams, make_plan
 from gcs.missions.lifecycle import REATTACHED, RESTART_NOT_FLYING
 from gcs.storage import open_storage
 from planner.scenario import reference_scenario
@@ -319,8 +319,8 @@ def test_gcs_restarted_while_the_vehicle_flies_nothing_fails_the_unfinished_miss
         ["A", "B"],
         "exact",
     )
-    flight = {"altitude_m": 5.0, "speed_m_s": 10.0, "dwell_s": 1.0, "acceptance_radius_m": 2.0}
-    left = [storage.create_mission(flight, plan.to_dict()) for _ in range(2)]
+    flight = FlightParams(altitude_m=5.0, speed_m_s=10.0, dwell_s=1.0, acceptance_radius_m=2.0)
+    left = [storage.create_mission(flight, plan) for _ in range(2)]
     storage.set_status(left[0], "uploading")
     storage.set_status(left[1], "flying")
     storage.close()

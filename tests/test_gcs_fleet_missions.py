@@ -3,10 +3,13 @@ progress from its parts', and how it ends."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
+from stored_missions import FLIGHT, PLAN
 
+from gcs.domain.records import MissionProgress, PlanFleet, PlannedShare
 from gcs.domain.schemas import MissionRequest
 from gcs.domain.status import MissionStatus
 from gcs.missions.fleet_missions import Separation, fleet_ending, fleet_vehicles, shares_progress
@@ -26,35 +29,47 @@ def test_each_minimum_is_taken_on_its_own_over_every_pair_and_instant():
     assert (separation.min_horizontal_m, separation.min_vertical_m) == (pytest.approx(3.0), 0.0)
 
 
-def _record(mission_id: int, status: str, plan: dict, progress: dict, reason: str | None = None, sysid=None):
+def _record(mission_id: int, status: str, visited: list[int], reason: str | None = None, sysid=None):
+    plan = FLEET_PLAN if sysid is None else PLAN
+    progress = MissionProgress(visited_buoys=visited)
     return MissionRecord(
-        mission_id, "t", "t", MissionStatus(status), reason, {}, plan, progress, None, vehicle_sysid=sysid, fleet_id=1
+        mission_id, "t", "t", MissionStatus(status), reason, FLIGHT, plan, progress, None, vehicle_sysid=sysid,
+        fleet_id=1,
+    )  # fmt: skip
+
+
+def _share(sysid: int, buoys: list[int]) -> PlannedShare:
+    return PlannedShare(
+        sysid=sysid, home=[55.0, 12.0], buoys=buoys, altitude_m=5.0, predicted_time_s=60.0, length_m=1.0
     )
 
 
-FLEET_PLAN = {
-    "buoy_ids": ["A", "B", "C", "D"],
-    "fleet": {"shares": [{"sysid": 1, "buoys": [2, 0]}, {"sysid": 2, "buoys": [3, 1]}]},
-}
+FLEET_PLAN = dataclasses.replace(
+    PLAN,
+    buoy_ids=["A", "B", "C", "D"],
+    fleet=PlanFleet(
+        makespan_s=60.0, total_time_s=120.0, layer_gap_m=3.0, shares=[_share(1, [2, 0]), _share(2, [3, 1])]
+    ),
+)
 
 
 def test_the_fleet_progress_maps_each_parts_visits_to_the_fleets_buoys_and_its_end_names_what_was_missed():
-    fleet = _record(1, "flying", FLEET_PLAN, {})
+    fleet = _record(1, "flying", [])
     parts = [
-        _record(2, "completed", {}, {"visited_buoys": [0, 1]}, sysid=1),
-        _record(3, "failed", {}, {"visited_buoys": [0]}, "link lost: no heartbeat from the vehicle", sysid=2),
+        _record(2, "completed", [0, 1], sysid=1),
+        _record(3, "failed", [0], "link lost: no heartbeat from the vehicle", sysid=2),
     ]
     progress = shares_progress(fleet, parts)
-    assert [s["visited"] for s in progress["shares"]] == [[2, 0], [3]]
-    assert progress["visited_buoys"] == [0, 2, 3] and progress["visited"] == 3 and progress["buoys"] == 4
+    assert [s.visited for s in progress.shares] == [[2, 0], [3]]
+    assert progress.visited_buoys == [0, 2, 3] and progress.visited == 3 and progress.buoys == 4
     status, reason = fleet_ending(fleet, parts)
     assert status == MissionStatus.FAILED
     assert reason == "vehicle 2 failed (link lost: no heartbeat from the vehicle); not inspected: B"
-    parts[1] = _record(3, "failed", {}, {"visited_buoys": [0, 1]}, "link lost", sysid=2)
+    parts[1] = _record(3, "failed", [0, 1], "link lost", sysid=2)
     assert fleet_ending(fleet, parts) == (MissionStatus.COMPLETED, None)  # lost, but every buoy inspected
-    parts[1] = _record(3, "aborted", {}, {"visited_buoys": [0, 1]}, "aborted by the operator", sysid=2)
+    parts[1] = _record(3, "aborted", [0, 1], "aborted by the operator", sysid=2)
     assert fleet_ending(fleet, parts)[0] == MissionStatus.ABORTED
-    parts[1] = _record(3, "completed", {}, {"visited_buoys": [0, 1]}, sysid=2)
+    parts[1] = _record(3, "completed", [0, 1], sysid=2)
     assert fleet_ending(fleet, parts) == (MissionStatus.COMPLETED, None)
 
 

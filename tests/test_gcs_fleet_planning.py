@@ -35,8 +35,10 @@ def test_every_buoy_goes_to_one_vehicle_whose_share_is_a_plan_from_its_home_at_i
         assert share.plan.order == list(range(len(share.buoys)))  # the fleet planner's flying order, kept
         assert np.allclose(share.plan.buoys_lat_lon, [buoys[b] for b in share.buoys], rtol=0, atol=1e-9)
     assert plan.makespan_s == pytest.approx(max(s.predicted_time_s for s in plan.shares))
-    stored = plan.to_dict()
-    assert [s["sysid"] for s in stored["shares"]] == [s.sysid for s in plan.shares]
+    section = plan.plan_section()
+    assert [s.sysid for s in section.shares] == [s.sysid for s in plan.shares]
+    assert [s.buoys for s in section.shares] == [s.buoys for s in plan.shares]
+    assert [s.home for s in section.shares] == [list(s.plan.depot) for s in plan.shares]
 
 
 def test_the_share_times_are_the_fleet_planners_route_times_from_each_home():

@@ -10,7 +10,6 @@
 from __future__ import annotations
 
 import asyncio
-from dataclasses import asdict
 
 import pytest
 from fastapi.testclient import TestClient
@@ -18,6 +17,7 @@ from fastapi.testclient import TestClient
 from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.domain.planning import FlightParams, make_plan
+from gcs.domain.records import MissionProgress
 from gcs.domain.schemas import MissionOut, MissionSummary
 from gcs.domain.status import MissionStatus
 from gcs.missions.read_cache import VersionedCache
@@ -104,7 +104,7 @@ def store_mission(storage) -> int:
     scenario = reference_scenario(1)
     buoys = [(float(lat), float(lon)) for lat, lon in scenario.buoys_lat_lon]
     plan = make_plan(scenario.home[:2], buoys, [f"B{i + 1}" for i in range(len(buoys))], "exact")
-    return storage.create_mission(asdict(FlightParams(5.0, 10.0, 1.0, 2.0)), plan.to_dict())
+    return storage.create_mission(FlightParams(5.0, 10.0, 1.0, 2.0), plan)
 
 
 def check_reads_follow_another_writer(client: TestClient, other) -> None:
@@ -125,7 +125,7 @@ def check_reads_follow_another_writer(client: TestClient, other) -> None:
     assert [e["status"] for e in changed["events"]] == ["planned", "failed"]
     assert client.get("/missions?limit=5").json()[0]["status"] == "failed"
 
-    other.set_progress(mission_id, {"visited": 3, "buoys": 13, "reached_at": {"4": 12.5}})
+    other.set_progress(mission_id, MissionProgress(visited=3, buoys=13, reached_at={4: 12.5}))
     changed = client.get(f"/missions/{mission_id}").json()
     assert changed["progress"]["visited"] == 3
     assert changed["buoy_results"][4]["arrival_s"] == 12.5

@@ -9,16 +9,17 @@ of predicted against used energy, the used energies being the ones stored in its
 import math
 import re
 import sqlite3
-from dataclasses import asdict
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from stored_missions import SORTIES_FLOWN
 
 from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.cli import main
 from gcs.domain.planning import FIRST_BUOY_SEQ, FlightParams, leg_of_seq, make_plan
+from gcs.domain.records import MissionProgress
 from gcs.missions.results import flight_results
 from gcs.reports.report import ENERGY_FIGURE, FIGURES, cached_report, report_series, summary_rows, write_report
 from gcs.settings import Settings
@@ -91,9 +92,9 @@ def synthetic_mission(storage: Storage) -> int:
             }
         )
         t += 0.1
-    mission_id = storage.create_mission(asdict(FLIGHT), plan.to_dict())
+    mission_id = storage.create_mission(FLIGHT, plan)
     storage.add_telemetry(mission_id, samples)
-    storage.set_results(mission_id, flight_results(plan, FLIGHT, storage.telemetry(mission_id), {}))
+    storage.set_results(mission_id, flight_results(plan, FLIGHT, storage.telemetry(mission_id), MissionProgress()))
     storage.set_status(mission_id, "completed")
     return mission_id
 
@@ -191,20 +192,13 @@ def test_a_mission_that_never_flew_still_gets_a_report(tmp_path):
     storage = SqliteStorage(tmp_path / "gcs.sqlite")
     depot = DEFAULT_HOME[:2]
     plan = make_plan(depot, [(depot[0] + 0.0005, depot[1])], ["A"], "exact")
-    mission_id = storage.create_mission(asdict(FLIGHT), plan.to_dict())
+    mission_id = storage.create_mission(FLIGHT, plan)
     storage.set_status(mission_id, "failed", "no vehicle")
     index = write_report(storage.get_mission(mission_id), storage.telemetry(mission_id), tmp_path / "out")
     page = index.read_text()
     assert "failed (no vehicle)" in page and "<th>samples</th><td>0</td>" in page
     assert all((index.parent / name).stat().st_size > 0 for name in FIGURES)
     storage.close()
-
-
-# What the vehicle reported after each sortie (gcs.missions.recorder's sorties_flown), the last sortie not flown.
-SORTIES_FLOWN = [
-    {"sortie": 0, "used_energy_wh": 10.4, "landing_charge_pct": 34.0, "battery_warning": None},
-    {"sortie": 1, "used_energy_wh": 12.9, "landing_charge_pct": 14.0, "battery_warning": "low"},
-]
 
 
 def test_a_mission_in_sorties_gets_its_sortie_table_and_energy_chart(tmp_path):
@@ -217,7 +211,7 @@ def test_a_mission_in_sorties_gets_its_sortie_table_and_energy_chart(tmp_path):
         sorties = mission["sorties"]
         assert len(sorties) == 3  # the energy model's pack at 1000 mAh (no vehicle to ask)
         storage = SqliteStorage(settings.db_path)
-        storage.set_progress(mission["id"], {"sortie": 2, "sorties": 3, "sorties_flown": SORTIES_FLOWN})
+        storage.set_progress(mission["id"], MissionProgress(sortie=2, sorties=3, sorties_flown=SORTIES_FLOWN))
         storage.set_status(mission["id"], "aborted", "battery critical in sortie 3 of 3")
         storage.close()
         chart = client.get(f"/missions/{mission['id']}/report/{ENERGY_FIGURE}")
@@ -241,9 +235,9 @@ def test_a_mission_in_sorties_gets_its_sortie_table_and_energy_chart(tmp_path):
         if flown is None:
             assert row.endswith(f"<td>–</td><td>–</td>{landing}<td>–</td><td>–</td></tr>")
             continue
-        used = flown["used_energy_wh"]
+        used = flown.used_energy_wh
         error = 100 * (used - sortie["predicted_energy_wh"]) / used  # (used - predicted) / used
-        measured = f"<td>{flown['landing_charge_pct']:.0f}</td><td>{flown['battery_warning'] or 'none'}</td>"
+        measured = f"<td>{flown.landing_charge_pct:.0f}</td><td>{flown.battery_warning or 'none'}</td>"
         assert row.endswith(f"<td>{used:.2f}</td><td>{error:.1f}</td>{landing}{measured}</tr>")
     report_dir = settings.reports_dir / f"mission-{mission['id']}"
     for name in (*FIGURES, ENERGY_FIGURE):

@@ -19,6 +19,7 @@ from fastapi.routing import APIRoute
 from fastapi.testclient import TestClient
 from service_process import serving
 from starlette.websockets import WebSocketDisconnect
+from stored_missions import FLIGHT, PLAN
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect as ws_connect
 
@@ -26,7 +27,8 @@ from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.api.security import LIVE_SUBPROTOCOL
 from gcs.cli import build_parser, settings_from_args
-from gcs.domain.schemas import MAX_BUOYS, MAX_FENCE_VERTICES, MAX_FENCE_ZONES
+from gcs.domain.records import MissionProgress, MissionResults
+from gcs.domain.schemas import MAX_BUOYS, MAX_FENCE_VERTICES, MAX_FENCE_ZONES, BuoyResult
 from gcs.reports.report import report_html
 from gcs.settings import Settings
 from gcs.storage import MissionRecord
@@ -227,10 +229,12 @@ def test_the_report_page_escapes_mission_text():
         updated_at="today",
         status="failed",
         reason=HOSTILE,
-        flight={},
-        plan={},
-        progress={},
-        results={"buoys": [{"index": 0, "id": HOSTILE, "reached": False, "closest_m": None, "arrival_s": None}]},
+        flight=FLIGHT,
+        plan=PLAN,
+        progress=MissionProgress(),
+        results=MissionResults(
+            buoys=[BuoyResult(index=0, id=HOSTILE, reached=False, closest_m=None, arrival_s=None)],
+        ),
     )
     page = report_html(record, [("status", f"failed ({HOSTILE})"), (HOSTILE, "x")])
     assert HOSTILE not in page and "<img src=x" not in page and "<script" not in page

@@ -3,6 +3,8 @@ counter, on both backends (SQLite and a real PostgreSQL server); then what only 
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import sqlite3
 import threading
 from collections.abc import Callable, Iterator
@@ -11,12 +13,17 @@ from pathlib import Path
 
 import psycopg
 import pytest
+from stored_missions import FLIGHT, PLAN
 
+from gcs.domain.records import MissionProgress, MissionResults
+from gcs.domain.schemas import TrackingFigures
 from gcs.storage import MIGRATIONS, ConstraintError, Storage, StorageError, open_storage
 from gcs.storage.postgres import VERSION_LOCK
 
-PLAN = {"order": [1, 0], "length_m": 10.0}
-FLIGHT = {"altitude_m": 5.0}
+TRACKING = TrackingFigures(
+    legs=[], rms_cross_track_m=0.5, max_cross_track_m=0.9, distance_flown_m=120.0, planned_length_m=118.0,
+    flight_time_s=14.0,
+)  # fmt: skip
 THREAD_DEADLINE_S = 120.0  # generous: the machine may be loaded; a correct run takes a second or two
 
 
@@ -63,8 +70,10 @@ def database_at_version(database: str | Path, schema_version: int) -> sqlite3.Co
         for statement in MIGRATIONS[version - 1].statements(dialect):
             connection.execute(statement)
         connection.execute(f"INSERT INTO schema_migrations VALUES ({version}, 'then')")
+    flight, plan = json.dumps(dataclasses.asdict(FLIGHT)), json.dumps(PLAN.to_dict())
     connection.execute(
-        "INSERT INTO missions (created_at, updated_at, status, flight, plan) VALUES ('a','a','flying','{}','{}')"
+        "INSERT INTO missions (created_at, updated_at, status, flight, plan) VALUES ('a','a','flying',"
+        f"'{flight}','{plan}')"
     )
     return connection
 
@@ -81,8 +90,8 @@ def test_transitions_are_recorded_in_order_with_reasons(storage):
     storage.set_status(mission_id, "failed", "link lost")
     record = storage.get_mission(mission_id)
     assert (record.status, record.reason) == ("failed", "link lost")
-    assert [e["status"] for e in record.events] == ["planned", "uploading", "uploaded", "flying", "failed"]
-    assert record.events[-1]["reason"] == "link lost"
+    assert [e.status for e in record.events] == ["planned", "uploading", "uploaded", "flying", "failed"]
+    assert record.events[-1].reason == "link lost"
     with pytest.raises(KeyError):
         storage.set_status(999, "flying")
 
@@ -91,8 +100,8 @@ def test_history_and_telemetry_survive_a_restart(open_db):
     storage = open_db()
     mission_id = storage.create_mission(FLIGHT, PLAN)
     storage.add_telemetry(mission_id, [{"t_s": 0.1 * i, "lat": 1.0} for i in range(25)])
-    storage.set_progress(mission_id, {"visited": 2})
-    storage.set_results(mission_id, {"tracking": {"rms_cross_track_m": 0.5}})
+    storage.set_progress(mission_id, MissionProgress(visited=2, reached_at={1: 3.5}))
+    storage.set_results(mission_id, MissionResults(tracking=TRACKING))
     storage.set_status(mission_id, "completed")
     storage.close()
 
@@ -100,11 +109,23 @@ def test_history_and_telemetry_survive_a_restart(open_db):
     record = reopened.get_mission(mission_id)
     assert record.status == "completed"
     assert record.plan == PLAN and record.flight == FLIGHT
-    assert record.progress == {"visited": 2}
-    assert record.results["tracking"]["rms_cross_track_m"] == 0.5
+    assert record.progress == MissionProgress(visited=2, reached_at={1: 3.5})
+    assert record.results == MissionResults(tracking=TRACKING)
     assert reopened.telemetry_count(mission_id) == 25
     assert [s["t_s"] for s in reopened.telemetry(mission_id, limit=3)] == pytest.approx([0.0, 0.1, 0.2])
     assert [m.id for m in reopened.list_missions()] == [mission_id]
+
+
+def test_documents_an_earlier_version_stored_are_read_with_defaults_and_unknown_keys_ignored(storage):
+    mission_id = storage.create_mission(FLIGHT, PLAN)
+    with storage.transaction() as db:  # as a service of two releases ago wrote them: fewer keys, one since removed
+        db.execute(
+            "UPDATE missions SET progress = ?, results = ? WHERE id = ?",
+            ('{"visited": 1, "reached_at": {"1": 2.5}, "retired": true}', '{"buoys": []}', mission_id),
+        )
+    record = storage.get_mission(mission_id)
+    assert record.progress == MissionProgress(visited=1, reached_at={1: 2.5})
+    assert record.results == MissionResults(buoys=[])
 
 
 def test_failed_transaction_leaves_nothing(storage):
@@ -251,7 +272,9 @@ def test_missions_of_a_fleet_keep_their_vehicle_and_fleet_and_restart_per_vehicl
 def test_a_fleet_mission_and_its_parts_are_stored_together_or_not_at_all(storage):
     before = storage.latest_version()
     with pytest.raises(ValueError):  # the second part's plan cannot be stored (NaN is not JSON)
-        storage.create_fleet_mission(FLIGHT, PLAN, [(FLIGHT, PLAN, 1), (FLIGHT, {"length_m": float("nan")}, 2)])
+        storage.create_fleet_mission(
+            FLIGHT, PLAN, [(FLIGHT, PLAN, 1), (FLIGHT, dataclasses.replace(PLAN, length_m=float("nan")), 2)]
+        )
     assert storage.list_missions() == [] and storage.latest_version() == before
 
 
@@ -282,8 +305,8 @@ def test_every_write_to_a_mission_raises_its_version_above_all_others(storage):
     seen = storage.latest_version()
     for write in (
         lambda: storage.set_status(first, "uploading"),
-        lambda: storage.set_progress(first, {"current_seq": 2}),
-        lambda: storage.set_results(first, {"buoys": []}),
+        lambda: storage.set_progress(first, MissionProgress(current_seq=2)),
+        lambda: storage.set_results(first, MissionResults(buoys=[])),
     ):
         write()
         assert storage.mission_version(first) == storage.latest_version() > seen
@@ -327,7 +350,7 @@ def test_concurrent_writers_on_one_database_keep_versions_unique_and_visible_in_
             mission_id = storage.create_mission(FLIGHT, PLAN)
             versions.append(storage.mission_version(mission_id))
             for step in range(4):
-                storage.set_progress(mission_id, {"current_seq": step})
+                storage.set_progress(mission_id, MissionProgress(current_seq=step))
                 versions.append(storage.mission_version(mission_id))
         return versions
 
@@ -402,8 +425,8 @@ def test_a_read_does_not_wait_for_an_open_write(postgres_url):
             db.execute("SELECT pg_advisory_xact_lock(?)", (VERSION_LOCK,))
             db.execute("UPDATE missions SET progress = '{\"current_seq\": 9}' WHERE id = ?", (mission_id,))
             (record,) = _in_threads(lambda: storage.get_mission(mission_id))  # another thread reads meanwhile
-            assert record.progress == {}  # it read the committed state, without waiting for this write
-        assert storage.get_mission(mission_id).progress == {"current_seq": 9}
+            assert record.progress == MissionProgress()  # it read the committed state, without waiting for this write
+        assert storage.get_mission(mission_id).progress == MissionProgress(current_seq=9)
     finally:
         storage.close()
 

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
+from stored_missions import FLIGHT, PLAN
 
 from gcs.domain.status import MissionStatus
 from gcs.storage import SqliteStorage, Storage
@@ -57,7 +58,7 @@ def storage(tmp_path) -> Storage:
 
 
 def new_mission(storage: Storage) -> int:
-    return storage.create_mission({"altitude_m": 5.0}, {"order": [0], "length_m": 1.0})
+    return storage.create_mission(FLIGHT, PLAN)
 
 
 def test_reads_and_writes_run_in_threads_and_writes_keep_their_order(storage):
@@ -72,11 +73,11 @@ def test_reads_and_writes_run_in_threads_and_writes_keep_their_order(storage):
             original(*args)
 
         storage.set_status = record_thread  # type: ignore[method-assign]
-        mission = await facade.create_mission({"altitude_m": 5.0}, {"order": [0], "length_m": 1.0})
+        mission = await facade.create_mission(FLIGHT, PLAN)
         statuses = [MissionStatus.UPLOADING, MissionStatus.UPLOADED, MissionStatus.FLYING, MissionStatus.COMPLETED]
         await asyncio.gather(*(facade.set_status(mission, status) for status in statuses))  # issued in this order
         record = await facade.get_mission(mission)
-        assert [event["status"] for event in record.events] == ["planned", *statuses]
+        assert [event.status for event in record.events] == ["planned", *statuses]
         assert loop_thread not in seen and len(set(seen)) == 1  # one writer thread, never the loop's
         await facade.close()
 
@@ -108,7 +109,7 @@ def test_a_read_already_begun_is_not_joined_by_a_caller_whose_write_it_may_have_
         counting.hold = True
         early = asyncio.ensure_future(facade.latest_version())
         assert await asyncio.to_thread(counting.began.wait, WAIT_S)  # it has read: no mission yet, version 0
-        await facade.create_mission({"altitude_m": 5.0}, {"order": [0], "length_m": 1.0})  # version 1 committed
+        await facade.create_mission(FLIGHT, PLAN)  # version 1 committed
         late = await facade.latest_version()  # asked after the write: must see it, so it reads anew
         counting.release.set()
         assert (await early, late) == (0, 1)

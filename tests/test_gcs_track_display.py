@@ -12,7 +12,6 @@ from fastapi.testclient import TestClient
 from bench.long_mission import SAMPLES, store_long_mission
 from bench.processes import free_udp_port
 from gcs.api.app import create_app
-from gcs.domain.planning import Plan
 from gcs.domain.schemas import TelemetrySample
 from gcs.reports.track_display import arrival_indices, evenly_spaced, extremes_per_bucket, simplify_track
 from gcs.settings import Settings
@@ -132,7 +131,7 @@ def test_the_display_track_of_a_two_hour_mission(long_mission):
             cursor += 1
         kept.append(cursor)
     assert kept[0] == 0 and kept[-1] == SAMPLES - 1
-    frame = Plan.from_dict(client.portal.call(client.app.state.service.get, mission_id).plan).frame
+    frame = client.portal.call(client.app.state.service.get, mission_id).plan.frame
     local = frame.project(recorded)
     assert deviations(local, np.array(kept)).max() <= track["tolerance_m"] + 1e-6
 

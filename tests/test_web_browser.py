@@ -25,9 +25,12 @@ from ardupilot_double import ArduCopterDouble
 from playwright.sync_api import Browser, Page, Playwright, expect, sync_playwright
 from service_process import serving
 from sitl_process import SitlProcess
+from stored_missions import SORTIES_FLOWN
 
 from bench.long_mission import store_long_mission
 from bench.processes import free_port, stop_process
+from gcs.domain.records import MissionProgress
+from gcs.domain.schemas import PreflightCheck
 from gcs.storage import open_storage
 from stack.demo import reference_request
 from stack.options import UpOptions
@@ -321,13 +324,6 @@ def test_a_two_hour_mission_opens_with_its_track_drawn(service_with_a_long_missi
     assert errors == []
 
 
-# What the vehicle reported after each flown sortie (gcs.missions.recorder's sorties_flown): the third never flew.
-SORTIES_FLOWN = [
-    {"sortie": 0, "used_energy_wh": 10.4, "landing_charge_pct": 34.0, "battery_warning": None},
-    {"sortie": 1, "used_energy_wh": 12.9, "landing_charge_pct": 14.0, "battery_warning": "low"},
-]
-
-
 def post_json(url: str, body: dict) -> dict:
     request = urllib.request.Request(url, json.dumps(body).encode(), {"Content-Type": "application/json"})
     with urllib.request.urlopen(request, timeout=60) as answer:
@@ -341,20 +337,20 @@ def aborted_in_third_sortie(storage_path: Path, mission: dict) -> None:
     storage = open_storage(storage_path)
     storage.set_progress(
         mission["id"],
-        {
-            "current_seq": None,
-            "total": None,
-            "mission_state": None,
-            "reached_seqs": [],
-            "visited": len(first_two),
-            "buoys": len(mission["order"]),
-            "reached_at": {str(b): 100.0 + k for k, b in enumerate(first_two)},
-            "vehicle_events": [],
-            "sortie": 2,
-            "sorties": 3,
-            "visited_buoys": sorted(first_two),
-            "sorties_flown": SORTIES_FLOWN,
-        },
+        MissionProgress(
+            current_seq=None,
+            total=None,
+            mission_state=None,
+            reached_seqs=[],
+            visited=len(first_two),
+            buoys=len(mission["order"]),
+            reached_at={b: 100.0 + k for k, b in enumerate(first_two)},
+            vehicle_events=[],
+            sortie=2,
+            sorties=3,
+            visited_buoys=sorted(first_two),
+            sorties_flown=SORTIES_FLOWN,
+        ),
     )
     storage.set_status(mission["id"], "aborted", "battery critical in sortie 3 of 3")
     storage.close()
@@ -627,9 +623,9 @@ def test_a_mission_waiting_for_a_battery_swap_asks_for_it_and_shows_its_prefligh
         request = {**reference_request(UpOptions()), "battery": {"capacity_mah": 1000}, "start": False}
         created = post_json(f"{url}/missions", request)
         storage = open_storage(tmp_path / "gcs.sqlite")
-        check = {"sortie": 0, "needed_pct": 71.4, "energy_wh": 10.2, "reserve_pct": 15.0, "remaining_pct": 100.0,
-                 "override": False}  # fmt: skip
-        storage.set_progress(created["id"], {"sortie": 1, "sorties": 3, "visited": 4, "preflight": [check]})
+        check = PreflightCheck(sortie=0, needed_pct=71.4, energy_wh=10.2, reserve_pct=15.0, remaining_pct=100.0,
+                               override=False)  # fmt: skip
+        storage.set_progress(created["id"], MissionProgress(sortie=1, sorties=3, visited=4, preflight=[check]))
         waiting = "sortie 2 needs 74 % (10.6 Wh predicted, landing with the 15 % reserve); the vehicle reports 16 %"
         storage.set_status(created["id"], "flying", "sortie 1 of 3")
         storage.set_status(created["id"], "waiting_for_battery", waiting)

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from gcs.domain.records import PlanEnergy, PlanFleet
 from planner import plan_tour
 from planner.distances import closed_tour_length, euclidean_matrix
 from uavcore.geodesy import LocalFrame
@@ -52,9 +53,9 @@ class Plan:
     # (their concatenation is `order`); None for one tour. `energy` is the battery budget and each sortie's
     # predicted energy (gcs.missions.energy_planning), None when the request asked for no energy planning.
     sorties: list[list[int]] | None = None
-    energy: dict[str, Any] | None = None
+    energy: PlanEnergy | None = None
     # A fleet mission (gcs.missions.fleet_planning): its shares, one part mission per vehicle; None otherwise
-    fleet: dict[str, Any] | None = None
+    fleet: PlanFleet | None = None
 
     def sortie_orders(self) -> list[list[int]]:
         """Each sortie's buoys in flying order: one sortie (the whole tour) unless the plan splits it."""
@@ -95,11 +96,23 @@ class Plan:
         return sum(len(order) + 1 for order in self.sortie_orders()[:sortie])
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        """As stored (JSON)."""
+        sections = {
+            "energy": None if self.energy is None else self.energy.model_dump(mode="json"),
+            "fleet": None if self.fleet is None else self.fleet.model_dump(mode="json"),
+        }
+        return asdict(replace(self, energy=None, fleet=None)) | sections
 
     @staticmethod
     def from_dict(data: dict[str, Any]) -> Plan:
-        return Plan(**{**data, "depot": tuple(data["depot"])})
+        energy, fleet = data.get("energy"), data.get("fleet")
+        return Plan(
+            **{**data, "depot": tuple(data["depot"])}
+            | {
+                "energy": None if energy is None else PlanEnergy.model_validate(energy),
+                "fleet": None if fleet is None else PlanFleet.model_validate(fleet),
+            }
+        )
 
 
 def fenced_legs(depot: tuple[float, float], lat_lon: np.ndarray, fence: Geofence) -> dict[tuple[int, int], str]:
@@ -157,7 +170,7 @@ def sorties_plan(
     sorties: list[list[int]],
     method: str,
     elapsed_s: float,
-    energy: dict[str, Any] | None = None,
+    energy: PlanEnergy | None = None,
 ) -> Plan:
     """The Plan of given sorties (buoy indices, 0-based, in flying order; one sortie: a single tour)."""
     lat_lon, local, distance = local_nodes(depot, buoys)

@@ -313,6 +313,14 @@ class FleetOut(BaseModel):
     separation: SeparationOut
 
 
+class StatusEvent(BaseModel):
+    """One entry of a mission's status history."""
+
+    at: str
+    status: MissionStatus
+    reason: str | None = None
+
+
 FLEET_ID = "the fleet mission this mission is a part of (null: not a part; a fleet mission's kind is `fleet`)"
 
 
@@ -344,7 +352,7 @@ class MissionOut(BaseModel):
     progress: Progress
     buoy_results: list[BuoyResult]
     tracking: TrackingFigures | None
-    events: list[dict[str, Any]]
+    events: list[StatusEvent]
 
 
 class MissionSummary(BaseModel):

@@ -23,11 +23,11 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from gcs.domain.planning import FlightParams, Plan, local_nodes, make_plan, sorties_plan
+from gcs.domain.records import PlanEnergy, SortiePrediction
 from gcs.domain.schemas import BatteryIn, PlanRequest
 from gcs.missions.validation import RequestInvalidError
 from planner.energy import EnergyModel, RouteFlight, WindForecast, calibrated_sortie_cost, route_energy
@@ -141,8 +141,8 @@ def charge_needed(plan: Plan, sortie: int, flight: FlightParams, pack: PackSpec,
     own prediction (its reserve, its wind forecast); otherwise the same route energy model in calm air with the
     pack's BAT_LOW_THR as the reserve, so a tour flown as predicted lands before the low-battery warning."""
     if plan.energy is not None:
-        entry = plan.energy["sorties"][sortie]
-        return ChargeNeed(entry["energy_wh"], plan.energy["reserve_pct"], entry["needed_charge_pct"])
+        entry = plan.energy.sorties[sortie]
+        return ChargeNeed(entry.energy_wh, plan.energy.reserve_pct, entry.needed_charge_pct)
     points = np.vstack([[0.0, 0.0], np.asarray(plan.buoys_local, dtype=float).reshape(-1, 2)])
     energy_wh, _ = sortie_energy(points, plan.sortie_orders()[sortie], route_flight(flight), WindForecast(), model)
     landing = pack.charge_after(energy_wh, 1.0, steady_load_w(model))
@@ -215,7 +215,7 @@ def sortie_energy(
     return result.energy_wh, result.time_s
 
 
-def predictions(estimates: list[tuple[float, float]], battery: BatteryPlan, model: EnergyModel) -> dict[str, Any]:
+def predictions(estimates: list[tuple[float, float]], battery: BatteryPlan, model: EnergyModel) -> PlanEnergy:
     """The plan's energy section from each sortie's predicted (energy Wh, time s): the battery, the budget and,
     per sortie, the predicted energy and time, the margin left in the budget and the charge predicted at landing."""
     energies = budget(battery, model)
@@ -224,25 +224,25 @@ def predictions(estimates: list[tuple[float, float]], battery: BatteryPlan, mode
     for energy_wh, time_s in estimates:
         landing = battery.pack.charge_after(energy_wh, 1.0, load)
         per_sortie.append(
-            {
-                "energy_wh": energy_wh,
-                "time_s": time_s,
-                "margin_wh": energies["budget_wh"] - energy_wh,
-                "margin_pct": 100.0 * (energies["budget_wh"] - energy_wh) / energies["budget_wh"],
-                "landing_charge_pct": 100.0 * landing,
+            SortiePrediction(
+                energy_wh=energy_wh,
+                time_s=time_s,
+                margin_wh=energies["budget_wh"] - energy_wh,
+                margin_pct=100.0 * (energies["budget_wh"] - energy_wh) / energies["budget_wh"],
+                landing_charge_pct=100.0 * landing,
                 # the charge the vehicle must have at take-off to land with the reserve
-                "needed_charge_pct": 100.0 * (1.0 - landing + battery.reserve),
-            }
+                needed_charge_pct=100.0 * (1.0 - landing + battery.reserve),
+            )
         )
-    return {
+    return PlanEnergy(
         **energies,
-        "reserve_pct": 100.0 * battery.reserve,
-        "reserve_source": battery.reserve_source,
-        "margin_pct": battery.margin_pct,
-        "pack": dataclasses.asdict(battery.pack),
-        "pack_source": battery.pack_source,
-        "wind": dataclasses.asdict(battery.wind),
-        "objective": battery.objective,
-        "split": battery.split,
-        "sorties": per_sortie,
-    }
+        reserve_pct=100.0 * battery.reserve,
+        reserve_source=battery.reserve_source,
+        margin_pct=battery.margin_pct,
+        pack=dataclasses.asdict(battery.pack),
+        pack_source=battery.pack_source,
+        wind=dataclasses.asdict(battery.wind),
+        objective=battery.objective,
+        split=battery.split,
+        sorties=per_sortie,
+    )

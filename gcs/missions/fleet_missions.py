@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 
 from gcs.domain.planning import Plan, sorties_plan
-from gcs.domain.schemas import MissionRequest
+from gcs.domain.records import MissionProgress, MissionResults, ShareProgress
+from gcs.domain.schemas import MissionRequest, SeparationOut
 from gcs.domain.status import TERMINAL, MissionStatus
 from gcs.missions.fleet_planning import reshare
 from gcs.missions.lifecycle import MissionConflictError
@@ -103,18 +104,24 @@ def _vehicle_of(part: MissionRecord) -> int:
     return part.vehicle_sysid
 
 
-def shares_progress(fleet: MissionRecord, parts: list[MissionRecord]) -> dict[str, Any]:
+def shares_progress(fleet: MissionRecord, parts: list[MissionRecord]) -> MissionProgress:
     """Each share's part mission, status and inspected buoys (input indices of the fleet mission)."""
-    shares = []
-    for share, part in zip(fleet.plan["fleet"]["shares"], parts, strict=True):
-        visited = [share["buoys"][i] for i in part.progress.get("visited_buoys", [])]
-        shares.append({"sysid": share["sysid"], "mission_id": part.id, "status": part.status, "visited": visited})
-    return {
-        "shares": shares,
-        "visited": sum(len(s["visited"]) for s in shares),
-        "buoys": len(fleet.plan["buoy_ids"]),
-        "visited_buoys": sorted(b for s in shares for b in s["visited"]),
-    }
+    assert fleet.plan.fleet is not None  # a fleet mission's plan has its fleet section
+    shares = [
+        ShareProgress(
+            sysid=share.sysid,
+            mission_id=part.id,
+            status=part.status,
+            visited=[share.buoys[i] for i in part.progress.visited_buoys],
+        )
+        for share, part in zip(fleet.plan.fleet.shares, parts, strict=True)
+    ]
+    return MissionProgress(
+        shares=shares,
+        visited=sum(len(s.visited) for s in shares),
+        buoys=len(fleet.plan.buoy_ids),
+        visited_buoys=sorted(b for s in shares for b in s.visited),
+    )
 
 
 def fleet_ending(fleet: MissionRecord, parts: list[MissionRecord]) -> tuple[MissionStatus, str | None]:
@@ -122,14 +129,14 @@ def fleet_ending(fleet: MissionRecord, parts: list[MissionRecord]) -> tuple[Miss
     buoy was inspected by someone (a lost vehicle's share re-shared to the others counts: the loss is in the
     events and the shares); else failed, naming each vehicle that did not complete and the buoys not inspected."""
     progress = shares_progress(fleet, parts)
-    ids = fleet.plan["buoy_ids"]
-    missed = [ids[b] for b in range(len(ids)) if b not in set(progress["visited_buoys"])]
+    ids = fleet.plan.buoy_ids
+    missed = [ids[b] for b in range(len(ids)) if b not in set(progress.visited_buoys)]
     aborted = any(part.status == MissionStatus.ABORTED for part in parts)
     if not missed and not aborted:
         return MissionStatus.COMPLETED, None
     problems = [
-        f"vehicle {share['sysid']} {part.status}" + (f" ({part.reason})" if part.reason else "")
-        for share, part in zip(progress["shares"], parts, strict=True)
+        f"vehicle {share.sysid} {part.status}" + (f" ({part.reason})" if part.reason else "")
+        for share, part in zip(progress.shares, parts, strict=True)
         if part.status != MissionStatus.COMPLETED
     ]
     reason = "; ".join(problems) + (f"; not inspected: {', '.join(missed)}" if missed else "")
@@ -210,12 +217,12 @@ class FleetCoordinator:
     async def _follow_parts(self, fleet_id: int) -> None:
         fleet = await self.storage.existing_mission(fleet_id)
         parts = await self.storage.fleet_parts(fleet_id)
-        frame = Plan.from_dict(fleet.plan).frame
+        frame = fleet.plan.frame
         monitor = SeparationMonitor(frame, {sysid: self._link_of(sysid) for sysid in map(_vehicle_of, parts)})
         monitor.start()
         if fleet.status != MissionStatus.FLYING:
             await self.storage.set_status(fleet_id, MissionStatus.FLYING)
-        stored: dict[str, Any] | None = None
+        stored: MissionProgress | None = None
         lost: set[int] = {p.id for p in parts if p.status == MissionStatus.FAILED}  # before a restart: handled
         try:
             while True:
@@ -233,11 +240,10 @@ class FleetCoordinator:
                 await asyncio.sleep(POLL_S)
         finally:
             monitor.stop()
-        ids = fleet.plan["buoy_ids"]
-        inspected_by = {ids[b]: share["sysid"] for share in progress["shares"] for b in share["visited"]}
-        await self.storage.set_results(
-            fleet_id, {"separation": asdict(monitor.separation), "inspected_by": inspected_by}
-        )
+        ids = fleet.plan.buoy_ids
+        inspected_by = {ids[b]: share.sysid for share in progress.shares for b in share.visited}
+        separation = SeparationOut.model_validate(asdict(monitor.separation))
+        await self.storage.set_results(fleet_id, MissionResults(separation=separation, inspected_by=inspected_by))
         status, reason = fleet_ending(fleet, parts)
         await self.storage.set_status(fleet_id, status, reason)
         log.info("fleet mission %s %s%s", fleet_id, status, f": {reason}" if reason else "")
@@ -248,15 +254,15 @@ class FleetCoordinator:
         """A part ended failed (its vehicle lost, or a failsafe brought it down): its buoys not inspected go to the
         vehicles still flying their shares (gcs.missions.fleet_planning.reshare), each uploaded in flight as its part's
         new plan. The fleet mission's plan records who took what; its events say so. Returns the fleet re-read."""
-        plan = Plan.from_dict(fleet.plan)
+        plan = fleet.plan
         assert plan.fleet is not None  # a fleet mission's plan has its fleet section
-        shares = {share["sysid"]: share for share in plan.fleet["shares"]}
+        shares = {share.sysid: share for share in plan.fleet.shares}  # changed in place, stored at the end
         lost_share = shares[_vehicle_of(lost_part)]
-        visited = set(lost_part.progress.get("visited_buoys", []))
-        orphans = [b for i, b in enumerate(lost_share["buoys"]) if i not in visited]
-        lost_share["lost"] = lost_part.reason or "failed"
+        visited = set(lost_part.progress.visited_buoys)
+        orphans = [b for i, b in enumerate(lost_share.buoys) if i not in visited]
+        lost_share.lost = lost_part.reason or "failed"
         # every buoy in the fleet's frame (the overview plan's: the first vehicle's home); a share's buoy i is
-        # buoy share["buoys"][i] there
+        # buoy share.buoys[i] there
         points = np.asarray(plan.buoys_local)
         receivers: dict[int, tuple[MissionRecord, Plan, list[int]]] = {}  # sysid -> part, its plan, buoys left
         # sysid -> (where it is, its buoys left, its home) for reshare
@@ -267,15 +273,15 @@ class FleetCoordinator:
             flying = status.connected and status.armed and not status.mission_complete and status.lat is not None
             if part.status != MissionStatus.FLYING or not flying:
                 continue
-            part_plan, done = Plan.from_dict(part.plan), set(part.progress.get("visited_buoys", []))
+            part_plan, done = part.plan, set(part.progress.visited_buoys)
             left = [i for i in part_plan.order if i not in done]
             share = shares[sysid]
-            here, home = plan.frame.project([[status.lat, status.lon], share["home"]])
+            here, home = plan.frame.project(np.array([[status.lat, status.lon], share.home], dtype=float))
             receivers[sysid] = (part, part_plan, left)
-            positions[sysid] = (here, points[[share["buoys"][i] for i in left]].reshape(-1, 2), home)
+            positions[sysid] = (here, points[[share.buoys[i] for i in left]].reshape(-1, 2), home)
         handed: dict[int, list[int]] = {}
         if orphans and receivers:
-            routes = reshare(positions, points[orphans], fleet.flight["speed_m_s"], fleet.flight["dwell_s"])
+            routes = reshare(positions, points[orphans], fleet.flight.speed_m_s, fleet.flight.dwell_s)
             for sysid, (part, part_plan, left) in receivers.items():
                 new_order, added = [], []  # in the part's buoy indices; the lost buoys it takes, appended
                 for node in routes[sysid]:
@@ -298,10 +304,10 @@ class FleetCoordinator:
                     self._replan(part, new_plan)
                 except MissionConflictError:  # it landed or ended meanwhile: the buoys stay not inspected
                     continue
-                shares[sysid]["buoys"] = [*shares[sysid]["buoys"], *added]
+                shares[sysid].buoys = [*shares[sysid].buoys, *added]
                 handed[sysid] = added
-        lost_share["handed_over"] = {str(sysid): buoys for sysid, buoys in handed.items()}
-        await self.storage.set_plan(fleet.id, plan.to_dict())
+        lost_share.handed_over = {str(sysid): buoys for sysid, buoys in handed.items()}
+        await self.storage.set_plan(fleet.id, plan)
         names = {sysid: ", ".join(plan.buoy_ids[b] for b in buoys) for sysid, buoys in handed.items()}
         given = "; ".join(f"{names[sysid]} to vehicle {sysid}" for sysid in names) or "nobody left to take its buoys"
         why = f" ({lost_part.reason})" if lost_part.reason else ""

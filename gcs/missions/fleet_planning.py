@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from gcs.domain.planning import Plan, sorties_plan
+from gcs.domain.records import PlanFleet, PlannedShare
 from planner.fleet import DEFAULT_TAKEOFF_LANDING_S, plan_fleet
 from uavcore.geodesy import LocalFrame
 
@@ -43,25 +43,25 @@ class FleetMissionPlan:
     elapsed_s: float
     layer_gap_m: float
 
-    def to_dict(self) -> dict[str, Any]:
+    def plan_section(self) -> PlanFleet:
         """The fleet section of the fleet mission's plan (`Plan.fleet`: the plan itself has the buoys, their ids,
         the method and the planner's time; each part stores its own plan)."""
-        return {
-            "makespan_s": self.makespan_s,
-            "total_time_s": self.total_time_s,
-            "layer_gap_m": self.layer_gap_m,
-            "shares": [
-                {
-                    "sysid": s.sysid,
-                    "home": list(s.plan.depot),
-                    "buoys": s.buoys,
-                    "altitude_m": s.altitude_m,
-                    "predicted_time_s": s.predicted_time_s,
-                    "length_m": s.plan.length_m,
-                }
+        return PlanFleet(
+            makespan_s=self.makespan_s,
+            total_time_s=self.total_time_s,
+            layer_gap_m=self.layer_gap_m,
+            shares=[
+                PlannedShare(
+                    sysid=s.sysid,
+                    home=list(s.plan.depot),
+                    buoys=s.buoys,
+                    altitude_m=s.altitude_m,
+                    predicted_time_s=s.predicted_time_s,
+                    length_m=s.plan.length_m,
+                )
                 for s in self.shares
             ],
-        }
+        )
 
 
 def plan_fleet_mission(

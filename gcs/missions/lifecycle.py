@@ -42,6 +42,8 @@ import time
 from typing import Any
 
 from gcs.domain.planning import FIRST_BUOY_SEQ, FlightParams, Plan, mission_items
+from gcs.domain.records import MissionProgress
+from gcs.domain.schemas import PreflightCheck, VehicleEvent
 from gcs.domain.status import TERMINAL, MissionStatus
 from gcs.missions.energy_planning import ChargeNeed, charge_needed, model_pack
 from gcs.missions.recorder import MissionRecorder
@@ -113,13 +115,13 @@ def ended_early(recorder: MissionRecorder) -> MissionEndError:
     BATT_FS_CRT_ACT says), with the buoys not inspected; failed after anything else."""
     progress = recorder.progress()
     if recorder.battery_failsafe:
-        said = f" ({battery_failsafe_text([e['text'] for e in recorder.vehicle_events])})"
+        said = f" ({battery_failsafe_text([e.text for e in recorder.vehicle_events])})"
         return MissionEndError(
             MissionStatus.ABORTED,
-            f"battery failsafe{said}: the vehicle came down with {progress['visited']} of {progress['buoys']} buoys "
+            f"battery failsafe{said}: the vehicle came down with {progress.visited} of {progress.buoys} buoys "
             f"inspected; not inspected: {', '.join(recorder.not_inspected())}",
         )
-    reason = ended_early_reason(recorder.vehicle_events, progress["visited"], progress["buoys"])
+    reason = ended_early_reason(recorder.vehicle_events, progress.visited, progress.buoys)
     return MissionEndError(MissionStatus.FAILED, reason)
 
 
@@ -133,10 +135,10 @@ def battery_failsafe_text(texts: list[str]) -> str:
     return texts[said[-1]] if said else "battery critical"
 
 
-def ended_early_reason(events: list[dict[str, Any]], visited: int, buoys: int) -> str:
+def ended_early_reason(events: list[VehicleEvent], visited: int, buoys: int) -> str:
     """Why a mission ended with the vehicle disarmed before completing it: its failsafe, when it reported one
     (the last "Failsafe..." STATUSTEXT and the mode change that followed it), else the plain fact."""
-    texts = [event["text"] for event in events]
+    texts = [event.text for event in events]
     failsafes = [i for i, text in enumerate(texts) if text.lower().startswith("failsafe")]
     count = f"{visited} of {buoys} buoys visited"
     if not failsafes:
@@ -237,7 +239,7 @@ class FlightLifecycle:
         return {
             "id": active,
             "status": self._statuses.get(active, MissionStatus.PLANNED),
-            "progress": recorder.progress() if recorder else None,
+            "progress": recorder.progress().model_dump(mode="json") if recorder else None,
             "sample": recorder.latest if recorder else None,
             "first_buoy_seq": FIRST_BUOY_SEQ,
         }
@@ -248,7 +250,7 @@ class FlightLifecycle:
 
     async def _run(self, mission_id: int, resume: bool = False) -> None:
         record = await self.storage.existing_mission(mission_id)
-        plan, flight = Plan.from_dict(record.plan), FlightParams(**record.flight)
+        plan, flight = record.plan, record.flight
         recorder = MissionRecorder(self.link, plan, self.settings.telemetry_period_s, flight.acceptance_radius_m)
         status = MissionStatus.FAILED
         reason: str | None = "internal error"  # MissionEndError's reason may be None
@@ -300,7 +302,7 @@ class FlightLifecycle:
             await self.storage.set_results(mission_id, flight_results(plan, flight, samples, progress))
         await self._transition(mission_id, status, reason)
 
-    async def _detach(self, mission_id: int, recorder: MissionRecorder) -> dict[str, Any]:
+    async def _detach(self, mission_id: int, recorder: MissionRecorder) -> MissionProgress:
         """Stop recording a mission, storing all it recorded: its samples and progress (returned). A mission
         that goes on flying (`stop(hand_over=True)`) is left there; `_finish` goes on to end it."""
         self.link.remove_listener(recorder, recorder.end_of_chunk)
@@ -373,8 +375,8 @@ class FlightLifecycle:
         """Before arming for `sortie`: its predicted energy against the charge the vehicle reports (module doc)."""
         need = await self._charge_need(plan, flight, sortie)
         remaining = await self._battery_remaining()
-        check = {"sortie": sortie, "needed_pct": need.needed_pct, "energy_wh": need.energy_wh,
-                 "reserve_pct": need.reserve_pct, "remaining_pct": remaining, "override": False}  # fmt: skip
+        check = PreflightCheck(sortie=sortie, needed_pct=need.needed_pct, energy_wh=need.energy_wh,
+                               reserve_pct=need.reserve_pct, remaining_pct=remaining, override=False)  # fmt: skip
         short = remaining is not None and remaining < need.needed_pct
         if remaining is None:  # no battery monitor reported: nothing to check against, and the record says so
             await self._note(
@@ -382,7 +384,7 @@ class FlightLifecycle:
                 f"pre-flight check not made: the vehicle reports no charge; the sortie needs {need_text(need)}",
             )
         elif short and flight.override:
-            check["override"] = True
+            check.override = True
             await self._note(
                 mission_id,
                 f"pre-flight check overridden by the request: the vehicle reports {charge_text(remaining)}, "
@@ -397,8 +399,8 @@ class FlightLifecycle:
                 'pack (POST /vehicles/{sysid}/battery-swap), or fly it anyway with "override": true',
             )
         elif short:
-            check["remaining_pct"] = remaining = await self._wait_for_battery(mission_id, recorder, sortie, need)
-            check["swapped"] = True
+            check.remaining_pct = remaining = await self._wait_for_battery(mission_id, recorder, sortie, need)
+            check.swapped = True
         recorder.preflight(check)
         await self.storage.set_progress(mission_id, recorder.progress())  # the check is on record before the arming
 
@@ -513,7 +515,7 @@ class FlightLifecycle:
         await self.link.upload_mission(items, self.link.status.home or self.settings.home)
         await self.link.set_current_item(FIRST_BUOY_SEQ - 1)  # the take-off is behind it; the speed, then buoys
         recorder.mission_uploaded()
-        await self.storage.set_plan(mission_id, plan.to_dict())
+        await self.storage.set_plan(mission_id, plan)
         await self._transition(mission_id, MissionStatus.FLYING, f"re-planned in flight: {added} more buoys")
 
     async def _monitor(
@@ -534,7 +536,7 @@ class FlightLifecycle:
         disarmed_since: float | None = None
         was_armed = armed  # "finished" counts only after the vehicle flew this sortie (not a stale report)
         aborting = False
-        last_progress: dict[str, Any] | None = None
+        last_progress: MissionProgress | None = None
         while True:
             await asyncio.sleep(FLUSH_PERIOD_S)
             s = self.link.status  # a new vehicle on the link gets a new status object

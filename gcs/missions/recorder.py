@@ -31,7 +31,8 @@ import numpy as np
 
 from gcs.domain import tracking_metrics
 from gcs.domain.planning import FIRST_BUOY_SEQ, Plan, buoy_of_seq, leg_of_seq
-from gcs.domain.schemas import TELEMETRY_FROM_STATUS, TelemetrySample
+from gcs.domain.records import MissionProgress, SortieFlown
+from gcs.domain.schemas import TELEMETRY_FROM_STATUS, PreflightCheck, TelemetrySample, VehicleEvent
 from gcs.vehicle.link import LinkManager
 from uavcore.mavlink import statustext
 
@@ -59,7 +60,7 @@ class MissionRecorder:
         self.current_seq: int | None = None  # this sortie's current item, from MISSION_CURRENT after the upload
         self.last_fix: tuple[float, float, float] | None = None  # (vehicle s, east, north) of the last position
         self.unwatched = False  # a sortie re-attached after a restart: its sequencing counts as visits too
-        self.sorties_flown: list[dict[str, Any]] = []  # each flown sortie's battery figures
+        self.sorties_flown: list[SortieFlown] = []  # each flown sortie's battery figures
         self.consumed_at_start: float | None = None
         self.worst_charge_state = 0
         self.samples: list[dict[str, Any]] = []
@@ -68,26 +69,26 @@ class MissionRecorder:
         self.reached_at: dict[int, float] = {}  # buoy index -> vehicle time
         self.latest: dict[str, Any] | None = None
         self.route = self.plan.route_local()
-        self.vehicle_events: list[dict[str, Any]] = []  # {t_s, text}: the vehicle's STATUSTEXTs, mode changes
+        self.vehicle_events: list[VehicleEvent] = []  # the vehicle's STATUSTEXTs and mode changes
         self.preflight_checks: list[
-            dict[str, Any]
+            PreflightCheck
         ] = []  # each sortie's pre-flight charge check (gcs.missions.lifecycle)
         self.custom_mode: int | None = None
         self.sample_due = False
 
-    def restore(self, progress: dict[str, Any]) -> None:
+    def restore(self, progress: MissionProgress) -> None:
         """Continue from the progress a previous run of the service stored (re-attaching after a restart)."""
-        self._on_board(int(progress.get("sortie") or 0))
-        self.visited = set(progress.get("visited_buoys") or [])
+        self._on_board(progress.sortie or 0)
+        self.visited = set(progress.visited_buoys)
         self.uploaded = True  # a re-attached sortie is the one on board (the lifecycle compared it item by item)
         self.unwatched = True
-        self.sorties_flown = list(progress.get("sorties_flown") or [])
-        self.consumed_at_start = progress.get("consumed_at_start")
-        self.reached_seqs = list(progress.get("reached_seqs") or [])
-        self.reached_at = {int(k): float(v) for k, v in (progress.get("reached_at") or {}).items()}
+        self.sorties_flown = list(progress.sorties_flown)
+        self.consumed_at_start = progress.consumed_at_start
+        self.reached_seqs = list(progress.reached_seqs)
+        self.reached_at = dict(progress.reached_at)
         # the current item is not restored: the vehicle flew on unwatched, and its next MISSION_CURRENT says where
-        self.vehicle_events = list(progress.get("vehicle_events") or [])
-        self.preflight_checks = list(progress.get("preflight") or [])
+        self.vehicle_events = list(progress.vehicle_events)
+        self.preflight_checks = list(progress.preflight)
 
     def _on_board(self, sortie: int) -> None:
         self.sortie, self.plan = sortie, self.mission_plan.sortie_plan(sortie)
@@ -109,9 +110,9 @@ class MissionRecorder:
         MISSION_ITEM_REACHED are this sortie's."""
         self.uploaded, self.current_seq, self.reached_seqs = True, None, []
 
-    def preflight(self, check: dict[str, Any]) -> None:
+    def preflight(self, check: PreflightCheck) -> None:
         """The pre-flight charge check of the sortie about to fly: kept with the mission's progress."""
-        self.preflight_checks = [*(c for c in self.preflight_checks if c["sortie"] != check["sortie"]), check]
+        self.preflight_checks = [*(c for c in self.preflight_checks if c.sortie != check.sortie), check]
 
     def sortie_took_off(self) -> None:
         """Before arming for the sortie: what the battery has delivered so far (the swap zeroes it)."""
@@ -125,13 +126,13 @@ class MissionRecorder:
         if s.battery_consumed_wh is not None and self.consumed_at_start is not None:
             used = s.battery_consumed_wh - self.consumed_at_start
         self.sorties_flown = [
-            *(entry for entry in self.sorties_flown if entry["sortie"] != self.sortie),
-            {
-                "sortie": self.sortie,
-                "used_energy_wh": used,
-                "landing_charge_pct": s.battery_remaining_pct,
-                "battery_warning": CHARGE_STATES.get(self.worst_charge_state),
-            },
+            *(entry for entry in self.sorties_flown if entry.sortie != self.sortie),
+            SortieFlown(
+                sortie=self.sortie,
+                used_energy_wh=used,
+                landing_charge_pct=s.battery_remaining_pct,
+                battery_warning=CHARGE_STATES.get(self.worst_charge_state),
+            ),
         ]
 
     @property
@@ -181,7 +182,10 @@ class MissionRecorder:
 
     def _event(self, text: str) -> None:
         t_ms = self.link.status.time_boot_ms
-        self.vehicle_events = [*self.vehicle_events, {"t_s": None if t_ms is None else t_ms / 1000.0, "text": text}]
+        self.vehicle_events = [
+            *self.vehicle_events,
+            VehicleEvent(t_s=None if t_ms is None else t_ms / 1000.0, text=text),
+        ]
         self.vehicle_events = self.vehicle_events[-VEHICLE_EVENTS_KEPT:]
 
     def __call__(self, message: Any) -> None:
@@ -247,25 +251,25 @@ class MissionRecorder:
         east, north = self.plan.frame.project(np.array([[s.lat, s.lon]]))[0]
         return tracking_metrics.cross_track_m(float(east), float(north), self.route, leg)
 
-    def progress(self) -> dict[str, Any]:
+    def progress(self) -> MissionProgress:
         s = self.link.status
         visited = self.visited_buoys()
-        return {
-            "current_seq": self.current_seq,
-            "total": s.mission_total if self.uploaded else None,
-            "mission_state": s.mission_state if self.uploaded else None,
-            "reached_seqs": list(self.reached_seqs),
-            "visited": len(visited),
-            "buoys": len(self.mission_plan.buoy_ids),
-            "reached_at": {str(k): v for k, v in self.reached_at.items()},
-            "vehicle_events": list(self.vehicle_events),
-            "sortie": self.sortie,
-            "sorties": len(self.mission_plan.sortie_orders()),
-            "visited_buoys": sorted(visited),
-            "sorties_flown": list(self.sorties_flown),
-            "consumed_at_start": self.consumed_at_start,
-            "preflight": list(self.preflight_checks),
-        }
+        return MissionProgress(
+            current_seq=self.current_seq,
+            total=s.mission_total if self.uploaded else None,
+            mission_state=s.mission_state if self.uploaded else None,
+            reached_seqs=list(self.reached_seqs),
+            visited=len(visited),
+            buoys=len(self.mission_plan.buoy_ids),
+            reached_at=dict(self.reached_at),
+            vehicle_events=list(self.vehicle_events),
+            sortie=self.sortie,
+            sorties=len(self.mission_plan.sortie_orders()),
+            visited_buoys=sorted(visited),
+            sorties_flown=list(self.sorties_flown),
+            consumed_at_start=self.consumed_at_start,
+            preflight=list(self.preflight_checks),
+        )
 
     def take(self) -> list[dict[str, Any]]:
         samples, self.samples = self.samples, []

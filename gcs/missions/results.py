@@ -11,6 +11,7 @@ import numpy as np
 
 from gcs.domain import tracking_metrics
 from gcs.domain.planning import FlightParams, Plan, leg_of_seq
+from gcs.domain.records import MissionProgress, MissionResults
 from uavcore.mavlink import mavlink
 
 
@@ -22,7 +23,9 @@ def _airborne(sample: dict[str, Any]) -> bool:
     return (sample.get("alt_m") or 0.0) > 0.5
 
 
-def flight_results(plan: Plan, flight: FlightParams, samples: list[dict[str, Any]], progress: dict[str, Any]) -> dict:
+def flight_results(
+    plan: Plan, flight: FlightParams, samples: list[dict[str, Any]], progress: MissionProgress
+) -> MissionResults:
     """Tracking and per-buoy figures of a recorded flight (pure given its inputs)."""
     located = [s for s in samples if s.get("lat") is not None]
     sortie_sizes = [len(order) for order in plan.sortie_orders()]
@@ -37,9 +40,8 @@ def flight_results(plan: Plan, flight: FlightParams, samples: list[dict[str, Any
         )
         for s, (e, n) in zip(located, en, strict=True)
     ]
-    reached_at = {int(k): float(v) for k, v in (progress.get("reached_at") or {}).items()}
     buoys = tracking_metrics.buoy_figures(
-        np.asarray(plan.buoys_local), [flight.acceptance_radius_m] * len(plan.buoys_local), track, reached_at
+        np.asarray(plan.buoys_local), [flight.acceptance_radius_m] * len(plan.buoys_local), track, progress.reached_at
     )
     for result in buoys:
         result["id"] = plan.buoy_ids[result["index"]]
@@ -51,7 +53,7 @@ def flight_results(plan: Plan, flight: FlightParams, samples: list[dict[str, Any
     ]
     if len(sortie_sizes) > 1:
         figures["flight_time_s"] = sum(t for t in sortie_times if t is not None) if any(sortie_times) else None
-    return {"tracking": figures, "buoys": buoys}
+    return MissionResults.model_validate({"tracking": figures, "buoys": buoys})
 
 
 def _leg(plan: Plan, sortie_sizes: list[int], sortie: int, seq: int | None) -> int | None:

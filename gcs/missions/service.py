@@ -15,7 +15,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 from collections.abc import Sequence
-from dataclasses import asdict, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -190,7 +190,7 @@ class MissionService:
             vehicle.flights.ensure_vehicle_free()
         plan, flight = await self.plan(request)
         flight = replace(flight, override=request.override)
-        mission_id = await self._storage.create_mission(asdict(flight), plan.to_dict(), vehicle_sysid=vehicle.sysid)
+        mission_id = await self._storage.create_mission(flight, plan, vehicle_sysid=vehicle.sysid)
         if request.start:
             try:
                 await self.launch(mission_id)
@@ -223,12 +223,11 @@ class MissionService:
         )
         overview = sorties_plan(first_home, buoys, ids, [[b for s in planned.shares for b in s.buoys]], METHOD,
                                 planned.elapsed_s)  # fmt: skip
-        overview = replace(overview, length_m=sum(s.plan.length_m for s in planned.shares), fleet=planned.to_dict())
-        parts = [
-            (asdict(replace(flight, altitude_m=share.altitude_m)), share.plan.to_dict(), share.sysid)
-            for share in planned.shares
-        ]
-        fleet_id, _ = await self._storage.create_fleet_mission(asdict(flight), overview.to_dict(), parts)
+        overview = replace(
+            overview, length_m=sum(s.plan.length_m for s in planned.shares), fleet=planned.plan_section()
+        )
+        parts = [(replace(flight, altitude_m=share.altitude_m), share.plan, share.sysid) for share in planned.shares]
+        fleet_id, _ = await self._storage.create_fleet_mission(flight, overview, parts)
         fleet = await self.get(fleet_id)
         # its shares' part missions, as the answer names them (the coordinator keeps this progress from here)
         await self._storage.set_progress(fleet_id, shares_progress(fleet, await self._storage.fleet_parts(fleet_id)))
@@ -382,9 +381,8 @@ class MissionService:
     async def mission_file(self, mission_id: int) -> tuple[list[MissionItem], tuple[float, float, float], FlightParams]:
         """What a mission file needs: the mission's items, its home (the depot, on the ground) and flight."""
         record = await self.get(mission_id)
-        plan, flight = Plan.from_dict(record.plan), FlightParams(**record.flight)
-        home = (plan.depot[0], plan.depot[1], 0.0)
-        return mission_items(plan, flight), home, flight
+        home = (record.plan.depot[0], record.plan.depot[1], 0.0)
+        return mission_items(record.plan, record.flight), home, record.flight
 
     async def report_index(self, mission_id: int) -> Path:
         """The mission's report (drawn, or the cached drawing when the mission has not changed): its index.html.

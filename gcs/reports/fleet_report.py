@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from gcs.domain.planning import Plan
+from gcs.domain.schemas import FleetOut, FleetShareOut
 from gcs.reports.drawing import REPORT_STYLE, column, new_figure, save_figure, sortie_style
 from gcs.reports.views import fleet_out
 from gcs.storage import MissionRecord
@@ -29,8 +30,8 @@ def write_fleet_report(
 ) -> Path:
     """Draw the fleet figure and write index.html into out_dir (samples: each part's telemetry by mission id)."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    plan = Plan.from_dict(record.plan)
-    fleet = fleet_out(record, plan)
+    plan = record.plan
+    fleet = fleet_out(record)
     _draw_fleet(plan, fleet, parts, samples, out_dir / FLEET_FIGURE)
     index = out_dir / "index.html"
     index.write_text(fleet_report_html(record, fleet, parts))
@@ -39,7 +40,7 @@ def write_fleet_report(
 
 def _draw_fleet(
     plan: Plan,
-    fleet: dict[str, Any],
+    fleet: FleetOut,
     parts: list[MissionRecord],
     samples: dict[int, list[dict[str, Any]]],
     path: Path,
@@ -48,23 +49,23 @@ def _draw_fleet(
     frame = plan.frame
     buoys = np.asarray(plan.buoys_local)
     part_of = {part.vehicle_sysid: part for part in parts}
-    for k, share in enumerate(fleet["shares"]):
+    for k, share in enumerate(fleet.shares):
         style = sortie_style(k)
-        route = frame.project(np.asarray(share["route"]))
-        ax.plot(route[:, 0], route[:, 1], lw=1.2, label=f"vehicle {share['sysid']}: planned", **style)
-        part = part_of.get(share["sysid"])
+        route = frame.project(np.asarray(share.route))
+        ax.plot(route[:, 0], route[:, 1], lw=1.2, label=f"vehicle {share.sysid}: planned", **style)
+        part = part_of.get(share.sysid)
         recorded = samples.get(part.id, []) if part is not None else []
         lat, lon = column(recorded, "lat"), column(recorded, "lon")  # each vehicle's local frame is its own
         located = ~(np.isnan(lat) | np.isnan(lon))
         if located.any():
             flown = frame.project(np.column_stack([lat[located], lon[located]]))
             ax.plot(flown[:, 0], flown[:, 1], color=style["color"], lw=0.8, alpha=0.6)
-            if share["lost"]:
+            if share.lost:
                 east, north = flown[-1]
-                ax.scatter(east, north, marker="x", s=80, color="k", zorder=4, label=f"vehicle {share['sysid']} lost")
+                ax.scatter(east, north, marker="x", s=80, color="k", zorder=4, label=f"vehicle {share.sysid} lost")
         home = route[0]
         ax.scatter(*home, marker="s", color=style["color"], edgecolor="k", zorder=4)
-    inspected = set(fleet["inspected_by"])
+    inspected = set(fleet.inspected_by)
     for index, (east, north) in enumerate(buoys):
         done = plan.buoy_ids[index] in inspected
         ax.scatter(east, north, marker="o", s=28, color="tab:green" if done else "tab:red", zorder=3)
@@ -75,51 +76,57 @@ def _draw_fleet(
     save_figure(figure, path)
 
 
+def _flight_time_s(part: MissionRecord) -> float | None:
+    tracking = part.results.tracking if part.results else None
+    return tracking.flight_time_s if tracking else None
+
+
 def _number(value: float | None, digits: int = 1) -> str:
     return "–" if value is None else f"{value:.{digits}f}"
 
 
-def fleet_report_html(record: MissionRecord, fleet: dict[str, Any], parts: list[MissionRecord]) -> str:
-    ids = Plan.from_dict(record.plan).buoy_ids
-    flown = {part.vehicle_sysid: (part.results or {}).get("tracking") or {} for part in parts}
-    separation = fleet["separation"]
-    longest = max((t.get("flight_time_s") or 0.0 for t in flown.values()), default=None)
+def fleet_report_html(record: MissionRecord, fleet: FleetOut, parts: list[MissionRecord]) -> str:
+    ids = record.plan.buoy_ids
+    # each part's flight time (None: not flown, or no tracking figures)
+    flown = {part.vehicle_sysid: _flight_time_s(part) for part in parts}
+    separation = fleet.separation
+    longest = max((t or 0.0 for t in flown.values()), default=None)
     rows = [
         ("status", f"{record.status}" + (f" ({record.reason})" if record.reason else "")),
-        ("vehicles", str(len(fleet["shares"]))),
-        ("planned makespan", f"{_number(fleet['makespan_s'])} s"),
+        ("vehicles", str(len(fleet.shares))),
+        ("planned makespan", f"{_number(fleet.makespan_s)} s"),
         (
             "flown, longest part",
             f"{_number(longest)} s",
         ),
-        ("buoys inspected", f"{len(fleet['inspected_by'])} / {len(ids)}"),
-        ("layers", f"{_number(fleet['layer_gap_m'])} m apart"),
+        ("buoys inspected", f"{len(fleet.inspected_by)} / {len(ids)}"),
+        ("layers", f"{_number(fleet.layer_gap_m)} m apart"),
         (
             "closest approach",
-            f"{_number(separation['min_distance_m'])} m (horizontal {_number(separation['min_horizontal_m'])} m, "
-            f"vertical {_number(separation['min_vertical_m'])} m)",
+            f"{_number(separation.min_distance_m)} m (horizontal {_number(separation.min_horizontal_m)} m, "
+            f"vertical {_number(separation.min_vertical_m)} m)",
         ),
     ]
     figures = "\n".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows)
 
-    def vehicle_row(k: int, share: dict[str, Any]) -> str:
+    def vehicle_row(k: int, share: FleetShareOut) -> str:
         handed = "; ".join(
-            f"{', '.join(ids[b] for b in buoys)} to vehicle {sysid}" for sysid, buoys in share["handed_over"].items()
+            f"{', '.join(ids[b] for b in buoys)} to vehicle {sysid}" for sysid, buoys in share.handed_over.items()
         )
         cells = [
-            str(len(share["buoys"])),
-            str(len(share["visited_buoys"])),
-            str(share["status"]),
-            f"{_number(share['altitude_m'], 0)} m",
-            _number(share["predicted_time_s"]),
-            _number(flown.get(share["sysid"], {}).get("flight_time_s")),
-            share["lost"] or "",
+            str(len(share.buoys)),
+            str(len(share.visited_buoys)),
+            str(share.status),
+            f"{_number(share.altitude_m, 0)} m",
+            _number(share.predicted_time_s),
+            _number(flown.get(share.sysid)),
+            share.lost or "",
             handed,
         ]
         swatch = f'<span class="swatch sortie-{k % 6}"></span>'
-        link = f'<a href="/missions/{share["mission_id"]}/report">mission {share["mission_id"]}</a>'
+        link = f'<a href="/missions/{share.mission_id}/report">mission {share.mission_id}</a>'
         body = "".join(f"<td>{html.escape(c)}</td>" for c in cells)
-        return f"<tr><td>{swatch}{share['sysid']}</td>{body}<td>{link}</td></tr>"
+        return f"<tr><td>{swatch}{share.sysid}</td>{body}<td>{link}</td></tr>"
 
     heads = (
         "vehicle",
@@ -133,9 +140,9 @@ def fleet_report_html(record: MissionRecord, fleet: dict[str, Any], parts: list[
         "handed over",
         "part",
     )
-    vehicle_rows = "\n".join(vehicle_row(k, s) for k, s in enumerate(fleet["shares"]))
+    vehicle_rows = "\n".join(vehicle_row(k, s) for k, s in enumerate(fleet.shares))
     buoy_rows = "\n".join(
-        f"<tr><td>{html.escape(ident)}</td><td>{html.escape(str(fleet['inspected_by'].get(ident, 'nobody')))}</td></tr>"
+        f"<tr><td>{html.escape(ident)}</td><td>{html.escape(str(fleet.inspected_by.get(ident, 'nobody')))}</td></tr>"
         for ident in ids
     )
     return f"""<!doctype html>

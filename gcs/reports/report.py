@@ -21,6 +21,8 @@ from typing import Any
 import numpy as np
 
 from gcs.domain.planning import Plan
+from gcs.domain.records import MissionResults
+from gcs.domain.schemas import SortieOut
 from gcs.reports.drawing import REPORT_STYLE, SORTIE_COLOURS, column, new_figure, save_figure, sortie_style
 from gcs.reports.fleet_report import FLEET_FIGURE, write_fleet_report
 from gcs.reports.views import sorties_out
@@ -111,28 +113,28 @@ def _yaw_error_deg(series: ReportSeries) -> np.ndarray:
 
 def summary_rows(record: MissionRecord, series: ReportSeries) -> list[tuple[str, str]]:
     """The figures table: (what, value) pairs, all from the record and the series (pure)."""
-    plan = Plan.from_dict(record.plan)
-    tracking = (record.results or {}).get("tracking") or {}
-    buoys = (record.results or {}).get("buoys") or []
+    plan = record.plan
+    results = record.results or MissionResults()
+    tracking, buoys = results.tracking, results.buoys or []
 
     def metres(value: float | None, digits: int = 3) -> str:
         return "–" if value is None else f"{value:.{digits}f} m"
 
     in_flight = np.isfinite(series.cross_track_m)
-    closest = [b["closest_m"] for b in buoys if b.get("closest_m") is not None]
+    closest = [b.closest_m for b in buoys if b.closest_m is not None]
     return [
         ("status", record.status + (f" ({record.reason})" if record.reason else "")),
         ("buoys", str(len(plan.order))),
         *_battery_rows(plan),
         ("planner", f"{plan.method}, {plan.elapsed_s:.2f} s"),
         ("planned route", f"{plan.length_m:.1f} m ({plan.improvement_pct:.1f} % shorter than the input order)"),
-        ("flown (horizontal)", metres(tracking.get("distance_flown_m"), 1)),
-        ("flight time (vehicle)", _seconds(tracking.get("flight_time_s"))),
-        ("buoys reached", f"{sum(1 for b in buoys if b.get('reached'))} of {len(plan.order)}"),
+        ("flown (horizontal)", metres(tracking.distance_flown_m if tracking else None, 1)),
+        ("flight time (vehicle)", _seconds(tracking.flight_time_s if tracking else None)),
+        ("buoys reached", f"{sum(1 for b in buoys if b.reached)} of {len(plan.order)}"),
         ("worst closest approach", metres(_max(np.array(closest, dtype=float)))),
-        ("acceptance radius", f"{record.flight['acceptance_radius_m']:g} m"),
-        ("cross-track RMS", metres(tracking.get("rms_cross_track_m"))),
-        ("cross-track max", metres(tracking.get("max_cross_track_m"))),
+        ("acceptance radius", f"{record.flight.acceptance_radius_m:g} m"),
+        ("cross-track RMS", metres(tracking.rms_cross_track_m if tracking else None)),
+        ("cross-track max", metres(tracking.max_cross_track_m if tracking else None)),
         ("3-D tracking error RMS (on legs)", metres(_rms(series.position_error_m[in_flight]))),
         ("3-D tracking error max (on legs)", metres(_max(series.position_error_m[in_flight]))),
         ("altitude error RMS (on legs)", metres(_rms((series.ref_altitude - series.altitude)[in_flight]))),
@@ -149,8 +151,8 @@ def _battery_rows(plan: Plan) -> list[tuple[str, str]]:
         rows.append(
             (
                 "battery",
-                f"{e['pack']['capacity_mah']:.0f} mAh pack ({e['pack_source']}), reserve {e['reserve_pct']:.0f} % "
-                f"({e['reserve_source']}), margin {e['margin_pct']:g} %: {e['budget_wh']:.2f} Wh a sortie",
+                f"{e.pack['capacity_mah']:.0f} mAh pack ({e.pack_source}), reserve {e.reserve_pct:.0f} % "
+                f"({e.reserve_source}), margin {e.margin_pct:g} %: {e.budget_wh:.2f} Wh a sortie",
             )
         )
     return rows
@@ -164,11 +166,11 @@ def _degrees(value: float | None) -> str:
     return "–" if value is None else f"{value:.2f}°"
 
 
-def sortie_label(sortie: dict[str, Any]) -> str:
+def sortie_label(sortie: SortieOut) -> str:
     """'sortie 2: 5 buoys, predicted 12.1 Wh' (the map page's legend says the same)."""
-    predicted = sortie["predicted_energy_wh"]
+    predicted = sortie.predicted_energy_wh
     energy = "" if predicted is None else f", predicted {predicted:.1f} Wh"
-    return f"sortie {sortie['index'] + 1}: {len(sortie['order'])} buoys{energy}"
+    return f"sortie {sortie.index + 1}: {len(sortie.order)} buoys{energy}"
 
 
 def _draw_route(plan: Plan, radius_m: float, series: ReportSeries, path: Path) -> None:
@@ -177,10 +179,10 @@ def _draw_route(plan: Plan, radius_m: float, series: ReportSeries, path: Path) -
     colour_of = {index: "tab:orange" for index in plan.order}  # a single tour: as it always looked
     if plan.sorties:
         for sortie in sorties_out(plan):
-            style = sortie_style(sortie["index"])
-            route = plan.sortie_plan(sortie["index"]).route_local()
+            style = sortie_style(sortie.index)
+            route = plan.sortie_plan(sortie.index).route_local()
             ax.plot(route[:, 0], route[:, 1], lw=1.4, label=sortie_label(sortie), **style)
-            colour_of.update(dict.fromkeys(sortie["order"], style["color"]))
+            colour_of.update(dict.fromkeys(sortie.order, style["color"]))
         ax.plot(series.east, series.north, color="k", lw=1, alpha=0.8, label="flown track")
     else:
         route = plan.route_local()
@@ -207,32 +209,32 @@ def _circle(centre: tuple[float, float], radius: float, colour: str):
     return Circle(centre, radius, fill=False, color=colour, lw=0.8)
 
 
-def energy_error_pct(sortie: dict[str, Any]) -> float | None:
+def energy_error_pct(sortie: SortieOut) -> float | None:
     """The energy model's error on a flown sortie, in % of the energy used: (used - predicted) / used."""
-    used, predicted = sortie["used_energy_wh"], sortie["predicted_energy_wh"]
+    used, predicted = sortie.used_energy_wh, sortie.predicted_energy_wh
     if used is None or predicted is None or used <= 0.0:
         return None
     return 100.0 * (used - predicted) / used
 
 
-def _draw_energy(sorties: list[dict[str, Any]], budget_wh: float, path: Path) -> None:
+def _draw_energy(sorties: list[SortieOut], budget_wh: float, path: Path) -> None:
     """Per sortie: the predicted energy (pale) beside the energy used (with the error in %), against the budget."""
     from matplotlib.patches import Patch
 
     figure, ax = new_figure()
     width = 0.38
     for s in sorties:
-        colour, x = sortie_style(s["index"])["color"], s["index"]
-        if s["predicted_energy_wh"] is not None:
-            ax.bar(x - width / 2, s["predicted_energy_wh"], width, color=colour, alpha=0.4, edgecolor=colour)
-        used, error = s["used_energy_wh"], energy_error_pct(s)
+        colour, x = sortie_style(s.index)["color"], s.index
+        if s.predicted_energy_wh is not None:
+            ax.bar(x - width / 2, s.predicted_energy_wh, width, color=colour, alpha=0.4, edgecolor=colour)
+        used, error = s.used_energy_wh, energy_error_pct(s)
         if used is not None:
             ax.bar(x + width / 2, used, width, color=colour, edgecolor="k")
         text = "not flown" if used is None else "–" if error is None else f"{error:+.1f} %"
         ax.annotate(text, (x + width / 2, used or 0.0), textcoords="offset points", xytext=(0, 3), ha="center",
                     fontsize=8)  # fmt: skip
     ax.axhline(budget_wh, color="0.3", ls="--", lw=1)
-    ax.set_xticks(range(len(sorties)), [f"sortie {s['index'] + 1}" for s in sorties])
+    ax.set_xticks(range(len(sorties)), [f"sortie {s.index + 1}" for s in sorties])
     ax.set_xlim(-0.6, len(sorties) - 0.4)  # room for every used bar, flown or not
     ax.margins(y=0.25)  # and above them for the legend
     ax.set(ylabel="Wh", title="Energy per sortie: predicted and used (error = (used − predicted) / used)")
@@ -286,10 +288,10 @@ def _draw_eso(series: ReportSeries, path: Path) -> None:
 def write_report(record: MissionRecord, samples: list[dict[str, Any]], out_dir: Path) -> Path:
     """Draw every figure and write index.html into out_dir; returns the index.html path."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    plan = Plan.from_dict(record.plan)
+    plan = record.plan
     series = report_series(samples)
     t = series.t_s
-    _draw_route(plan, record.flight["acceptance_radius_m"], series, out_dir / "route.png")
+    _draw_route(plan, record.flight.acceptance_radius_m, series, out_dir / "route.png")
     _draw_lines(
         out_dir / "tracking_error.png",
         "3-D tracking error |reference − position|",
@@ -319,10 +321,10 @@ def write_report(record: MissionRecord, samples: list[dict[str, Any]], out_dir: 
         [(series.ref_yaw_deg, "desired"), (series.yaw_deg, "actual")],
     )
     _draw_eso(series, out_dir / "eso.png")
-    sorties = sorties_out(plan, record.progress.get("sorties_flown"))
+    sorties = sorties_out(plan, record.progress.sorties_flown)
     figures: tuple[str, ...] = FIGURES
     if plan.energy:
-        _draw_energy(sorties, plan.energy["budget_wh"], out_dir / ENERGY_FIGURE)
+        _draw_energy(sorties, plan.energy.budget_wh, out_dir / ENERGY_FIGURE)
         figures = (*FIGURES, ENERGY_FIGURE)
     index = out_dir / "index.html"
     shown = sorties if plan.sorties or plan.energy else []
@@ -339,16 +341,16 @@ SORTIE_COLUMNS = (
 def report_html(
     record: MissionRecord,
     rows: list[tuple[str, str]],
-    sorties: list[dict[str, Any]] | None = None,
+    sorties: list[SortieOut] | None = None,
     figures: tuple[str, ...] = FIGURES,
 ) -> str:
     """The page: figures table, per-sortie table (for `sorties`, SortieOut documents), per-buoy table, then the
     PNGs (by relative name, so the folder is portable)."""
     table = "\n".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows)
-    buoys = (record.results or {}).get("buoys") or []
+    buoys = (record.results or MissionResults()).buoys or []
     buoy_rows = "\n".join(
-        f"<tr><td>{html.escape(str(b.get('id', b['index'])))}</td><td>{'yes' if b.get('reached') else 'no'}</td>"
-        f"<td>{_cell(b.get('closest_m'), 2)}</td><td>{_cell(b.get('arrival_s'), 1)}</td></tr>"
+        f"<tr><td>{html.escape(b.id)}</td><td>{'yes' if b.reached else 'no'}</td>"
+        f"<td>{_cell(b.closest_m, 2)}</td><td>{_cell(b.arrival_s, 1)}</td></tr>"
         for b in buoys
     )
     images = "\n".join(f'<figure><img src="{name}" alt="{name[:-4]}"></figure>' for name in figures)
@@ -373,30 +375,30 @@ def report_html(
 """
 
 
-def _sortie_table(record: MissionRecord, sorties: list[dict[str, Any]]) -> str:
+def _sortie_table(record: MissionRecord, sorties: list[SortieOut]) -> str:
     """The sorties, predicted against used energy ("" without sorties)."""
     if not sorties:
         return ""
-    ids = Plan.from_dict(record.plan).buoy_ids
+    ids = record.plan.buoy_ids
 
-    def row(s: dict[str, Any]) -> str:
-        flown = s["used_energy_wh"] is not None or s["landing_charge_pct"] is not None
-        warning = s["battery_warning"] or ("none" if flown else "–")
-        swatch = f'<span class="swatch sortie-{s["index"] % len(SORTIE_COLOURS)}"></span>'
+    def row(s: SortieOut) -> str:
+        flown = s.used_energy_wh is not None or s.landing_charge_pct is not None
+        warning = s.battery_warning or ("none" if flown else "–")
+        swatch = f'<span class="swatch sortie-{s.index % len(SORTIE_COLOURS)}"></span>'
         cells = [
-            ", ".join(ids[b] for b in s["order"]),
-            _cell(s["length_m"], 0),
-            _cell(s["predicted_energy_wh"], 2),
-            _cell(s["predicted_time_s"], 0),
-            _cell(s["margin_wh"], 2),
-            _cell(s["margin_pct"], 1),
-            _cell(s["used_energy_wh"], 2),
+            ", ".join(ids[b] for b in s.order),
+            _cell(s.length_m, 0),
+            _cell(s.predicted_energy_wh, 2),
+            _cell(s.predicted_time_s, 0),
+            _cell(s.margin_wh, 2),
+            _cell(s.margin_pct, 1),
+            _cell(s.used_energy_wh, 2),
             _cell(energy_error_pct(s), 1),
-            _cell(s["predicted_landing_charge_pct"], 0),
-            _cell(s["landing_charge_pct"], 0),
+            _cell(s.predicted_landing_charge_pct, 0),
+            _cell(s.landing_charge_pct, 0),
             warning,
         ]
-        return f"<tr><td>{swatch}{s['index'] + 1}</td>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>"
+        return f"<tr><td>{swatch}{s.index + 1}</td>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>"
 
     head = "".join(f"<th>{html.escape(name)}</th>" for name in SORTIE_COLUMNS)
     body = "\n".join(row(s) for s in sorties)

@@ -11,152 +11,181 @@ import numpy as np
 from pydantic import TypeAdapter
 
 from gcs.domain.planning import Plan
-from gcs.domain.schemas import MissionOut, MissionSummary, TrackOut
+from gcs.domain.records import MissionResults, SortieFlown
+from gcs.domain.schemas import (
+    Buoy,
+    BuoyResult,
+    EnergyOut,
+    FleetOut,
+    FleetShareOut,
+    LatLon,
+    MissionOut,
+    MissionSummary,
+    PlanOut,
+    SeparationOut,
+    SortieOut,
+    TrackOut,
+)
+from gcs.domain.status import MissionStatus
 from gcs.reports import track_display
 from gcs.storage import MissionRecord
 
 MISSION_SUMMARIES = TypeAdapter(list[MissionSummary])
 TELEMETRY_CHUNK = 1000  # samples encoded at a time when streaming a mission's telemetry
-# what the recorder keeps in a mission's progress for itself (a restart restores it); the API shows it otherwise
-RECORDER_ONLY_PROGRESS = ("reached_at", "sorties_flown", "consumed_at_start")
 CHART_SAMPLES = 1000  # the most samples a track sends for the charts (a few hundred pixels wide each)
 
 
-def plan_out(plan: Plan) -> dict[str, Any]:
-    return {
-        "order": plan.order,
-        "length_m": plan.length_m,
-        "input_order_length_m": plan.input_order_length_m,
-        "improvement_pct": plan.improvement_pct,
-        "method": plan.method,
-        "elapsed_s": plan.elapsed_s,
-        "depot": {"lat": plan.depot[0], "lon": plan.depot[1]},
-        "buoys": [
-            {"index": i, "id": ident, "lat": ll[0], "lon": ll[1], "east_m": en[0], "north_m": en[1]}
+def plan_out(plan: Plan) -> PlanOut:
+    return PlanOut(
+        order=plan.order,
+        length_m=plan.length_m,
+        input_order_length_m=plan.input_order_length_m,
+        improvement_pct=plan.improvement_pct,
+        method=plan.method,
+        elapsed_s=plan.elapsed_s,
+        depot=LatLon(lat=plan.depot[0], lon=plan.depot[1]),
+        buoys=[
+            Buoy(index=i, id=ident, lat=ll[0], lon=ll[1], east_m=en[0], north_m=en[1])
             for i, (ident, ll, en) in enumerate(zip(plan.buoy_ids, plan.buoys_lat_lon, plan.buoys_local, strict=True))
         ],
-        "route": plan.route_lat_lon(),
-        "sorties": sorties_out(plan),
-        "energy": {k: v for k, v in plan.energy.items() if k != "sorties"} if plan.energy else None,
-    }
+        route=plan.route_lat_lon(),
+        sorties=sorties_out(plan),
+        energy=None if plan.energy is None else EnergyOut.model_validate(plan.energy.model_dump(exclude={"sorties"})),
+    )
 
 
-def sorties_out(plan: Plan, flown: list[dict[str, Any]] | None = None) -> list[dict[str, Any]]:
+def sorties_out(plan: Plan, flown: list[SortieFlown] | None = None) -> list[SortieOut]:
     """Each sortie as planned (with its prediction when the plan has an energy section) and, for the sorties
     flown (`flown`, the recorder's per-sortie battery figures in the mission's progress), as measured."""
-    predicted = plan.energy["sorties"] if plan.energy else []
-    measured = {entry["sortie"]: entry for entry in flown or []}
+    predicted = plan.energy.sorties if plan.energy else []
+    measured = {entry.sortie: entry for entry in flown or []}
     out = []
     for k in range(len(plan.sortie_orders())):
         sortie = plan.sortie_plan(k)
-        prediction = predicted[k] if k < len(predicted) else {}
-        flight = measured.get(k, {})
+        prediction = predicted[k] if k < len(predicted) else None
+        flight = measured.get(k)
         out.append(
-            {
-                "index": k,
-                "order": sortie.order,
-                "route": sortie.route_lat_lon(),
-                "length_m": sortie.length_m,
-                "predicted_energy_wh": prediction.get("energy_wh"),
-                "predicted_time_s": prediction.get("time_s"),
-                "margin_wh": prediction.get("margin_wh"),
-                "margin_pct": prediction.get("margin_pct"),
-                "predicted_landing_charge_pct": prediction.get("landing_charge_pct"),
-                "used_energy_wh": flight.get("used_energy_wh"),
-                "landing_charge_pct": flight.get("landing_charge_pct"),
-                "battery_warning": flight.get("battery_warning"),
-            }
+            SortieOut(
+                index=k,
+                order=sortie.order,
+                route=sortie.route_lat_lon(),
+                length_m=sortie.length_m,
+                predicted_energy_wh=prediction and prediction.energy_wh,
+                predicted_time_s=prediction and prediction.time_s,
+                margin_wh=prediction and prediction.margin_wh,
+                margin_pct=prediction and prediction.margin_pct,
+                predicted_landing_charge_pct=prediction and prediction.landing_charge_pct,
+                used_energy_wh=flight and flight.used_energy_wh,
+                landing_charge_pct=flight and flight.landing_charge_pct,
+                battery_warning=flight and flight.battery_warning,
+            )
         )
     return out
 
 
-def _buoy_results(record: MissionRecord, plan: Plan) -> list[dict[str, Any]]:
-    if record.results is not None and "buoys" in record.results:
-        return record.results["buoys"]
+def _buoy_results(record: MissionRecord) -> list[BuoyResult]:
+    if record.results is not None and record.results.buoys is not None:
+        return record.results.buoys
+    ids = record.plan.buoy_ids
     if record.is_fleet:  # each part mission has the closest approaches and arrival times of its own buoys
-        visited = set(record.progress.get("visited_buoys", []))
+        visited = set(record.progress.visited_buoys)
         return [
-            {"index": i, "id": ident, "closest_m": None, "reached": i in visited, "arrival_s": None}
-            for i, ident in enumerate(plan.buoy_ids)
+            BuoyResult(index=i, id=ident, closest_m=None, reached=i in visited, arrival_s=None)
+            for i, ident in enumerate(ids)
         ]
-    reached_at = {int(k): v for k, v in (record.progress.get("reached_at") or {}).items()}
+    reached_at = record.progress.reached_at
     return [
-        {"index": i, "id": ident, "closest_m": None, "reached": i in reached_at, "arrival_s": reached_at.get(i)}
-        for i, ident in enumerate(plan.buoy_ids)
+        BuoyResult(index=i, id=ident, closest_m=None, reached=i in reached_at, arrival_s=reached_at.get(i))
+        for i, ident in enumerate(ids)
     ]
 
 
-def mission_out(record: MissionRecord) -> dict[str, Any]:
-    plan = Plan.from_dict(record.plan)
-    progress = {k: v for k, v in record.progress.items() if k not in (*RECORDER_ONLY_PROGRESS, "shares")}
-    progress.setdefault("buoys", len(plan.order))
-    progress.setdefault("sorties", len(plan.sortie_orders()))
-    out = {
-        "id": record.id,
-        "status": record.status,
-        "reason": record.reason,
-        "created_at": record.created_at,
-        "updated_at": record.updated_at,
-        "vehicle_sysid": record.vehicle_sysid,
-        "kind": record.kind,
-        "fleet_id": record.part_of,
-        "fleet": None,
-        **plan_out(plan),
-        "sorties": sorties_out(plan, record.progress.get("sorties_flown")),
-        **record.flight,
-        "progress": progress,
-        "buoy_results": _buoy_results(record, plan),
-        "tracking": (record.results or {}).get("tracking"),
-        "events": record.events,
-    }
-    if record.is_fleet:  # flown as its shares (FleetShareOut, each with its route): no tour or sortie of its own
-        out |= {"fleet": fleet_out(record, plan), "sorties": [], "route": []}
-    return out
+def mission_out(record: MissionRecord) -> MissionOut:
+    plan = record.plan
+    progress = record.progress.shown()
+    if "buoys" not in record.progress.model_fields_set:  # stored before the recorder's first report
+        progress.buoys = len(plan.order)
+    if "sorties" not in record.progress.model_fields_set:
+        progress.sorties = len(plan.sortie_orders())
+    planned = dict(plan_out(plan))  # PlanOut's fields as they are (models, not dumped)
+    fleet = fleet_out(record) if record.is_fleet else None
+    if fleet:  # flown as its shares (FleetShareOut, each with its route): no tour or sortie of its own
+        planned |= {"route": [], "sorties": []}
+    else:
+        planned["sorties"] = sorties_out(plan, record.progress.sorties_flown)
+    return MissionOut(
+        id=record.id,
+        status=record.status,
+        reason=record.reason,
+        created_at=record.created_at,
+        updated_at=record.updated_at,
+        vehicle_sysid=record.vehicle_sysid,
+        kind=record.kind,
+        fleet_id=record.part_of,
+        fleet=fleet,
+        **planned,
+        altitude_m=record.flight.altitude_m,
+        speed_m_s=record.flight.speed_m_s,
+        dwell_s=record.flight.dwell_s,
+        acceptance_radius_m=record.flight.acceptance_radius_m,
+        progress=progress,
+        buoy_results=_buoy_results(record),
+        tracking=record.results.tracking if record.results else None,
+        events=record.events,
+    )
 
 
-def fleet_out(record: MissionRecord, plan: Plan) -> dict[str, Any]:
+def fleet_out(record: MissionRecord) -> FleetOut:
     """A fleet mission's shares as planned and as flown so far (its progress, kept by gcs.missions.fleet_missions), who
     inspected what and the separation (once it has ended)."""
+    plan = record.plan
     fleet = plan.fleet
     assert fleet is not None  # asked only of a fleet mission, whose plan has its fleet section
-    flown = {s["sysid"]: s for s in record.progress.get("shares", [])}
+    flown = {s.sysid: s for s in record.progress.shares}
     shares = []
-    for share in fleet["shares"]:
-        state = flown.get(share["sysid"], {})
-        home = share["home"]
-        route = [home, *(plan.buoys_lat_lon[b] for b in share["buoys"]), home]
+    for share in fleet.shares:
+        state = flown.get(share.sysid)
+        route = [share.home, *(plan.buoys_lat_lon[b] for b in share.buoys), share.home]
         shares.append(
-            {k: share[k] for k in ("sysid", "buoys", "altitude_m", "predicted_time_s", "length_m")}
-            | {"route": route, "mission_id": state.get("mission_id", 0), "status": state.get("status", "planned")}
-            | {"visited_buoys": state.get("visited", [])}
-            | {"lost": share.get("lost"), "handed_over": share.get("handed_over", {})}
+            FleetShareOut(
+                sysid=share.sysid,
+                buoys=share.buoys,
+                altitude_m=share.altitude_m,
+                predicted_time_s=share.predicted_time_s,
+                length_m=share.length_m,
+                route=route,
+                mission_id=state.mission_id if state else 0,
+                status=state.status if state else MissionStatus.PLANNED,
+                visited_buoys=state.visited if state else [],
+                lost=share.lost,
+                handed_over=share.handed_over,
+            )
         )
-    results = record.results or {}
-    separation = results.get("separation") or {"min_horizontal_m": None, "min_vertical_m": None, "min_distance_m": None}
-    return {
-        "makespan_s": fleet["makespan_s"],
-        "total_time_s": fleet["total_time_s"],
-        "layer_gap_m": fleet["layer_gap_m"],
-        "shares": shares,
-        "inspected_by": results.get("inspected_by", {}),
-        "separation": separation,
-    }
+    results = record.results or MissionResults()
+    return FleetOut(
+        makespan_s=fleet.makespan_s,
+        total_time_s=fleet.total_time_s,
+        layer_gap_m=fleet.layer_gap_m,
+        shares=shares,
+        inspected_by=results.inspected_by,
+        separation=results.separation or SeparationOut(min_horizontal_m=None, min_vertical_m=None, min_distance_m=None),
+    )
 
 
-def mission_summary(record: MissionRecord) -> dict[str, Any]:
-    return {
-        "id": record.id,
-        "status": record.status,
-        "reason": record.reason,
-        "created_at": record.created_at,
-        "updated_at": record.updated_at,
-        "vehicle_sysid": record.vehicle_sysid,
-        "kind": record.kind,
-        "fleet_id": record.part_of,
-        "buoys": len(record.plan["order"]),
-        "length_m": record.plan["length_m"],
-        "tracking": (record.results or {}).get("tracking"),
-    }
+def mission_summary(record: MissionRecord) -> MissionSummary:
+    return MissionSummary(
+        id=record.id,
+        status=record.status,
+        reason=record.reason,
+        created_at=record.created_at,
+        updated_at=record.updated_at,
+        vehicle_sysid=record.vehicle_sysid,
+        kind=record.kind,
+        fleet_id=record.part_of,
+        buoys=len(record.plan.order),
+        length_m=record.plan.length_m,
+        tracking=record.results.tracking if record.results else None,
+    )
 
 
 def track_out(
@@ -172,8 +201,8 @@ def track_out(
     times, cross_track = table[:, 0], table[:, 3]
     located = ~np.isnan(table[:, 1]) & ~np.isnan(table[:, 2])
     lat_lon = table[located][:, 1:3]
-    arrivals = (record.progress.get("reached_at") or {}).values()
-    local = Plan.from_dict(record.plan).frame.project(lat_lon) if len(lat_lon) else lat_lon
+    arrivals = record.progress.reached_at.values()
+    local = record.plan.frame.project(lat_lon) if len(lat_lon) else lat_lon
     track = track_display.simplify_track(local, max_points, track_display.arrival_indices(times[located], arrivals))
     # the charts' series keeps the cross-track error's envelope (the figure the mission is judged by)
     charted = track_display.extremes_per_bucket(cross_track, min(max_points, CHART_SAMPLES))
@@ -188,11 +217,11 @@ def track_out(
 
 # ----- encoded as served: the response model validates the document once, when the read cache builds it
 def mission_json(record: MissionRecord) -> bytes:
-    return MissionOut.model_validate(mission_out(record)).model_dump_json().encode()
+    return mission_out(record).model_dump_json().encode()
 
 
 def missions_json(records: list[MissionRecord]) -> bytes:
-    return MISSION_SUMMARIES.dump_json(MISSION_SUMMARIES.validate_python([mission_summary(r) for r in records]))
+    return MISSION_SUMMARIES.dump_json([mission_summary(r) for r in records])
 
 
 def track_json(

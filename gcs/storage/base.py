@@ -12,10 +12,13 @@ import json
 from abc import ABC, abstractmethod
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import AbstractContextManager, contextmanager
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
 from typing import Any, ClassVar, Protocol
 
+from gcs.domain.planning import FlightParams, Plan
+from gcs.domain.records import MissionProgress, MissionResults
+from gcs.domain.schemas import StatusEvent
 from gcs.domain.status import UNFINISHED, MissionKind, MissionStatus
 from gcs.storage.migrations import MIGRATIONS, TRACK_COLUMNS
 
@@ -59,11 +62,11 @@ class MissionRecord:
     updated_at: str
     status: MissionStatus
     reason: str | None
-    flight: dict[str, Any]
-    plan: dict[str, Any]
-    progress: dict[str, Any]
-    results: dict[str, Any] | None
-    events: list[dict[str, Any]] = field(default_factory=list)
+    flight: FlightParams
+    plan: Plan
+    progress: MissionProgress
+    results: MissionResults | None
+    events: list[StatusEvent] = field(default_factory=list)  # get_mission's; empty from the other reads
     vehicle_sysid: int | None = None  # the vehicle it flies on (None: the service's one vehicle)
     # the column grouping a fleet mission with its parts: a part's fleet mission, and a fleet mission's own id (so
     # one index finds the group); outside storage, ask `kind` and `part_of`
@@ -95,17 +98,17 @@ def _json(value: Any) -> str:
     return json.dumps(value, allow_nan=False, separators=(",", ":"))
 
 
-def _record(row: Any, events: list[dict[str, Any]]) -> MissionRecord:
+def _record(row: Any, events: list[StatusEvent]) -> MissionRecord:
     return MissionRecord(
         id=int(row["id"]),
         created_at=row["created_at"],
         updated_at=row["updated_at"],
         status=MissionStatus(row["status"]),
         reason=row["reason"],
-        flight=json.loads(row["flight"]),
-        plan=json.loads(row["plan"]),
-        progress=json.loads(row["progress"]),
-        results=json.loads(row["results"]) if row["results"] else None,
+        flight=FlightParams(**json.loads(row["flight"])),
+        plan=Plan.from_dict(json.loads(row["plan"])),
+        progress=MissionProgress.model_validate_json(row["progress"]),
+        results=MissionResults.model_validate_json(row["results"]) if row["results"] else None,
         events=events,
         vehicle_sysid=None if row["vehicle_sysid"] is None else int(row["vehicle_sysid"]),
         fleet_id=None if row["fleet_id"] is None else int(row["fleet_id"]),
@@ -190,8 +193,8 @@ class Storage(ABC):
     # ----- missions
     def create_mission(
         self,
-        flight: dict[str, Any],
-        plan: dict[str, Any],
+        flight: FlightParams,
+        plan: Plan,
         status: MissionStatus = MissionStatus.PLANNED,
         vehicle_sysid: int | None = None,
         fleet_id: int | None = None,
@@ -202,7 +205,7 @@ class Storage(ABC):
             return self._insert_mission(db, flight, plan, status, vehicle_sysid, fleet_id)
 
     def create_fleet_mission(
-        self, flight: dict[str, Any], plan: dict[str, Any], parts: list[tuple[dict[str, Any], dict[str, Any], int]]
+        self, flight: FlightParams, plan: Plan, parts: list[tuple[FlightParams, Plan, int]]
     ) -> tuple[int, list[int]]:
         """A fleet mission (its fleet_id its own id) and its parts, each (flight, plan, vehicle_sysid), in one
         transaction: all of them or none. Returns (the fleet mission's id, the parts' ids)."""
@@ -218,8 +221,8 @@ class Storage(ABC):
     @staticmethod
     def _insert_mission(
         db: Connection,
-        flight: dict[str, Any],
-        plan: dict[str, Any],
+        flight: FlightParams,
+        plan: Plan,
         status: MissionStatus,
         vehicle_sysid: int | None,
         fleet_id: int | None,
@@ -229,7 +232,7 @@ class Storage(ABC):
             db.execute(
                 f"INSERT INTO missions (created_at, updated_at, status, flight, plan, vehicle_sysid, fleet_id,"
                 f" version) VALUES (?, ?, ?, ?, ?, ?, ?, {NEXT_VERSION}) RETURNING id",
-                (now, now, status, _json(flight), _json(plan), vehicle_sysid, fleet_id),
+                (now, now, status, _json(asdict(flight)), _json(plan.to_dict()), vehicle_sysid, fleet_id),
             ).fetchone()["id"]
         )
         db.execute("INSERT INTO mission_events (mission_id, at, status) VALUES (?, ?, ?)", (mission_id, now, status))
@@ -249,15 +252,15 @@ class Storage(ABC):
                 (mission_id, now, status, reason),
             )
 
-    def set_progress(self, mission_id: int, progress: dict[str, Any]) -> None:
-        self._set_document(mission_id, "progress", progress)
+    def set_progress(self, mission_id: int, progress: MissionProgress) -> None:
+        self._set_document(mission_id, "progress", progress.model_dump(mode="json"))
 
-    def set_plan(self, mission_id: int, plan: dict[str, Any]) -> None:
+    def set_plan(self, mission_id: int, plan: Plan) -> None:
         """A mission re-planned in flight (a fleet's share grown by a lost vehicle's buoys)."""
-        self._set_document(mission_id, "plan", plan)
+        self._set_document(mission_id, "plan", plan.to_dict())
 
-    def set_results(self, mission_id: int, results: dict[str, Any]) -> None:
-        self._set_document(mission_id, "results", results)
+    def set_results(self, mission_id: int, results: MissionResults) -> None:
+        self._set_document(mission_id, "results", results.model_dump(mode="json"))
 
     def _set_document(self, mission_id: int, column: str, document: dict[str, Any]) -> None:
         with self._mission_write() as db:
@@ -303,7 +306,7 @@ class Storage(ABC):
             events = db.execute(
                 "SELECT at, status, reason FROM mission_events WHERE mission_id = ? ORDER BY id", (mission_id,)
             ).fetchall()
-        return _record(row, [dict(event) for event in events])
+        return _record(row, [StatusEvent.model_validate(dict(event)) for event in events])
 
     def mission_version(self, mission_id: int) -> int | None:
         """The mission's change counter (None: no such mission): it grows at every write to the mission."""

@@ -23,6 +23,8 @@ from collections.abc import Callable, Hashable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, ParamSpec, TypeVar
 
+from gcs.domain.planning import FlightParams, Plan
+from gcs.domain.records import MissionProgress, MissionResults
 from gcs.domain.status import MissionStatus
 from gcs.storage.base import MissionRecord, Storage
 
@@ -73,26 +75,24 @@ class AsyncStorage:
         self.blocking.close()
 
     # ----- writes, one at a time in the order issued
-    async def create_mission(
-        self, flight: dict[str, Any], plan: dict[str, Any], vehicle_sysid: int | None = None
-    ) -> int:
+    async def create_mission(self, flight: FlightParams, plan: Plan, vehicle_sysid: int | None = None) -> int:
         return await self._run(self._writer, self.blocking.create_mission, flight, plan, vehicle_sysid=vehicle_sysid)
 
     async def create_fleet_mission(
-        self, flight: dict[str, Any], plan: dict[str, Any], parts: list[tuple[dict[str, Any], dict[str, Any], int]]
+        self, flight: FlightParams, plan: Plan, parts: list[tuple[FlightParams, Plan, int]]
     ) -> tuple[int, list[int]]:
         return await self._run(self._writer, self.blocking.create_fleet_mission, flight, plan, parts)
 
     async def set_status(self, mission_id: int, status: MissionStatus, reason: str | None = None) -> None:
         await self._run(self._writer, self.blocking.set_status, mission_id, status, reason)
 
-    async def set_progress(self, mission_id: int, progress: dict[str, Any]) -> None:
+    async def set_progress(self, mission_id: int, progress: MissionProgress) -> None:
         await self._run(self._writer, self.blocking.set_progress, mission_id, progress)
 
-    async def set_plan(self, mission_id: int, plan: dict[str, Any]) -> None:
+    async def set_plan(self, mission_id: int, plan: Plan) -> None:
         await self._run(self._writer, self.blocking.set_plan, mission_id, plan)
 
-    async def set_results(self, mission_id: int, results: dict[str, Any]) -> None:
+    async def set_results(self, mission_id: int, results: MissionResults) -> None:
         await self._run(self._writer, self.blocking.set_results, mission_id, results)
 
     async def add_telemetry(self, mission_id: int, samples: list[dict[str, Any]]) -> None:

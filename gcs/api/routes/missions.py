@@ -51,7 +51,7 @@ MissionId = Annotated[int, Path(ge=1, le=2**63 - 1, description="the mission's i
     dependencies=[Depends(require_token)],
     responses=CREATED | WITH_BODY | CONFLICT,
 )
-async def create_mission(request: MissionRequest, service: ServiceDep) -> dict:
+async def create_mission(request: MissionRequest, service: ServiceDep) -> MissionOut:
     """Plan, store, and (start=true) upload, arm and fly.
 
     Answers 201 as soon as the mission is planned and stored (status `planned`); the upload, arming and flight
@@ -64,7 +64,7 @@ async def create_mission(request: MissionRequest, service: ServiceDep) -> dict:
 
 def _encoded(body: bytes) -> Response:
     """A document the service encoded once (gcs.missions.read_cache), served as it is: the route's response_model still
-    tells OpenAPI its shape, and the cache validated it against that model when it built it."""
+    tells OpenAPI its shape, and the cache built it as that model (gcs.reports.views)."""
     return Response(body, media_type="application/json")
 
 
@@ -82,14 +82,14 @@ async def get_mission(mission_id: MissionId, service: ServiceDep) -> Response:
 
 
 @router.post("/missions/{mission_id}/start", **ACTION)
-async def start_mission(mission_id: MissionId, service: ServiceDep) -> dict:
+async def start_mission(mission_id: MissionId, service: ServiceDep) -> MissionOut:
     """Fly a mission created with start=false."""
     await service.launch(mission_id)
     return mission_out(await service.get(mission_id))
 
 
 @router.post("/missions/{mission_id}/abort", **ACTION)
-async def abort_mission(mission_id: MissionId, service: ServiceDep) -> dict:
+async def abort_mission(mission_id: MissionId, service: ServiceDep) -> MissionOut:
     """Return to the depot (NAV_RETURN_TO_LAUNCH); a mission not yet flying simply ends."""
     await service.abort(mission_id)
     return mission_out(await service.get(mission_id))

@@ -14,6 +14,6 @@ router = APIRouter(tags=["plans"])
 
 
 @router.post("/plans", response_model=PlanOut, dependencies=[Depends(require_token)], responses=WITH_BODY)
-async def create_plan(request: PlanRequest, service: ServiceDep) -> dict:
+async def create_plan(request: PlanRequest, service: ServiceDep) -> PlanOut:
     plan, _ = await service.plan(request)
     return plan_out(plan)
