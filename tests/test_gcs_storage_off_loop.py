@@ -14,7 +14,8 @@ from stored_missions import FLIGHT, PLAN
 
 from gcs.domain.status import MissionStatus
 from gcs.storage import SqliteStorage, Storage
-from gcs.storage.off_loop import AsyncStorage
+from gcs.storage.off_loop import READ_THREADS, AsyncStorage
+from gcs.storage.postgres import POOL_SIZE
 
 WAIT_S = 30.0  # a backstop: reached only when the behaviour is wrong
 
@@ -59,6 +60,11 @@ def storage(tmp_path) -> Storage:
 
 def new_mission(storage: Storage) -> int:
     return storage.create_mission(FLIGHT, PLAN)
+
+
+def test_every_storage_thread_has_a_postgresql_connection_of_its_own():
+    # a writer waiting for a connection the four readers hold would stall every write behind a long read
+    assert POOL_SIZE >= READ_THREADS + 1 + 2  # and two worker threads (a report, a track) beside them
 
 
 def test_reads_and_writes_run_in_threads_and_writes_keep_their_order(storage):

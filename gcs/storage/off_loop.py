@@ -31,7 +31,7 @@ from gcs.storage.base import MissionRecord, Storage
 P = ParamSpec("P")
 T = TypeVar("T")
 
-READ_THREADS = 4  # the PostgreSQL pool holds 4 connections (gcs.storage.postgres.POOL_SIZE) for these and the writer
+READ_THREADS = 4  # the PostgreSQL pool has a connection for each of these and the writer (postgres.POOL_SIZE)
 
 
 class AsyncStorage:

@@ -29,7 +29,9 @@ URL_SCHEMES = ("postgresql://", "postgres://")
 MIGRATION_LOCK = 0x6275_6F79_6763_0001  # "buoygc" + 1
 VERSION_LOCK = 0x6275_6F79_6763_0002
 CONNECT_TIMEOUT_S = 10  # unless the URL says otherwise: an unreachable server is an error, not a hang
-POOL_SIZE = 4  # the event loop's reads plus the lifecycle's worker threads
+# One connection for each thread that may hold one at once: AsyncStorage's readers (4) and writer, and two worker
+# threads using the storage directly (a report drawn, a track built): none waits for a connection another holds.
+POOL_SIZE = 7
 
 
 def is_postgres_url(target: object) -> bool:
