@@ -8,5 +8,6 @@ It imports nothing of ours (an import-linter contract in pyproject.toml holds it
 - `mission`   mission items as MISSION_ITEM_INT carries them, with MAV_CMD and MAV_FRAME as enums;
 - `modes`     autopilot flight-mode encodings (PX4's main/sub custom modes);
 - `control`   the controller contracts (Protocols) that the vehicle and the offboard process inject;
+- `light_character` navigation-light characters (chart text, IALA timing) and reading one from camera frames;
 - `mavlink`   the one MAVLink codec: dialect, framing/parsing of datagrams, signing, system/component ids.
 """
