@@ -9,5 +9,6 @@ It imports nothing of ours (an import-linter contract in pyproject.toml holds it
 - `modes`     autopilot flight-mode encodings (PX4's main/sub custom modes);
 - `control`   the controller contracts (Protocols) that the vehicle and the offboard process inject;
 - `light_character` navigation-light characters (chart text, IALA timing) and reading one from camera frames;
+- `buoy_world` the simulated world's buoys: IALA kind and look, charted and actual light, mooring swing, faults;
 - `mavlink`   the one MAVLink codec: dialect, framing/parsing of datagrams, signing, system/component ids.
 """
