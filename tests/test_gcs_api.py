@@ -12,9 +12,11 @@ from fastapi.testclient import TestClient
 
 from bench.processes import free_udp_port
 from gcs.api.app import create_app
+from gcs.domain.schemas import HomeOut, VehicleOut
 from gcs.domain.status import MissionStatus
 from gcs.reports.exports import read_qgc_plan, read_waypoints
 from gcs.settings import Limits, Settings
+from gcs.vehicle.link import VehicleStatus
 from planner import plan_tour
 from planner.scenario import reference_scenario
 from uavcore.geodesy import DEFAULT_HOME
@@ -64,6 +66,14 @@ def test_the_serving_app_keeps_its_start_up_objects_out_of_full_collections_whil
     with TestClient(create_app(settings)) as client:  # tests' apps (many in one process) freeze nothing
         assert gc.get_freeze_count() == frozen_before
         assert any(o is client.app.state.service for o in gc.get_objects())
+
+
+def test_the_vehicle_document_names_every_field_of_the_links_vehicle_status():
+    # GET /vehicle(s)' response models list the link's VehicleStatus fields by name: a field added to one only
+    # would be dropped from the answer, or make every answer a 500
+    document = VehicleStatus(connected=True, home=(55.0, 12.0, 3.0)).as_dict() | {"role": "owner"}
+    assert set(document) == set(VehicleOut.model_fields)
+    assert VehicleOut.model_validate(document).home == HomeOut(lat=55.0, lon=12.0, alt=3.0)
 
 
 # ----- planning

@@ -313,6 +313,91 @@ class FleetOut(BaseModel):
     separation: SeparationOut
 
 
+class HomeOut(BaseModel):
+    lat: float
+    lon: float
+    alt: float = Field(description="AMSL, metres")
+
+
+class VehicleOut(BaseModel):
+    """A vehicle as its link last heard it (GET /vehicle, each of GET /vehicles, /ws): the vehicle status's fields
+    by name (gcs.vehicle.link.VehicleStatus; a test keeps the two in step), and who owns the link. Positions NED
+    metres from home, angles radians; null where the vehicle has not reported it."""
+
+    connected: bool
+    sysid: int | None
+    compid: int | None
+    autopilot: str | None
+    vehicle_type: str | None
+    reboots: int = Field(description="new boots of the same vehicle seen")
+    incarnation: int = Field(description="rises with every new boot or new vehicle")
+    armed: bool
+    base_mode: int
+    custom_mode: int
+    mode: str | None = Field(description="the flight mode's name (null while not connected)")
+    landed_state: int | None = Field(description="MAV_LANDED_STATE")
+    time_boot_ms: int | None
+    t_s: float | None = Field(description="vehicle time, time_boot_ms / 1000")
+    boot_instant_s: float | None = Field(description="unix time of the vehicle's boot (SYSTEM_TIME)")
+    heartbeat_age_s: float | None
+    lat: float | None
+    lon: float | None
+    alt_m: float | None = Field(description="above home")
+    north: float | None
+    east: float | None
+    down: float | None
+    vn: float | None
+    ve: float | None
+    vd: float | None
+    roll: float | None
+    pitch: float | None
+    yaw: float | None
+    ref_north: float | None = Field(description="the offboard controller's reference (its ESO's companion)")
+    ref_east: float | None
+    ref_down: float | None
+    ref_yaw: float | None
+    mission_seq: int | None
+    mission_total: int | None
+    mission_state: int | None = Field(description="MISSION_STATE")
+    battery_remaining_pct: float | None
+    battery_voltage_v: float | None
+    battery_current_a: float | None
+    battery_consumed_wh: float | None
+    battery_charge_state: int | None = Field(description="MAV_BATTERY_CHARGE_STATE")
+    battery_critical: bool
+    battery_low_pct: float | None = Field(description="the vehicle's own warning level (PX4's BAT_LOW_THR)")
+    battery_critical_pct: float | None
+    home: HomeOut | None
+    estimates: dict[str, Any] = Field(description="a companion controller's ESO outputs, by name")
+    status_texts: list[str] = Field(description="the vehicle's latest STATUSTEXTs, oldest first")
+    role: Literal["owner", "standby"] = Field(description="whether this instance owns the link (else a stand-by)")
+
+
+class LinkOwnerOut(BaseModel):
+    instance: str = Field(description="this service instance's name")
+    owner: str | None = Field(description="the instance that owns the vehicle link (null: unknown)")
+
+
+class ServiceVehicleOut(VehicleOut, LinkOwnerOut):
+    """GET /vehicle: the (first) vehicle, with the depot a plan would use and the mission flying on it."""
+
+    depot: LatLon
+    active_mission: int | None
+
+
+class LinkReceivedOut(BaseModel):
+    messages: int = Field(description="MAVLink messages received from the vehicle")
+    positions: int = Field(description="GLOBAL_POSITION_INT among them")
+
+
+class FleetVehicleOut(VehicleOut):
+    """An entry of GET /vehicles: the vehicle, its link and the mission flying on it."""
+
+    link: str = Field(description="the connection, e.g. udpout:127.0.0.1:14540")
+    active_mission: int | None
+    received: LinkReceivedOut
+
+
 class StatusEvent(BaseModel):
     """One entry of a mission's status history."""
 

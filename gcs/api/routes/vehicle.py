@@ -10,13 +10,13 @@ from fastapi import APIRouter, Depends, Path
 from gcs.api.routes.deps import ServiceDep
 from gcs.api.routes.responses import CONFLICT, MUTATING, NO_VEHICLE, RouteOptions
 from gcs.api.security import require_token
-from gcs.domain.schemas import BatterySwapIn, BatterySwapOut
+from gcs.domain.schemas import BatterySwapIn, BatterySwapOut, FleetVehicleOut, ServiceVehicleOut
 
 router = APIRouter(tags=["vehicle"])
 SystemId = Annotated[int, Path(ge=1, le=255)]
 
 
-@router.get("/vehicle")
+@router.get("/vehicle", response_model=ServiceVehicleOut)
 def get_vehicle(service: ServiceDep) -> dict[str, Any]:
     """`connected` is false until the vehicle's heartbeat is heard; `home` falls back to the default depot.
     `role` is `owner` when this instance owns the vehicle link, `standby` when another one does (`owner` names
@@ -24,7 +24,7 @@ def get_vehicle(service: ServiceDep) -> dict[str, Any]:
     return service.vehicle()
 
 
-@router.get("/vehicles")
+@router.get("/vehicles", response_model=list[FleetVehicleOut])
 def list_vehicles(service: ServiceDep) -> list[dict[str, Any]]:
     """Every vehicle the service holds a link to (`serve --vehicle` repeated, `up --vehicles N`), in that order:
     its state as on GET /vehicle, `sysid`, its `link`, the `active_mission` flying on it, and what the link
@@ -32,7 +32,7 @@ def list_vehicles(service: ServiceDep) -> list[dict[str, Any]]:
     return service.vehicles()
 
 
-@router.get("/vehicles/{sysid}", responses=NO_VEHICLE)
+@router.get("/vehicles/{sysid}", response_model=FleetVehicleOut, responses=NO_VEHICLE)
 def get_fleet_vehicle(service: ServiceDep, sysid: SystemId) -> dict[str, Any]:
     """One vehicle of the fleet by its MAVLink system id."""
     return service.fleet_vehicle(sysid)
