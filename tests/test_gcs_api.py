@@ -3,6 +3,7 @@
 Flying is covered by the integration test against the real vehicle (test_gcs_integration.py).
 """
 
+import asyncio
 import gc
 import json
 import time
@@ -16,6 +17,8 @@ from gcs.domain.schemas import HomeOut, VehicleOut
 from gcs.domain.status import MissionStatus
 from gcs.reports.exports import read_qgc_plan, read_waypoints
 from gcs.settings import Limits, Settings
+from gcs.storage import MissionRecord
+from gcs.storage.off_loop import AsyncStorage
 from gcs.vehicle.link import VehicleStatus
 from planner import plan_tour
 from planner.scenario import reference_scenario
@@ -223,6 +226,29 @@ def test_abort_a_planned_mission_and_abort_twice(client):
 def test_abort_while_waiting_for_the_vehicle(tmp_path):
     with make_client(tmp_path, vehicle_wait_s=30.0) as c:
         mission_id = c.post("/missions", json={"buoys": BUOYS}).json()["id"]
+        body = c.post(f"/missions/{mission_id}/abort").json()
+    assert body["status"] == "aborted" and "before takeoff" in body["reason"]
+
+
+def test_abort_while_the_missions_task_still_reads_its_mission(tmp_path, monkeypatch):
+    # the task is cancelled at its first await (reading its mission, in a storage thread), before it could record
+    # an end: the abort must still end the mission
+    reads: list[int] = []
+    read = AsyncStorage.existing_mission
+
+    async def first_read_never_answers(self: AsyncStorage, mission_id: int) -> MissionRecord:
+        reads.append(mission_id)
+        if len(reads) == 1:
+            await asyncio.get_running_loop().create_future()  # until cancelled
+        return await read(self, mission_id)
+
+    monkeypatch.setattr(AsyncStorage, "existing_mission", first_read_never_answers)
+    with make_client(tmp_path, vehicle_wait_s=30.0) as c:
+        mission_id = c.post("/missions", json={"buoys": BUOYS}).json()["id"]
+        deadline = time.monotonic() + 30.0
+        while not reads and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert reads == [mission_id]
         body = c.post(f"/missions/{mission_id}/abort").json()
     assert body["status"] == "aborted" and "before takeoff" in body["reason"]
 

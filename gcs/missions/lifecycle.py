@@ -218,8 +218,12 @@ class FlightLifecycle:
             task.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await task
-        else:
-            await self._transition(mission_id, MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF)
+            # A task cancelled before it began, or while it still read its mission (an await since the storage left
+            # the event loop), ended before its `try`: nothing recorded the end, so it is recorded here.
+            if (await self.storage.existing_mission(mission_id)).status in TERMINAL:
+                return
+            self._abort_requested.discard(mission_id)
+        await self._transition(mission_id, MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF)
 
     def replan(self, mission_id: int, plan: Plan) -> None:
         """Fly a new plan (one tour: the mission's buoys in the same indices, then more) on a mission in flight:
