@@ -166,6 +166,22 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE",
         help="at exit, write JSON counters: tick pacing, link drops by kind, mission transfers",
     )
+    p.add_argument(
+        "--ftp-root",
+        type=Path,
+        metavar="DIR",
+        help="serve this directory read-only over MAVLink FTP, e.g. the camera's images (default: FTP serves nothing "
+        "and the autopilot refuses every request at once)",
+    )
+    p.add_argument(
+        "--ftp-component",
+        type=int,
+        default=100,
+        choices=range(1, 256),
+        metavar="N",
+        help="MAVLink component id serving --ftp-root (default 100, MAV_COMP_ID_CAMERA; 1 serves it as the "
+        "autopilot, as PX4 serves its SD card)",
+    )
     p.add_argument("--list-params", action="store_true", help="print every parameter with its value and exit")
     p.add_argument("-v", "--verbose", action="store_true", help="log every peer and protocol event")
     return p
@@ -183,6 +199,8 @@ def main(argv: list[str] | None = None) -> int:
         return _fail("--outer-rate must divide the 1 kHz physics into whole steps, between 10 and 250 Hz")
     if not 0 <= args.port < 65536:
         return _fail(f"--port {args.port} is not a UDP port")
+    if args.ftp_root is not None and not args.ftp_root.is_dir():
+        return _fail(f"--ftp-root {args.ftp_root} is not a directory")
     # Imports after argument checks so that --help is instant.
     from sitl_quad.attitude_loops import attitude_loops
     from sitl_quad.config import VehicleConfig
@@ -230,6 +248,8 @@ def main(argv: list[str] | None = None) -> int:
         lockstep=args.lockstep,
         flight_log=args.log,
         on_params_changed=save_params,
+        ftp_root=args.ftp_root,
+        ftp_component=args.ftp_component,
     )
     signal.signal(signal.SIGTERM, lambda *_: server.stop())
     signal.signal(signal.SIGINT, lambda *_: server.stop())

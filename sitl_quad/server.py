@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 from sitl_quad.mavlink.commands import Commands
+from sitl_quad.mavlink.ftp import CAMERA_COMPID, FileTransfer
 from sitl_quad.mavlink.heartbeat import Heartbeat, heartbeat_message
 from sitl_quad.mavlink.link import UdpLink
 from sitl_quad.mavlink.mission import MissionProtocol
@@ -41,6 +42,8 @@ class VehicleServer:
         lockstep: bool = False,
         flight_log: Path | None = None,
         on_params_changed=None,
+        ftp_root: Path | None = None,
+        ftp_component: int = CAMERA_COMPID,
     ) -> None:
         self.vehicle = vehicle
         vehicle.wall_clock = time.monotonic  # protocol-facing timers also respect the wall clock
@@ -65,6 +68,7 @@ class VehicleServer:
         self.commands.before_ack = self._publish_events
         self.mission = MissionProtocol(vehicle, self.send, link.sysid, link.compid)
         self.offboard = Offboard(vehicle)
+        self.file_transfer = FileTransfer(link, ftp_root, ftp_component)
         home_id = mavlink.MAVLINK_MSG_ID_HOME_POSITION
         version_id = mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION
         self.commands.register(mavlink.MAV_CMD_REQUEST_MESSAGE, lambda p: self.telemetry.request_message(p[0]))
@@ -75,7 +79,7 @@ class VehicleServer:
         )
         self.commands.register(mavlink.MAV_CMD_REQUEST_PROTOCOL_VERSION, lambda p: CommandResult.UNSUPPORTED)
         self.dispatch: dict = {}
-        for capability in (self.parameters, self.commands, self.mission, self.offboard):
+        for capability in (self.parameters, self.commands, self.mission, self.offboard, self.file_transfer):
             self.dispatch.update(capability.handlers())
         self._setpoint_types = set(self.offboard.handlers())
         self._log_file = None
@@ -107,6 +111,7 @@ class VehicleServer:
         self.heartbeat.poll(now)
         self.mission.poll(now)
         self.parameters.poll()
+        self.file_transfer.poll()
 
     def _param_changed(self, section: str) -> None:
         self.vehicle.apply_config(section)

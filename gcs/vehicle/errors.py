@@ -1,5 +1,5 @@
-"""What a vehicle link raises (gcs.vehicle.link and the protocols it runs: gcs.vehicle.parameters), in a module of its
-own so those protocol modules need not import the link manager."""
+"""What a vehicle link raises (gcs.vehicle.link and the protocols it runs: gcs.vehicle.parameters, gcs.vehicle.ftp),
+in a module of its own so those protocol modules need not import the link manager."""
 
 from __future__ import annotations
 

@@ -17,8 +17,8 @@ What it does, as QGroundControl and MAVSDK do:
 - asks for the streams it needs with SET_MESSAGE_INTERVAL (and REQUEST_DATA_STREAM for ArduPilot), and never
   assumes one datagram is one vehicle tick or that messages come at any particular rate;
 - offers typed actions (`arm`, `start_mission`, `return_to_launch`, `reset_battery`, `upload_mission`,
-  `download_mission`, `read_parameters`) that raise typed errors, as MAVSDK's Action, MissionRaw and Param
-  plugins do, so callers hold no MAVLink numbers;
+  `download_mission`, `read_parameters`, `download_file`) that raise typed errors, as MAVSDK's Action, MissionRaw,
+  Param and Ftp plugins do, so callers hold no MAVLink numbers;
 - keeps the first battery's state (BATTERY_STATUS id 0; SYS_STATUS's battery fields from an autopilot that
   sends no BATTERY_STATUS);
 - hands chosen messages to subscribers through queues and listeners. With a signing key it signs every message
@@ -39,6 +39,7 @@ from typing import Any
 from gcs.vehicle.autopilots import CUSTOM_MODE_ENABLED, Autopilot, Px4, autopilot_for
 from gcs.vehicle.connection import Connection, ConnectionStringError, Transport, open_transport, parse_connection
 from gcs.vehicle.errors import CommandDeniedError, CommandTimeoutError, LinkError
+from gcs.vehicle.ftp import CAMERA_COMPID, DEFAULT_MAX_BYTES, FtpClient
 from gcs.vehicle.mission_protocol import download_items, upload_items
 from gcs.vehicle.parameters import read_parameters
 from uavcore.geofence import Geofence
@@ -258,7 +259,7 @@ class LinkManager:
         self.signing_key = signing_key
         self._transport: Transport | None = None
         self._tasks: list[asyncio.Task] = []
-        self._queues: list[tuple[frozenset[str], asyncio.Queue]] = []
+        self._queues: list[tuple[frozenset[str], int | None, asyncio.Queue]] = []
         self._listeners: list[Callable[[Any], None]] = []
         self._chunk_ends: list[Callable[[], None]] = []
         self._connected_event = asyncio.Event()
@@ -266,6 +267,7 @@ class LinkManager:
         self.messages_received = 0
         self.positions_received = 0  # GLOBAL_POSITION_INT from the vehicle: its position stream's rate, measured
         self.fence: Geofence | None = None  # the vehicle's geofence as last read this connection (None: not read)
+        self._ftp = FtpClient(self)
 
     @property
     def target(self) -> tuple[int, int]:
@@ -448,14 +450,23 @@ class LinkManager:
         self.fence = Geofence.from_items(await download_items(self, mission_type=MissionType.FENCE))
         return self.fence
 
+    # ----- files (MAVSDK's Ftp plugin)
+    async def download_file(
+        self, path: str, target_component: int = CAMERA_COMPID, max_bytes: int = DEFAULT_MAX_BYTES
+    ) -> bytes:
+        """The file at `path` (or a camera's "mftp://[;comp=100]/..." URL) on a component of the vehicle, by
+        MAVLink FTP; raises FtpError (a LinkError) naming the server's refusal, a file over max_bytes or silence."""
+        return await self._ftp.download(path, target_component, max_bytes)
+
     # ----- receiving
     @contextlib.contextmanager
-    def subscribe(self, names: set[str]) -> Iterator[asyncio.Queue]:
-        """A queue receiving every message of these types from the autopilot while the block runs."""
-        entry: tuple[frozenset[str], asyncio.Queue] = (frozenset(names), asyncio.Queue())
+    def subscribe(self, names: set[str], component: int | None = None) -> Iterator[asyncio.Queue]:
+        """A queue receiving every message of these types from the autopilot (or from another `component` of the
+        vehicle's system: its camera) while the block runs."""
+        entry: tuple[frozenset[str], int | None, asyncio.Queue] = (frozenset(names), component, asyncio.Queue())
         self._queues.append(entry)
         try:
-            yield entry[1]
+            yield entry[2]
         finally:
             self._queues.remove(entry)
 
@@ -495,10 +506,10 @@ class LinkManager:
             if message.get_type() == "GLOBAL_POSITION_INT":
                 self.positions_received += 1
             self._update(message)
-            if message.get_srcComponent() == self.vehicle.compid:
-                for names, queue in self._queues:
-                    if message.get_type() in names:
-                        queue.put_nowait(message)
+            source = message.get_srcComponent()
+            for names, component, queue in self._queues:
+                if source == (self.vehicle.compid if component is None else component) and message.get_type() in names:
+                    queue.put_nowait(message)
             for listener in list(self._listeners):
                 listener(message)
         for end in list(self._chunk_ends):

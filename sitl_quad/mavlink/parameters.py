@@ -10,12 +10,6 @@ from uavcore.mavlink import mavlink
 log = logging.getLogger(__name__)
 LIST_BURST = 25  # PARAM_VALUEs sent per loop pass while streaming the list: gentle on slow links
 
-# MAVLink FTP, which MAVProxy and QGroundControl try first for the parameter list (@PARAM/param.pck), is not
-# implemented here: each request is refused at once so that the client falls back to PARAM_REQUEST_LIST
-# instead of waiting out its FTP timeouts (about 10 s with MAVProxy).
-FTP_ACK, FTP_NAK = 128, 129  # reply opcodes
-FTP_ERR_UNKNOWN_COMMAND = 7
-
 
 class Parameters:
     def __init__(self, table: ParameterTable, send, on_change) -> None:
@@ -29,7 +23,6 @@ class Parameters:
             "PARAM_REQUEST_LIST": self.request_list,
             "PARAM_REQUEST_READ": self.request_read,
             "PARAM_SET": self.param_set,
-            "FILE_TRANSFER_PROTOCOL": self.refuse_ftp,
         }
 
     def value_message(self, index: int):
@@ -73,22 +66,6 @@ class Parameters:
         except ParameterError as exc:
             log.info("PARAM_SET refused: %s", exc)  # answered below with the unchanged value
         self.send(self.value_message(self.table.index(name)))  # to everyone: all GCSs learn the change
-
-    def refuse_ftp(self, peer, msg) -> None:
-        payload = bytes(msg.payload)
-        seq, session, opcode = int.from_bytes(payload[0:2], "little"), payload[2], payload[3]
-        if opcode in (FTP_ACK, FTP_NAK):  # a reply, not a request
-            return
-        # Header: seq (u16, the request's + 1), session, opcode, size, req_opcode, burst_complete, padding,
-        # offset (u32); then the data, here the one-byte error code.
-        header = ((seq + 1) % 65536).to_bytes(2, "little") + bytes([session, FTP_NAK, 1, opcode, 0, 0])
-        reply = header + bytes(4) + bytes([FTP_ERR_UNKNOWN_COMMAND])
-        self.send(
-            mavlink.MAVLink_file_transfer_protocol_message(
-                0, msg.get_srcSystem(), msg.get_srcComponent(), list(reply.ljust(251, b"\0"))
-            ),
-            peer,
-        )
 
 
 def _name(param_id) -> str:
