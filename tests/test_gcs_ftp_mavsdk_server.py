@@ -12,18 +12,18 @@ asking for more bytes than are left, so the client asks for exactly what is left
 from __future__ import annotations
 
 import asyncio
-import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from ftp_files import served_files
 from sitl_process import REPO
 
 from bench.processes import free_udp_port, stop_process
 from gcs.vehicle.ftp import FileTooLargeError, FtpClient, FtpError
 from gcs.vehicle.link import LinkManager
-from uavcore.mavftp import MAX_DATA, NakError
+from uavcore.mavftp import NakError
 
 pytestmark = [pytest.mark.integration, pytest.mark.timeout(300)]
 
@@ -34,16 +34,7 @@ CONNECT_S = 60.0  # a backstop for a loaded machine
 @pytest.fixture
 def served(tmp_path) -> tuple[Path, dict[str, bytes]]:
     root = tmp_path / "images"
-    root.mkdir()
-    files = {
-        "img_0001.jpg": b"\xff\xd8\xff\xe0" + os.urandom(200_000 - 6) + b"\xff\xd9",
-        "empty.jpg": b"",
-        "exact.bin": os.urandom(150 * MAX_DATA),
-    }
-    for name, content in files.items():
-        (root / name).write_bytes(content)
-    (tmp_path / "outside.txt").write_text("not served")
-    return root, files
+    return root, served_files(root)
 
 
 @pytest.mark.parametrize("component", [1, 100], ids=["autopilot", "camera"])

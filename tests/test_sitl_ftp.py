@@ -9,18 +9,18 @@ deadline; nothing depends on how fast the machine is.
 from __future__ import annotations
 
 import asyncio
-import os
 import subprocess
 from pathlib import Path
 
 import pytest
+from ftp_files import served_files
 from sitl_process import REPO
 from udp_relay import LossyUdpRelay
 
 from bench.processes import free_tcp_port, free_udp_port
 from gcs.vehicle.ftp import FileTooLargeError, FtpClient, FtpError
 from gcs.vehicle.link import LinkManager
-from uavcore.mavftp import MAX_DATA, NakError
+from uavcore.mavftp import NakError
 
 pytestmark = pytest.mark.integration
 
@@ -29,21 +29,6 @@ CONNECT_S = 60.0  # a backstop: a loaded machine's vehicle start and first heart
 MAVSDK3_PYTHON = REPO / ".venv-mavsdk3" / "bin" / "python"
 EXAMPLES = REPO / "tests" / "mavsdk_examples"
 MAVSDK_BACKSTOP_S = 180.0
-
-
-def served_files(root: Path) -> dict[str, bytes]:
-    """A camera's kind of files: a ~200 kB JPEG, an empty file, one of exactly 150 * 239 bytes (a whole burst
-    chunk, ending exactly at the end of a packet). Beside the root, a file a request must not reach."""
-    root.mkdir()
-    files = {
-        "img_0001.jpg": b"\xff\xd8\xff\xe0" + os.urandom(200_000 - 6) + b"\xff\xd9",
-        "empty.jpg": b"",
-        "exact.bin": os.urandom(150 * MAX_DATA),
-    }
-    for name, content in files.items():
-        (root / name).write_bytes(content)
-    (root.parent / "outside.txt").write_text("not served")
-    return files
 
 
 async def with_link(port: int, scenario) -> None:

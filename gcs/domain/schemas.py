@@ -319,27 +319,11 @@ class HomeOut(BaseModel):
     alt: float = Field(description="AMSL, metres")
 
 
-class VehicleOut(BaseModel):
-    """A vehicle as its link last heard it (GET /vehicle, each of GET /vehicles, /ws): the vehicle status's fields
-    by name (gcs.vehicle.link.VehicleStatus; a test keeps the two in step), and who owns the link. Positions NED
-    metres from home, angles radians; null where the vehicle has not reported it."""
+class VehicleMotion(BaseModel):
+    """Where the vehicle is, how it moves and where its controller wants it: the fields a telemetry sample and a
+    vehicle's live state share, named as the link's VehicleStatus names them. Positions NED metres from home,
+    angles radians; null where the vehicle has not reported it."""
 
-    connected: bool
-    sysid: int | None
-    compid: int | None
-    autopilot: str | None
-    vehicle_type: str | None
-    reboots: int = Field(description="new boots of the same vehicle seen")
-    incarnation: int = Field(description="rises with every new boot or new vehicle")
-    armed: bool
-    base_mode: int
-    custom_mode: int
-    mode: str | None = Field(description="the flight mode's name (null while not connected)")
-    landed_state: int | None = Field(description="MAV_LANDED_STATE")
-    time_boot_ms: int | None
-    t_s: float | None = Field(description="vehicle time, time_boot_ms / 1000")
-    boot_instant_s: float | None = Field(description="unix time of the vehicle's boot (SYSTEM_TIME)")
-    heartbeat_age_s: float | None
     lat: float | None
     lon: float | None
     alt_m: float | None = Field(description="above home")
@@ -352,11 +336,33 @@ class VehicleOut(BaseModel):
     roll: float | None
     pitch: float | None
     yaw: float | None
-    ref_north: float | None = Field(description="the offboard controller's reference (its ESO's companion)")
+    ref_north: float | None = Field(description="the offboard controller's reference")
     ref_east: float | None
     ref_down: float | None
     ref_yaw: float | None
     mission_seq: int | None
+    landed_state: int | None = Field(description="MAV_LANDED_STATE")
+    armed: bool
+
+
+class VehicleOut(VehicleMotion):
+    """A vehicle as its link last heard it (GET /vehicle, each of GET /vehicles, /ws): the vehicle status's fields
+    by name (gcs.vehicle.link.VehicleStatus; a test keeps the two in step), and who owns the link."""
+
+    connected: bool
+    sysid: int | None
+    compid: int | None
+    autopilot: str | None
+    vehicle_type: str | None
+    reboots: int = Field(description="new boots of the same vehicle seen")
+    incarnation: int = Field(description="rises with every new boot or new vehicle")
+    base_mode: int
+    custom_mode: int
+    mode: str | None = Field(description="the flight mode's name (null while not connected)")
+    time_boot_ms: int | None
+    t_s: float | None = Field(description="vehicle time, time_boot_ms / 1000")
+    boot_instant_s: float | None = Field(description="unix time of the vehicle's boot (SYSTEM_TIME)")
+    heartbeat_age_s: float | None
     mission_total: int | None
     mission_state: int | None = Field(description="MISSION_STATE")
     battery_remaining_pct: float | None
@@ -454,31 +460,12 @@ class MissionSummary(BaseModel):
     tracking: TrackingFigures | None
 
 
-class TelemetrySample(BaseModel):
+class TelemetrySample(VehicleMotion):
     """One recorded sample of the vehicle's state. The one definition of a sample: the recorder fills these
     fields (TELEMETRY_FROM_STATUS from the link's vehicle status by name, the rest computed), storage keeps each
     sample as this document, and the API, the exports and the report read these names."""
 
     t_s: float = Field(description="vehicle time, time_boot_ms / 1000")
-    lat: float | None
-    lon: float | None
-    alt_m: float | None
-    north: float | None
-    east: float | None
-    down: float | None
-    vn: float | None
-    ve: float | None
-    vd: float | None
-    roll: float | None
-    pitch: float | None
-    yaw: float | None
-    ref_north: float | None
-    ref_east: float | None
-    ref_down: float | None
-    ref_yaw: float | None
-    mission_seq: int | None
-    landed_state: int | None
-    armed: bool
     eso: dict[str, Any] | None = Field(description="the offboard controller's ESO estimates, by name")
     cross_track_m: float | None = Field(default=None, description="distance to the leg being flown")
     sortie: int | None = Field(default=None, description="the sortie being flown (0-based)")

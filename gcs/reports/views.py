@@ -100,6 +100,20 @@ def _buoy_results(record: MissionRecord) -> list[BuoyResult]:
     ]
 
 
+def _heading(record: MissionRecord) -> dict[str, Any]:
+    """What a mission's document and its summary in the list both begin with."""
+    return {
+        "id": record.id,
+        "status": record.status,
+        "reason": record.reason,
+        "created_at": record.created_at,
+        "updated_at": record.updated_at,
+        "vehicle_sysid": record.vehicle_sysid,
+        "kind": record.kind,
+        "fleet_id": record.part_of,
+    }
+
+
 def mission_out(record: MissionRecord) -> MissionOut:
     plan = record.plan
     progress = record.progress.shown()
@@ -114,14 +128,7 @@ def mission_out(record: MissionRecord) -> MissionOut:
     else:
         planned["sorties"] = sorties_out(plan, record.progress.sorties_flown)
     return MissionOut(
-        id=record.id,
-        status=record.status,
-        reason=record.reason,
-        created_at=record.created_at,
-        updated_at=record.updated_at,
-        vehicle_sysid=record.vehicle_sysid,
-        kind=record.kind,
-        fleet_id=record.part_of,
+        **_heading(record),
         fleet=fleet,
         **planned,
         altitude_m=record.flight.altitude_m,
@@ -174,14 +181,7 @@ def fleet_out(record: MissionRecord) -> FleetOut:
 
 def mission_summary(record: MissionRecord) -> MissionSummary:
     return MissionSummary(
-        id=record.id,
-        status=record.status,
-        reason=record.reason,
-        created_at=record.created_at,
-        updated_at=record.updated_at,
-        vehicle_sysid=record.vehicle_sysid,
-        kind=record.kind,
-        fleet_id=record.part_of,
+        **_heading(record),
         buoys=len(record.plan.order),
         length_m=record.plan.length_m,
         tracking=record.results.tracking if record.results else None,
