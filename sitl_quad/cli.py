@@ -10,6 +10,7 @@ import math
 import os
 import signal
 import sys
+import tempfile
 from pathlib import Path
 
 from uavcore.geodesy import DEFAULT_HOME
@@ -61,6 +62,16 @@ def parse_percent(text: str) -> float:
     if not 0 <= value <= 100:
         raise argparse.ArgumentTypeError(f"a percentage is in [0, 100], got {value:g}")
     return value
+
+
+def parse_current(text: str) -> tuple[float, float]:
+    try:
+        to_deg, speed = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected TO_DEG,M_S, got {text!r}") from None
+    if not (math.isfinite(to_deg) and math.isfinite(speed) and speed >= 0):
+        raise argparse.ArgumentTypeError(f"a current is a finite direction and a speed >= 0, got {text!r}")
+    return to_deg, speed
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -166,6 +177,33 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE",
         help="at exit, write JSON counters: tick pacing, link drops by kind, mission transfers",
     )
+    # ----- the camera on its gimbal (sitl_quad.mavlink.camera, sitl_quad.mavlink.gimbal)
+    p.add_argument(
+        "--world",
+        type=Path,
+        metavar="FILE",
+        help="the buoys the camera sees: a GeoJSON world file (uavcore.buoy_world; default: open sea, no buoys)",
+    )
+    p.add_argument(
+        "--camera",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="carry a camera (MAVLink component 100) on a gimbal managed by the autopilot (default: with --world)",
+    )
+    p.add_argument(
+        "--image-dir",
+        type=Path,
+        metavar="DIR",
+        help="where the camera writes IMG_<index>.jpg, created if missing (default: a new temporary directory); "
+        "serve the same directory over MAVLink FTP from component 100 for CAMERA_IMAGE_CAPTURED's file_url",
+    )
+    p.add_argument(
+        "--current",
+        type=parse_current,
+        default=(0.0, 0.0),
+        metavar="TO_DEG,M_S",
+        help="the water's current moving the buoys on their moorings: direction it flows to, speed (default 0,0)",
+    )
     p.add_argument("--list-params", action="store_true", help="print every parameter with its value and exit")
     p.add_argument("-v", "--verbose", action="store_true", help="log every peer and protocol event")
     return p
@@ -206,6 +244,21 @@ def main(argv: list[str] | None = None) -> int:
         for spec in table.specs:
             print(f"{spec.name:16} {table.get(spec.name):<14.6g} {spec.description}")
         return 0
+    world, image_dir = None, None
+    if args.camera if args.camera is not None else args.world is not None:
+        from sitl_quad.camera import Environment
+        from uavcore.buoy_world import WorldFileError, load_world
+
+        try:
+            world = load_world(args.world) if args.world is not None else None
+        except (OSError, WorldFileError) as exc:
+            return _fail(f"--world {args.world}: {exc}")
+        image_dir = args.image_dir or Path(tempfile.mkdtemp(prefix="sitl_quad_images_"))
+        try:
+            image_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            return _fail(f"--image-dir {image_dir}: {exc.strerror}")
+        print(f"sitl-quad: camera images in {image_dir}", flush=True)
     warm_up(config, args.home, args.outer_rate)  # before listening: no ground station waits on a compile
     vehicle = Vehicle(
         config, home=args.home, seed=args.seed, outer_rate_hz=args.outer_rate, attitude_loops=attitude_loops()
@@ -230,6 +283,9 @@ def main(argv: list[str] | None = None) -> int:
         lockstep=args.lockstep,
         flight_log=args.log,
         on_params_changed=save_params,
+        image_dir=image_dir,
+        world=world,
+        current=Environment(current_to_deg=args.current[0], current_speed_m_s=args.current[1]) if image_dir else None,
     )
     signal.signal(signal.SIGTERM, lambda *_: server.stop())
     signal.signal(signal.SIGINT, lambda *_: server.stop())

@@ -110,6 +110,9 @@ class UdpLink:
         self.address = self.sock.getsockname()
         self.signing_key = signing_key
         self.encoder = Encoder(sysid, compid, signing_key)
+        # Other components of this vehicle that the link answers for (a camera's FTP server, 100): messages to
+        # them are handled here, not forwarded, and what they send goes out under their own component id.
+        self.encoders: dict[int, Encoder] = {compid: self.encoder}
         self.peers: dict[tuple[str, int], Peer] = {}
         for target in out_targets or []:
             peer = self._new_peer(target)
@@ -119,29 +122,35 @@ class UdpLink:
     def close(self) -> None:
         self.sock.close()
 
+    def add_component(self, compid: int) -> None:
+        """Answer for another component of this vehicle: messages addressed to it are this link's to handle, and
+        what is sent with `compid=` goes out under its id (signed with the link's key, its own timestamps)."""
+        if compid not in self.encoders:
+            self.encoders[compid] = Encoder(self.sysid, compid, self.signing_key)
+
     # ----- sending
-    def pack(self, msg) -> bytes:
-        return self.encoder.pack(msg)
+    def pack(self, msg, compid: int | None = None) -> bytes:
+        return self.encoders[self.compid if compid is None else compid].pack(msg)
 
-    def send(self, msg, peer: Peer | None = None) -> None:
-        """Send to one peer, or to every live peer."""
-        self.send_to(msg, [peer] if peer is not None else self.live_peers())
+    def send(self, msg, peer: Peer | None = None, compid: int | None = None) -> None:
+        """Send to one peer, or to every live peer (from the autopilot, or from another component of ours)."""
+        self.send_to(msg, [peer] if peer is not None else self.live_peers(), compid)
 
-    def send_to(self, msg, peers: list[Peer]) -> None:
+    def send_to(self, msg, peers: list[Peer], compid: int | None = None) -> None:
         if not peers:
             return
-        buf = self.pack(msg)
+        buf = self.pack(msg, compid)
         for p in peers:
             self._sendto(buf, p.address)
 
-    def send_batch(self, msgs: list, peers: list[Peer]) -> None:
+    def send_batch(self, msgs: list, peers: list[Peer], compid: int | None = None) -> None:
         """Several messages in as few datagrams as fit under MAX_BATCH_BYTES (every MAVLink parser reads
         all the frames of a datagram): a loopback datagram costs a context switch, a frame almost nothing."""
         if not peers or not msgs:
             return
         datagrams, current = [], b""
         for msg in msgs:
-            frame = self.pack(msg)
+            frame = self.pack(msg, compid)
             if current and len(current) + len(frame) > MAX_BATCH_BYTES:
                 datagrams.append(current)
                 current = b""
@@ -229,8 +238,8 @@ class UdpLink:
         if kind == "SET_ATTITUDE_TARGET" or peer.compid == mavlink.MAV_COMP_ID_ONBOARD_COMPUTER:
             peer.onboard = True
         target = _target_of(msg)
-        for_us = target is None or (target[0] in (0, self.sysid) and target[1] in (0, self.compid))
-        for_others = target is None or target[0] != self.sysid or target[1] not in (0, self.compid)
+        for_us = target is None or (target[0] in (0, self.sysid) and (target[1] == 0 or target[1] in self.encoders))
+        for_others = target is None or target[0] != self.sysid or (target[1] != 0 and target[1] not in self.encoders)
         if for_others:
             self._forward(peer, msg)
         if not for_us:
