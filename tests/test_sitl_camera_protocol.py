@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from conftest import VehicleStarter, connected
 from PIL import Image
-from sitl_process import VEHICLE_SYSID, WAIT_S, GroundStation, SitlProcess, mavlink
+from sitl_process import VEHICLE_SYSID, WAIT_S, GroundStation, SitlProcess, mavlink, mission_item
 
 from sitl_quad.camera_render import DEFAULT_CAMERA
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
@@ -161,6 +161,13 @@ def angles_near(msg, pitch_deg: float, yaw_deg: float, tolerance_deg: float = 0.
     return abs(math.degrees(pitch) - pitch_deg) < tolerance_deg and abs(math.degrees(yaw) - yaw_deg) < tolerance_deg
 
 
+def aims_north(msg, pitch_deg: float) -> bool:
+    """Earth-frame bearing north (the quaternion's yaw is relative to the vehicle's heading, delta_yaw)."""
+    _, pitch, yaw = euler_from_quat(msg.q)
+    bearing = math.degrees((yaw + msg.delta_yaw + math.pi) % (2 * math.pi) - math.pi)
+    return abs(math.degrees(pitch) - pitch_deg) < 1.0 and abs(bearing) < 1.0
+
+
 def test_roi_aims_the_gimbal_at_the_buoy_and_the_image_shows_it(gcs, camera_vehicle):
     _, images = camera_vehicle
     take_off(gcs)
@@ -191,3 +198,36 @@ def test_roi_aims_the_gimbal_at_the_buoy_and_the_image_shows_it(gcs, camera_vehi
     assert abs(centre_u - DEFAULT_CAMERA.cx) < 60 and abs(centre_v - DEFAULT_CAMERA.cy) < 60
     assert gcs.command(mavlink.MAV_CMD_DO_SET_ROI_NONE).result == ACCEPTED
     assert gcs.recv("GIMBAL_DEVICE_ATTITUDE_STATUS", timeout=WAIT_S, condition=lambda m: angles_near(m, 0, 0))
+
+
+def test_mission_items_point_the_gimbal_and_take_a_photo(start_sitl, tmp_path):
+    """ROI, capture and ROI-none as mission items: run when the navigator reaches them (PX4 re-issues them)."""
+    vehicle = start_sitl(speed=4.0, extra_args=("--camera", "--image-dir", str(tmp_path)))
+    gcs = connected(vehicle)
+    mission_frame = mavlink.MAV_FRAME_MISSION
+    south_lat, south_lon, _ = FRAME.from_ned(-20.0, 0.0, 0.0)
+    items = [
+        mission_item(0, mavlink.MAV_CMD_NAV_TAKEOFF, DEFAULT_HOME[0], DEFAULT_HOME[1], HOVER_M),
+        mission_item(1, mavlink.MAV_CMD_DO_SET_ROI_LOCATION, BUOY_LAT, BUOY_LON, 0.0),
+        mission_item(2, mavlink.MAV_CMD_NAV_WAYPOINT, south_lat, south_lon, HOVER_M, params=(2.0, 1.0, 0.0, math.nan)),
+        mission_item(3, mavlink.MAV_CMD_IMAGE_START_CAPTURE, frame=mission_frame, params=(0.0, 0.0, 1.0, 0.0)),
+        mission_item(4, mavlink.MAV_CMD_DO_SET_ROI_NONE, frame=mission_frame),
+    ]
+    assert gcs.upload_mission(items).type == mavlink.MAV_MISSION_ACCEPTED
+    assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == ACCEPTED
+    assert gcs.command(mavlink.MAV_CMD_MISSION_START, 0, 0).result == ACCEPTED
+    # from 20 m south and 20 m up the buoy is 60 m north: pitch -18.4 deg, bearing north whatever the heading
+    aimed = gcs.recv("GIMBAL_DEVICE_ATTITUDE_STATUS", timeout=WAIT_S, condition=lambda m: aims_north(m, -18.4))
+    assert aimed is not None, "the ROI item did not aim the gimbal at the buoy"
+    # the last two items are reached in one tick: the photo is taken at its end, after the reports
+    seen: dict[str, object] = {}
+    while len(seen) < 2:
+        kinds = ["CAMERA_IMAGE_CAPTURED", "MISSION_ITEM_REACHED"]
+        msg = gcs.recv(kinds, timeout=WAIT_S, condition=lambda m: m.get_type() != "MISSION_ITEM_REACHED" or m.seq == 4)
+        assert msg is not None, f"only {sorted(seen)}"
+        seen[msg.get_type()] = msg
+    shot = seen["CAMERA_IMAGE_CAPTURED"]
+    assert shot.capture_result == 1
+    valid_jpeg(tmp_path / f"IMG_{shot.image_index:06d}.jpg")
+    assert gcs.recv("GIMBAL_DEVICE_ATTITUDE_STATUS", timeout=WAIT_S, condition=lambda m: angles_near(m, 0, 0))
+    gcs.close()
