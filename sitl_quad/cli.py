@@ -21,6 +21,7 @@ examples:
   sitl-quad                                   # PX4-like vehicle on udp 127.0.0.1:14540, real time
   sitl-quad --lockstep --seed 3               # deterministic, as fast as the offboard controller answers
   sitl-quad --speed 10 --out 127.0.0.1:14550  # 10x real time, also pushing to a listening QGroundControl
+  sitl-quad --world buoys.geojson --image-dir img  # a camera (component 100) on a gimbal, seeing these buoys
   mavproxy.py --master=udpout:127.0.0.1:14540 # connect a ground station to it
 """
 
@@ -221,8 +222,18 @@ def main(argv: list[str] | None = None) -> int:
         return _fail("--outer-rate must divide the 1 kHz physics into whole steps, between 10 and 250 Hz")
     if not 0 <= args.port < 65536:
         return _fail(f"--port {args.port} is not a UDP port")
+    camera = args.camera if args.camera is not None else args.world is not None
+    world = None
+    if camera and args.world is not None:
+        from uavcore.buoy_world import WorldFileError, load_world
+
+        try:
+            world = load_world(args.world)
+        except (OSError, WorldFileError) as exc:
+            return _fail(f"--world {args.world}: {exc}")
     # Imports after argument checks so that --help is instant.
     from sitl_quad.attitude_loops import attitude_loops
+    from sitl_quad.camera import Environment
     from sitl_quad.config import VehicleConfig
     from sitl_quad.mavlink.link import UdpLink
     from sitl_quad.params import ParameterError, ParameterTable
@@ -244,15 +255,8 @@ def main(argv: list[str] | None = None) -> int:
         for spec in table.specs:
             print(f"{spec.name:16} {table.get(spec.name):<14.6g} {spec.description}")
         return 0
-    world, image_dir = None, None
-    if args.camera if args.camera is not None else args.world is not None:
-        from sitl_quad.camera import Environment
-        from uavcore.buoy_world import WorldFileError, load_world
-
-        try:
-            world = load_world(args.world) if args.world is not None else None
-        except (OSError, WorldFileError) as exc:
-            return _fail(f"--world {args.world}: {exc}")
+    image_dir = None
+    if camera:
         image_dir = args.image_dir or Path(tempfile.mkdtemp(prefix="sitl_quad_images_"))
         try:
             image_dir.mkdir(parents=True, exist_ok=True)

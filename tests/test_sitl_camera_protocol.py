@@ -5,6 +5,7 @@ The vehicle runs as a process with a one-buoy world (`--world`) and its images i
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 from collections.abc import Iterator
@@ -121,7 +122,7 @@ def test_interval_capture_writes_geotagged_jpegs(gcs, camera_vehicle):
     indices = [m.image_index for m in captured]
     assert indices == list(range(indices[0], indices[0] + 5))
     times = [m.time_boot_ms for m in captured]
-    assert [b - a for a, b in zip(times, times[1:], strict=False)] == [200] * 4  # simulated 0.2 s apart
+    assert [b - a for a, b in itertools.pairwise(times)] == [200] * 4  # simulated 0.2 s apart
     for msg in captured:
         assert msg.capture_result == 1 and from_camera(msg)
         name = f"IMG_{msg.image_index:06d}.jpg"

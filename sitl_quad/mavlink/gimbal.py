@@ -48,6 +48,18 @@ KEEP, AUTOPILOT_ITSELF, RELEASE = -1, -2, -3  # DO_GIMBAL_MANAGER_CONFIGURE's sp
 RELATIVE_FRAMES = (MavFrame.GLOBAL_RELATIVE_ALT, MavFrame.GLOBAL_RELATIVE_ALT_INT)
 
 
+def _control_id(value: int, current: int, own: int) -> int:
+    """One of DO_GIMBAL_MANAGER_CONFIGURE's ids: -1 keeps, -2 is the autopilot itself, else 0..255 (ValueError:
+    DENIED)."""
+    if value == KEEP:
+        return current
+    if value == AUTOPILOT_ITSELF:
+        return own
+    if not 0 <= value <= 255:
+        raise ValueError(f"gimbal control id {value}")
+    return value
+
+
 def _text(value: str, size: int = 32) -> bytes:
     return value.encode()[:size]
 
@@ -154,12 +166,9 @@ class GimbalManager:
         if RELEASE in (sysid, compid):
             if self._in_control(source.sysid, source.compid):
                 self.primary = (0, 0)
-        elif AUTOPILOT_ITSELF in (sysid, compid):
-            self.primary = (self.link.sysid, self.link.compid)
-        elif 0 <= sysid <= 255 and 0 <= compid <= 255:
-            self.primary = (sysid, compid)
-        elif sysid != KEEP or compid != KEEP:
-            return CommandResult.DENIED
+        else:
+            own = (self.link.sysid, self.link.compid)
+            self.primary = (_control_id(sysid, self.primary[0], own[0]), _control_id(compid, self.primary[1], own[1]))
         self.link.send(self.manager_status())
         return CommandResult.ACCEPTED
 
