@@ -10,6 +10,7 @@ import math
 import os
 import signal
 import sys
+import tempfile
 from pathlib import Path
 
 from uavcore.geodesy import DEFAULT_HOME
@@ -20,6 +21,7 @@ examples:
   sitl-quad                                   # PX4-like vehicle on udp 127.0.0.1:14540, real time
   sitl-quad --lockstep --seed 3               # deterministic, as fast as the offboard controller answers
   sitl-quad --speed 10 --out 127.0.0.1:14550  # 10x real time, also pushing to a listening QGroundControl
+  sitl-quad --world buoys.geojson --image-dir img  # a camera (component 100) on a gimbal, seeing these buoys
   mavproxy.py --master=udpout:127.0.0.1:14540 # connect a ground station to it
 """
 
@@ -61,6 +63,16 @@ def parse_percent(text: str) -> float:
     if not 0 <= value <= 100:
         raise argparse.ArgumentTypeError(f"a percentage is in [0, 100], got {value:g}")
     return value
+
+
+def parse_current(text: str) -> tuple[float, float]:
+    try:
+        to_deg, speed = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected TO_DEG,M_S, got {text!r}") from None
+    if not (math.isfinite(to_deg) and math.isfinite(speed) and speed >= 0):
+        raise argparse.ArgumentTypeError(f"a current is a finite direction and a speed >= 0, got {text!r}")
+    return to_deg, speed
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -170,8 +182,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--ftp-root",
         type=Path,
         metavar="DIR",
-        help="serve this directory read-only over MAVLink FTP, e.g. the camera's images (default: FTP serves nothing "
-        "and the autopilot refuses every request at once)",
+        help="serve this directory read-only over MAVLink FTP (default: the camera's --image-dir when it carries one, "
+        "else nothing: the autopilot refuses every request at once)",
     )
     p.add_argument(
         "--ftp-component",
@@ -181,6 +193,33 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="MAVLink component id serving --ftp-root (default 100, MAV_COMP_ID_CAMERA; 1 serves it as the "
         "autopilot, as PX4 serves its SD card)",
+    )
+    # ----- the camera on its gimbal (sitl_quad.mavlink.camera, sitl_quad.mavlink.gimbal)
+    p.add_argument(
+        "--world",
+        type=Path,
+        metavar="FILE",
+        help="the buoys the camera sees: a GeoJSON world file (uavcore.buoy_world; default: open sea, no buoys)",
+    )
+    p.add_argument(
+        "--camera",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="carry a camera (MAVLink component 100) on a gimbal managed by the autopilot (default: with --world)",
+    )
+    p.add_argument(
+        "--image-dir",
+        type=Path,
+        metavar="DIR",
+        help="where the camera writes IMG_<index>.jpg, created if missing (default: a new temporary directory); "
+        "served over MAVLink FTP from component 100 unless --ftp-root says otherwise: CAMERA_IMAGE_CAPTURED's file_url",
+    )
+    p.add_argument(
+        "--current",
+        type=parse_current,
+        default=(0.0, 0.0),
+        metavar="TO_DEG,M_S",
+        help="the water's current moving the buoys on their moorings: direction it flows to, speed (default 0,0)",
     )
     p.add_argument("--list-params", action="store_true", help="print every parameter with its value and exit")
     p.add_argument("-v", "--verbose", action="store_true", help="log every peer and protocol event")
@@ -201,8 +240,18 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(f"--port {args.port} is not a UDP port")
     if args.ftp_root is not None and not args.ftp_root.is_dir():
         return _fail(f"--ftp-root {args.ftp_root} is not a directory")
+    camera = args.camera if args.camera is not None else args.world is not None
+    world = None
+    if camera and args.world is not None:
+        from uavcore.buoy_world import WorldFileError, load_world
+
+        try:
+            world = load_world(args.world)
+        except (OSError, WorldFileError) as exc:
+            return _fail(f"--world {args.world}: {exc}")
     # Imports after argument checks so that --help is instant.
     from sitl_quad.attitude_loops import attitude_loops
+    from sitl_quad.camera import Environment
     from sitl_quad.config import VehicleConfig
     from sitl_quad.mavlink.link import UdpLink
     from sitl_quad.params import ParameterError, ParameterTable
@@ -224,6 +273,14 @@ def main(argv: list[str] | None = None) -> int:
         for spec in table.specs:
             print(f"{spec.name:16} {table.get(spec.name):<14.6g} {spec.description}")
         return 0
+    image_dir = None
+    if camera:
+        image_dir = args.image_dir or Path(tempfile.mkdtemp(prefix="sitl_quad_images_"))
+        try:
+            image_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            return _fail(f"--image-dir {image_dir}: {exc.strerror}")
+        print(f"sitl-quad: camera images in {image_dir}", flush=True)
     warm_up(config, args.home, args.outer_rate)  # before listening: no ground station waits on a compile
     vehicle = Vehicle(
         config, home=args.home, seed=args.seed, outer_rate_hz=args.outer_rate, attitude_loops=attitude_loops()
@@ -248,8 +305,12 @@ def main(argv: list[str] | None = None) -> int:
         lockstep=args.lockstep,
         flight_log=args.log,
         on_params_changed=save_params,
-        ftp_root=args.ftp_root,
+        # the camera's images are served where its CAMERA_IMAGE_CAPTURED file_url (mftp://[;comp=100]/...) says
+        ftp_root=args.ftp_root or image_dir,
         ftp_component=args.ftp_component,
+        image_dir=image_dir,
+        world=world,
+        current=Environment(current_to_deg=args.current[0], current_speed_m_s=args.current[1]) if image_dir else None,
     )
     signal.signal(signal.SIGTERM, lambda *_: server.stop())
     signal.signal(signal.SIGINT, lambda *_: server.stop())

@@ -8,7 +8,8 @@ the last one (the paper's Figure 11 shows such 2-3 s yaw turns at the 7th, 9th a
 
 Sequencing follows PX4's navigator: an item is reached when the reference has arrived AND the vehicle is
 within the acceptance radius horizontally and within the altitude tolerance vertically; the navigator then
-dwells for the item's hold time and makes the next item current. DO_ items run at once. A LAND or RTL item
+dwells for the item's hold time and makes the next item current. DO_ items run at once (a camera or gimbal
+item is reported for the vehicle's payload to execute, as PX4 re-issues it as a command). A LAND or RTL item
 ends the mission with a landing; a mission that ends otherwise holds over its last waypoint. Outside a
 mission it flies hold, takeoff, return-to-launch and land.
 
@@ -35,7 +36,7 @@ from sitl_quad.trajectory import (
     bearing,
 )
 from uavcore.geodesy import LocalFrame
-from uavcore.mission import ITEM_FRAMES, MavCmd, MavFrame, MissionItem
+from uavcore.mission import ITEM_FRAMES, PAYLOAD_COMMANDS, MavCmd, MavFrame, MissionItem
 from uavcore.rotation import euler_from_quat
 from uavcore.state import TrajectorySetpoint, VehicleState
 
@@ -101,9 +102,10 @@ class NavigatorConfig:
 @dataclass(frozen=True)
 class NavEvent:
     """Something the vehicle reports: MISSION_CURRENT ("current"), MISSION_ITEM_REACHED ("reached"), the
-    mission's end ("complete"), or the start of a landing descent ("landing"; seq -1 outside a mission)."""
+    mission's end ("complete"), the start of a landing descent ("landing"; seq -1 outside a mission), or a
+    camera or gimbal item reached ("payload": the vehicle's payload executes it)."""
 
-    kind: Literal["current", "reached", "complete", "landing"]
+    kind: Literal["current", "reached", "complete", "landing", "payload"]
     seq: int
 
 
@@ -331,6 +333,8 @@ class Navigator:
                 self._switch_activity("mission", trajectory, self._plan_item(trajectory, item))
                 return
             self._run_do_item(item)
+            if item.command in PAYLOAD_COMMANDS:  # the camera's and gimbal's: the vehicle hands them on
+                self._emit("payload", self.current_seq)
             self._emit("reached", self.current_seq)
             self.current_seq += 1
         self.current_seq = len(self._items) - 1

@@ -10,11 +10,15 @@ from __future__ import annotations
 
 import csv
 import logging
+import math
 import time
 from pathlib import Path
 
+from sitl_quad.camera import Environment
+from sitl_quad.mavlink.camera import CameraComponent
 from sitl_quad.mavlink.commands import Commands
 from sitl_quad.mavlink.ftp import CAMERA_COMPID, FileTransfer
+from sitl_quad.mavlink.gimbal import GimbalManager
 from sitl_quad.mavlink.heartbeat import Heartbeat, heartbeat_message
 from sitl_quad.mavlink.link import UdpLink
 from sitl_quad.mavlink.mission import MissionProtocol
@@ -24,6 +28,7 @@ from sitl_quad.mavlink.telemetry import Telemetry
 from sitl_quad.pacing import WallPacing
 from sitl_quad.params import ParameterTable
 from sitl_quad.vehicle import CommandResult, TickRecord, Vehicle, VehicleEvent
+from uavcore.buoy_world import World
 from uavcore.mavlink import mavlink
 from uavcore.rotation import euler_from_quat
 
@@ -44,7 +49,11 @@ class VehicleServer:
         on_params_changed=None,
         ftp_root: Path | None = None,
         ftp_component: int = CAMERA_COMPID,
+        image_dir: Path | None = None,
+        world: World | None = None,
+        current: Environment | None = None,
     ) -> None:
+        """image_dir: the camera's (None: no camera and no gimbal); world: what it sees; current: the water's."""
         self.vehicle = vehicle
         vehicle.wall_clock = time.monotonic  # protocol-facing timers also respect the wall clock
         self.params = params
@@ -71,7 +80,7 @@ class VehicleServer:
         self.file_transfer = FileTransfer(link, ftp_root, ftp_component)
         home_id = mavlink.MAVLINK_MSG_ID_HOME_POSITION
         version_id = mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION
-        self.commands.register(mavlink.MAV_CMD_REQUEST_MESSAGE, lambda p: self.telemetry.request_message(p[0]))
+        self.commands.register(mavlink.MAV_CMD_REQUEST_MESSAGE, lambda p: self._request_message(p[0]))
         self.commands.register(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, lambda p: self.telemetry.set_interval(p[0], p[1]))
         self.commands.register(mavlink.MAV_CMD_GET_HOME_POSITION, lambda p: self.telemetry.request_message(home_id))
         self.commands.register(
@@ -82,6 +91,16 @@ class VehicleServer:
         for capability in (self.parameters, self.commands, self.mission, self.offboard, self.file_transfer):
             self.dispatch.update(capability.handlers())
         self._setpoint_types = set(self.offboard.handlers())
+        # ----- the camera on its gimbal: the gimbal manager is the autopilot's, the camera its own component
+        self.gimbal: GimbalManager | None = None
+        self.camera: CameraComponent | None = None
+        if image_dir is not None:
+            self.gimbal = GimbalManager(vehicle, link, self.commands)
+            boot_unix_us = self.telemetry.boot_unix_us
+            self.camera = CameraComponent(
+                vehicle, link, self.gimbal.gimbal, image_dir, world, current, boot_unix_us=boot_unix_us
+            )
+            self.dispatch.update(self.gimbal.handlers())
         self._log_file = None
         self._log_writer = None
         if flight_log is not None:
@@ -94,7 +113,10 @@ class VehicleServer:
 
     def handle_incoming(self) -> None:
         for peer, msg, at in self.link.receive():
-            handler = self.dispatch.get(msg.get_type())
+            if self.camera is not None and self.camera.handles(msg):
+                handler = self.camera.command
+            else:
+                handler = self.dispatch.get(msg.get_type())
             if handler is None:
                 continue
             self._arrived_at = at  # for arrival_step()
@@ -112,6 +134,8 @@ class VehicleServer:
         self.mission.poll(now)
         self.parameters.poll()
         self.file_transfer.poll()
+        if self.camera is not None:
+            self.camera.poll(now)
 
     def _param_changed(self, section: str) -> None:
         self.vehicle.apply_config(section)
@@ -133,6 +157,7 @@ class VehicleServer:
                     self.armed_lateness_s.append(self.tick_lateness_s[-1])
             record = self.vehicle.tick()
             self._publish_events()
+            self._payload_tick()
             self.telemetry.publish_due()
             if self._log_writer is not None:
                 self._write_log(record)
@@ -140,6 +165,27 @@ class VehicleServer:
 
     def stop(self) -> None:
         self.running = False
+
+    def _request_message(self, msg_id: float) -> CommandResult:
+        answered = self.gimbal.request_message(int(msg_id)) if self.gimbal and math.isfinite(msg_id) else None
+        return answered if answered is not None else self.telemetry.request_message(msg_id)
+
+    def _payload_tick(self) -> None:
+        """After each tick: the gimbal moves, the camera takes what is due at this instant (before simulated time
+        goes on, so lockstep captures exactly there), the gimbal's status streams."""
+        if self.gimbal is None or self.camera is None:
+            return
+        self.gimbal.update()
+        self.camera.capture_due()
+        self.gimbal.publish_due()
+
+    def _run_payload_item(self, seq: int) -> None:
+        """A camera or gimbal mission item the navigator reached (PX4 re-issues them as commands)."""
+        if self.gimbal is None or self.camera is None or not 0 <= seq < len(self.vehicle.mission):
+            return
+        item = self.vehicle.mission[seq]
+        if not self.gimbal.run_mission_item(item):
+            self.camera.run_mission_item(item)
 
     def arrival_step(self) -> int:
         """Paced mode: the physics step the message being handled arrived at (sitl_quad.pacing)."""
@@ -173,6 +219,9 @@ class VehicleServer:
     def _publish_event(self, event: VehicleEvent) -> None:
         if event.kind == "offboard_lost":
             self._report_offboard_loss()
+            return
+        if event.kind == "payload_item":
+            self._run_payload_item(event.seq)
             return
         if event.kind == "text" or (event.kind in ("armed", "mission_complete") and event.text):
             self.send(mavlink.MAVLink_statustext_message(event.severity, event.text.encode()[:50]))
@@ -289,6 +338,7 @@ class VehicleServer:
             "mission_uploads": {"completed": self.mission.transfers_completed, "failed": self.mission.transfers_failed},
             "offboard_setpoints": self.vehicle.offboard.count,
             "motor_saturated_ticks": self.vehicle.saturated_ticks,
+            "camera": self.camera.stats() if self.camera is not None else None,
         }
 
     def close(self) -> None:

@@ -635,6 +635,8 @@ class Vehicle:
                 self._emit("item_reached", seq=event.seq)
             elif event.kind == "complete":
                 self._emit("mission_complete", "Mission finished", seq=event.seq)
+            elif event.kind == "payload":
+                self._emit("payload_item", seq=event.seq)
 
     def _update_landed_state(self) -> None:
         truth = self.sim.state

@@ -26,6 +26,7 @@ class CommandResult(IntEnum):
 @dataclass
 class VehicleEvent:
     # "text" | "mission_current" | "item_reached" | "mission_complete" | "mode" | "armed" | "offboard_lost"
+    # | "payload_item" (a camera or gimbal mission item reached: seq)
     kind: str
     text: str = ""
     severity: int = 6  # MAV_SEVERITY for "text": 6 info, 4 warning, 3 error

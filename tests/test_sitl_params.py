@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 import sys
@@ -92,10 +93,16 @@ def test_the_gust_hold_reaches_the_wind_model_and_its_default_inf_survives_the_f
         (["--param", "NOT_A_PARAM=1"], "unknown parameter"),
         (["--home", "95,10"], "outside"),
         (["--speed", "0"], "--speed"),
+        (["--world", "{tmp}/garbage.params"], "--world"),
+        (["--world", "{tmp}/missing.geojson"], "missing.geojson"),
+        (["--world", "{tmp}/no_kind.geojson"], "kind"),
     ],
 )
 def test_cli_rejects_bad_input_with_a_message(tmp_path, argv, message):
     (tmp_path / "garbage.params").write_text("this is not a parameter file\n")
+    point = {"type": "Point", "coordinates": [121.66, 38.92]}
+    feature = {"type": "Feature", "geometry": point, "properties": {"id": "B1"}}  # no kind: WorldFileError
+    (tmp_path / "no_kind.geojson").write_text(json.dumps({"type": "FeatureCollection", "features": [feature]}))
     argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
     result = subprocess.run(
         [sys.executable, "-m", "sitl_quad", *argv, "--list-params"], capture_output=True, text=True, timeout=60

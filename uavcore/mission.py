@@ -24,6 +24,11 @@ class MavCmd(IntEnum):
     DO_ORBIT = 34
     DO_CHANGE_SPEED = 178
     DO_REPOSITION = 192
+    DO_SET_ROI_LOCATION = 195
+    DO_SET_ROI_NONE = 197
+    DO_GIMBAL_MANAGER_PITCHYAW = 1000
+    IMAGE_START_CAPTURE = 2000
+    IMAGE_STOP_CAPTURE = 2001
     NAV_FENCE_RETURN_POINT = 5000
     NAV_FENCE_POLYGON_VERTEX_INCLUSION = 5001  # param1: the polygon's vertex count
     NAV_FENCE_POLYGON_VERTEX_EXCLUSION = 5002  # param1: the polygon's vertex count
@@ -54,6 +59,19 @@ class MissionType(IntEnum):
     RALLY = 2
 
 
+# DO_ items for the camera and its gimbal: the vehicle hands them to the payload when the mission reaches them
+PAYLOAD_COMMANDS = frozenset(
+    {
+        MavCmd.DO_SET_ROI_LOCATION,
+        MavCmd.DO_SET_ROI_NONE,
+        MavCmd.DO_GIMBAL_MANAGER_PITCHYAW,
+        MavCmd.IMAGE_START_CAPTURE,
+        MavCmd.IMAGE_STOP_CAPTURE,
+    }
+)
+# Mission commands whose x / y / z are not a place (MISSION_ITEM_INT's params 5-7 used otherwise, or unused)
+UNPLACED_COMMANDS = PAYLOAD_COMMANDS - {MavCmd.DO_SET_ROI_LOCATION} | {MavCmd.DO_CHANGE_SPEED}
+
 # What each list may hold: the flight plan's commands, the fence's shapes, the rally points
 MISSION_COMMANDS = frozenset(
     {
@@ -63,6 +81,7 @@ MISSION_COMMANDS = frozenset(
         MavCmd.NAV_LAND,
         MavCmd.NAV_TAKEOFF,
         MavCmd.DO_CHANGE_SPEED,
+        *PAYLOAD_COMMANDS,
     }
 )
 FENCE_COMMANDS = frozenset(

@@ -6,9 +6,11 @@ REQUEST_MESSAGE, the vehicle's actions register arming and modes); anything else
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 from sitl_quad.vehicle import FORCE_DISARM_MAGIC, CommandResult, Vehicle
 from uavcore.mavlink import MAV_CMD_BATTERY_RESET, mavlink
@@ -22,9 +24,22 @@ POSITIONAL_COMMANDS = {
     mavlink.MAV_CMD_DO_ORBIT,
     mavlink.MAV_CMD_NAV_TAKEOFF,
     mavlink.MAV_CMD_NAV_LAND,
+    mavlink.MAV_CMD_DO_SET_ROI_LOCATION,
 }
 INT32_MAX = 2**31 - 1  # COMMAND_INT's "unused" x / y
 CommandHandler = Callable[[tuple], CommandResult]
+
+
+@dataclass(frozen=True)
+class CommandSource:
+    """Who sent a command: for handlers whose answer depends on the sender (the gimbal manager obeys the client
+    in control only)."""
+
+    sysid: int
+    compid: int
+
+
+SourcedHandler = Callable[..., CommandResult]  # handler(params, source=CommandSource)
 
 
 class Commands:
@@ -50,9 +65,14 @@ class Commands:
             mavlink.MAV_CMD_DO_ORBIT: self.orbit,
             MAV_CMD_BATTERY_RESET: self.battery_reset,
         }
+        self.sourced: dict[int, SourcedHandler] = {}
 
     def register(self, command: int, handler: CommandHandler) -> None:
         self.table[command] = handler
+
+    def register_sourced(self, command: int, handler: SourcedHandler) -> None:
+        """A handler that is also told who sent the command (CommandSource)."""
+        self.sourced[command] = handler
 
     def handlers(self) -> dict:
         return {"COMMAND_LONG": self.command_long, "COMMAND_INT": self.command_int, "SET_MODE": self.set_mode_msg}
@@ -75,6 +95,9 @@ class Commands:
 
     def _run(self, peer, msg, params: tuple) -> None:
         handler = self.table.get(msg.command)
+        sourced = self.sourced.get(msg.command)
+        if sourced is not None:
+            handler = functools.partial(sourced, source=CommandSource(msg.get_srcSystem(), msg.get_srcComponent()))
         if handler is None:
             result = CommandResult.UNSUPPORTED
         else:

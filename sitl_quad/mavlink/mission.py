@@ -21,7 +21,15 @@ from dataclasses import dataclass, field
 from sitl_quad.vehicle import Vehicle
 from uavcore.geofence import FenceError
 from uavcore.mavlink import item_from_message, item_message, mavlink
-from uavcore.mission import COMMANDS_OF_TYPE, GLOBAL_FRAMES, ITEM_FRAMES, MavFrame, MissionItem, MissionType
+from uavcore.mission import (
+    COMMANDS_OF_TYPE,
+    GLOBAL_FRAMES,
+    ITEM_FRAMES,
+    UNPLACED_COMMANDS,
+    MavFrame,
+    MissionItem,
+    MissionType,
+)
 
 log = logging.getLogger(__name__)
 
@@ -68,7 +76,7 @@ def validate_item(item: MissionItem, expected_seq: int, mission_type: int = MISS
         return _place_result(item, need_altitude=mission_type == MissionType.RALLY)
     if item.frame not in ITEM_FRAMES:
         return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
-    positional = item.command != mavlink.MAV_CMD_DO_CHANGE_SPEED
+    positional = item.command not in UNPLACED_COMMANDS
     if positional and item.frame == MavFrame.MISSION and item.command != mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH:
         return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
     if positional and (result := _place_result(item, need_altitude=True)) != mavlink.MAV_MISSION_ACCEPTED:
