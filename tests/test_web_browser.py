@@ -23,6 +23,7 @@ from urllib.parse import urlsplit
 import pytest
 from ardupilot_double import ArduCopterDouble
 from playwright.sync_api import Browser, Page, Playwright, expect, sync_playwright
+from playwright.sync_api import TimeoutError as PlaywrightTimeoutError
 from service_process import serving
 from sitl_process import SitlProcess
 from stored_missions import SORTIES_FLOWN
@@ -507,7 +508,25 @@ def fleet_service(tmp_path):
             vehicle.cleanup()
 
 
-def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fleet_service):
+def fleet_state(url: str, mission_id: int, log: Path) -> str:
+    """What a failed wait on the fleet leaves to read: the fleet mission's and its shares' statuses, each vehicle's
+    state as the service has it, and the end of the service's log."""
+    with urllib.request.urlopen(f"{url}/missions/{mission_id}", timeout=10) as answer:
+        fleet = json.load(answer)
+    with urllib.request.urlopen(f"{url}/vehicles", timeout=10) as answer:
+        vehicles = json.load(answer)
+    keys = ("sysid", "connected", "armed", "mode", "alt_m", "north", "east", "active_mission", "heartbeat_age_s")
+    shares = [{k: s[k] for k in ("sysid", "mission_id", "status", "visited_buoys")} for s in fleet["fleet"]["shares"]]
+    return "\n".join(
+        [
+            f"fleet mission {mission_id}: {fleet['status']} ({fleet['reason']}); shares {shares}",
+            *(str({k: v.get(k) for k in keys}) for v in vehicles),
+            *log.read_text().splitlines()[-60:],
+        ]
+    )
+
+
+def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fleet_service, tmp_path):
     url, frame = fleet_service
     places = [(n, e) for n in (30.0, 90.0, 150.0) for e in (40.0, 100.0, 170.0)]
     buoys = [
@@ -539,11 +558,14 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         }}"""
         expect(page.locator("#mission-status")).to_contain_text("flying", timeout=120_000)
         first_drawn = page.evaluate(offset)
-        page.wait_for_function(
-            f"(first) => {{ const [x, y] = ({offset})(); return Math.hypot(x - first[0], y - first[1]) > 3; }}",
-            arg=first_drawn,
-            timeout=120_000,
-        )
+        try:
+            page.wait_for_function(
+                f"(first) => {{ const [x, y] = ({offset})(); return Math.hypot(x - first[0], y - first[1]) > 3; }}",
+                arg=first_drawn,
+                timeout=120_000,
+            )
+        except PlaywrightTimeoutError:  # say whether the vehicles flew and the page missed it, or they never flew
+            raise AssertionError(fleet_state(url, mission["id"], tmp_path / "service.log")) from None
         # each vehicle's route in its own colour, and the legend naming each one's share
         routes = page.locator(".leaflet-overlay-pane path[stroke-dasharray]")
         expect(routes).to_have_count(len(shares))
