@@ -20,6 +20,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -36,10 +37,15 @@ JITTER_SIM_S = 12.0
 HOVER_CONTROLLER = ("-m", "bench.hover_offboard")
 
 
-def lockstep_full_loop(controller: list[str]) -> dict:
-    """Vehicle --lockstep + a controller process; a GCS arms and takes off; simulated s per wall s."""
+def lockstep_full_loop(
+    controller: list[str],
+    vehicle_args: tuple[str, ...] = (),
+    after_takeoff: Callable[[GroundStation], None] | None = None,
+) -> dict:
+    """Vehicle --lockstep (with `vehicle_args`) + a controller process; a GCS arms and takes off (then runs
+    `after_takeoff`, e.g. starts a camera's capture); simulated s per wall s."""
     vehicle = SitlProcess()
-    vehicle.args = [sys.executable, "-m", "sitl_quad", "--port", str(vehicle.port), "--lockstep"]
+    vehicle.args = [sys.executable, "-m", "sitl_quad", "--port", str(vehicle.port), "--lockstep", *vehicle_args]
     vehicle.start()
     process = subprocess.Popen(
         [sys.executable, *controller, "--connect", f"udpout:127.0.0.1:{vehicle.port}", "--no-engage"],
@@ -52,6 +58,8 @@ def lockstep_full_loop(controller: list[str]) -> dict:
         gcs.recv("HEARTBEAT", timeout=60, condition=lambda m: m.get_srcComponent() == 191)
         gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1)
         gcs.command(mavlink.MAV_CMD_NAV_TAKEOFF)
+        if after_takeoff is not None:
+            after_takeoff(gcs)
         first = gcs.recv("LOCAL_POSITION_NED", timeout=10)
         wall0, sim0 = time.monotonic(), first.time_boot_ms / 1000
         last = first
@@ -67,6 +75,7 @@ def lockstep_full_loop(controller: list[str]) -> dict:
     finally:
         gcs.close()
         stop_process(process, 10)
+        vehicle.stop()
         vehicle.cleanup()
 
 

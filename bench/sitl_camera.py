@@ -15,13 +15,10 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 
-from bench.processes import stop_process
+from bench.sitl import HOVER_CONTROLLER, lockstep_full_loop
 from tests.sitl_process import GroundStation, SitlProcess
 from uavcore.buoy_world import World
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
@@ -29,10 +26,8 @@ from uavcore.mavlink import mavlink
 
 REPO = Path(__file__).resolve().parent.parent
 RESULTS = REPO / "bench" / "results" / "sitl_camera.json"
-LOCKSTEP_SIM_S = 30.0
 PACED_SIM_S = 15.0
 CAPTURE_HZ = 10.0
-HOVER_CONTROLLER = ("-m", "bench.hover_offboard")
 CAMERA = mavlink.MAV_COMP_ID_CAMERA
 
 
@@ -59,48 +54,15 @@ def camera_args(workdir: Path, camera: bool) -> list[str]:
 
 
 def lockstep(camera: bool, capture: bool) -> dict:
-    """Vehicle --lockstep + the hover controller; simulated s per wall s once airborne."""
+    """Vehicle --lockstep + the hover controller (bench.sitl's loop); simulated s per wall s once airborne."""
     workdir = Path(tempfile.mkdtemp(prefix="bench_camera_"))
     stats = workdir / "stats.json"
-    vehicle = SitlProcess()
-    vehicle.args = [sys.executable, "-m", "sitl_quad", "--port", str(vehicle.port), "--lockstep"]
-    vehicle.args += ["--stats", str(stats), *camera_args(workdir, camera)]
-    vehicle.start()
-    controller = subprocess.Popen(
-        [sys.executable, *HOVER_CONTROLLER, "--connect", f"udpout:127.0.0.1:{vehicle.port}", "--no-engage"],
-        cwd=REPO,
-        stdout=subprocess.DEVNULL,
-    )
-    gcs = GroundStation(vehicle.port)
-    try:
-        gcs.connect(timeout=60)
-        gcs.recv("HEARTBEAT", timeout=60, condition=lambda m: m.get_srcComponent() == 191)
-        gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1)
-        gcs.command(mavlink.MAV_CMD_NAV_TAKEOFF)
-        if capture:
-            start_capturing(gcs)
-        first = gcs.recv("LOCAL_POSITION_NED", timeout=10)
-        wall0, sim0 = time.monotonic(), first.time_boot_ms / 1000
-        last = first
-        while last.time_boot_ms / 1000 - sim0 < LOCKSTEP_SIM_S:
-            gcs.send_heartbeat()
-            msg = gcs.recv("LOCAL_POSITION_NED", timeout=10)
-            if msg is None:
-                raise RuntimeError("vehicle stopped sending state")
-            last = msg
-        wall = time.monotonic() - wall0
-        sim = last.time_boot_ms / 1000 - sim0
-    finally:
-        gcs.close()
-        stop_process(controller, 10)
-        vehicle.stop()
-        vehicle.cleanup()
-    images = len(list((workdir / "images").glob("IMG_*.jpg"))) if camera else 0
-    result = {"camera": camera, "capture_hz": CAPTURE_HZ if capture else 0.0, "sim_s": sim, "wall_s": wall}
-    result["real_time_factor"] = sim / wall
+    vehicle_args = ("--stats", str(stats), *camera_args(workdir, camera))
+    run = lockstep_full_loop(list(HOVER_CONTROLLER), vehicle_args, start_capturing if capture else None)
+    result = {"camera": camera, "capture_hz": CAPTURE_HZ if capture else 0.0, **run}
     if capture:
-        result["images_per_wall_s"] = CAPTURE_HZ * sim / wall
-        result["images_written"] = images
+        result["images_per_wall_s"] = CAPTURE_HZ * run["real_time_factor"]
+        result["images_written"] = len(list((workdir / "images").glob("IMG_*.jpg")))
         result["frame_ms"] = json.loads(stats.read_text())["camera"]["frame_ms"]
     return result
 
