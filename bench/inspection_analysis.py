@@ -6,7 +6,8 @@ from 15-40 m, analysed as the ground station does (gcs.domain.buoy_detection, gc
 Prints per kind: detection rate (frames), position error of the observed position against the buoy's true mean
 position over the burst, the light read right (the burst's reading matches the light it really shows), CPU ms per
 frame to analyse; and over all cases the precision and recall of the defect findings against the injected faults
-(off_station, light_out, wrong_character: a light finding of any of its codes). Writes
+(off_station, light_out, wrong_character, each scored as its own code; wrong_period and wrong_colour count as
+wrong_character, the world's one name for a changed light). Writes
 bench/results/inspection_analysis.json.
 """
 
@@ -24,7 +25,7 @@ import numpy as np
 from bench.inspection_scenes import HOME, capture_burst
 from gcs.domain.buoy_detection import BuoyDetection, ChartedBuoy, detect_buoy
 from gcs.domain.camera_geometry import FrameGeotag
-from gcs.domain.inspection import LIGHT_FINDINGS, BuoyInspection, inspect_buoy
+from gcs.domain.inspection import BuoyInspection, inspect_buoy
 from gcs.domain.light_reading import read_light
 from uavcore.buoy_world import World
 from uavcore.light_character import LightCharacter, matches
@@ -32,6 +33,7 @@ from uavcore.light_character import LightCharacter, matches
 RESULTS = Path(__file__).resolve().parents[1] / "bench" / "results"
 BUOYS_PER_WORLD = 3  # the target and two others nearby, often in view
 FAULT_PROBABILITY = 0.4  # more than World.random's default, so that the defects are enough to count
+WRONG_LIGHT = {"wrong_character", "wrong_period", "wrong_colour"}  # light_character.matches' names for a changed light
 
 
 def charted_of(world: World, index: int) -> ChartedBuoy:
@@ -105,8 +107,11 @@ def summarise(cases: list[dict]) -> dict:
         }
     counts = {"true_positive": 0, "false_positive": 0, "false_negative": 0}
     for case in cases:
-        found = {"light" if code in LIGHT_FINDINGS else code for code in case["findings"]}
-        truth = {"light" if fault in ("light_out", "wrong_character") else fault for fault in case["faults"]}
+        # scored code by code: a light that is out must be found out, not merely "wrong"; the world's
+        # wrong_character is any change of rhythm, period or colour, which matches() names one of three ways
+        found = {"wrong_character" if code in WRONG_LIGHT else code for code in case["findings"]}
+        found &= {"off_station", "light_out", "wrong_character", "wrong_body_colour", "not_found"}
+        truth = set(case["faults"])
         counts["true_positive"] += len(found & truth)
         counts["false_positive"] += len(found - truth)
         counts["false_negative"] += len(truth - found)

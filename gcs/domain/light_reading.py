@@ -51,7 +51,9 @@ def measure_spot(
     u, v = centre_px
     height, width = image.shape[:2]
     r = int(np.ceil(radius_px))
-    above_body = math.floor(body_top_v - 0.5) + 1  # rows whose centres lie half a pixel or more above the edge
+    above_body = (
+        math.floor(body_top_v - 1.5) + 1
+    )  # rows whose centres lie 1.5 px or more above the edge: JPEG and a sub-pixel edge smear white paint a pixel up
     top, bottom = max(0, round(v) - r), min(height, round(v) + r + 1, above_body)
     left, right = max(0, round(u) - r), min(width, round(u) + r + 1)
     if top >= bottom or left >= right:
