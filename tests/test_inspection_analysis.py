@@ -3,7 +3,7 @@ inspection) on frames the simulator's camera renders (bench/inspection_scenes.py
 the station receives them.
 
 Resolutions: the geometry and position tests at 960 x 540; the full light bursts (up to 413 frames) at 640 x 360,
-the same lens, to keep the run short. The four long bursts (east, south, west, safe water) are marked slow.
+the same lens, to keep the run short. Every test renders frames: the module is in the slow tier.
 """
 
 from __future__ import annotations
@@ -21,6 +21,9 @@ from gcs.domain.inspection import BuoyInspection, inspect_buoy
 from sitl_quad import camera_render
 from uavcore.buoy_world import KINDS, World, WorldBuoy, default_light
 from uavcore.light_character import parse
+
+# every test here renders frames (bursts of up to 413): the slow tier, out of `make test-fast`
+pytestmark = pytest.mark.slow
 
 LIGHT_BURST = (640, 360)
 SHORT_BURST_KINDS = ("port", "starboard", "north", "isolated_danger", "special")
@@ -122,7 +125,6 @@ def test_a_fault_free_buoy_is_ok_and_its_light_reads_as_charted(kind: str) -> No
     fault_free_reads_right(kind)
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("kind", LONG_BURST_KINDS)
 def test_a_fault_free_buoy_with_a_long_light_period_is_ok_and_its_light_reads_as_charted(kind: str) -> None:
     fault_free_reads_right(kind)
