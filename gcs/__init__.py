@@ -4,8 +4,10 @@ One sub-package per concern, each importing only those below it (import-linter's
 from the bottom up:
 - `domain` the vocabulary, pure: `status` (MissionStatus), `schemas` (the REST contract, with the one
   TelemetrySample), `planning` (request -> plan -> mission items; uses planner), `records` (what a stored
-  mission holds besides its plan: progress, results, the plan's energy and fleet sections, typed), `buoy_files`
-  (buoy lists from GeoJSON or CSV), `tracking_metrics` (a flight's tracking figures in numbers)
+  mission holds besides its plan: progress, results, the plan's energy and fleet sections, typed), the
+  inspection's analysis of camera frames (`camera_geometry`, `paint_segmentation`, `buoy_detection`,
+  `light_reading`, `inspection`), `buoy_files` (buoy lists from GeoJSON or CSV), `tracking_metrics` (a flight's
+  tracking figures in numbers)
 - `storage` (the only package that knows SQL: SQLite or PostgreSQL, `open_storage`; typed records in and out)
 - `vehicle` the MAVLink side, for any PX4 or ArduPilot: `connection` (udpin/udpout/tcp/serial), `link` (the link
   manager; `errors` what it raises), `autopilots`, `mission_protocol` (upload/download), `parameters`
