@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 from PIL import Image, ImageDraw
 
-from uavcore.rotation import quat_from_euler
+from uavcore.rotation import matrix_from_quat, quat_from_euler
 
 RGB = tuple[int, int, int]
 Outline = tuple[Sequence[float], Sequence[float]]  # knots of a solid of revolution: heights (m), radii (m)
@@ -102,14 +102,7 @@ class CameraPose:
 
     def rotation(self) -> np.ndarray:
         """The 3x3 matrix taking camera-FRD vectors to NED."""
-        w, x, y, z = np.asarray(self.attitude, dtype=float) / np.linalg.norm(self.attitude)
-        return np.array(
-            [
-                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-            ]
-        )
+        return matrix_from_quat(self.attitude)
 
 
 @dataclass(frozen=True)

@@ -67,6 +67,19 @@ def quat_conjugate(q) -> np.ndarray:
     return np.array([q[0], -q[1], -q[2], -q[3]])
 
 
+def matrix_from_quat(q) -> np.ndarray:
+    """The 3x3 matrix taking body vectors to the world frame (as `rotate` does), of q normalised: for rotating
+    many vectors at once (a camera's pixel rays)."""
+    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
 def rotate(q, v) -> np.ndarray:
     """Rotate the body vector v into the world frame by q."""
     w, x, y, z = q

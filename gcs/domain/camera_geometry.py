@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from uavcore.geodesy import LocalFrame
+from uavcore.rotation import matrix_from_quat
 
 EARTH_RADIUS_M = 6_371_000.0
 
@@ -79,14 +80,7 @@ class FrameGeotag:
 
     def rotation(self) -> np.ndarray:
         """The 3x3 matrix taking camera-frame vectors to NED (of the normalised quaternion)."""
-        w, x, y, z = np.asarray(self.attitude, dtype=float) / np.linalg.norm(self.attitude)
-        return np.array(
-            [
-                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-            ]
-        )
+        return matrix_from_quat(self.attitude)
 
     def local_frame(self) -> LocalFrame:
         """The tangent plane at the camera's foot: geolocation works in metres from there."""
