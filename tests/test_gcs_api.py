@@ -281,15 +281,37 @@ def test_exports_of_a_planned_mission(client):
 # ----- imports
 def test_import_csv_and_geojson(client):
     csv_body = client.post("/imports?filename=b.csv", content=b"id,lat,lon\nA,38.92,121.66\n").json()
-    assert csv_body == {"buoys": [{"id": "A", "lat": 38.92, "lon": 121.66}]}
+    uncharted = {"kind": None, "light": None, "swing_radius_m": None}
+    assert csv_body == {"buoys": [{"id": "A", "lat": 38.92, "lon": 121.66} | uncharted]}
+    charted = {"kind": "port", "light": "Fl(2) R 6s", "swing_radius_m": 8.0}
+    faults = {"shows": "dark", "offset_m": [20.0, 0.0]}  # a world file's: not what the chart says, left out
     collection = {
         "type": "FeatureCollection",
         "features": [
-            {"type": "Feature", "geometry": {"type": "Point", "coordinates": [121.66, 38.92]}, "properties": {}}
+            {"type": "Feature", "geometry": {"type": "Point", "coordinates": [121.66, 38.92]}, "properties": {}},
+            {
+                "type": "Feature",
+                "geometry": {"type": "Point", "coordinates": [121.67, 38.93]},
+                "properties": {"id": "P1"} | charted | faults,
+            },
         ],
     }
     geo = client.post("/imports", content=json.dumps(collection), headers={"content-type": "application/geo+json"})
-    assert geo.json()["buoys"] == [{"id": None, "lat": 38.92, "lon": 121.66}]
+    assert geo.json()["buoys"] == [
+        {"id": None, "lat": 38.92, "lon": 121.66} | uncharted,
+        {"id": "P1", "lat": 38.93, "lon": 121.67} | charted,
+    ]
+
+
+def test_an_imported_buoy_whose_charted_light_is_not_a_character_is_422_naming_it(client):
+    feature = {
+        "type": "Feature",
+        "geometry": {"type": "Point", "coordinates": [121.66, 38.92]},
+        "properties": {"id": "P1", "kind": "port", "light": "Fl(2) X 6s"},
+    }
+    response = client.post("/imports?filename=b.geojson", content=json.dumps(feature))
+    assert response.status_code == 422
+    assert "buoy 1 (P1): light: " in errors_of(response)[0][1]
 
 
 def test_import_errors_are_422_with_the_reason(client):

@@ -1,5 +1,8 @@
 """Buoys from files: GeoJSON (FeatureCollection of Points) or CSV. Pure: text in, buoys out.
 
+GeoJSON: a feature's properties `id` (or `name`), and the charted `kind`, `light` and `swing_radius_m` (the
+contract of a uavcore.buoy_world world file, whose fault properties are left out).
+
 CSV: with a header, the columns named lat/latitude, lon/lng/longitude and optionally id/name are used, in any
 order; without a header every row is `lat,lon` (the planner CLI's format) with an optional third column id.
 """
@@ -10,7 +13,7 @@ import csv
 import io
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from uavcore.geodesy import CoordinateError, check_lat_lon
@@ -20,14 +23,18 @@ class BuoyFileError(ValueError):
     """The file or document cannot be read as buoys; the message names the place and the reason."""
 
 
+CHARTED_PROPERTIES = ("kind", "light", "swing_radius_m")  # a GeoJSON feature's, passed on as they are
+
+
 @dataclass(frozen=True)
 class ImportedBuoy:
     lat: float
     lon: float
     id: str | None = None
+    charted: dict[str, Any] = field(default_factory=dict)  # CHARTED_PROPERTIES the file gives, checked by the request
 
     def as_dict(self) -> dict[str, Any]:
-        return {"id": self.id, "lat": self.lat, "lon": self.lon}
+        return {"id": self.id, "lat": self.lat, "lon": self.lon} | self.charted
 
 
 def _checked(lat: Any, lon: Any, ident: Any, where: str) -> ImportedBuoy:
@@ -72,7 +79,10 @@ def buoys_from_geojson(document: Any) -> list[ImportedBuoy]:
         properties = feature.get("properties") or {}
         ident = properties.get("id", properties.get("name")) if isinstance(properties, dict) else None
         # GeoJSON order is [lon, lat]
-        buoys.append(_checked(coords[1], coords[0], ident, f"{where}.geometry.coordinates"))
+        buoy = _checked(coords[1], coords[0], ident, f"{where}.geometry.coordinates")
+        if isinstance(properties, dict):  # the chart's kind, light and swing radius (a world file's faults are not)
+            buoy = replace(buoy, charted={k: properties[k] for k in CHARTED_PROPERTIES if k in properties})
+        buoys.append(buoy)
     return buoys
 
 

@@ -168,3 +168,34 @@ def inspect_buoy(
         why = "its light could not be read" if light_findings else "its waterline was in no frame (cut by the edge)"
         return result("not_inspected", [], f"found in {len(found)} frames, but {why}", **seen)
     return result("ok", [], **seen)
+
+
+class StoredFrame(BaseModel):
+    """A camera frame as stored beside its bytes: the buoy it was taken for (input index), what the camera said
+    of it (geotag, file URL) and what was found in it. `id` is the storage's (None before it is stored)."""
+
+    model_config = ConfigDict(frozen=True)
+    id: int | None = None
+    buoy: int
+    image_index: int
+    t_s: float
+    lat: float
+    lon: float
+    height_m: float
+    q: tuple[float, float, float, float]
+    file_url: str
+    found: bool = False
+    light_on: bool | None = None
+    note: str = ""  # why the buoy was not found in it, or what failed
+
+
+class InspectionRecord(BaseModel):
+    """One buoy's inspection as the mission stores it: which buoy (input index and id), the result, and the
+    frames (storage ids, capture order) of its burst, the best one first among those the buoy was found in."""
+
+    model_config = ConfigDict(frozen=True)
+    buoy: int
+    buoy_id: str
+    result: BuoyInspection
+    frame_ids: list[int] = []
+    best_frame: int | None = None

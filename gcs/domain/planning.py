@@ -7,6 +7,7 @@ depot's tangent plane (uavcore.geodesy) so the planner works in metres.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
 from typing import Any
@@ -16,12 +17,19 @@ import numpy as np
 from gcs.domain.records import PlanEnergy, PlanFleet
 from planner import plan_tour
 from planner.distances import closed_tour_length, euclidean_matrix
+from uavcore.buoy_world import DEFAULT_SWING_RADIUS_M
 from uavcore.geodesy import LocalFrame
 from uavcore.geofence import Geofence
+from uavcore.light_character import burst_for, parse
 from uavcore.mission import MavCmd, MavFrame, MissionItem
 
-# Mission layout: item 0 takeoff, item 1 speed, items 2..n+1 the buoys in visiting order, then the return.
+# Mission layout: item 0 takeoff, item 1 speed, then each buoy's items in visiting order (one waypoint, or the
+# inspection's group of INSPECTION_GROUP items ending with it: `MissionLayout`), then the return.
 FIRST_BUOY_SEQ = 2
+INSPECTION_GROUP = 7  # ROI, standoff, capture start, standoff hold, capture stop, ROI none, the buoy's waypoint
+ROI_HEIGHT_M = 1.0  # the camera aims this far above the sea at the buoy's charted position: its body, not its foot
+BURST_HOLD_MARGIN_S = 0.5  # the standoff is held this much longer than the burst lasts
+MIN_STANDOFF_M = 5.0  # a buoy closer than twice this to the previous point is looked at from half the leg
 SPEED_TYPE_GROUND = 1.0  # MavCmd.DO_CHANGE_SPEED param1
 HOME_TOLERANCE_M = 1.0  # a depot this close to the vehicle's home returns with RTL, else waypoint + land
 FENCED_LEG_PENALTY_M = 1e7  # longer than any tour a battery allows: a fenced leg is taken only if unavoidable
@@ -34,6 +42,23 @@ class FlightParams:
     dwell_s: float
     acceptance_radius_m: float
     override: bool = False  # fly even when the pre-flight charge check says the pack is short (recorded)
+    # with a camera on the vehicle: stop this far short of each buoy on the way in, aim at it, capture a burst
+    inspect: bool = True
+    inspection_range_m: float = 20.0
+
+
+@dataclass(frozen=True)
+class BuoyMark:
+    """What the chart says of a buoy beyond its position: its IALA kind (None: not charted, the inspection then
+    finds it by position alone), its light's character as charted (None: unlit) and its mooring's swing radius."""
+
+    kind: str | None = None
+    light: str | None = None
+    swing_radius_m: float = DEFAULT_SWING_RADIUS_M
+
+    def burst(self) -> tuple[float, float]:
+        """(duration s, rate Hz) of the camera burst that reads this light (uavcore.light_character.burst_for)."""
+        return burst_for(None if self.light is None else parse(self.light))
 
 
 @dataclass(frozen=True)
@@ -56,6 +81,12 @@ class Plan:
     energy: PlanEnergy | None = None
     # A fleet mission (gcs.missions.fleet_planning): its shares, one part mission per vehicle; None otherwise
     fleet: PlanFleet | None = None
+    # What the chart says of each buoy (input order); None: positions only (a plan stored before charts were asked)
+    marks: list[BuoyMark] | None = None
+
+    def mark(self, index: int) -> BuoyMark:
+        """Buoy `index`'s charted kind, light and swing radius (all unknown when none were given)."""
+        return self.marks[index] if self.marks else BuoyMark()
 
     def sortie_orders(self) -> list[list[int]]:
         """Each sortie's buoys in flying order: one sortie (the whole tour) unless the plan splits it."""
@@ -105,12 +136,13 @@ class Plan:
 
     @staticmethod
     def from_dict(data: dict[str, Any]) -> Plan:
-        energy, fleet = data.get("energy"), data.get("fleet")
+        energy, fleet, marks = data.get("energy"), data.get("fleet"), data.get("marks")
         return Plan(
             **{**data, "depot": tuple(data["depot"])}
             | {
                 "energy": None if energy is None else PlanEnergy.model_validate(energy),
                 "fleet": None if fleet is None else PlanFleet.model_validate(fleet),
+                "marks": None if marks is None else [BuoyMark(**mark) for mark in marks],
             }
         )
 
@@ -194,12 +226,78 @@ def _deg_e7(value: float) -> int:
     return round(value * 1e7)
 
 
-def mission_items(plan: Plan, flight: FlightParams, home: tuple[float, float] | None = None) -> list[MissionItem]:
+def _waypoint(lat: float, lon: float, alt: float, hold_s: float, acceptance_m: float) -> MissionItem:
+    return MissionItem(
+        seq=0,
+        frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
+        command=MavCmd.NAV_WAYPOINT,
+        param1=float(hold_s),
+        param2=float(acceptance_m),
+        param3=0.0,
+        x=_deg_e7(lat),
+        y=_deg_e7(lon),
+        z=alt,
+    )
+
+
+def _command(command: MavCmd, *params: float) -> MissionItem:
+    """A DO_ or IMAGE_ item without a position; params not given are NaN (unused), as MissionItem's."""
+    p1, p2, p3, p4 = [*map(float, params), math.nan, math.nan, math.nan, math.nan][:4]
+    return MissionItem(0, MavFrame.MISSION, command, param1=p1, param2=p2, param3=p3, param4=p4)
+
+
+def standoff_point(plan: Plan, position: int, range_m: float) -> tuple[float, float]:
+    """[lat, lon] the camera looks at the `position`-th buoy of the plan's order from: on the straight way in
+    (from the point before it on the route), `range_m` short of the buoy or half the leg when the leg is shorter
+    than twice that; due south of it when the leg has no length. On the leg: the track stays the planned one."""
+    route = plan.route_local()
+    nodes = plan.route_nodes()
+    # the position-th buoy's place in the route: every sortie adds its way home before the next one's buoys
+    k = [i for i, node in enumerate(nodes) if node is not None][position]
+    here, before = route[k], route[k - 1]
+    leg = before - here
+    length = float(np.hypot(*leg))
+    away = leg / length if length > 1e-6 else np.array([0.0, -1.0])
+    distance = max(min(range_m, 0.5 * length), min(MIN_STANDOFF_M, range_m)) if length > 1e-6 else range_m
+    point = here + distance * away
+    lat, lon = plan.frame.unproject(point[None, :])[0]
+    return float(lat), float(lon)
+
+
+def inspection_items(plan: Plan, flight: FlightParams, position: int) -> list[MissionItem]:
+    """The `position`-th buoy visited as an inspection (MissionLayout's group): aim the gimbal at its charted
+    position (DO_SET_ROI_LOCATION), stop at the standoff on the way in, capture the burst its charted light needs
+    (IMAGE_START_CAPTURE: interval and count) while holding there, stop capturing, release the ROI, and go on to
+    the buoy itself (the visit the route is measured by)."""
+    index = plan.order[position]
+    lat, lon = plan.buoys_lat_lon[index]
+    duration_s, rate_hz = plan.mark(index).burst()
+    count = math.ceil(duration_s * rate_hz)
+    s_lat, s_lon = standoff_point(plan, position, flight.inspection_range_m)
+    alt, acceptance = float(flight.altitude_m), float(flight.acceptance_radius_m)
+    roi = replace(_command(MavCmd.DO_SET_ROI_LOCATION), frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
+                  x=_deg_e7(lat), y=_deg_e7(lon), z=ROI_HEIGHT_M)  # fmt: skip
+    return [
+        roi,
+        _waypoint(s_lat, s_lon, alt, 0.0, acceptance),
+        _command(MavCmd.IMAGE_START_CAPTURE, 0.0, 1.0 / rate_hz, count, 0.0),
+        _waypoint(s_lat, s_lon, alt, count / rate_hz + BURST_HOLD_MARGIN_S, acceptance),
+        _command(MavCmd.IMAGE_STOP_CAPTURE, 0.0),
+        _command(MavCmd.DO_SET_ROI_NONE, 0.0),
+        _waypoint(lat, lon, alt, flight.dwell_s, acceptance),
+    ]
+
+
+def mission_items(
+    plan: Plan, flight: FlightParams, home: tuple[float, float] | None = None, camera: bool = False
+) -> list[MissionItem]:
     """The mission: takeoff at the depot, cruise speed, one waypoint per buoy, then home and land.
 
     Waypoints carry param1 = dwell (hold time) and param2 = acceptance radius, as MAV_CMD_NAV_WAYPOINT defines.
-    The return is MavCmd.NAV_RETURN_TO_LAUNCH when the depot is the vehicle's home; otherwise a waypoint at the depot
-    and MavCmd.NAV_LAND there, so the vehicle comes back to the depot and not to wherever it booted.
+    With `camera` (the vehicle has one and the flight asks to inspect) each buoy is an inspection group instead
+    (`inspection_items`). The return is MavCmd.NAV_RETURN_TO_LAUNCH when the depot is the vehicle's home;
+    otherwise a waypoint at the depot and MavCmd.NAV_LAND there, so the vehicle comes back to the depot and not to
+    wherever it booted.
     """
     depot_lat, depot_lon = plan.depot
     alt = float(flight.altitude_m)
@@ -213,52 +311,22 @@ def mission_items(plan: Plan, flight: FlightParams, home: tuple[float, float] | 
             y=_deg_e7(depot_lon),
             z=alt,
         ),
-        MissionItem(
-            seq=1,
-            frame=MavFrame.MISSION,
-            command=MavCmd.DO_CHANGE_SPEED,
-            param1=SPEED_TYPE_GROUND,
-            param2=float(flight.speed_m_s),
-            param3=-1.0,
-        ),
+        _command(MavCmd.DO_CHANGE_SPEED, SPEED_TYPE_GROUND, flight.speed_m_s, -1.0),
     ]
-    for index in plan.order:
-        lat, lon = plan.buoys_lat_lon[index]
-        items.append(
-            MissionItem(
-                seq=len(items),
-                frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
-                command=MavCmd.NAV_WAYPOINT,
-                param1=float(flight.dwell_s),
-                param2=float(flight.acceptance_radius_m),
-                param3=0.0,
-                x=_deg_e7(lat),
-                y=_deg_e7(lon),
-                z=alt,
-            )
-        )
+    for position, index in enumerate(plan.order):
+        if camera and flight.inspect:
+            items += inspection_items(plan, flight, position)
+        else:
+            lat, lon = plan.buoys_lat_lon[index]
+            items.append(_waypoint(lat, lon, alt, flight.dwell_s, flight.acceptance_radius_m))
     depot_is_home = home is None or _distance_m(plan.frame, home) <= HOME_TOLERANCE_M
     if depot_is_home:
-        items.append(
-            MissionItem(seq=len(items), frame=MavFrame.GLOBAL_RELATIVE_ALT_INT, command=MavCmd.NAV_RETURN_TO_LAUNCH)
-        )
+        items.append(MissionItem(seq=0, frame=MavFrame.GLOBAL_RELATIVE_ALT_INT, command=MavCmd.NAV_RETURN_TO_LAUNCH))
     else:
+        items.append(_waypoint(depot_lat, depot_lon, alt, 0.0, flight.acceptance_radius_m))
         items.append(
             MissionItem(
-                seq=len(items),
-                frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
-                command=MavCmd.NAV_WAYPOINT,
-                param1=0.0,
-                param2=float(flight.acceptance_radius_m),
-                param3=0.0,
-                x=_deg_e7(depot_lat),
-                y=_deg_e7(depot_lon),
-                z=alt,
-            )
-        )
-        items.append(
-            MissionItem(
-                seq=len(items),
+                seq=0,
                 frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
                 command=MavCmd.NAV_LAND,
                 x=_deg_e7(depot_lat),
@@ -266,7 +334,42 @@ def mission_items(plan: Plan, flight: FlightParams, home: tuple[float, float] | 
                 z=0.0,
             )
         )
-    return items
+    return [replace(item, seq=seq) for seq, item in enumerate(items)]
+
+
+@dataclass(frozen=True)
+class MissionLayout:
+    """Where each of a mission's `buoys` buoys has its items: after the take-off and the speed, one waypoint each,
+    or with `inspected` an inspection group each (`inspection_items`) whose last item is the buoy's waypoint."""
+
+    buoys: int
+    inspected: bool = False
+
+    @property
+    def group_size(self) -> int:
+        return INSPECTION_GROUP if self.inspected else 1
+
+    def group_start(self, position: int) -> int:
+        """The first item of the position-th buoy's items."""
+        return FIRST_BUOY_SEQ + position * self.group_size
+
+    def visit_seq(self, position: int) -> int:
+        """The waypoint at the position-th buoy visited."""
+        return self.group_start(position) + self.group_size - 1
+
+    def position_of(self, seq: int | None) -> int | None:
+        """Which buoy's items (its position in the visiting order) item `seq` is one of; None for the others."""
+        if seq is None or seq < FIRST_BUOY_SEQ:
+            return None
+        position = (seq - FIRST_BUOY_SEQ) // self.group_size
+        return position if position < self.buoys else None
+
+    def leg_of_seq(self, seq: int | None) -> int | None:
+        """The planned leg flown while item `seq` is current: leg k ends at the k-th buoy visited (its inspection
+        is on the way in), leg n is the way home. None during takeoff and when unknown."""
+        if seq is None or seq < FIRST_BUOY_SEQ:
+            return None
+        return min((seq - FIRST_BUOY_SEQ) // self.group_size, self.buoys)
 
 
 def _distance_m(frame: LocalFrame, lat_lon: tuple[float, float]) -> float:
@@ -274,15 +377,13 @@ def _distance_m(frame: LocalFrame, lat_lon: tuple[float, float]) -> float:
     return float(np.hypot(*east_north))
 
 
-def buoy_of_seq(seq: int, plan: Plan) -> int | None:
-    """The buoy index a mission item sequence number inspects, or None for the other items."""
-    position = seq - FIRST_BUOY_SEQ
-    return plan.order[position] if 0 <= position < len(plan.order) else None
+def buoy_of_seq(seq: int, plan: Plan, layout: MissionLayout | None = None) -> int | None:
+    """The buoy index whose visit (its waypoint) mission item `seq` is, or None for the other items."""
+    layout = layout or MissionLayout(len(plan.order))
+    position = layout.position_of(seq)
+    return plan.order[position] if position is not None and seq == layout.visit_seq(position) else None
 
 
-def leg_of_seq(seq: int | None, n_buoys: int) -> int | None:
-    """The planned leg flown while mission item `seq` is current: leg k ends at the k-th buoy visited, leg n
-    is the way home. None during takeoff (items before the first buoy) and when unknown."""
-    if seq is None or seq < FIRST_BUOY_SEQ:
-        return None
-    return min(seq - FIRST_BUOY_SEQ, n_buoys)
+def leg_of_seq(seq: int | None, n_buoys: int, inspected: bool = False) -> int | None:
+    """MissionLayout(n_buoys, inspected).leg_of_seq(seq)."""
+    return MissionLayout(n_buoys, inspected).leg_of_seq(seq)

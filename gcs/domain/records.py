@@ -87,6 +87,7 @@ class MissionProgress(Progress):
     sorties_flown: list[SortieFlown] = Field(default_factory=list)
     consumed_at_start: float | None = None  # the battery's consumed energy when the sortie took off
     shares: list[ShareProgress] = Field(default_factory=list)  # a fleet mission's
+    capture: bool = False  # the sortie on board has an inspection group per buoy (gcs.domain.planning.MissionLayout)
 
     def shown(self) -> Progress:
         """The part the API shows."""

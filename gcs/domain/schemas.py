@@ -12,6 +12,8 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from gcs.domain.buoy_files import BuoyFileError, buoys_from_geojson
 from gcs.domain.status import MissionKind, MissionStatus
+from uavcore.buoy_world import DEFAULT_SWING_RADIUS_M
+from uavcore.light_character import LightCharacterError, parse
 
 MAX_BUOYS = 500
 MAX_FENCE_ZONES = 50
@@ -30,8 +32,34 @@ class LatLon(Strict):
     lon: float = Field(ge=-180.0, le=180.0, description="WGS84 longitude, degrees")
 
 
+BuoyKind = Literal[
+    "port", "starboard", "north", "east", "south", "west", "isolated_danger", "safe_water", "special"
+]  # uavcore.buoy_world.KINDS (a test keeps the two the same)
+
+
 class BuoyIn(LatLon):
     id: str | None = Field(default=None, max_length=64, description="the buoy's name; defaults to B<index>")
+    kind: BuoyKind | None = Field(
+        default=None, description="the charted IALA kind (its colours, shape and topmark are checked); none: unknown"
+    )
+    light: str | None = Field(
+        default=None,
+        max_length=40,
+        description="the charted light in chart abbreviation, e.g. 'Fl(2) G 6s', 'Q(6)+LFl W 15s'; none: unlit",
+    )
+    swing_radius_m: float | None = Field(
+        default=None, ge=0.0, le=200.0, description=f"the mooring's swing radius; default {DEFAULT_SWING_RADIUS_M:g} m"
+    )
+
+    @field_validator("light")
+    @classmethod
+    def _charted_light(cls, value: str | None) -> str | None:
+        if value is not None:
+            try:
+                parse(value)
+            except LightCharacterError as error:
+                raise ValueError(f"not a light character: {error}") from None
+        return value
 
 
 class FenceZoneIn(Strict):
@@ -95,7 +123,15 @@ class PlanRequest(Strict):
     )
     altitude_m: float = Field(default=5.0, description="flight altitude above home")
     speed_m_s: float = Field(default=10.0, description="cruise speed")
-    dwell_s: float = Field(default=1.0, description="inspection time hovering at each buoy")
+    dwell_s: float = Field(default=1.0, description="time hovering over each buoy")
+    inspect: bool = Field(
+        default=True,
+        description="when the vehicle has a camera: stop short of each buoy, aim the camera at it and capture a "
+        "burst long enough to read its light; the verdicts are at GET /missions/{id}/inspections",
+    )
+    inspection_range_m: float = Field(
+        default=20.0, ge=5.0, le=100.0, description="how far short of each buoy the camera looks at it from"
+    )
     acceptance_radius_m: float = Field(default=2.0, description="how close counts as reaching a buoy")
     planner: PlannerOptions = Field(default_factory=PlannerOptions)
     geofence: list[FenceZoneIn] | None = Field(
@@ -276,6 +312,10 @@ class Progress(BaseModel):
     sorties: int = 1
     visited_buoys: list[int] = Field(default=[], description="input indices of the buoys visited, every sortie")
     preflight: list[PreflightCheck] = Field(default=[], description="each sortie's pre-flight charge check")
+    camera: str | None = Field(
+        default=None,
+        description="the camera the buoys are inspected with (null: visited only; the inspections say why)",
+    )
 
 
 class FleetShareOut(BaseModel):

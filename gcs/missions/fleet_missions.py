@@ -13,7 +13,7 @@ import itertools
 import logging
 import math
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -300,6 +300,8 @@ class FleetCoordinator:
                     part_plan.method,
                     part_plan.elapsed_s,
                 )
+                new_plan = replace(new_plan, marks=[*map(part_plan.mark, range(len(part_plan.buoy_ids))),
+                                                    *map(plan.mark, added)])  # fmt: skip
                 try:
                     self._replan(part, new_plan)
                 except MissionConflictError:  # it landed or ended meanwhile: the buoys stay not inspected

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from gcs.domain import tracking_metrics
-from gcs.domain.planning import FIRST_BUOY_SEQ, Plan, buoy_of_seq, leg_of_seq
+from gcs.domain.planning import FIRST_BUOY_SEQ, MissionLayout, Plan, buoy_of_seq
 from gcs.domain.records import MissionProgress, SortieFlown
 from gcs.domain.schemas import TELEMETRY_FROM_STATUS, PreflightCheck, TelemetrySample, VehicleEvent
 from gcs.vehicle.link import LinkManager
@@ -55,6 +55,8 @@ class MissionRecorder:
         self.acceptance_radius_m = acceptance_radius_m
         self.sortie = 0
         self.plan = plan.sortie_plan(0)  # the sortie on board
+        self.layout = MissionLayout(len(self.plan.order))  # where its buoys' items are (set at each upload)
+        self.camera: str | None = None  # the camera the sortie inspects with (None: the buoys are only visited)
         self.visited: set[int] = set()  # buoy indices the vehicle was seen within the acceptance radius of
         self.uploaded = False  # this sortie's items are acknowledged on board: its progress messages count
         self.current_seq: int | None = None  # this sortie's current item, from MISSION_CURRENT after the upload
@@ -89,6 +91,8 @@ class MissionRecorder:
         # the current item is not restored: the vehicle flew on unwatched, and its next MISSION_CURRENT says where
         self.vehicle_events = list(progress.vehicle_events)
         self.preflight_checks = list(progress.preflight)
+        self.camera = progress.camera
+        self.layout = MissionLayout(len(self.plan.order), progress.capture)
 
     def _on_board(self, sortie: int) -> None:
         self.sortie, self.plan = sortie, self.mission_plan.sortie_plan(sortie)
@@ -105,10 +109,11 @@ class MissionRecorder:
         self.mission_plan = plan
         self.begin_sortie(self.sortie)
 
-    def mission_uploaded(self) -> None:
+    def mission_uploaded(self, camera: str | None = None) -> None:
         """The vehicle acknowledged the upload of the sortie on board: from now on its MISSION_CURRENT and
-        MISSION_ITEM_REACHED are this sortie's."""
+        MISSION_ITEM_REACHED are this sortie's. `camera`: the items inspect each buoy with this camera."""
         self.uploaded, self.current_seq, self.reached_seqs = True, None, []
+        self.camera, self.layout = camera, MissionLayout(len(self.plan.order), camera is not None)
 
     def preflight(self, check: PreflightCheck) -> None:
         """The pre-flight charge check of the sortie about to fly: kept with the mission's progress."""
@@ -203,7 +208,7 @@ class MissionRecorder:
             seq = self.link.autopilot.planned_seq(message.seq)
             if seq not in self.reached_seqs:
                 self.reached_seqs.append(seq)
-            buoy = buoy_of_seq(seq, self.plan)
+            buoy = buoy_of_seq(seq, self.plan, self.layout)
             if buoy is not None and status.time_boot_ms is not None:
                 self.reached_at.setdefault(buoy, status.time_boot_ms / 1000.0)
             if buoy is not None and self.unwatched:
@@ -214,7 +219,7 @@ class MissionRecorder:
             self.current_seq = self.link.autopilot.planned_seq(message.seq)
             if self.unwatched:
                 passed = range(FIRST_BUOY_SEQ, self.current_seq + (1 if status.mission_complete else 0))
-                self.visited |= {b for seq in passed if (b := buoy_of_seq(seq, self.plan)) is not None}
+                self.visited |= {b for seq in passed if (b := buoy_of_seq(seq, self.plan, self.layout)) is not None}
         elif kind == "GLOBAL_POSITION_INT" and from_autopilot:
             self._position(message.time_boot_ms / 1000.0)
         elif kind == "LOCAL_POSITION_NED" and from_autopilot:
@@ -245,7 +250,7 @@ class MissionRecorder:
 
     def _cross_track(self) -> float | None:
         s = self.link.status
-        leg = leg_of_seq(self.current_seq, len(self.plan.order))
+        leg = self.layout.leg_of_seq(self.current_seq)
         if leg is None or s.lat is None:
             return None
         east, north = self.plan.frame.project(np.array([[s.lat, s.lon]]))[0]
@@ -269,6 +274,8 @@ class MissionRecorder:
             sorties_flown=list(self.sorties_flown),
             consumed_at_start=self.consumed_at_start,
             preflight=list(self.preflight_checks),
+            camera=self.camera,
+            capture=self.layout.inspected,
         )
 
     def take(self) -> list[dict[str, Any]]:

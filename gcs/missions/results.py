@@ -36,7 +36,7 @@ def flight_results(
             east=float(e),
             north=float(n),
             airborne=_airborne(s),
-            leg=_leg(plan, sortie_sizes, s.get("sortie") or 0, s.get("mission_seq")),
+            leg=_leg(plan, sortie_sizes, s.get("sortie") or 0, s.get("mission_seq"), progress.capture),
         )
         for s, (e, n) in zip(located, en, strict=True)
     ]
@@ -56,9 +56,10 @@ def flight_results(
     return MissionResults.model_validate({"tracking": figures, "buoys": buoys})
 
 
-def _leg(plan: Plan, sortie_sizes: list[int], sortie: int, seq: int | None) -> int | None:
-    """The route's leg (Plan.route_local) a sample of `sortie` flew while item `seq` of that sortie was current."""
+def _leg(plan: Plan, sortie_sizes: list[int], sortie: int, seq: int | None, inspected: bool) -> int | None:
+    """The route's leg (Plan.route_local) a sample of `sortie` flew while item `seq` of that sortie was current
+    (`inspected`: the sortie's items had an inspection group per buoy)."""
     if sortie >= len(sortie_sizes):
         return None
-    leg = leg_of_seq(seq, sortie_sizes[sortie])
+    leg = leg_of_seq(seq, sortie_sizes[sortie], inspected)
     return None if leg is None else plan.first_leg_of_sortie(sortie) + leg

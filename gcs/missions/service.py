@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs.domain.planning import FlightParams, Plan, fenced_legs, make_plan, mission_items, sorties_plan
+from gcs.domain.planning import BuoyMark, FlightParams, Plan, fenced_legs, make_plan, mission_items, sorties_plan
 from gcs.domain.schemas import MissionRequest, PlanRequest
 from gcs.domain.status import TERMINAL, MissionStatus
 from gcs.missions.energy_planning import battery_plan, energy_plan
@@ -46,6 +46,7 @@ from gcs.storage.off_loop import AsyncStorage
 from gcs.vehicle.link import LinkManager
 from planner.energy import EnergyModel
 from uavcore.battery_pack import PackSpec
+from uavcore.buoy_world import DEFAULT_SWING_RADIUS_M
 from uavcore.geofence import Geofence
 from uavcore.mission import MissionItem
 
@@ -54,6 +55,21 @@ def _named_buoys(request: PlanRequest) -> tuple[list[str], list[tuple[float, flo
     """The request's buoy ids (B<index> for an unnamed one) and (lat, lon) points, in input order."""
     ids = [b.id or f"B{i + 1}" for i, b in enumerate(request.buoys)]
     return ids, [(b.lat, b.lon) for b in request.buoys]
+
+
+def _marks(request: PlanRequest) -> list[BuoyMark]:
+    """What the request charts of each buoy (kind, light, swing radius), in input order."""
+    return [
+        BuoyMark(b.kind, b.light, DEFAULT_SWING_RADIUS_M if b.swing_radius_m is None else b.swing_radius_m)
+        for b in request.buoys
+    ]
+
+
+def _flight(request: PlanRequest, **changes: Any) -> FlightParams:
+    """The request's flight parameters (`changes` replacing some)."""
+    flight = FlightParams(request.altitude_m, request.speed_m_s, request.dwell_s, request.acceptance_radius_m,
+                          inspect=request.inspect, inspection_range_m=request.inspection_range_m)  # fmt: skip
+    return replace(flight, **changes)
 
 
 class MissionNotFoundError(KeyError):
@@ -163,7 +179,7 @@ class MissionService:
         if fence is not None and not fence.empty:
             validate_fence_points(depot, buoys, fence)
             fenced = fenced_legs(depot, np.asarray(buoys), fence)
-        flight = FlightParams(request.altitude_m, request.speed_m_s, request.dwell_s, request.acceptance_radius_m)
+        flight = _flight(request)
         options = request.planner
         if request.battery is None:
             plan = make_plan(depot, buoys, ids, options.method, options.seed, options.time_limit_s, fenced)
@@ -173,7 +189,7 @@ class MissionService:
             plan = energy_plan(depot, buoys, ids, flight, battery, options.seed, options.time_limit_s, fenced,
                                options.method, self.energy_model)  # fmt: skip
         validate_fenced_route(plan, fenced)
-        return plan, flight
+        return replace(plan, marks=_marks(request)), flight
 
     # ----- the lifecycle
     def active_mission(self) -> int | None:
@@ -218,15 +234,18 @@ class MissionService:
             plan_fleet_mission, homes, buoys, ids, request.altitude_m, request.layer_gap_m, request.speed_m_s,
             request.dwell_s, options.seed, options.time_limit_s,
         )  # fmt: skip
-        flight = FlightParams(
-            request.altitude_m, request.speed_m_s, request.dwell_s, request.acceptance_radius_m, request.override
-        )
+        flight = _flight(request, override=request.override)
+        marks = _marks(request)
         overview = sorties_plan(first_home, buoys, ids, [[b for s in planned.shares for b in s.buoys]], METHOD,
                                 planned.elapsed_s)  # fmt: skip
         overview = replace(
-            overview, length_m=sum(s.plan.length_m for s in planned.shares), fleet=planned.plan_section()
+            overview, length_m=sum(s.plan.length_m for s in planned.shares), fleet=planned.plan_section(), marks=marks
         )
-        parts = [(replace(flight, altitude_m=share.altitude_m), share.plan, share.sysid) for share in planned.shares]
+        parts = [
+            (replace(flight, altitude_m=share.altitude_m), replace(share.plan, marks=[marks[b] for b in share.buoys]),
+             share.sysid)
+            for share in planned.shares
+        ]  # fmt: skip
         fleet_id, _ = await self._storage.create_fleet_mission(flight, overview, parts)
         fleet = await self.get(fleet_id)
         # its shares' part missions, as the answer names them (the coordinator keeps this progress from here)

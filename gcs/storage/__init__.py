@@ -1,10 +1,10 @@
 """Persistence: the only package that knows SQL. SQLite (a file, the embedded default) or PostgreSQL (a
 `postgresql://` URL, a database several service instances can share).
 
-Missions, their status history and their telemetry, in a schema versioned by a `schema_migrations` table, and
-every write inside a transaction so a crash or an error never leaves half a record. Structured parts of a
-mission (plan, flight parameters, progress, results) are JSON documents: read and written whole, never queried
-field by field.
+Missions, their status history, their telemetry and their inspections (camera frames and a record per buoy),
+in a schema versioned by a `schema_migrations` table, and every write inside a transaction so a crash or an
+error never leaves half a record. Structured parts of a mission (plan, flight parameters, progress, results,
+inspection records) are JSON documents: read and written whole, never queried field by field.
 
 Design: one `Storage` class (`base`) holds every query, written once; a dialect subclass (`sqlite`,
 `postgres`) only says how to connect, how transactions and cross-instance serialisation work, and which
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gcs.storage.base import ConstraintError, MissionRecord, Storage, StorageError
+from gcs.storage.base import ConstraintError, FramesFullError, MissionRecord, Storage, StorageError
 from gcs.storage.migrations import MIGRATIONS
 from gcs.storage.postgres import PostgresStorage, is_postgres_url, redacted
 from gcs.storage.sqlite import SqliteStorage
@@ -25,6 +25,7 @@ from gcs.storage.sqlite import SqliteStorage
 __all__ = [
     "MIGRATIONS",
     "ConstraintError",
+    "FramesFullError",
     "MissionRecord",
     "PostgresStorage",
     "SqliteStorage",

@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
 from typing import Any, ClassVar, Protocol
 
+from gcs.domain.inspection import InspectionRecord, StoredFrame
 from gcs.domain.planning import FlightParams, Plan
 from gcs.domain.records import MissionProgress, MissionResults
 from gcs.domain.schemas import StatusEvent
@@ -30,6 +31,10 @@ NEXT_VERSION = "(SELECT COALESCE(MAX(version), 0) + 1 FROM missions)"
 
 class StorageError(RuntimeError):
     """The database cannot be opened, is from a newer version of the service, or refused a write."""
+
+
+class FramesFullError(StorageError):
+    """A mission's frames would pass the size limit: the frame was not stored."""
 
 
 class ConstraintError(StorageError):
@@ -384,3 +389,69 @@ class Storage(ABC):
         with self._reading() as db:
             row = db.execute("SELECT COUNT(*) AS samples FROM telemetry WHERE mission_id = ?", (mission_id,)).fetchone()
         return int(row["samples"])
+
+    # ----- inspections: camera frames and each buoy's record
+    def add_frame(self, mission_id: int, frame: StoredFrame, data: bytes, max_mission_bytes: int) -> int:
+        """Store a frame's bytes and record; returns its id. Raises FramesFullError (nothing stored) when the
+        mission's frames would pass max_mission_bytes."""
+        with self.transaction() as db:
+            row = db.execute("SELECT COALESCE(SUM(size), 0) AS size FROM frames WHERE mission_id = ?", (mission_id,))
+            stored = int(row.fetchone()["size"])
+            if stored + len(data) > max_mission_bytes:
+                raise FramesFullError(
+                    f"the mission's frames would pass {max_mission_bytes} bytes ({stored} stored, {len(data)} more)"
+                )
+            record = _json(frame.model_dump(mode="json", exclude={"id"}))
+            return int(
+                db.execute(
+                    "INSERT INTO frames (mission_id, buoy, captured, size, data) VALUES (?, ?, ?, ?, ?) RETURNING id",
+                    (mission_id, frame.buoy, record, len(data), data),
+                ).fetchone()["id"]
+            )
+
+    def frames(self, mission_id: int) -> list[StoredFrame]:
+        """The mission's frames' records (not their bytes), by buoy, in the order they were stored."""
+        with self._reading() as db:
+            rows = db.execute(
+                "SELECT id, captured FROM frames WHERE mission_id = ? ORDER BY buoy, id", (mission_id,)
+            ).fetchall()
+        return [StoredFrame.model_validate(json.loads(row["captured"]) | {"id": row["id"]}) for row in rows]
+
+    def frame_data(self, mission_id: int, frame_id: int) -> bytes | None:
+        """A frame's bytes (None: no such frame of this mission)."""
+        with self._reading() as db:
+            row = db.execute(
+                "SELECT data FROM frames WHERE mission_id = ? AND id = ?", (mission_id, frame_id)
+            ).fetchone()
+        return None if row is None else bytes(row["data"])
+
+    def set_inspection(self, mission_id: int, record: InspectionRecord) -> None:
+        """Store (or replace) one buoy's inspection record; the mission's version rises (its views change)."""
+        document = _json(record.model_dump(mode="json"))
+        with self._mission_write() as db:
+            db.execute(
+                "INSERT INTO inspections (mission_id, buoy, record) VALUES (?, ?, ?)"
+                " ON CONFLICT (mission_id, buoy) DO UPDATE SET record = excluded.record",
+                (mission_id, record.buoy, document),
+            )
+            db.execute(f"UPDATE missions SET version = {NEXT_VERSION} WHERE id = ?", (mission_id,))
+
+    def inspections(self, mission_id: int) -> list[InspectionRecord]:
+        """The mission's inspection records by buoy input index."""
+        with self._reading() as db:
+            rows = db.execute("SELECT record FROM inspections WHERE mission_id = ? ORDER BY buoy", (mission_id,))
+            return [InspectionRecord.model_validate_json(row["record"]) for row in rows.fetchall()]
+
+    # ----- removal
+    def delete_mission(self, mission_id: int) -> bool:
+        """Remove a mission and everything of it (a fleet mission: its parts too): events, telemetry, frames and
+        inspections, in one transaction. False when there is no such mission."""
+        with self._mission_write() as db:
+            rows = db.execute(
+                "SELECT id FROM missions WHERE id = ? OR (fleet_id = ? AND fleet_id <> id)", (mission_id, mission_id)
+            ).fetchall()
+            ids = sorted((int(row["id"]) for row in rows), reverse=True)  # parts (higher ids) before their fleet
+            for table in ("frames", "inspections", "telemetry", "mission_events"):
+                db.executemany(f"DELETE FROM {table} WHERE mission_id = ?", [(i,) for i in ids])
+            db.executemany("DELETE FROM missions WHERE id = ?", [(i,) for i in ids])
+        return bool(ids)

@@ -104,6 +104,28 @@ def _fleet_columns(integer: str) -> str:
     """
 
 
+def _inspection_tables(integer: str, key: str, blob: str) -> str:
+    """Migration 7: the inspection's camera frames (the image's bytes beside what the camera said of it and what
+    was found in it) and each buoy's inspection record, both removed with their mission."""
+    return f"""
+    CREATE TABLE frames (
+        id {key},
+        mission_id {integer} NOT NULL REFERENCES missions(id),
+        buoy {integer} NOT NULL,
+        captured TEXT NOT NULL,
+        size {integer} NOT NULL,
+        data {blob} NOT NULL
+    );
+    CREATE INDEX frames_by_mission ON frames (mission_id, buoy, id);
+    CREATE TABLE inspections (
+        mission_id {integer} NOT NULL REFERENCES missions(id),
+        buoy {integer} NOT NULL,
+        record TEXT NOT NULL,
+        PRIMARY KEY (mission_id, buoy)
+    );
+    """
+
+
 def _sqlite_status_check(db: Any) -> None:
     """Migration 6 in SQLite: the missions table's CHECK lists every MissionStatus. SQLite cannot alter a
     constraint; a CHECK that admits more values changes no stored row, so the table's definition is rewritten in
@@ -142,5 +164,9 @@ MIGRATIONS: list[Migration] = [
         postgresql="ALTER TABLE missions DROP CONSTRAINT missions_status_check;"
         f"ALTER TABLE missions ADD CONSTRAINT missions_status_check CHECK (status IN ({_STATUSES}));",
         sqlite_steps=_sqlite_status_check,
+    ),
+    Migration(
+        sqlite=_inspection_tables("INTEGER", "INTEGER PRIMARY KEY AUTOINCREMENT", "BLOB"),
+        postgresql=_inspection_tables("BIGINT", "BIGINT GENERATED ALWAYS AS IDENTITY PRIMARY KEY", "BYTEA"),
     ),
 ]

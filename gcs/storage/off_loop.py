@@ -23,6 +23,7 @@ from collections.abc import Callable, Hashable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, ParamSpec, TypeVar
 
+from gcs.domain.inspection import InspectionRecord, StoredFrame
 from gcs.domain.planning import FlightParams, Plan
 from gcs.domain.records import MissionProgress, MissionResults
 from gcs.domain.status import MissionStatus
@@ -98,12 +99,21 @@ class AsyncStorage:
     async def add_telemetry(self, mission_id: int, samples: list[dict[str, Any]]) -> None:
         await self._run(self._writer, self.blocking.add_telemetry, mission_id, samples)
 
+    async def add_frame(self, mission_id: int, frame: StoredFrame, data: bytes, max_mission_bytes: int) -> int:
+        return await self._run(self._writer, self.blocking.add_frame, mission_id, frame, data, max_mission_bytes)
+
+    async def set_inspection(self, mission_id: int, record: InspectionRecord) -> None:
+        await self._run(self._writer, self.blocking.set_inspection, mission_id, record)
+
+    async def delete_mission(self, mission_id: int) -> bool:
+        return await self._run(self._writer, self.blocking.delete_mission, mission_id)
+
     # ----- reads, side by side
     async def get_mission(self, mission_id: int) -> MissionRecord | None:
         return await self._run(self._readers, self.blocking.get_mission, mission_id)
 
     async def existing_mission(self, mission_id: int) -> MissionRecord:
-        """A mission known to be stored (one being flown or followed: missions are never deleted)."""
+        """A mission known to be stored (one being flown or followed: such a mission cannot be deleted)."""
         record = await self.get_mission(mission_id)
         assert record is not None, f"mission {mission_id} is not stored"
         return record
@@ -133,3 +143,12 @@ class AsyncStorage:
     async def telemetry_count(self, mission_id: int) -> int:
         key = ("telemetry_count", mission_id)
         return await self._read_coalesced(key, functools.partial(self.blocking.telemetry_count, mission_id))
+
+    async def frames(self, mission_id: int) -> list[StoredFrame]:
+        return await self._run(self._readers, self.blocking.frames, mission_id)
+
+    async def frame_data(self, mission_id: int, frame_id: int) -> bytes | None:
+        return await self._run(self._readers, self.blocking.frame_data, mission_id, frame_id)
+
+    async def inspections(self, mission_id: int) -> list[InspectionRecord]:
+        return await self._run(self._readers, self.blocking.inspections, mission_id)

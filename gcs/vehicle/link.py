@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from gcs.vehicle.autopilots import CUSTOM_MODE_ENABLED, Autopilot, Px4, autopilot_for
+from gcs.vehicle.camera import CameraClient
 from gcs.vehicle.connection import Connection, ConnectionStringError, Transport, open_transport, parse_connection
 from gcs.vehicle.errors import CommandDeniedError, CommandTimeoutError, LinkError
 from gcs.vehicle.ftp import CAMERA_COMPID, DEFAULT_MAX_BYTES, FtpClient
@@ -268,6 +269,7 @@ class LinkManager:
         self.positions_received = 0  # GLOBAL_POSITION_INT from the vehicle: its position stream's rate, measured
         self.fence: Geofence | None = None  # the vehicle's geofence as last read this connection (None: not read)
         self._ftp = FtpClient(self)
+        self.camera = CameraClient(self)  # the vehicle's camera, once its heartbeat is heard (MAVSDK's Camera)
 
     @property
     def target(self) -> tuple[int, int]:
@@ -503,6 +505,8 @@ class LinkManager:
             if self.vehicle is None or message.get_srcSystem() != self.vehicle.sysid:
                 continue
             self.messages_received += 1
+            if message.get_type() == "HEARTBEAT" and message.get_srcComponent() != self.vehicle.compid:
+                self.camera.heard(message)
             if message.get_type() == "GLOBAL_POSITION_INT":
                 self.positions_received += 1
             self._update(message)
@@ -530,6 +534,7 @@ class LinkManager:
         if current is not None and self.status.connected:
             return  # another vehicle on the link while ours is alive: not ours (a fleet is not flown here)
         self.vehicle, self.autopilot = identity, autopilot_for(identity.autopilot)
+        self.camera.forget()
         self.status = VehicleStatus(
             sysid=identity.sysid,
             compid=identity.compid,

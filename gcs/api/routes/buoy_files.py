@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from fastapi import APIRouter, Depends, Query, Request
+from pydantic import ValidationError
 
 from gcs.api.routes.responses import WITH_BODY
 from gcs.api.security import require_token
 from gcs.domain.buoy_files import BuoyFileError, buoys_from_file
-from gcs.domain.schemas import MAX_BUOYS, ImportOut
+from gcs.domain.schemas import MAX_BUOYS, BuoyIn, ImportOut
 
 router = APIRouter(tags=["imports"])
 
@@ -33,4 +34,14 @@ async def import_buoys(request: Request, filename: str = Query(default="", max_l
     buoys = buoys_from_file(await request.body(), filename, request.headers.get("content-type", ""))
     if len(buoys) > MAX_BUOYS:
         raise BuoyFileError(f"the file has {len(buoys)} buoys; a mission takes at most {MAX_BUOYS}")
-    return {"buoys": [b.as_dict() for b in buoys]}
+    return {"buoys": [_checked(i, b.as_dict()) for i, b in enumerate(buoys)]}
+
+
+def _checked(index: int, buoy: dict) -> BuoyIn:
+    """The buoy as a request takes it; a charted property it cannot take is the file's error (422)."""
+    try:
+        return BuoyIn.model_validate(buoy)
+    except ValidationError as error:
+        first = error.errors()[0]
+        where = ".".join(str(part) for part in first["loc"])
+        raise BuoyFileError(f"buoy {index + 1} ({buoy.get('id') or 'unnamed'}): {where}: {first['msg']}") from None
