@@ -95,6 +95,14 @@ class Settings(BaseSettings):
     lease_poll_s: float = Field(
         0.5, gt=0, description="wall seconds between a stand-by's tries to take the vehicle lease (and owner checks)"
     )
+    # the inspection's camera frames (gcs.missions.inspector)
+    max_frame_bytes: int = Field(16 << 20, gt=0, description="largest camera frame downloaded (a JPEG is a few MB)")
+    max_mission_frame_bytes: int = Field(
+        4 << 30, gt=0, description="frames stored per mission beyond this are not stored (the buoy's reason says so)"
+    )
+    inspection_drain_s: float = Field(
+        120.0, ge=0, description="wall seconds a landed sortie waits for frames still downloading before judging"
+    )
     web_dir: Path = Path(__file__).resolve().parent / "web"  # package data: ships in the wheel
 
     @field_validator("cors_origins", "vehicles", mode="before")

@@ -23,11 +23,11 @@ from starlette.responses import Response
 
 from gcs.api.body_limit import BodyLimitMiddleware
 from gcs.api.http_headers import SecurityHeadersMiddleware
-from gcs.api.routes import buoy_files, live, missions, plans, vehicle
+from gcs.api.routes import buoy_files, inspections, live, missions, plans, vehicle
 from gcs.domain.buoy_files import BuoyFileError
 from gcs.missions.lifecycle import MissionConflictError
 from gcs.missions.ownership import NotOwnerError
-from gcs.missions.service import MissionNotFoundError, MissionService, VehicleNotFoundError
+from gcs.missions.service import FrameNotFoundError, MissionNotFoundError, MissionService, VehicleNotFoundError
 from gcs.missions.validation import RequestInvalidError
 from gcs.settings import Settings
 from gcs.storage import open_storage
@@ -88,6 +88,10 @@ def _install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(MissionNotFoundError)
     async def not_found(_: Request, error: MissionNotFoundError) -> JSONResponse:
         return JSONResponse({"detail": f"no mission {error.args[0]}"}, status_code=404)
+
+    @app.exception_handler(FrameNotFoundError)
+    async def no_frame(_: Request, error: FrameNotFoundError) -> JSONResponse:
+        return JSONResponse({"detail": error.args[0]}, status_code=404)
 
     @app.exception_handler(VehicleNotFoundError)
     async def no_vehicle(_: Request, error: VehicleNotFoundError) -> JSONResponse:
@@ -173,7 +177,7 @@ def create_app(settings: Settings | None = None, *, freeze_startup_heap: bool = 
     app.state.settings = settings
     _install_middleware(app, settings)
     _install_error_handlers(app)
-    for module in (plans, missions, buoy_files, vehicle, live):
+    for module in (plans, missions, inspections, buoy_files, vehicle, live):
         app.include_router(module.router)
 
     index = settings.web_dir / "index.html"

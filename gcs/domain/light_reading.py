@@ -45,16 +45,18 @@ class LightSpot:
 def measure_spot(
     image: np.ndarray, centre_px: tuple[float, float], radius_px: float, body_top_v: float
 ) -> LightSpot | None:
-    """The spot of radius_px around centre_px (u, v), above the body's top edge (row body_top_v): the lamp sits on
-    the body, whose paint may be as bright (white) or of the lamp's colour (yellow); the lamp's upper half and its
-    halo show above it. None if no part of the spot lies in the frame."""
+    """The upper half of the spot of radius_px around centre_px (u, v), above the body's top edge (row body_top_v):
+    the lamp sits on the body, whose paint may be as bright (white) or of the lamp's colour (yellow); the lamp's
+    upper half and its halo show above it. None if no part of the spot lies in the frame."""
     u, v = centre_px
     height, width = image.shape[:2]
     r = int(np.ceil(radius_px))
     above_body = (
         math.floor(body_top_v - 1.5) + 1
     )  # rows whose centres lie 1.5 px or more above the edge: JPEG and a sub-pixel edge smear white paint a pixel up
-    top, bottom = max(0, round(v) - r), min(height, round(v) + r + 1, above_body)
+    # and no lower than the lamp's centre row: the body's top is projected from the geotag, whose attitude error
+    # (half a degree moves it by several pixels at 20 m) may put white paint inside the rows kept above it
+    top, bottom = max(0, round(v) - r), min(height, round(v) + 1, above_body)
     left, right = max(0, round(u) - r), min(width, round(u) + r + 1)
     if top >= bottom or left >= right:
         return None

@@ -29,6 +29,7 @@ FIRST_BUOY_SEQ = 2
 INSPECTION_GROUP = 7  # ROI, standoff, capture start, standoff hold, capture stop, ROI none, the buoy's waypoint
 ROI_HEIGHT_M = 1.0  # the camera aims this far above the sea at the buoy's charted position: its body, not its foot
 BURST_HOLD_MARGIN_S = 0.5  # the standoff is held this much longer than the burst lasts
+STOP_AND_GO_S = 5.0  # a stop at the standoff and the climb back to cruise speed, for the time budget
 MIN_STANDOFF_M = 5.0  # a buoy closer than twice this to the previous point is looked at from half the leg
 SPEED_TYPE_GROUND = 1.0  # MavCmd.DO_CHANGE_SPEED param1
 HOME_TOLERANCE_M = 1.0  # a depot this close to the vehicle's home returns with RTL, else waypoint + land
@@ -286,6 +287,16 @@ def inspection_items(plan: Plan, flight: FlightParams, position: int) -> list[Mi
         _command(MavCmd.DO_SET_ROI_NONE, 0.0),
         _waypoint(lat, lon, alt, flight.dwell_s, acceptance),
     ]
+
+
+def inspection_time_s(plan: Plan) -> float:
+    """The hover the plan's inspections add (each buoy's standoff hold, and a stop and go there): for the flight's
+    time budget, not a prediction."""
+    holds = 0.0
+    for index in plan.order:
+        duration_s, rate_hz = plan.mark(index).burst()
+        holds += math.ceil(duration_s * rate_hz) / rate_hz + BURST_HOLD_MARGIN_S + STOP_AND_GO_S
+    return holds
 
 
 def mission_items(

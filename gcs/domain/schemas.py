@@ -534,3 +534,31 @@ TELEMETRY_FROM_STATUS = tuple(name for name in TelemetrySample.model_fields if n
 
 class ImportOut(BaseModel):
     buoys: list[BuoyIn]
+
+
+# ----- inspections
+class ChartedBuoyOut(BaseModel):
+    lat: float
+    lon: float
+    kind: str = Field(description="IALA kind as charted ('unknown': not given)")
+    light: str | None = Field(description="the charted light (null: unlit)")
+    swing_radius_m: float
+
+
+class InspectionOut(BaseModel):
+    """One buoy's inspection: its verdict, the findings with their figures, what was observed, and the frames."""
+
+    buoy: str = Field(description="the buoy's id")
+    index: int = Field(description="the buoy's input index")
+    verdict: Literal["ok", "defect", "not_inspected"]
+    findings: list[dict[str, Any]] = Field(
+        description="each defect: `code` (off_station, light_out, wrong_character, wrong_period, wrong_colour, "
+        "wrong_body_colour, not_found) and its figures"
+    )
+    observed: LatLon | None = Field(description="where the buoy was seen (the median of its frames' waterlines)")
+    offset_m: float | None = Field(description="observed position's distance from the charted one")
+    light_seen: str | None = Field(description="the light as read from the burst ('dark', 'flashing .. G 6.0s')")
+    charted: ChartedBuoyOut
+    frames: list[str] = Field(description="URLs of the burst's frames, capture order")
+    best_frame: str | None = Field(description="URL of the frame to show first")
+    reason: str | None = Field(description="why the buoy was not inspected (null otherwise)")

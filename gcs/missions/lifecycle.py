@@ -41,16 +41,18 @@ import logging
 import time
 from typing import Any
 
-from gcs.domain.planning import FIRST_BUOY_SEQ, FlightParams, Plan, mission_items
+from gcs.domain.planning import FIRST_BUOY_SEQ, FlightParams, Plan, inspection_time_s, mission_items
 from gcs.domain.records import MissionProgress
 from gcs.domain.schemas import PreflightCheck, VehicleEvent
 from gcs.domain.status import TERMINAL, MissionStatus
 from gcs.missions.energy_planning import ChargeNeed, charge_needed, model_pack
+from gcs.missions.inspector import NO_CAMERA, NOT_ASKED, InspectionLimits, Inspector, not_inspected
 from gcs.missions.recorder import MissionRecorder
 from gcs.missions.results import flight_results
 from gcs.settings import Settings
 from gcs.storage import MissionRecord
 from gcs.storage.off_loop import AsyncStorage
+from gcs.vehicle.camera import CameraInfo
 from gcs.vehicle.link import CommandTimeoutError, LinkError, LinkManager
 from gcs.vehicle.mission_protocol import MissionTransferError
 from planner.energy import EnergyModel
@@ -68,6 +70,7 @@ REATTACHED = "GCS restarted; re-attached to the vehicle flying this mission"
 MISSION_CURRENT_WAIT_S = 3.0  # wall clock a re-attaching service waits for the vehicle's MISSION_CURRENT
 BATTERY_REPORT_WAIT_S = 5.0  # wall clock for the vehicle's battery report (BATTERY_STATUS comes at 1 Hz)
 BATTERY_SETTLE_MS = 1500.0  # vehicle time after a landing before its battery report counts (one report after it)
+CAMERA_WAIT_S = 2.5  # wall clock after the vehicle is heard for its camera's heartbeat (1 Hz) to be heard too
 SWAPPED_CHARGE_WAIT_S = 5.0  # wall clock for the vehicle to report the charge of a pack the operator swapped
 
 
@@ -103,10 +106,11 @@ class MissionEndError(Exception):
         self.status, self.reason = status, reason
 
 
-def flight_budget_s(plan: Plan, flight: FlightParams, margin_s: float) -> float:
-    """Simulated seconds a mission may take before it is declared failed."""
+def flight_budget_s(plan: Plan, flight: FlightParams, margin_s: float, inspected: bool = False) -> float:
+    """Simulated seconds a mission may take before it is declared failed (`inspected`: with a burst per buoy)."""
     cruise = plan.length_m / flight.speed_m_s
-    return cruise + len(plan.order) * flight.dwell_s + 2 * flight.altitude_m / CLIMB_RATE_M_S + margin_s
+    bursts = inspection_time_s(plan) if inspected else 0.0
+    return cruise + len(plan.order) * flight.dwell_s + 2 * flight.altitude_m / CLIMB_RATE_M_S + bursts + margin_s
 
 
 def ended_early(recorder: MissionRecorder) -> MissionEndError:
@@ -164,6 +168,7 @@ class FlightLifecycle:
         self._handing_over = False  # stop() leaves flying missions for the next owner of the vehicle link
         self._replans: dict[int, Plan] = {}  # new plans for flying missions, uploaded in flight by their monitor
         self._swapped = asyncio.Event()  # the operator confirmed a battery swap (a waiting mission goes on)
+        self._inspectors: dict[int, Inspector] = {}  # each flying mission's inspection of its sortie's buoys
 
     async def reattach(self, unfinished: list[int]) -> None:
         """At start-up, with the ids of the missions a previous run left unfinished (oldest first)."""
@@ -301,6 +306,11 @@ class FlightLifecycle:
     ) -> None:
         self._abort_requested.discard(mission_id)
         progress = await self._detach(mission_id, recorder)
+        inspected = {record.buoy for record in await self.storage.inspections(mission_id)}
+        for index in range(len(plan.buoy_ids)):
+            if index not in inspected:  # never reached: its sortie did not fly, or not that far
+                ended = reason or "the mission ended"
+                await self.storage.set_inspection(mission_id, not_inspected(plan, index, f"not reached ({ended})"))
         samples = await self.storage.telemetry(mission_id)
         if samples:
             await self.storage.set_results(mission_id, flight_results(plan, flight, samples, progress))
@@ -349,19 +359,52 @@ class FlightLifecycle:
             await self._transition(mission_id, MissionStatus.FLYING, on)
         incarnation = self.link.status.incarnation  # after the check: a pack swapped by hand reboots a vehicle
         sortie_plan = plan.sortie_plan(sortie)
-        items = self._items(sortie_plan, flight)
+        camera, camera_text = await self._camera(flight)
+        items = self._items(sortie_plan, flight, camera is not None)
         await self.link.upload_mission(items, self.link.status.home or self.settings.home)
-        recorder.mission_uploaded()
+        recorder.mission_uploaded(camera_text if camera is not None else None)
         if sortie == 0:
             await self._transition(mission_id, MissionStatus.UPLOADED, on)
-        self._check_abort_between_sorties(mission_id, sortie)
-        recorder.sortie_took_off()
-        await self.link.arm()
-        await self.link.start_mission(items)
-        if sortie == 0:
-            await self._transition(mission_id, MissionStatus.FLYING, on)
-        await self._monitor(mission_id, sortie_plan, flight, recorder, incarnation)
-        await self._landed(recorder)
+        inspector = None
+        if camera is None:
+            for index in sortie_plan.order:
+                await self.storage.set_inspection(mission_id, not_inspected(sortie_plan, index, camera_text))
+        else:
+            inspector = self._inspectors[mission_id] = Inspector(
+                self.link, self.storage, mission_id, sortie_plan, camera, self._inspection_limits()
+            )
+            inspector.start()
+        try:
+            self._check_abort_between_sorties(mission_id, sortie)
+            recorder.sortie_took_off()
+            await self.link.arm()
+            await self.link.start_mission(items)
+            if sortie == 0:
+                await self._transition(mission_id, MissionStatus.FLYING, on)
+            await self._monitor(mission_id, sortie_plan, flight, recorder, incarnation)
+            await self._landed(recorder)
+        finally:
+            if inspector is not None:
+                await self._inspectors.pop(mission_id, inspector).close()
+
+    def _inspection_limits(self) -> InspectionLimits:
+        s = self.settings
+        return InspectionLimits(s.max_frame_bytes, s.max_mission_frame_bytes, s.inspection_drain_s)
+
+    async def _camera(self, flight: FlightParams) -> tuple[CameraInfo | None, str]:
+        """The camera the sortie inspects with and its description, or None and why the buoys will not be."""
+        if not flight.inspect:
+            return None, NOT_ASKED
+        camera = self.link.camera
+        await camera.wait_heard(CAMERA_WAIT_S)
+        if camera.component is None:
+            return None, NO_CAMERA
+        try:
+            info = await camera.information()
+        except LinkError as error:
+            return None, f"the camera gave no usable CAMERA_INFORMATION: {error}"
+        m = info.model
+        return info, f"component {info.component}: {info.vendor} {info.model_name} ({m.width_px}x{m.height_px})"
 
     def _check_abort_between_sorties(self, mission_id: int, sortie: int) -> None:
         if sortie > 0 and mission_id in self._abort_requested:
@@ -483,7 +526,7 @@ class FlightLifecycle:
             await asyncio.sleep(0.1)
         sortie = recorder.sortie
         sortie_plan = plan.sortie_plan(sortie)
-        expected = self._items(sortie_plan, flight)
+        expected = self._items(sortie_plan, flight, recorder.layout.inspected)
         on_board = await self.link.download_mission()
         same = len(on_board) == len(expected) and all(
             (a.command, a.x, a.y) == (b.command, b.x, b.y) for a, b in zip(on_board, expected, strict=True)
@@ -503,22 +546,28 @@ class FlightLifecycle:
             await self._fly_sortie(mission_id, plan, flight, recorder, later)
         raise MissionEndError(MissionStatus.COMPLETED, None)
 
-    def _items(self, plan: Plan, flight: FlightParams) -> list[MissionItem]:
-        """The mission items of a (sortie) plan for this vehicle: back to its home by RTL when the depot is it."""
+    def _items(self, plan: Plan, flight: FlightParams, camera: bool) -> list[MissionItem]:
+        """The mission items of a (sortie) plan for this vehicle: back to its home by RTL when the depot is it; with
+        `camera`, each buoy inspected (gcs.domain.planning.inspection_items)."""
         home = self.link.status.home
-        return mission_items(plan, flight, None if home is None else (home[0], home[1]))
+        return mission_items(plan, flight, None if home is None else (home[0], home[1]), camera)
 
     async def _upload_in_flight(
         self, mission_id: int, plan: Plan, flight: FlightParams, recorder: MissionRecorder
     ) -> None:
         """Upload `plan` to the flying vehicle (MISSION_ITEM_INT while in AUTO), fly on from its cruise-speed item,
         record against it."""
-        items = self._items(plan, flight)
+        items = self._items(plan, flight, recorder.layout.inspected)
         added = len(plan.buoy_ids) - len(recorder.mission_plan.buoy_ids)
+        camera = recorder.camera
         recorder.replan(plan)  # the items on board are no longer the ones it records against
         await self.link.upload_mission(items, self.link.status.home or self.settings.home)
         await self.link.set_current_item(FIRST_BUOY_SEQ - 1)  # the take-off is behind it; the speed, then buoys
-        recorder.mission_uploaded()
+        recorder.mission_uploaded(camera)
+        if (inspector := self._inspectors.get(mission_id)) is not None:  # buoys judged stay so; the rest anew
+            await inspector.close("re-planned in flight before its inspection")
+            self._inspectors[mission_id] = inspector = inspector.replanned(plan)
+            inspector.start()
         await self.storage.set_plan(mission_id, plan)
         await self._transition(mission_id, MissionStatus.FLYING, f"re-planned in flight: {added} more buoys")
 
@@ -535,7 +584,7 @@ class FlightLifecycle:
         `armed`: the vehicle is known to have been armed for this sortie (a re-attached one)."""
         s = self.link.status
         sysid = s.sysid
-        budget_s = flight_budget_s(plan, flight, self.settings.mission_timeout_margin_s)
+        budget_s = flight_budget_s(plan, flight, self.settings.mission_timeout_margin_s, recorder.layout.inspected)
         start_s = (s.time_boot_ms or 0) / 1000.0
         disarmed_since: float | None = None
         was_armed = armed  # "finished" counts only after the vehicle flew this sortie (not a stale report)
@@ -552,7 +601,9 @@ class FlightLifecycle:
             if (replanned := self._replans.pop(mission_id, None)) is not None and not aborting:
                 await self._upload_in_flight(mission_id, replanned, flight, recorder)
                 elapsed = (s.time_boot_ms or 0) / 1000.0 - start_s
-                budget_s = elapsed + flight_budget_s(replanned, flight, self.settings.mission_timeout_margin_s)
+                budget_s = elapsed + flight_budget_s(
+                    replanned, flight, self.settings.mission_timeout_margin_s, recorder.layout.inspected
+                )
             if s.incarnation != incarnation:
                 what = (
                     "the vehicle rebooted" if s.sysid == sysid else f"another vehicle (system {s.sysid}) took the link"

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import shutil
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -22,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from gcs.domain.planning import BuoyMark, FlightParams, Plan, fenced_legs, make_plan, mission_items, sorties_plan
-from gcs.domain.schemas import MissionRequest, PlanRequest
+from gcs.domain.schemas import InspectionOut, MissionRequest, PlanRequest
 from gcs.domain.status import TERMINAL, MissionStatus
 from gcs.missions.energy_planning import battery_plan, energy_plan
 from gcs.missions.fleet_missions import FleetCoordinator, fleet_vehicles, shares_progress
@@ -73,6 +74,10 @@ def _flight(request: PlanRequest, **changes: Any) -> FlightParams:
 
 
 class MissionNotFoundError(KeyError):
+    pass
+
+
+class FrameNotFoundError(KeyError):
     pass
 
 
@@ -402,6 +407,49 @@ class MissionService:
         record = await self.get(mission_id)
         home = (record.plan.depot[0], record.plan.depot[1], 0.0)
         return mission_items(record.plan, record.flight), home, record.flight
+
+    # ----- inspections
+    async def inspections(self, mission_id: int) -> list[InspectionOut]:
+        """Each buoy's inspection record so far, by input index; a fleet mission's gathered from its parts (a buoy
+        re-shared in flight: the record of the vehicle that inspected it, else of the one that could not)."""
+        record = await self.get(mission_id)
+        if not record.is_fleet:
+            return [views.inspection_out(mission_id, r) for r in await self._storage.inspections(mission_id)]
+        plan = record.plan
+        index_of = {
+            (buoy_id, tuple(at)): i
+            for i, (buoy_id, at) in enumerate(zip(plan.buoy_ids, plan.buoys_lat_lon, strict=True))
+        }
+        found: dict[int, InspectionOut] = {}
+        for part in await self._storage.fleet_parts(mission_id):
+            for r in await self._storage.inspections(part.id):
+                index = index_of.get((r.buoy_id, tuple(part.plan.buoys_lat_lon[r.buoy])))
+                if index is not None and (index not in found or found[index].verdict == "not_inspected"):
+                    found[index] = views.inspection_out(part.id, r, index)
+        return [found[i] for i in sorted(found)]
+
+    async def frame(self, mission_id: int, frame_id: int) -> bytes:
+        """A stored camera frame's bytes; raises MissionNotFoundError (no such mission) or FrameNotFoundError."""
+        await self.get(mission_id)
+        data = await self._storage.frame_data(mission_id, frame_id)
+        if data is None:
+            raise FrameNotFoundError(f"mission {mission_id} has no frame {frame_id}")
+        return data
+
+    async def delete(self, mission_id: int) -> None:
+        """Remove a mission with its telemetry, frames, inspections and report (a fleet mission: its parts too).
+        Raises MissionConflictError while it (or a part) is being flown: abort it first."""
+        self._ownership.ensure_owner()
+        record = await self.get(mission_id)
+        parts = await self._storage.fleet_parts(mission_id) if record.is_fleet else []
+        for mission in (record, *parts):
+            if mission.status not in TERMINAL and mission.status != MissionStatus.PLANNED:
+                raise MissionConflictError(f"mission {mission.id} is {mission.status}: abort it before deleting it")
+            if self._vehicle_of(mission).flights.active_mission() == mission.id:
+                raise MissionConflictError(f"mission {mission.id} is starting: abort it before deleting it")
+        await self._storage.delete_mission(mission_id)
+        for mission in (record, *parts):
+            await asyncio.to_thread(shutil.rmtree, self.settings.reports_dir / f"mission-{mission.id}", True)
 
     async def report_index(self, mission_id: int) -> Path:
         """The mission's report (drawn, or the cached drawing when the mission has not changed): its index.html.

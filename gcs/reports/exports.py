@@ -3,15 +3,19 @@
 - track.geojson: a Feature whose LineString holds the flown [lon, lat, alt].
 - QGC .plan (JSON) and QGC WPL 110 `.waypoints` (tab separated, line 0 is home), with readers for both so a
   mission round-trips and can be re-flown by QGroundControl or MAVProxy (`wp load`).
+- inspections.csv and inspections.geojson: the per-buoy verdicts and findings (a spreadsheet or a GIS opens them).
 """
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import math
 from collections.abc import Sequence
 from typing import Any
 
+from gcs.domain.schemas import InspectionOut
 from uavcore.mission import MavCmd, MavFrame, MissionItem
 
 FIRMWARE_PX4 = 12
@@ -165,3 +169,47 @@ def read_waypoints(text: str) -> tuple[tuple[float, float, float], list[MissionI
         for seq, (frame, command, params, auto) in enumerate(rows[1:])
     ]
     return home, items
+
+
+INSPECTION_COLUMNS = ("buoy", "index", "verdict", "findings", "offset_m", "charted_kind", "charted_light",
+                      "light_seen", "observed_lat", "observed_lon", "reason", "details")  # fmt: skip
+
+
+def _cell(value: Any) -> str:
+    """A CSV cell that a spreadsheet shows as the text it is: a leading =, +, - or @ would make it a formula."""
+    text = "" if value is None else str(value)
+    return "'" + text if text[:1] in ("=", "+", "-", "@") and not _is_number(text) else text
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def inspections_csv(inspections: Sequence[InspectionOut]) -> str:
+    """The findings as CSV, a row per buoy (details: the findings with their figures, as JSON)."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(INSPECTION_COLUMNS)
+    for i in inspections:
+        row = [i.buoy, i.index, i.verdict, ";".join(f["code"] for f in i.findings), i.offset_m, i.charted.kind,
+               i.charted.light, i.light_seen, i.observed and i.observed.lat, i.observed and i.observed.lon, i.reason,
+               json.dumps(i.findings) if i.findings else ""]  # fmt: skip
+        writer.writerow([_cell(value) for value in row])
+    return out.getvalue()
+
+
+def inspections_geojson(inspections: Sequence[InspectionOut], properties: dict[str, Any]) -> dict[str, Any]:
+    """The findings as GeoJSON: a Point per buoy where it was observed (else where it is charted)."""
+    features = []
+    for i in inspections:
+        at = i.observed or i.charted
+        props = i.model_dump(mode="json", exclude={"observed", "frames"}) | {
+            "located": "observed" if i.observed else "charted"
+        }
+        features.append({"type": "Feature", "geometry": {"type": "Point", "coordinates": [at.lon, at.lat]},
+                         "properties": props})  # fmt: skip
+    return {"type": "FeatureCollection", "properties": properties, "features": features}

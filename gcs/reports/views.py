@@ -10,14 +10,17 @@ from typing import Any
 import numpy as np
 from pydantic import TypeAdapter
 
+from gcs.domain.inspection import InspectionRecord
 from gcs.domain.planning import Plan
 from gcs.domain.records import MissionResults, SortieFlown
 from gcs.domain.schemas import (
     Buoy,
     BuoyResult,
+    ChartedBuoyOut,
     EnergyOut,
     FleetOut,
     FleetShareOut,
+    InspectionOut,
     LatLon,
     MissionOut,
     MissionSummary,
@@ -243,3 +246,26 @@ def telemetry_chunks(samples: list[dict[str, Any]]) -> Iterator[bytes]:
         chunk = json.dumps(samples[start : start + TELEMETRY_CHUNK], separators=(",", ":"), allow_nan=False)
         yield (b"," if start else b"") + chunk[1:-1].encode()
     yield b"]"
+
+
+def frame_url(mission_id: int, frame_id: int) -> str:
+    return f"/missions/{mission_id}/frames/{frame_id}"
+
+
+def inspection_out(mission_id: int, record: InspectionRecord, index: int | None = None) -> InspectionOut:
+    """A stored inspection record as the API shows it; `mission_id`: the mission holding its frames, `index`: the
+    buoy's index in the mission asked about (a fleet mission's, where the record is its part's)."""
+    result = record.result
+    return InspectionOut(
+        buoy=record.buoy_id,
+        index=record.buoy if index is None else index,
+        verdict=result.verdict,
+        findings=[finding.model_dump() for finding in result.findings],
+        observed=None if result.observed is None else LatLon(lat=result.observed.lat, lon=result.observed.lon),
+        offset_m=result.offset_m,
+        light_seen=result.light_seen,
+        charted=ChartedBuoyOut.model_validate(result.buoy.model_dump()),
+        frames=[frame_url(mission_id, frame_id) for frame_id in record.frame_ids],
+        best_frame=None if record.best_frame is None else frame_url(mission_id, record.best_frame),
+        reason=result.reason,
+    )

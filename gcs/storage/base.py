@@ -434,7 +434,9 @@ class Storage(ABC):
                 " ON CONFLICT (mission_id, buoy) DO UPDATE SET record = excluded.record",
                 (mission_id, record.buoy, document),
             )
-            db.execute(f"UPDATE missions SET version = {NEXT_VERSION} WHERE id = ?", (mission_id,))
+            db.execute(
+                f"UPDATE missions SET updated_at = ?, version = {NEXT_VERSION} WHERE id = ?", (_now(), mission_id)
+            )
 
     def inspections(self, mission_id: int) -> list[InspectionRecord]:
         """The mission's inspection records by buoy input index."""

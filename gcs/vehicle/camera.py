@@ -114,6 +114,7 @@ class CameraClient:
         self._link = link
         self.component: int | None = None  # the first camera heard on the vehicle's system (None: none yet)
         self.info: CameraInfo | None = None
+        self._since = time.monotonic()  # when the vehicle was adopted: its camera is heard within a second or so
 
     def heard(self, m: Any) -> None:
         """A HEARTBEAT from the vehicle's system: remember the first camera component."""
@@ -122,8 +123,15 @@ class CameraClient:
             log.info("camera found: component %s", self.component)
 
     def forget(self) -> None:
-        """A new vehicle (or a new boot): its camera is found again."""
-        self.component, self.info = None, None
+        """A new vehicle: its camera is found again."""
+        self.component, self.info, self._since = None, None, time.monotonic()
+
+    async def wait_heard(self, within_s: float) -> bool:
+        """Whether the vehicle has a camera, waiting for its heartbeat until `within_s` after the vehicle was
+        adopted (a camera's heartbeat comes at 1 Hz): a vehicle heard long ago without one has none."""
+        while self.component is None and time.monotonic() - self._since < within_s:
+            await asyncio.sleep(0.1)
+        return self.component is not None
 
     async def information(self) -> CameraInfo:
         """The camera's CAMERA_INFORMATION (asked for once, then kept); raises CameraError when there is no

@@ -35,7 +35,7 @@ ACTION: RouteOptions = {
 }
 
 
-def _file(*media_types: str) -> Responses:
+def file_responses(*media_types: str) -> Responses:
     """A download's answer: a file of these media types, or 404."""
     return {200: {"description": "the file", "content": {kind: {} for kind in media_types}}} | NOT_FOUND
 
@@ -117,31 +117,33 @@ async def get_display_track(
     return _encoded(await service.track_json(mission_id, max_points))
 
 
-def _download(content: str, media_type: str, filename: str) -> Response:
+def download_response(content: str, media_type: str, filename: str) -> Response:
     return Response(
         content, media_type=media_type, headers={"Content-Disposition": f'attachment; filename="{filename}"'}
     )
 
 
-@router.get("/missions/{mission_id}/track.geojson", response_class=Response, responses=_file("application/geo+json"))
+@router.get(
+    "/missions/{mission_id}/track.geojson", response_class=Response, responses=file_responses("application/geo+json")
+)
 async def get_track(mission_id: MissionId, service: ServiceDep) -> Response:
     properties = {"mission": mission_id, "status": (await service.get(mission_id)).status}
     samples = await service.telemetry(mission_id)
     content = await asyncio.to_thread(lambda: json.dumps(exports.track_geojson(samples, properties)))
-    return _download(content, "application/geo+json", f"mission-{mission_id}-track.geojson")
+    return download_response(content, "application/geo+json", f"mission-{mission_id}-track.geojson")
 
 
-@router.get("/missions/{mission_id}/plan", response_class=Response, responses=_file("application/json"))
+@router.get("/missions/{mission_id}/plan", response_class=Response, responses=file_responses("application/json"))
 async def get_qgc_plan(mission_id: MissionId, service: ServiceDep) -> Response:
     items, home, flight = await service.mission_file(mission_id)
     document = exports.qgc_plan(items, home, cruise_speed=flight.speed_m_s, hover_speed=flight.speed_m_s)
-    return _download(json.dumps(document, indent=2), "application/json", f"mission-{mission_id}.plan")
+    return download_response(json.dumps(document, indent=2), "application/json", f"mission-{mission_id}.plan")
 
 
-@router.get("/missions/{mission_id}/waypoints", response_class=Response, responses=_file("text/plain"))
+@router.get("/missions/{mission_id}/waypoints", response_class=Response, responses=file_responses("text/plain"))
 async def get_waypoints(mission_id: MissionId, service: ServiceDep) -> Response:
     items, home, _ = await service.mission_file(mission_id)
-    return _download(exports.waypoints_text(items, home), "text/plain", f"mission-{mission_id}.waypoints")
+    return download_response(exports.waypoints_text(items, home), "text/plain", f"mission-{mission_id}.waypoints")
 
 
 @router.get(
@@ -160,7 +162,7 @@ async def get_report(mission_id: MissionId, service: ServiceDep) -> RedirectResp
 @router.get(
     "/missions/{mission_id}/report/{name}",
     response_class=FileResponse,
-    responses=_file("text/html", "image/png"),
+    responses=file_responses("text/html", "image/png"),
 )
 async def get_report_file(mission_id: MissionId, name: str, service: ServiceDep) -> FileResponse:
     """index.html or one of its figures, drawn on first request and again only after the mission changed."""

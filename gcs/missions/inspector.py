@@ -1,0 +1,325 @@
+"""A sortie's inspection of its buoys, frame by frame as the camera reports them, and a verdict per buoy.
+
+For a sortie flown with an inspection group per buoy (gcs.domain.planning.inspection_items) an `Inspector`:
+- takes every CAMERA_IMAGE_CAPTURED the camera sends, checks it (gcs.vehicle.camera.Capture), and gives it to the
+  buoy whose items were current when it was taken (its geotag's vehicle time against the MISSION_CURRENT changes
+  seen: the burst's report may arrive after the vehicle went on);
+- downloads each frame (MAVLink FTP from the camera; HTTP when its file_url is http(s)) up to `max_frame_bytes`,
+  decodes it and looks for the buoy in it (gcs.domain.buoy_detection) in a worker thread, and stores the frame
+  with what was found (up to the mission's `max_mission_frame_bytes`);
+- once the vehicle has gone on to the buoy itself (the burst is over) and that buoy's frames are in, judges it
+  (gcs.domain.inspection.inspect_buoy) and stores its record: the page shows each verdict as the buoy is left.
+Whatever goes wrong with a frame (a malformed report, an FTP error or silence, a file too large or not an image,
+the mission's frame store full) is counted against its buoy and named in its reason if that leaves the buoy
+not inspected; none of it stops the mission or the other buoys.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import io
+import logging
+from collections import Counter, defaultdict
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import httpx
+import numpy as np
+from PIL import Image, UnidentifiedImageError
+
+from gcs.domain.buoy_detection import BuoyDetection, ChartedBuoy, detect_buoy
+from gcs.domain.camera_geometry import FrameGeotag
+from gcs.domain.inspection import BuoyInspection, InspectedBuoy, InspectionRecord, StoredFrame, inspect_buoy
+from gcs.domain.planning import MissionLayout, Plan
+from gcs.storage import FramesFullError
+from gcs.storage.off_loop import AsyncStorage
+from gcs.vehicle.camera import CameraInfo, Capture, CaptureReportError
+from gcs.vehicle.errors import LinkError
+from gcs.vehicle.link import LinkManager
+
+log = logging.getLogger(__name__)
+
+SETTLE_S = 1.0  # vehicle seconds after the vehicle left a buoy's burst before its last report is taken as in
+HTTP_TIMEOUT_S = 10.0
+NO_CAMERA = "the vehicle has no camera"
+NOT_ASKED = "the mission asked for no inspection (inspect: false)"
+MAX_PIXELS = 50_000_000  # a frame larger than this is no camera's: refused before it is decoded
+
+
+@dataclass(frozen=True)
+class InspectionLimits:
+    max_frame_bytes: int
+    max_mission_frame_bytes: int
+    drain_s: float  # wall clock the sortie's end waits for frames still downloading
+
+
+def not_inspected(plan: Plan, index: int, reason: str) -> InspectionRecord:
+    """Buoy `index`'s record when it could not be inspected at all (no camera, not reached...)."""
+    return InspectionRecord(
+        buoy=index,
+        buoy_id=plan.buoy_ids[index],
+        result=BuoyInspection(
+            buoy=charted_record(plan, index),
+            verdict="not_inspected",
+            findings=[],
+            observed=None,
+            offset_m=None,
+            light_seen=None,
+            frames=[],
+            reason=reason,
+        ),
+    )
+
+
+def charted_record(plan: Plan, index: int) -> InspectedBuoy:
+    lat, lon = plan.buoys_lat_lon[index]
+    mark = plan.mark(index)
+    return InspectedBuoy(lat=lat, lon=lon, kind=mark.kind or "unknown", light=mark.light,
+                         swing_radius_m=mark.swing_radius_m)  # fmt: skip
+
+
+def decode(data: bytes, limit_px: int = MAX_PIXELS) -> np.ndarray:
+    """An image file's pixels (H, W, 3 uint8); raises ValueError when it is not an image Pillow reads."""
+    try:
+        with Image.open(io.BytesIO(data)) as image:
+            if image.width * image.height > limit_px:
+                raise ValueError(f"{image.width}x{image.height} pixels is no camera frame")
+            return np.asarray(image.convert("RGB"))
+    except (UnidentifiedImageError, OSError, Image.DecompressionBombError) as error:
+        raise ValueError(f"not an image ({error})") from None
+
+
+@dataclass
+class _Buoy:
+    """What one buoy's burst has brought so far."""
+
+    frames: list[tuple[FrameGeotag, BuoyDetection, int]] = field(default_factory=list)  # with the stored id
+    problems: Counter[str] = field(default_factory=Counter)
+    judged: bool = False
+
+
+class Inspector:
+    """Inspects the buoys of one sortie (module doc). `start()` before the sortie flies, `await close()` after."""
+
+    def __init__(
+        self,
+        link: LinkManager,
+        storage: AsyncStorage,
+        mission_id: int,
+        plan: Plan,
+        camera: CameraInfo,
+        limits: InspectionLimits,
+    ) -> None:
+        """`plan`: the sortie's (its order is what the vehicle flies)."""
+        self.link, self.storage, self.mission_id, self.plan, self.camera = link, storage, mission_id, plan, camera
+        self.limits = limits
+        self.layout = MissionLayout(len(plan.order), inspected=True)
+        self._seqs: list[tuple[float, int]] = []  # (vehicle s, current item) at each change seen
+        self._buoys: dict[int, _Buoy] = defaultdict(_Buoy)  # by position in the sortie's order
+        self._work: asyncio.Queue[tuple[int, Capture] | int] = asyncio.Queue()  # frames, and positions to judge
+        self._tasks: list[asyncio.Task] = []
+        self._queued_judgement: set[int] = set()
+
+    def replanned(self, plan: Plan) -> Inspector:
+        """The inspector of the same sortie flying a new plan (uploaded in flight): buoys judged stay judged."""
+        return Inspector(self.link, self.storage, self.mission_id, plan, self.camera, self.limits)
+
+    # ----- running
+    def start(self) -> None:
+        self.link.add_listener(self._heard)
+        self._tasks = [
+            asyncio.create_task(self._receive(), name=f"inspect-{self.mission_id}-receive"),
+            asyncio.create_task(self._process(), name=f"inspect-{self.mission_id}-process"),
+        ]
+
+    async def close(self, why_unjudged: str = "the sortie ended before the vehicle inspected it") -> None:
+        """The sortie is over: judge every buoy reached with the frames in (waiting up to drain_s for the ones still
+        downloading), and record the others as not inspected, with `why_unjudged`."""
+        self.link.remove_listener(self._heard)
+        receiving = self._tasks[0] if self._tasks else None
+        if receiving is not None:
+            receiving.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await receiving
+        reached = {p for p in range(len(self.plan.order)) if self._passed(p)}
+        for position in sorted(reached | set(self._buoys)):
+            self._judge_later(position)
+        if len(self._tasks) > 1:
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._work.join(), self.limits.drain_s)
+            self._tasks[1].cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._tasks[1]
+        for position, index in enumerate(self.plan.order):
+            buoy = self._buoys.get(position)
+            if buoy is not None and buoy.judged:
+                continue
+            reason = why_unjudged
+            if buoy is not None and buoy.frames:
+                reason = f"its frames were still being downloaded after {self.limits.drain_s:g} s"
+                await self._store(position, index, buoy, reason)
+                continue
+            await self.storage.set_inspection(self.mission_id, not_inspected(self.plan, index, reason))
+
+    def _heard(self, message: Any) -> None:
+        """Each MISSION_CURRENT change (vehicle time), and each buoy the vehicle has gone on from: judged."""
+        if message.get_type() != "MISSION_CURRENT" or message.get_srcComponent() != self.link.target[1]:
+            return
+        seq = self.link.autopilot.planned_seq(message.seq)
+        t_s = (self.link.status.time_boot_ms or 0) / 1000.0
+        if not self._seqs or self._seqs[-1][1] != seq:
+            self._seqs.append((t_s, seq))
+        for position in range(len(self.plan.order)):
+            if position not in self._queued_judgement and self._passed(position, settle_s=SETTLE_S):
+                self._judge_later(position)
+
+    def _passed(self, position: int, settle_s: float = 0.0) -> bool:
+        """Whether the vehicle went on to the position-th buoy's waypoint (or beyond) `settle_s` vehicle seconds ago:
+        its burst is over (the standoff's hold outlasts the burst)."""
+        if not self._seqs:
+            return False
+        now = (self.link.status.time_boot_ms or 0) / 1000.0
+        since = next((t for t, seq in self._seqs if seq >= self.layout.visit_seq(position)), None)
+        return since is not None and now - since >= settle_s
+
+    def _judge_later(self, position: int) -> None:
+        if position not in self._queued_judgement:
+            self._queued_judgement.add(position)
+            self._work.put_nowait(position)
+
+    def _position_at(self, t_s: float) -> int | None:
+        """The buoy whose items were current at vehicle time t_s."""
+        current = None
+        for since, seq in self._seqs:
+            if since > t_s + 1e-3:
+                break
+            current = seq
+        return self.layout.position_of(current)
+
+    async def _receive(self) -> None:
+        with self.link.camera.captures() as reports:
+            while True:
+                message = await reports.get()
+                try:
+                    capture = Capture.from_message(message)
+                except CaptureReportError as error:
+                    # a report that does not add up cannot say which buoy it was for: the current one
+                    position = self.layout.position_of(self._seqs[-1][1] if self._seqs else None)
+                    if position is not None:
+                        self._buoys[position].problems[f"a malformed CAMERA_IMAGE_CAPTURED ({error})"] += 1
+                    continue
+                position = self._position_at(capture.geotag.t_s)
+                if position is None or position in self._queued_judgement:
+                    log.info("mission %s: a frame outside any buoy's burst: %s", self.mission_id, capture.file_url)
+                    continue
+                self._buoys.setdefault(position, _Buoy())  # it has a burst from now on, even if every frame fails
+                self._work.put_nowait((position, capture))
+
+    async def _process(self) -> None:
+        while True:
+            work = await self._work.get()
+            try:
+                if isinstance(work, int):
+                    buoy = self._buoys[work]
+                    if not buoy.judged:
+                        await self._store(work, self.plan.order[work], buoy)
+                else:
+                    await self._frame(*work)
+            except Exception:  # one frame or buoy gone wrong must not stop the others
+                log.exception("mission %s: inspection work %r failed", self.mission_id, work)
+            finally:
+                self._work.task_done()
+
+    async def _download(self, capture: Capture) -> bytes:
+        url = capture.file_url
+        if url.startswith(("http://", "https://")):
+            async with httpx.AsyncClient(timeout=HTTP_TIMEOUT_S) as client, client.stream("GET", url) as response:
+                response.raise_for_status()
+                data = bytearray()
+                async for chunk in response.aiter_bytes():
+                    data += chunk
+                    if len(data) > self.limits.max_frame_bytes:
+                        raise ValueError(f"{url}: over the limit of {self.limits.max_frame_bytes} bytes")
+                return bytes(data)
+        return await self.link.download_file(url, capture.component, self.limits.max_frame_bytes)
+
+    async def _frame(self, position: int, capture: Capture) -> None:
+        buoy, index = self._buoys[position], self.plan.order[position]
+        try:
+            data = await self._download(capture)
+        except (LinkError, httpx.HTTPError, ValueError) as error:
+            buoy.problems[f"a frame could not be downloaded ({error})"] += 1
+            return
+        charted = _charted(self.plan, index)
+        try:
+            detection = await asyncio.to_thread(self._detect, data, capture.geotag, charted)
+        except ValueError as error:
+            buoy.problems[f"a frame is {error}"] += 1
+            return
+        g = capture.geotag
+        record = StoredFrame(buoy=index, image_index=g.image_index, t_s=g.t_s, lat=g.lat, lon=g.lon,
+                             height_m=g.height_m, q=g.attitude, file_url=capture.file_url, found=detection.found,
+                             light_on=None if detection.light is None else detection.light.lit,
+                             note=detection.why)  # fmt: skip
+        try:
+            frame_id = await self.storage.add_frame(self.mission_id, record, data, self.limits.max_mission_frame_bytes)
+        except FramesFullError as error:
+            buoy.problems[f"a frame was not stored: {error}"] += 1
+            return
+        buoy.frames.append((g, detection, frame_id))
+
+    def _detect(self, data: bytes, geotag: FrameGeotag, charted: ChartedBuoy | None) -> BuoyDetection:
+        image = decode(data)
+        if charted is None:
+            return BuoyDetection(False, "uncharted: the buoy's kind is not charted, so nothing says what to look for")
+        return detect_buoy(image, self.camera.model, geotag, charted)
+
+    async def _store(self, position: int, index: int, buoy: _Buoy, reason: str | None = None) -> None:
+        """Judge the buoy from its frames and store its record (`reason` overrides a not-inspected one's)."""
+        buoy.judged = True
+        charted = _charted(self.plan, index)
+        if charted is None:
+            frames_reason = "its kind is not charted: give the buoy's kind to have it inspected"
+            record = not_inspected(self.plan, index, frames_reason)
+        else:
+            result = inspect_buoy(charted, [(g, d) for g, d, _ in buoy.frames])
+            if result.verdict == "not_inspected":
+                result = result.model_copy(update={"reason": reason or _reason(result.reason, buoy)})
+            record = InspectionRecord(buoy=index, buoy_id=self.plan.buoy_ids[index], result=result)
+        ids = [frame_id for _, _, frame_id in sorted(buoy.frames, key=lambda f: f[0].t_s)]
+        record = record.model_copy(update={"frame_ids": ids, "best_frame": _best_frame(buoy.frames)})
+        await self.storage.set_inspection(self.mission_id, record)
+
+
+def _charted(plan: Plan, index: int) -> ChartedBuoy | None:
+    """The buoy as the detection looks for it; None when its kind is not charted."""
+    mark = plan.mark(index)
+    if mark.kind is None:
+        return None
+    lat, lon = plan.buoys_lat_lon[index]
+    return ChartedBuoy(lat, lon, mark.kind, mark.light, mark.swing_radius_m)
+
+
+def _reason(result_reason: str | None, buoy: _Buoy) -> str:
+    """Why a buoy was not inspected: the frames' problems first (they are the cause when frames are missing)."""
+    problems = [f"{text} x{count}" if count > 1 else text for text, count in buoy.problems.most_common(3)]
+    if not buoy.frames and problems:
+        return "no frame could be used: " + "; ".join(problems)
+    return "; ".join([result_reason or "not inspected", *problems])
+
+
+def _best_frame(frames: Sequence[tuple[FrameGeotag, BuoyDetection, int]]) -> int | None:
+    """The frame to show first: the buoy found with its light lit, else found, nearest the burst's middle."""
+    if not frames:
+        return None
+    ordered = sorted(frames, key=lambda f: f[0].t_s)
+    middle = ordered[len(ordered) // 2][0].t_s
+
+    def rank(frame: tuple[FrameGeotag, BuoyDetection, int]) -> tuple[int, float]:
+        geotag, detection, _ = frame
+        lit = detection.light is not None and detection.light.lit
+        return (0 if detection.found and lit else 1 if detection.found else 2, abs(geotag.t_s - middle))
+
+    return min(ordered, key=rank)[2]
