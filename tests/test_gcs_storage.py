@@ -15,9 +15,11 @@ import psycopg
 import pytest
 from stored_missions import FLIGHT, PLAN
 
+from gcs.domain.inspection import InspectionRecord, StoredFrame
 from gcs.domain.records import MissionProgress, MissionResults
 from gcs.domain.schemas import TrackingFigures
-from gcs.storage import MIGRATIONS, ConstraintError, Storage, StorageError, open_storage
+from gcs.missions.inspector import not_inspected
+from gcs.storage import MIGRATIONS, ConstraintError, FramesFullError, Storage, StorageError, open_storage
 from gcs.storage.postgres import VERSION_LOCK
 
 TRACKING = TrackingFigures(
@@ -287,6 +289,65 @@ def test_migration_5_leaves_every_stored_mission_on_the_one_vehicle(database):
         assert (record.vehicle_sysid, record.fleet_id) == (None, None) and record.status == "flying"
     finally:
         storage.close()
+
+
+# ----- inspections: frames and records
+def stored_frame(buoy: int, image_index: int) -> StoredFrame:
+    return StoredFrame(buoy=buoy, image_index=image_index, t_s=10.0 + image_index, lat=38.9, lon=121.6, height_m=5.0,
+                       q=(1.0, 0.0, 0.0, 0.0), file_url=f"mftp://[;comp=100]/IMG_{image_index:06d}.jpg", found=True,
+                       light_on=image_index % 2 == 0, note="found")  # fmt: skip
+
+
+def inspection_record(buoy: int, frame_ids: list[int]) -> InspectionRecord:
+    record = not_inspected(PLAN, buoy, "no frames")
+    return record.model_copy(update={"frame_ids": frame_ids, "best_frame": frame_ids[0] if frame_ids else None})
+
+
+def test_frames_and_inspections_are_stored_read_back_and_replaced_per_buoy(storage):
+    mission_id = storage.create_mission(FLIGHT, PLAN)
+    other = storage.create_mission(FLIGHT, PLAN)
+    ids = [
+        storage.add_frame(mission_id, stored_frame(1, k), b"\xff\xd8\xff" + bytes([k]) * 100, 10_000) for k in range(3)
+    ]
+    storage.add_frame(other, stored_frame(0, 9), b"other", 10_000)
+    assert [f.id for f in storage.frames(mission_id)] == ids
+    assert storage.frames(mission_id)[1] == stored_frame(1, 1).model_copy(update={"id": ids[1]})
+    assert storage.frame_data(mission_id, ids[2]) == b"\xff\xd8\xff" + bytes([2]) * 100
+    assert storage.frame_data(other, ids[0]) is None  # a frame is read through its own mission only
+    version = storage.mission_version(mission_id)
+    storage.set_inspection(mission_id, inspection_record(1, ids))
+    assert storage.mission_version(mission_id) > version  # the mission's views change with its verdicts
+    storage.set_inspection(mission_id, inspection_record(1, ids[:1]))  # judged again: replaced, not added
+    storage.set_inspection(mission_id, inspection_record(0, []))
+    assert storage.inspections(mission_id) == [inspection_record(0, []), inspection_record(1, ids[:1])]
+    assert storage.inspections(other) == []
+
+
+def test_a_frame_beyond_the_missions_frame_limit_is_refused_and_nothing_of_it_stored(storage):
+    mission_id = storage.create_mission(FLIGHT, PLAN)
+    storage.add_frame(mission_id, stored_frame(0, 0), b"x" * 600, 1000)
+    with pytest.raises(FramesFullError, match="600 stored, 500 more"):
+        storage.add_frame(mission_id, stored_frame(0, 1), b"y" * 500, 1000)
+    assert len(storage.frames(mission_id)) == 1
+    with pytest.raises(ConstraintError):  # unknown mission: foreign key
+        storage.add_frame(12345, stored_frame(0, 0), b"z", 1000)
+
+
+def test_deleting_a_mission_removes_everything_of_it_and_of_its_parts_and_nothing_else(storage):
+    fleet, (first, second) = storage.create_fleet_mission(FLIGHT, PLAN, [(FLIGHT, PLAN, 1), (FLIGHT, PLAN, 2)])
+    kept = storage.create_mission(FLIGHT, PLAN)
+    for mission_id in (first, kept):
+        frame_id = storage.add_frame(mission_id, stored_frame(0, 0), b"jpeg", 1000)
+        storage.set_inspection(mission_id, inspection_record(0, [frame_id]))
+        storage.add_telemetry(mission_id, [{"t_s": 0.0, "lat": 1.0}])
+    assert storage.delete_mission(fleet)
+    for mission_id in (fleet, first, second):
+        assert storage.get_mission(mission_id) is None
+        assert (storage.frames(mission_id), storage.inspections(mission_id)) == ([], [])
+        assert storage.telemetry_count(mission_id) == 0
+    assert [m.id for m in storage.list_missions()] == [kept]
+    assert len(storage.frames(kept)) == 1 and len(storage.inspections(kept)) == 1 and storage.telemetry_count(kept)
+    assert not storage.delete_mission(fleet)  # gone already
 
 
 def test_database_from_a_newer_service_is_refused(open_db):

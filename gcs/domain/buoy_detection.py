@@ -13,6 +13,7 @@ buoy's centre along the line of sight: the centre is that point pushed one base 
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -148,17 +149,9 @@ def _candidates(
     image: np.ndarray, model: CameraModel, geotag: FrameGeotag, colours: tuple[str, ...], window: tuple[slice, slice]
 ) -> list[_Candidate]:
     """Regions of the kind's paints holding one of its saturated colours, in the window."""
-    rows, columns = window
     anchors = [k + 1 for k, name in enumerate(colours) if name in SATURATED]
     found = []
-    for box in paint_boxes(image[window], MIN_REGION_PX // 3):
-        # widened by the blob's size: a neutral band (black, white) as tall as the saturated one may lie beside it
-        reach = int(1.3 * max(box[0].stop - box[0].start, box[1].stop - box[1].start)) + 3
-        top, bottom = max(0, rows.start + box[0].start - reach), min(model.height_px, rows.start + box[0].stop + reach)
-        left, right = (
-            max(0, columns.start + box[1].start - reach),
-            min(model.width_px, columns.start + box[1].stop + reach),
-        )
+    for top, bottom, left, right in _merged(_widened(paint_boxes(image[window], MIN_REGION_PX // 3), model, window)):
         lab = to_lab(image[top:bottom, left:right])
         labels = paint_labels(lab, colours)
         # JPEG blends the edge between two bands into a row or two of neither colour: close such seams
@@ -182,6 +175,41 @@ def _candidates(
                 _Candidate(mask, frame_box, labels[sub_box], (u, v), clipped, pixel_to_sea_ne(model, geotag, u, v))
             )
     return _unique(found)
+
+
+def _widened(
+    boxes: list[tuple[slice, slice]], model: CameraModel, window: tuple[slice, slice]
+) -> list[tuple[int, int, int, int]]:
+    """Each blob's box (window coordinates) widened by its size, in frame (top, bottom, left, right): a neutral band
+    (black, white) as tall as the saturated one may lie beside it."""
+    rows, columns = window
+    widened = []
+    for box in boxes:
+        reach = int(1.3 * max(box[0].stop - box[0].start, box[1].stop - box[1].start)) + 3
+        widened.append((
+            max(0, rows.start + box[0].start - reach),
+            min(model.height_px, rows.start + box[0].stop + reach),
+            max(0, columns.start + box[1].start - reach),
+            min(model.width_px, columns.start + box[1].stop + reach),
+        ))  # fmt: skip
+    return widened
+
+
+def _merged(boxes: list[tuple[int, int, int, int]]) -> list[tuple[int, int, int, int]]:
+    """Overlapping boxes joined into their bounding box, until none overlap: a buoy's bands are blobs of their
+    own, and each region is then segmented once, not once per blob that reaches it."""
+    merged = list(boxes)
+    joined = True
+    while joined:
+        joined = False
+        for i, j in itertools.combinations(range(len(merged)), 2):
+            a, b = merged[i], merged[j]
+            if a[0] < b[1] and b[0] < a[1] and a[2] < b[3] and b[2] < a[3]:
+                merged[i] = (min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3]))
+                del merged[j]
+                joined = True
+                break
+    return merged
 
 
 def _unique(candidates: list[_Candidate]) -> list[_Candidate]:
