@@ -177,13 +177,18 @@ class Stack:
         return problems
 
 
-@pytest.fixture
-def stack(tmp_path) -> Iterator[Stack]:
+def running_stack(tmp_path: Path) -> Iterator[Stack]:
+    """A test's stack, closed after it; the test fails if a process of it logged a traceback."""
     running = Stack(tmp_path)
     yield running
     problems = running.close()
     if problems:
         pytest.fail("\n".join(problems))
+
+
+@pytest.fixture
+def stack(tmp_path) -> Iterator[Stack]:
+    yield from running_stack(tmp_path)
 
 
 def wait_until(probe: Callable[[], object], timeout_s: float, what) -> object:
