@@ -100,8 +100,14 @@ class Settings(BaseSettings):
     max_mission_frame_bytes: int = Field(
         4 << 30, gt=0, description="frames stored per mission beyond this are not stored (the buoy's reason says so)"
     )
+    inspection_workers: int = Field(
+        2, ge=0, le=64, description="processes analysing camera frames (0: a thread of the service)"
+    )
     inspection_drain_s: float = Field(
-        120.0, ge=0, description="wall seconds a landed sortie waits for frames still downloading before judging"
+        900.0,
+        ge=0,
+        description="wall seconds a landed sortie waits at most for its frames still downloading and being analysed "
+        "(it stops waiting sooner when none of them gets done for a minute)",
     )
     web_dir: Path = Path(__file__).resolve().parent / "web"  # package data: ships in the wheel
 

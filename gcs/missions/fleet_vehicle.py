@@ -7,6 +7,7 @@ from __future__ import annotations
 import asyncio
 from typing import Any
 
+from gcs.missions.inspector import FrameAnalysis
 from gcs.missions.lifecycle import FlightLifecycle, vehicle_pack
 from gcs.settings import Settings
 from gcs.storage.off_loop import AsyncStorage
@@ -27,10 +28,11 @@ class FleetVehicle:
         settings: Settings,
         storage: AsyncStorage,
         energy_model: EnergyModel,
+        analysis: FrameAnalysis | None = None,
     ) -> None:
         self.sysid = sysid  # what its missions store as vehicle_sysid (None: the service's one vehicle)
         self.link = link
-        self.flights = FlightLifecycle(settings, storage, link, energy_model)
+        self.flights = FlightLifecycle(settings, storage, link, energy_model, analysis)
         self._default_home = settings.home
         self._fence_unanswered: int | None = None  # the vehicle incarnation that did not answer a fence request
 

@@ -20,8 +20,11 @@ import asyncio
 import contextlib
 import io
 import logging
+import multiprocessing
+import time
 from collections import Counter, defaultdict
 from collections.abc import Sequence
+from concurrent.futures import BrokenExecutor, ProcessPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -30,7 +33,7 @@ import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from gcs.domain.buoy_detection import BuoyDetection, ChartedBuoy, detect_buoy
-from gcs.domain.camera_geometry import FrameGeotag
+from gcs.domain.camera_geometry import CameraModel, FrameGeotag
 from gcs.domain.inspection import BuoyInspection, InspectedBuoy, InspectionRecord, StoredFrame, inspect_buoy
 from gcs.domain.planning import MissionLayout, Plan
 from gcs.storage import FramesFullError
@@ -43,6 +46,7 @@ log = logging.getLogger(__name__)
 
 SETTLE_S = 1.0  # vehicle seconds after the vehicle left a buoy's burst before its last report is taken as in
 HTTP_TIMEOUT_S = 10.0
+DRAIN_POLL_S = 1.0
 NO_CAMERA = "the vehicle has no camera"
 NOT_ASKED = "the mission asked for no inspection (inspect: false)"
 MAX_PIXELS = 50_000_000  # a frame larger than this is no camera's: refused before it is decoded
@@ -52,7 +56,8 @@ MAX_PIXELS = 50_000_000  # a frame larger than this is no camera's: refused befo
 class InspectionLimits:
     max_frame_bytes: int
     max_mission_frame_bytes: int
-    drain_s: float  # wall clock the sortie's end waits for frames still downloading
+    drain_s: float  # wall clock the sortie's end waits at most for frames still downloading and being analysed
+    stall_s: float = 60.0  # ... and at most this long without one of them done
 
 
 def not_inspected(plan: Plan, index: int, reason: str) -> InspectionRecord:
@@ -78,6 +83,35 @@ def charted_record(plan: Plan, index: int) -> InspectedBuoy:
     mark = plan.mark(index)
     return InspectedBuoy(lat=lat, lon=lon, kind=mark.kind or "unknown", light=mark.light,
                          swing_radius_m=mark.swing_radius_m)  # fmt: skip
+
+
+def detect_frame(data: bytes, model: CameraModel, geotag: FrameGeotag, charted: ChartedBuoy) -> BuoyDetection:
+    """One frame's finding of the buoy, from the file's bytes (what a worker process runs). Raises ValueError when
+    the file is not an image."""
+    return detect_buoy(decode(data), model, geotag, charted)
+
+
+class FrameAnalysis:
+    """Where frames are analysed: `workers` processes (spawned, not forked: the service has threads), so detection
+    uses every core and never holds the event loop's interpreter lock; 0 workers: a thread of this process. The
+    pool starts with the first frame and stops with the service."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = workers
+        self._pool: ProcessPoolExecutor | None = None
+
+    async def detect(self, data: bytes, model: CameraModel, geotag: FrameGeotag, charted: ChartedBuoy) -> BuoyDetection:
+        if self.workers == 0:
+            return await asyncio.to_thread(detect_frame, data, model, geotag, charted)
+        if self._pool is None:
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"))
+        loop = asyncio.get_running_loop()
+        return await loop.run_in_executor(self._pool, detect_frame, data, model, geotag, charted)
+
+    def shutdown(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
 
 
 def decode(data: bytes, limit_px: int = MAX_PIXELS) -> np.ndarray:
@@ -111,10 +145,11 @@ class Inspector:
         plan: Plan,
         camera: CameraInfo,
         limits: InspectionLimits,
+        analysis: FrameAnalysis,
     ) -> None:
         """`plan`: the sortie's (its order is what the vehicle flies)."""
         self.link, self.storage, self.mission_id, self.plan, self.camera = link, storage, mission_id, plan, camera
-        self.limits = limits
+        self.limits, self.analysis = limits, analysis
         self.layout = MissionLayout(len(plan.order), inspected=True)
         self._seqs: list[tuple[float, int]] = []  # (vehicle s, current item) at each change seen
         self._buoys: dict[int, _Buoy] = defaultdict(_Buoy)  # by position in the sortie's order
@@ -124,7 +159,7 @@ class Inspector:
 
     def replanned(self, plan: Plan) -> Inspector:
         """The inspector of the same sortie flying a new plan (uploaded in flight): buoys judged stay judged."""
-        return Inspector(self.link, self.storage, self.mission_id, plan, self.camera, self.limits)
+        return Inspector(self.link, self.storage, self.mission_id, plan, self.camera, self.limits, self.analysis)
 
     # ----- running
     def start(self) -> None:
@@ -147,8 +182,7 @@ class Inspector:
         for position in sorted(reached | set(self._buoys)):
             self._judge_later(position)
         if len(self._tasks) > 1:
-            with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(self._work.join(), self.limits.drain_s)
+            await self._drain()
             self._tasks[1].cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await self._tasks[1]
@@ -158,10 +192,22 @@ class Inspector:
                 continue
             reason = why_unjudged
             if buoy is not None and buoy.frames:
-                reason = f"its frames were still being downloaded after {self.limits.drain_s:g} s"
+                reason = "the sortie ended while its frames were still being downloaded and analysed"
                 await self._store(position, index, buoy, reason)
                 continue
             await self.storage.set_inspection(self.mission_id, not_inspected(self.plan, index, reason))
+
+    async def _drain(self) -> None:
+        """Wait for the frames still queued while their processing goes on: until none is left, or none has been
+        done for `stall_s`, or `drain_s` has passed (a loaded machine analyses slowly, a stuck download stalls)."""
+        deadline = time.monotonic() + self.limits.drain_s
+        left, progress_at = self._work.qsize(), time.monotonic()
+        while time.monotonic() < deadline and time.monotonic() - progress_at < self.limits.stall_s:
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._work.join(), DRAIN_POLL_S)
+                return
+            if self._work.qsize() < left:
+                left, progress_at = self._work.qsize(), time.monotonic()
 
     def _heard(self, message: Any) -> None:
         """Each MISSION_CURRENT change (vehicle time), and each buoy the vehicle has gone on from: judged."""
@@ -254,9 +300,19 @@ class Inspector:
             return
         charted = _charted(self.plan, index)
         try:
-            detection = await asyncio.to_thread(self._detect, data, capture.geotag, charted)
+            if charted is None:
+                decode(data)  # kept only if it is an image
+                detection = BuoyDetection(
+                    False, "uncharted: the buoy's kind is not charted: nothing says what to look for"
+                )
+            else:
+                detection = await self.analysis.detect(data, self.camera.model, capture.geotag, charted)
         except ValueError as error:
             buoy.problems[f"a frame is {error}"] += 1
+            return
+        except BrokenExecutor as error:  # a worker died (killed, out of memory): this frame is lost, not the rest
+            buoy.problems[f"a frame's analysis failed ({type(error).__name__})"] += 1
+            self.analysis.shutdown()  # the next frame starts a new pool
             return
         g = capture.geotag
         record = StoredFrame(buoy=index, image_index=g.image_index, t_s=g.t_s, lat=g.lat, lon=g.lon,
@@ -269,12 +325,6 @@ class Inspector:
             buoy.problems[f"a frame was not stored: {error}"] += 1
             return
         buoy.frames.append((g, detection, frame_id))
-
-    def _detect(self, data: bytes, geotag: FrameGeotag, charted: ChartedBuoy | None) -> BuoyDetection:
-        image = decode(data)
-        if charted is None:
-            return BuoyDetection(False, "uncharted: the buoy's kind is not charted, so nothing says what to look for")
-        return detect_buoy(image, self.camera.model, geotag, charted)
 
     async def _store(self, position: int, index: int, buoy: _Buoy, reason: str | None = None) -> None:
         """Judge the buoy from its frames and store its record (`reason` overrides a not-inspected one's)."""

@@ -46,7 +46,7 @@ from gcs.domain.records import MissionProgress
 from gcs.domain.schemas import PreflightCheck, VehicleEvent
 from gcs.domain.status import TERMINAL, MissionStatus
 from gcs.missions.energy_planning import ChargeNeed, charge_needed, model_pack
-from gcs.missions.inspector import NO_CAMERA, NOT_ASKED, InspectionLimits, Inspector, not_inspected
+from gcs.missions.inspector import NO_CAMERA, NOT_ASKED, FrameAnalysis, InspectionLimits, Inspector, not_inspected
 from gcs.missions.recorder import MissionRecorder
 from gcs.missions.results import flight_results
 from gcs.settings import Settings
@@ -156,9 +156,18 @@ def ended_early_reason(events: list[VehicleEvent], visited: int, buoys: int) -> 
 class FlightLifecycle:
     """Flies stored missions over one LinkManager, one at a time, and records them."""
 
-    def __init__(self, settings: Settings, storage: AsyncStorage, link: LinkManager, energy_model: EnergyModel) -> None:
+    def __init__(
+        self,
+        settings: Settings,
+        storage: AsyncStorage,
+        link: LinkManager,
+        energy_model: EnergyModel,
+        analysis: FrameAnalysis | None = None,
+    ) -> None:
         """`energy_model`: the calibrated route energy model the service plans sorties with (the pre-flight check
-        predicts with the same one)."""
+        predicts with the same one); `analysis`: where camera frames are analysed (the service's, shared by its
+        vehicles; default: the settings' number of worker processes, for this lifecycle alone)."""
+        self.analysis = analysis or FrameAnalysis(settings.inspection_workers)
         self.settings, self.storage, self.link = settings, storage, link
         self.energy_model = energy_model
         self._tasks: dict[int, asyncio.Task] = {}
@@ -371,7 +380,7 @@ class FlightLifecycle:
                 await self.storage.set_inspection(mission_id, not_inspected(sortie_plan, index, camera_text))
         else:
             inspector = self._inspectors[mission_id] = Inspector(
-                self.link, self.storage, mission_id, sortie_plan, camera, self._inspection_limits()
+                self.link, self.storage, mission_id, sortie_plan, camera, self._inspection_limits(), self.analysis
             )
             inspector.start()
         try:

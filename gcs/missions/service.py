@@ -29,6 +29,7 @@ from gcs.missions.energy_planning import battery_plan, energy_plan
 from gcs.missions.fleet_missions import FleetCoordinator, fleet_vehicles, shares_progress
 from gcs.missions.fleet_planning import METHOD, plan_fleet_mission
 from gcs.missions.fleet_vehicle import FleetVehicle
+from gcs.missions.inspector import FrameAnalysis
 from gcs.missions.lifecycle import ABORTED_BEFORE_TAKEOFF, MissionConflictError
 from gcs.missions.ownership import Ownership, ownership_for
 from gcs.missions.read_cache import VersionedCache
@@ -102,8 +103,11 @@ class MissionService:
         self._storage = storage
         self.energy_model = EnergyModel.load()  # planner/energy_params.json: the calibrated route energy model
         first_key = link.sysid if fleet else None  # a lone vehicle's missions are stored without one, as ever
-        self._vehicles = [FleetVehicle(first_key, link, settings, storage, self.energy_model)]
-        self._vehicles += [FleetVehicle(other.sysid, other, settings, storage, self.energy_model) for other in fleet]
+        self._analysis = FrameAnalysis(settings.inspection_workers)  # the camera frames' analysis, every vehicle's
+        self._vehicles = [FleetVehicle(first_key, link, settings, storage, self.energy_model, self._analysis)]
+        self._vehicles += [
+            FleetVehicle(other.sysid, other, settings, storage, self.energy_model, self._analysis) for other in fleet
+        ]
         self._link, self._flights = link, self._vehicles[0].flights  # the first vehicle's, for its views
         self._fleets = FleetCoordinator(
             storage,
@@ -139,6 +143,7 @@ class MissionService:
         for vehicle in self._vehicles:
             await vehicle.link.stop()
         await self._ownership.release()  # only now may a stand-by talk to the vehicle
+        self._analysis.shutdown()
 
     def _vehicle(self, sysid: int | None) -> FleetVehicle:
         """The vehicle a request names (None: the first); raises RequestInvalidError at body.vehicle."""
