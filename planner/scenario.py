@@ -110,6 +110,10 @@ class MissionTimeline:
     jerk_m_s3: float = 4.0
     dwell_s: float = 1.0
     initial_heading_deg: float = 0.0  # the vehicle stands facing north
+    # An inspection mission stops `standoff_m` short of each buoy on the way in and holds there holds_s[k] (the k-th
+    # buoy's camera burst), then flies on to the buoy; none: every leg is flown straight to its buoy.
+    standoff_m: float = 0.0
+    holds_s: tuple[float, ...] = ()
 
     def leg_duration_s(self, length_m: float) -> float:
         return rest_to_rest_s(length_m, self.cruise_m_s, self.acceleration_m_s2, self.jerk_m_s3)
@@ -119,16 +123,25 @@ class MissionTimeline:
 
     def legs(self, route_en: np.ndarray) -> list[tuple[float, float]]:
         """(start, duration) in seconds after the mission start of each leg's motion along route_en ([east, north]
-        metres, the takeoff point first)."""
+        metres, the takeoff point first); an inspected leg's: its motion to the standoff."""
         route = np.asarray(route_en, dtype=float).reshape(-1, 2)
         t = self.spool_up_s + rest_to_rest_s(self.altitude_m, self.climb_m_s, self.acceleration_m_s2, self.jerk_m_s3)
-        heading, out = self.initial_heading_deg, []
+        heading = self.initial_heading_deg
+        out: list[tuple[float, float]] = []
         for start, end in itertools.pairwise(route):
             bearing = compass_bearing_deg(start, end)
             t += self.turn_duration_s((bearing - heading + 180.0) % 360.0 - 180.0)
-            duration = self.leg_duration_s(float(np.hypot(*(end - start))))
-            out.append((t, duration))
-            t += duration + self.dwell_s
+            length = float(np.hypot(*(end - start)))
+            if len(out) < len(self.holds_s):  # an inspection: to the standoff, its hold, then on to the buoy
+                standoff = min(self.standoff_m, 0.5 * length)
+                duration = self.leg_duration_s(length - standoff)
+                out.append((t, duration))
+                t += duration + self.holds_s[len(out) - 1] + self.leg_duration_s(standoff)
+            else:
+                duration = self.leg_duration_s(length)
+                out.append((t, duration))
+                t += duration
+            t += self.dwell_s
             heading = bearing
         return out
 

@@ -79,6 +79,8 @@ def _vehicle_children(options: UpOptions, sysid: int, port: int) -> tuple[ChildS
     if (home := vehicle_home(options, sysid)) is not None:
         vehicle_args += ["--home", ",".join(f"{value:.8f}" for value in home)]
     vehicle_args += [arg for param in params for arg in ("--param", param)]
+    if options.world is not None:  # a camera on a gimbal, seeing these buoys; its images in the data directory
+        vehicle_args += ["--world", str(options.world), "--image-dir", str(settings.data_dir / f"images{suffix}")]
     vehicle_args += ["--lockstep"] if options.lockstep else ["--speed", f"{options.speed:g}"]
     signing = _signing_env(settings)
     vehicle_log = settings.data_dir / "logs" / f"sitl_quad{suffix}.log"

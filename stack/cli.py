@@ -110,6 +110,14 @@ def add_up(commands: Any) -> None:
         help=option_help("data directory (database, logs, parameters)", "data_dir"),
     )
     add_database_option(up, "the service's database (default in the data directory)")
+    up.add_argument(
+        "--world",
+        type=Path,
+        metavar="FILE",
+        help="the buoys the simulated vehicles' cameras see: a GeoJSON world (each buoy's charted position, kind, "
+        "light and swing radius, and faults: README, World files); with it each vehicle carries a camera on a "
+        "gimbal (default: none; the demo's own world with --demo)",
+    )
     up.add_argument("--demo", action="store_true", help="fly the paper's reference scenario and print its report")
     up.add_argument("--demo-seed", type=int, default=1, help="which reference scenario the demo flies")
     up.add_argument("--exit-after-demo", action="store_true", help="stop the stack once the demo has flown")
@@ -177,6 +185,10 @@ def up(args: argparse.Namespace) -> int:
     if args.compare and not args.demo:
         print("buoy-gcs: --compare compares two demo flights; it needs --demo", file=sys.stderr)
         return 2
+    if args.world is not None and (external or not args.world.is_file()):
+        why = "simulated vehicles see it; it does not go with --vehicle" if external else "no such file"
+        print(f"buoy-gcs: --world {args.world}: {why}", file=sys.stderr)
+        return 2
     if external and args.demo:
         print("buoy-gcs: --demo flies the simulated reference scenario; it does not go with --vehicle", file=sys.stderr)
         return 2
@@ -200,6 +212,7 @@ def up(args: argparse.Namespace) -> int:
         compare=args.compare,
         vehicles=args.fleet_size,
         depots=tuple(args.depots or ()),
+        world=args.world,
     )
     return run_up(options, say=lambda text: print(text, flush=True))
 

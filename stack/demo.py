@@ -2,23 +2,27 @@
 
 The reference scenario in the paper's weather (planner.scenario.paper_weather: a crosswind across the route's
 longest leg, a 1-cosine gust halfway along it, Dryden turbulence, seeded by the vehicle's --seed), placed on the
-route the service will fly (planned here first with the same request: the planner is deterministic for a seed).
+route the service will fly (planned here first with the same request: the planner is deterministic for a seed),
+and its buoys as a world the vehicle's camera sees (`demo_world`: each buoy's kind and light as World.default
+gives them, charted in the request, two of them faulty in the water).
 The report says which loops flew, the weather, the route against the exact optimum, the tracking, the gust's
-effect from the recorded telemetry (gcs.domain.tracking_metrics.gust_effect) and the lockstep speed; `comparison` puts
-two flights side by side, with a figure of the tracking error around the gust.
+effect from the recorded telemetry (gcs.domain.tracking_metrics.gust_effect), the lockstep speed and the inspection's
+findings table; `comparison` puts two flights side by side, with a figure of the tracking error around the gust.
+The inspection stops short of each buoy to film it: the paper's gust is placed on the timeline with those stops.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from gcs.domain.planning import FIRST_BUOY_SEQ, Plan, make_plan
+from gcs.domain.planning import BURST_HOLD_MARGIN_S, BuoyMark, FlightParams, MissionLayout, Plan, make_plan
 from gcs.domain.status import TERMINAL
 from gcs.domain.tracking_metrics import GUST_WINDOW_S, RECOVERED_M, GustEffect, climb_start_s, gust_effect
 from gcs.reports.report import draw_series, report_series
@@ -36,10 +40,15 @@ from planner.scenario import (
 from stack.options import CASCADE_NAMES, LOOPS, UpOptions
 from stack.service_api import get_json, post_json
 from stack.supervisor import Supervisor, SupervisorError
+from uavcore.buoy_world import World
 
 DEMO_DWELL_S = 1.0
 DEMO_ACCEPTANCE_M = 2.0
 COMPARISON_FIGURE = "demo-gust-comparison.png"
+DEMO_WORLD = "demo-world.geojson"
+# The demo's two faults, by visiting position: the third buoy's light is out, the eighth is moored three swing radii
+# beyond its charted position along the way the vehicle comes in (in the camera's view, off station)
+LIGHT_OUT_AT, OFF_STATION_AT, OFF_STATION_RADII = 2, 7, 3.0
 
 
 @dataclass(frozen=True)
@@ -47,15 +56,25 @@ class DemoPlan:
     request: dict  # POST /missions body
     plan: Plan  # what the service will plan for it
     placed: PaperWeather  # the paper's weather on that route
+    world: World  # what the vehicle's camera sees: the buoys as charted, two of them faulty
+
+
+def charted_world(options: UpOptions) -> World:
+    """The reference scenario's buoys as charted: kinds and lights as World.default gives them, no faults."""
+    scenario = reference_scenario(options.demo_seed)
+    return World.default(scenario.buoys_lat_lon, [f"B{i + 1}" for i in range(len(scenario.buoys_lat_lon))])
 
 
 def reference_request(options: UpOptions) -> dict:
     scenario = reference_scenario(options.demo_seed)
     lat, lon, _ = scenario.home
+    charted = {f["properties"]["id"]: f["properties"] for f in charted_world(options).to_geojson()["features"]}
     return {
         "depot": {"lat": lat, "lon": lon},
         "buoys": [
-            {"id": f"B{i + 1}", "lat": float(a), "lon": float(b)} for i, (a, b) in enumerate(scenario.buoys_lat_lon)
+            {"id": f"B{i + 1}", "lat": float(a), "lon": float(b)}
+            | {key: charted[f"B{i + 1}"][key] for key in ("kind", "light", "swing_radius_m")}
+            for i, (a, b) in enumerate(scenario.buoys_lat_lon)
         ],
         "altitude_m": ALTITUDE_M,
         "speed_m_s": CRUISE_SPEED_M_S,
@@ -78,10 +97,30 @@ def plan_demo(options: UpOptions) -> DemoPlan:
         planner["seed"],
         planner["time_limit_s"],
     )
+    plan = replace(plan, marks=[BuoyMark(b["kind"], b["light"], b["swing_radius_m"]) for b in request["buoys"]])
+    holds = []
+    for index in plan.order:
+        duration_s, rate_hz = plan.mark(index).burst()
+        holds.append(math.ceil(duration_s * rate_hz) / rate_hz + BURST_HOLD_MARGIN_S)
     timeline = MissionTimeline(
-        altitude_m=request["altitude_m"], cruise_m_s=request["speed_m_s"], dwell_s=request["dwell_s"]
-    )
-    return DemoPlan(request, plan, paper_weather(plan.route_local()[:-1], timeline))
+        altitude_m=request["altitude_m"], cruise_m_s=request["speed_m_s"], dwell_s=request["dwell_s"],
+        standoff_m=FlightParams(0, 0, 0, 0).inspection_range_m, holds_s=tuple(holds),
+    )  # fmt: skip
+    return DemoPlan(request, plan, paper_weather(plan.route_local()[:-1], timeline), demo_world(options, plan))
+
+
+def demo_world(options: UpOptions, plan: Plan) -> World:
+    """The charted world with the demo's two faults (LIGHT_OUT_AT, OFF_STATION_AT): what the camera sees."""
+    world = charted_world(options)
+    buoys = list(world.buoys)
+    route = plan.route_local()  # [east, north]: the depot, the buoys in visiting order, the depot
+    dark = plan.order[LIGHT_OUT_AT]
+    buoys[dark] = replace(buoys[dark], actual_light=None)
+    moved = plan.order[OFF_STATION_AT]
+    east, north = route[OFF_STATION_AT + 1] - route[OFF_STATION_AT]  # the way in to it
+    away = OFF_STATION_RADII * buoys[moved].swing_radius_m / math.hypot(east, north)
+    buoys[moved] = replace(buoys[moved], offset_m=(float(north * away), float(east * away)))
+    return replace(world, buoys=tuple(buoys))
 
 
 def prepare(options: UpOptions) -> tuple[UpOptions, DemoPlan | None]:
@@ -90,6 +129,11 @@ def prepare(options: UpOptions) -> tuple[UpOptions, DemoPlan | None]:
     demo = plan_demo(options) if options.demo and options.simulate else None
     if options.weather is None:
         options = replace(options, weather=demo.placed.weather if demo is not None else Weather())
+    if demo is not None and options.world is None:
+        path = options.settings.data_dir / DEMO_WORLD
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(demo.world.to_geojson(), indent=1))
+        options = replace(options, world=path)
     return options, demo
 
 
@@ -103,6 +147,7 @@ class DemoFlight:
     gust_onset_t_s: float | None = None  # the gust's onset in the vehicle's time (None: no gust, or no climb)
     gust: GustEffect | None = None
     gust_leg: int | None = None  # the leg being flown at the onset (1 = depot to the first buoy)
+    inspections: list[dict[str, Any]] = field(default_factory=list)  # GET /missions/{id}/inspections
 
     @property
     def simulated_s(self) -> float:
@@ -135,7 +180,9 @@ def fly_demo(base: str, options: UpOptions, demo: DemoPlan, supervisor: Supervis
             last_visited = visited
     wall = time.monotonic() - posted
     samples = get_json(f"{base}/missions/{mission['id']}/telemetry")
-    return measure_flight(options.controller, options.weather or Weather(), mission, samples, wall)
+    flight = measure_flight(options.controller, options.weather or Weather(), mission, samples, wall)
+    flight.inspections = get_json(f"{base}/missions/{mission['id']}/inspections")
+    return flight
 
 
 def measure_flight(controller: str, weather: Weather, mission: dict, samples: list[dict], wall_s: float) -> DemoFlight:
@@ -152,8 +199,9 @@ def measure_flight(controller: str, weather: Weather, mission: dict, samples: li
     flight.gust_onset_t_s = climb - MissionTimeline().spool_up_s + weather.gust_start_s
     flight.gust = gust_effect(series.t_s, series.position_error_m, flight.gust_onset_t_s)
     at_onset = samples[int(np.searchsorted(series.t_s, flight.gust_onset_t_s).clip(max=len(samples) - 1))]
-    seq = at_onset.get("mission_seq")
-    flight.gust_leg = None if seq is None else seq - FIRST_BUOY_SEQ + 1
+    layout = MissionLayout(len(mission["order"]), inspected=mission["progress"].get("camera") is not None)
+    leg = layout.leg_of_seq(at_onset.get("mission_seq"))
+    flight.gust_leg = None if leg is None else leg + 1
     return flight
 
 
@@ -235,8 +283,36 @@ def demo_report(flight: DemoFlight, options: UpOptions, demo: DemoPlan | None = 
         f"  lockstep   {flight.simulated_s:.1f} s simulated in {flight.wall_s:.1f} s wall from POST to landed: "
         f"{flight.simulated_s / flight.wall_s:.1f}x"
     )
+    if flight.inspections:
+        lines.append(f"  inspection {mission['progress'].get('camera') or 'no camera'}")
+        lines += ["    " + line for line in findings_table(flight.inspections).splitlines()]
     lines.append(f"  report     python -m gcs report {mission['id']} --db {redacted(str(options.settings.database))}")
     return "\n".join(lines)
+
+
+def _finding_text(finding: dict[str, Any]) -> str:
+    """A finding and its figures in a few words: "off_station 15.2 m (swing 5 m)", "light_out"."""
+    code = finding["code"]
+    if code == "off_station":
+        return f"off_station {finding['offset_m']:.1f} m (swing {finding['swing_radius_m']:g} m)"
+    if code in ("wrong_character", "wrong_period", "wrong_colour"):
+        return f"{code} (charted {finding.get('charted')}, seen {finding.get('seen')})"
+    return code
+
+
+def findings_table(inspections: list[dict[str, Any]]) -> str:
+    """The inspections as a text table, a row per buoy, then the count of each verdict."""
+    rows = [("buoy", "kind", "light", "verdict", "seen", "offset", "findings / reason")]
+    for i in inspections:
+        offset = "" if i["offset_m"] is None else f"{i['offset_m']:.1f} m"
+        why = ", ".join(_finding_text(f) for f in i["findings"]) or (i["reason"] or "")
+        rows.append((i["buoy"], i["charted"]["kind"], i["charted"]["light"] or "unlit", i["verdict"],
+                     i["light_seen"] or "", offset, why))  # fmt: skip
+    widths = [max(len(str(row[c])) for row in rows) for c in range(len(rows[0]) - 1)]
+    lines = ["  ".join(str(v).ljust(w) for v, w in zip(row, widths, strict=False)) + "  " + row[-1] for row in rows]
+    verdicts = [i["verdict"] for i in inspections]
+    counts = ", ".join(f"{verdicts.count(v)} {v}" for v in ("ok", "defect", "not_inspected"))
+    return "\n".join([*lines, f"{len(inspections)} buoys: {counts}"])
 
 
 def comparison(flights: list[DemoFlight], figure: Path) -> str:

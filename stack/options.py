@@ -9,6 +9,7 @@ process.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from gcs.settings import Settings
 from planner.scenario import Weather
@@ -41,6 +42,8 @@ class UpOptions:
     compare: bool = False  # after the demo, fly it again with the PID cascade and print both
     vehicles: int = 1  # simulated vehicles, system ids 1..N, on ports vehicle_port .. vehicle_port + N - 1
     depots: tuple[tuple[float, float], ...] = ()  # (lat, lon) each; vehicle i at depot i mod len (none: home)
+    # the buoys the simulated vehicles' cameras see (uavcore.buoy_world's GeoJSON; None: no camera, unless the demo's)
+    world: Path | None = None
 
     @property
     def base_url(self) -> str:

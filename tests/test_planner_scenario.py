@@ -108,3 +108,16 @@ def test_the_timeline_agrees_with_the_vehicles_navigator_to_a_fraction_of_a_seco
     timeline = MissionTimeline()
     expected = [start - timeline.spool_up_s for start, _ in timeline.legs(route)]
     assert len(starts) >= 3 and np.allclose(starts[:3], expected, atol=0.3)
+
+
+def test_an_inspection_timeline_stops_short_of_each_buoy_and_holds_there_before_the_next_leg():
+    route = np.array([[0.0, 0.0], [0.0, 300.0], [400.0, 300.0]])  # north 300 m, then east 400 m
+    plain = MissionTimeline()
+    inspected = MissionTimeline(standoff_m=20.0, holds_s=(9.5, 21.5))
+    (start_1, to_standoff_1), (start_2, to_standoff_2) = inspected.legs(route)
+    (plain_start_1, leg_1), (plain_start_2, _) = plain.legs(route)
+    assert start_1 == plain_start_1 and to_standoff_1 == pytest.approx(plain.leg_duration_s(280.0))
+    assert to_standoff_2 == pytest.approx(plain.leg_duration_s(380.0))
+    # the second leg starts after the first's stretch to the standoff, its hold and the last 20 m flown rest to rest
+    expected = start_1 + to_standoff_1 + 9.5 + plain.leg_duration_s(20.0) + plain.dwell_s
+    assert start_2 - expected == pytest.approx(plain_start_2 - (plain_start_1 + leg_1 + plain.dwell_s))

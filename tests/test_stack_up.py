@@ -17,8 +17,9 @@ from gcs.settings import Settings
 from planner.scenario import GUST_HOLD_S, Weather, compass_bearing_deg
 from stack.children import children
 from stack.cli import build_parser, main, requested_weather
-from stack.demo import measure_flight, prepare
+from stack.demo import LIGHT_OUT_AT, OFF_STATION_AT, OFF_STATION_RADII, findings_table, measure_flight, prepare
 from stack.options import CONTROLLERS, UpOptions
+from uavcore.buoy_world import load_world
 from uavcore.mavlink import SIGNING_KEY_ENV
 
 
@@ -120,6 +121,17 @@ def test_the_demo_flies_the_papers_weather_placed_on_the_route_the_service_will_
     assert params["SIM_DIST_VX"] == 0.05
     # the ADRC cascade by default; --calm and --wind replace the weather, the demo still flies
     assert params["MC_ATT_CTRL"] == 1
+    # the camera sees the demo's world: the charted buoys of the request, two of them faulty
+    argv = children(options)[0].argv
+    world = load_world(argv[argv.index("--world") + 1])
+    assert [(b.kind, b.light.abbreviation()) for b in world.buoys] == [
+        (b["kind"], b["light"]) for b in demo.request["buoys"]
+    ]
+    faulty = [i for i, b in enumerate(world.buoys) if b.actual_light != b.light or b.offset_m != (0.0, 0.0)]
+    assert faulty == sorted([demo.plan.order[LIGHT_OUT_AT], demo.plan.order[OFF_STATION_AT]])
+    dark, moved = world.buoys[demo.plan.order[LIGHT_OUT_AT]], world.buoys[demo.plan.order[OFF_STATION_AT]]
+    assert dark.actual_light is None and dark.offset_m == (0.0, 0.0)
+    assert math.hypot(*moved.offset_m) == pytest.approx(OFF_STATION_RADII * moved.swing_radius_m)
     calm, _ = prepare(_options(tmp_path, demo=True, weather=Weather()))
     assert _vehicle_params(children(calm)[0].argv)["SIM_GUST_AMP"] == 0.0
 
@@ -178,14 +190,20 @@ def test_the_gust_is_found_in_the_telemetry_by_the_climb_and_measured_there():
         ref_down = 0.03 if t <= 101.0 + 1e-9 else 0.03 - 2.5 * (t - 101.0)
         error = 0.05 + (0.3 if 121.0 <= t < 123.0 else 0.0) + (0.9 if t > 131.0 else 0.0)  # the last: after 10 s
         samples.append(_sample(t, error, ref_down, 8 if t > 110.0 else 1))
-    flight = measure_flight("adrc", weather, {"status": "completed"}, samples, wall_s=2.0)
+    mission = {"status": "completed", "order": list(range(13)), "progress": {"camera": None}}
+    flight = measure_flight("adrc", weather, mission, samples, wall_s=2.0)
     assert flight.gust_onset_t_s == pytest.approx(120.0)
     assert flight.gust.peak_m == pytest.approx(0.35)
     assert flight.gust.recovery_s == pytest.approx(3.0)  # the sample at 123.0 s is back at 0.05 m
     assert flight.gust_leg == 7  # mission item 8 is the 7th buoy leg
     assert flight.simulated_s == pytest.approx(39.9) and flight.simulated_s / flight.wall_s == pytest.approx(19.95)
-    still = measure_flight("adrc", Weather(), {"status": "completed"}, samples, wall_s=2.0)
+    still = measure_flight("adrc", Weather(), mission, samples, wall_s=2.0)
     assert still.gust is None and still.gust_onset_t_s is None
+    # an inspection mission: seven items a buoy (gcs.domain.planning.inspection_items); item 2 + 6 * 7 + 3 is the
+    # seventh buoy's standoff hold, on the seventh leg
+    inspected = [s | {"mission_seq": 2 + 6 * 7 + 3 if s["mission_seq"] == 8 else s["mission_seq"]} for s in samples]
+    camera = mission | {"progress": {"camera": "component 100: sim"}}
+    assert measure_flight("adrc", weather, camera, inspected, wall_s=2.0).gust_leg == 7
 
 
 def test_a_database_url_reaches_the_service_by_the_environment_never_its_command_line(tmp_path):
@@ -208,3 +226,21 @@ def test_the_signing_key_reaches_every_child_by_the_environment_never_a_command_
         "--signing-key" not in child.argv and key not in " ".join(child.argv)
         for child in (vehicle, controller, service)
     )
+
+
+def test_the_findings_table_has_a_row_per_buoy_with_its_findings_or_reason_and_the_verdict_counts():
+    charted = {"kind": "port", "light": "Fl R 4s", "lat": 0.0, "lon": 0.0, "swing_radius_m": 5.0}
+    off = {"code": "off_station", "offset_m": 15.24, "swing_radius_m": 5.0, "bearing_deg": 90}
+    inspections = [
+        {"buoy": "B1", "charted": charted, "verdict": "ok", "light_seen": "flashing . R 4.0s", "offset_m": 0.4,
+         "findings": [], "reason": None},
+        {"buoy": "B2", "charted": charted, "verdict": "defect", "light_seen": "flashing . R 4.0s", "offset_m": 15.24,
+         "findings": [off], "reason": None},
+        {"buoy": "B3", "charted": charted | {"light": None}, "verdict": "not_inspected", "light_seen": None,
+         "offset_m": None, "findings": [], "reason": "the vehicle has no camera"},
+    ]  # fmt: skip
+    lines = findings_table(inspections).splitlines()
+    assert lines[0].split()[:4] == ["buoy", "kind", "light", "verdict"]
+    assert lines[2].startswith("B2") and lines[2].endswith("off_station 15.2 m (swing 5 m)") and "15.2 m" in lines[2]
+    assert "unlit" in lines[3] and lines[3].endswith("the vehicle has no camera")
+    assert lines[-1] == "3 buoys: 1 ok, 1 defect, 1 not_inspected"
