@@ -1,9 +1,10 @@
 """MAVSDK-Python 3 (.venv-mavsdk3) drives the vehicle's camera and gimbal: run by tests/test_sitl_camera_mavsdk.py.
 
-    .venv-mavsdk3/bin/python tests/mavsdk3_camera_gimbal.py VEHICLE_PORT GRPC_PORT ROI_LAT ROI_LON ROI_ALT
+    .venv-mavsdk3/bin/python tests/mavsdk3_camera_gimbal.py VEHICLE_PORT GRPC_PORT ROI_LAT ROI_LON ROI_ALT PITCH YAW DIR
 
 Each step prints one JSON line {"step", "ok", "value" or "error"}; the test judges them. The calls are those of
-MAVSDK's Camera and Gimbal plugins a ground station makes (camera selected by component id, gimbal by id).
+MAVSDK's Camera, Gimbal and Ftp plugins a ground station makes (camera selected by component id, gimbal by id;
+the first capture's file downloaded into DIR).
 """
 
 from __future__ import annotations
@@ -52,7 +53,13 @@ async def settled_attitude(drone, gimbal_id: int, pitch: float, yaw: float, tole
     raise TimeoutError(f"attitude {euler} never reached pitch {pitch} yaw {yaw}")
 
 
-async def run(vehicle_port: int, grpc_port: int, roi: tuple[float, float, float], roi_angles: tuple[float, float]):
+async def run(
+    vehicle_port: int,
+    grpc_port: int,
+    roi: tuple[float, float, float],
+    roi_angles: tuple[float, float],
+    download_dir: str,
+):
     drone = System(port=grpc_port)
     await drone.connect(system_address=f"udpout://127.0.0.1:{vehicle_port}")
     await step("connected", first(drone.core.connection_state(), lambda s: s.is_connected))
@@ -79,6 +86,12 @@ async def run(vehicle_port: int, grpc_port: int, roi: tuple[float, float, float]
     await step("stop_photo_interval", drone.camera.stop_photo_interval(component))
     collector.cancel()
 
+    # ----- the first capture's file, by MAVSDK's Ftp plugin from the camera's component (the URL's path)
+    if captures:
+        await step("ftp set_target_compid", drone.ftp.set_target_compid(component))
+        path = captures[0].file_url.split("]", 1)[-1]  # mftp://[;comp=100]/IMG_000000.jpg -> /IMG_000000.jpg
+        await step("ftp download", last(drone.ftp.download(path, download_dir, False)))
+
     # ----- gimbal
     gimbals = await step("gimbal_list", first(drone.gimbal.gimbal_list(), lambda g: len(g.gimbals) > 0))
     gimbal_id = gimbals.gimbals[0].gimbal_id if gimbals else 1
@@ -94,6 +107,14 @@ async def run(vehicle_port: int, grpc_port: int, roi: tuple[float, float, float]
                                                                    SendMode.ONCE), 10)  # fmt: skip
 
 
+async def last(stream):
+    """The stream's last value (a download's progress: its end)."""
+    value = None
+    async for value in stream:  # noqa: B007  (the last one is kept)
+        pass
+    return value
+
+
 async def first_capture(captures: list, count: int) -> int:
     while len(captures) < count:
         await asyncio.sleep(0.1)
@@ -101,5 +122,5 @@ async def first_capture(captures: list, count: int) -> int:
 
 
 if __name__ == "__main__":
-    port, grpc, lat, lon, alt, pitch, yaw = sys.argv[1:8]
-    asyncio.run(run(int(port), int(grpc), (float(lat), float(lon), float(alt)), (float(pitch), float(yaw))))
+    port, grpc, lat, lon, alt, pitch, yaw, downloads = sys.argv[1:9]
+    asyncio.run(run(int(port), int(grpc), (float(lat), float(lon), float(alt)), (float(pitch), float(yaw)), downloads))

@@ -122,3 +122,27 @@ def test_a_vehicle_without_a_camera_flies_the_mission_and_every_buoy_says_it_was
     assert mission["progress"]["visited"] == 3
     # while it flew, no mission item aimed or fired a camera: one waypoint per buoy
     assert mission["progress"]["total"] == 2 + 3 + 1
+
+
+def test_frames_over_the_size_limit_are_refused_and_each_buoy_says_so_while_the_mission_completes(
+    stack, tmp_path, monkeypatch
+):
+    world = tmp_path / "world.geojson"
+    world.write_text(json.dumps(world_document()))
+    stack.start_vehicle("--world", str(world), "--image-dir", str(tmp_path / "images"))
+    stack.start_offboard()
+    monkeypatch.setenv("BUOY_GCS_MAX_FRAME_BYTES", "1000")  # a 1280x720 JPEG is some 70 kB
+    stack.start_gcs()
+    stack.wait_connected()
+    buoys = stack.api.post("/imports?filename=world.geojson", content=world.read_bytes()).json()["buoys"]
+    mission_id = stack.fly({"buoys": buoys})
+    mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
+    assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
+    inspections = stack.api.get(f"/missions/{mission_id}/inspections").json()
+    assert [i["verdict"] for i in inspections] == ["not_inspected"] * 3
+    for inspection in inspections:
+        assert inspection["frames"] == [] and inspection["best_frame"] is None
+        assert inspection["reason"].startswith("no frame could be used: a frame could not be downloaded")
+        assert "over the limit of 1000" in inspection["reason"], inspection["reason"]
+    with sqlite3.connect(stack.dir / "gcs.sqlite") as db:
+        assert db.execute("SELECT COUNT(*) FROM frames WHERE mission_id = ?", (mission_id,)).fetchone() == (0,)

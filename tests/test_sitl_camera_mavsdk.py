@@ -1,5 +1,6 @@
 """A peer nobody here wrote: MAVSDK-Python 3.15 (its bundled mavsdk_server) finds and drives the vehicle's camera
-(component 100) and gimbal (manager on the autopilot, device 1) with its Camera and Gimbal plugins.
+(component 100) and gimbal (manager on the autopilot, device 1) with its Camera and Gimbal plugins, and downloads a
+captured frame with its Ftp plugin.
 
 tests/mavsdk3_camera_gimbal.py runs under .venv-mavsdk3 against the vehicle (real time: MAVSDK's waits are wall
 clock) and prints one JSON line per step; the steps are judged here.
@@ -32,7 +33,9 @@ def test_mavsdk3_camera_and_gimbal_plugins(start_sitl, tmp_path):
     # the vehicle stands at home, its camera 0.1 m above the sea (sitl_quad.camera.camera_pose)
     pitch = math.degrees(math.atan2(-ROI_NED[2] - 0.1, math.hypot(*ROI_NED[:2])))
     args = [str(MAVSDK3_PYTHON), str(SCRIPT), str(vehicle.port), str(free_tcp_port())]
-    args += [f"{lat:.8f}", f"{lon:.8f}", f"{alt:.3f}", f"{pitch:.3f}", "45"]
+    downloads = tmp_path / "downloads"
+    downloads.mkdir()
+    args += [f"{lat:.8f}", f"{lon:.8f}", f"{alt:.3f}", f"{pitch:.3f}", "45", str(downloads)]
     run = subprocess.run(
         args, cwd=REPO, capture_output=True, text=True, timeout=240, env={**os.environ, "PYTHONUNBUFFERED": "1"}
     )
@@ -58,6 +61,10 @@ def test_mavsdk3_camera_and_gimbal_plugins(start_sitl, tmp_path):
     assert indices == list(range(len(indices))) and len(indices) >= 5, describe
     assert all(c["ok"] and c["url"] == f"mftp://[;comp=100]/IMG_{c['index']:06d}.jpg" for c in captures)
     assert all((tmp_path / "images" / f"IMG_{i:06d}.jpg").exists() for i in indices)
+    # MAVSDK's Ftp plugin fetched the first capture's file from the camera's component, byte for byte
+    ok("ftp download")
+    first = "IMG_000000.jpg"
+    assert (downloads / first).read_bytes() == (tmp_path / "images" / first).read_bytes()
     assert "PRIMARY" in ok("control_status")["value"]
     # after release_control the manager denies angles: MAVSDK reports it as an error
     refused = steps["set_angles after release"][-1]

@@ -357,6 +357,8 @@ def _reason(result_reason: str | None, buoy: _Buoy) -> str:
     problems = [f"{text} x{count}" if count > 1 else text for text, count in buoy.problems.most_common(3)]
     if not buoy.frames and problems:
         return "no frame could be used: " + "; ".join(problems)
+    if not buoy.frames:
+        return "no frame of its burst came from the camera (no CAMERA_IMAGE_CAPTURED while its items were current)"
     return "; ".join([result_reason or "not inspected", *problems])
 
 
