@@ -28,6 +28,12 @@ until the operator confirms a battery swap (`battery_swapped`, POST /vehicles/{s
 service never tells the vehicle its pack was swapped unless the operator says so: MAV_CMD_BATTERY_RESET resets
 ArduPilot's consumed-energy count, so sent unasked it would report a depleted pack full.
 
+Inspection: when the vehicle has a camera (heard on its system, its CAMERA_INFORMATION read) and the request did
+not say `inspect: false`, each sortie's items inspect every buoy (gcs.domain.planning.inspection_items) and an
+Inspector (gcs.missions.inspector) judges each as the vehicle leaves it; otherwise each buoy is recorded not
+inspected, with why, at the upload. A re-attached sortie's inspection goes on from the re-attachment (the frames
+reported while no service listened are lost to it); the buoys of sorties that never flew end "not reached".
+
 When no vehicle answers, POST /missions with start=true still answers 201 (status planned); the background
 lifecycle then ends in `failed` with reason "no vehicle" after `vehicle_wait_s`. Clients poll
 GET /missions/{id} or watch /ws.
@@ -379,10 +385,7 @@ class FlightLifecycle:
             for index in sortie_plan.order:
                 await self.storage.set_inspection(mission_id, not_inspected(sortie_plan, index, camera_text))
         else:
-            inspector = self._inspectors[mission_id] = Inspector(
-                self.link, self.storage, mission_id, sortie_plan, camera, self._inspection_limits(), self.analysis
-            )
-            inspector.start()
+            inspector = self._start_inspector(mission_id, sortie_plan, camera)
         try:
             self._check_abort_between_sorties(mission_id, sortie)
             recorder.sortie_took_off()
@@ -396,9 +399,13 @@ class FlightLifecycle:
             if inspector is not None:
                 await self._inspectors.pop(mission_id, inspector).close()
 
-    def _inspection_limits(self) -> InspectionLimits:
+    def _start_inspector(self, mission_id: int, sortie_plan: Plan, camera: CameraInfo) -> Inspector:
         s = self.settings
-        return InspectionLimits(s.max_frame_bytes, s.max_mission_frame_bytes, s.inspection_drain_s)
+        limits = InspectionLimits(s.max_frame_bytes, s.max_mission_frame_bytes, s.inspection_drain_s)
+        inspector = Inspector(self.link, self.storage, mission_id, sortie_plan, camera, limits, self.analysis)
+        self._inspectors[mission_id] = inspector
+        inspector.start()
+        return inspector
 
     async def _camera(self, flight: FlightParams) -> tuple[CameraInfo | None, str]:
         """The camera the sortie inspects with and its description, or None and why the buoys will not be."""
@@ -548,8 +555,15 @@ class FlightLifecycle:
                 raise MissionEndError(MissionStatus.FAILED, RESTART_NOT_FLYING)
         else:
             await self._transition(mission_id, MissionStatus.FLYING, REATTACHED)
-            # seen armed just now: a sortie that lands before the first check is finished, not ended early
-            await self._monitor(mission_id, sortie_plan, flight, recorder, s.incarnation, armed=True)
+            # its inspection goes on from here: the frames reported while no service listened are not known
+            camera = (await self._camera(flight))[0] if recorder.layout.inspected else None
+            inspector = None if camera is None else self._start_inspector(mission_id, sortie_plan, camera)
+            try:
+                # seen armed just now: a sortie that lands before the first check is finished, not ended early
+                await self._monitor(mission_id, sortie_plan, flight, recorder, s.incarnation, armed=True)
+            finally:
+                if inspector is not None:
+                    await self._inspectors.pop(mission_id, inspector).close()
         await self._landed(recorder)
         for later in range(sortie + 1, len(plan.sortie_orders())):
             await self._fly_sortie(mission_id, plan, flight, recorder, later)
