@@ -5,7 +5,8 @@ The lantern is a small disc of its signal colour with a white-hot centre (the la
 top of the body. One frame gives the spot's peak brightness and the colour of its bright saturated pixels; but a
 bright patch behind the spot (the sky near the horizon, a whitecap) may pass for a lit lamp in one frame, while
 over a burst a flashing light is a change: the burst decides on/off by splitting the spot's brightness into two
-levels where the burst shows two (Otsu's threshold), and believes each frame's own reading only where it does not.
+levels where the burst shows two (the widest gap a lamp's level bounds: `lamp_threshold`), and believes each
+frame's own reading only where it does not.
 """
 
 from __future__ import annotations
@@ -83,10 +84,23 @@ def lit_frames(spots: Sequence[LightSpot]) -> list[bool]:
     levels = np.array([s.level for s in spots])
     # two levels, the upper a lamp's: a whitecap drifting behind the spot changes it too, but never to a lamp's
     if len(levels) >= 3 and np.ptp(levels) >= MIN_LEVEL_SPREAD and levels.max() >= LIT_LEVEL:
-        # Otsu's split, never below what only a lamp reaches: with few lit frames it leans toward the dark ones
-        threshold = max(float(threshold_otsu(levels)), MIN_LAMP_LEVEL)
-        return [bool(level > threshold) for level in levels]
+        return [bool(level > lamp_threshold(levels)) for level in levels]
     return [s.lit for s in spots]
+
+
+def lamp_threshold(levels: np.ndarray) -> float:
+    """The brightness that splits a burst's lit frames from its dark ones: the middle of the widest gap between
+    the burst's levels whose upper side a lamp reaches, never below what only a lamp reaches. Dark frames are not
+    one level: clutter behind the spot (a whitecap, the sky) makes a second, brighter one, and a split of all the
+    levels in two (Otsu's) then falls between the two dark ones; the lamp's saturated centre stands apart above
+    both. Otsu's split where no gap reaches a lamp's level."""
+    ordered = np.sort(levels)
+    gaps = np.diff(ordered)
+    reaching = np.flatnonzero(ordered[1:] >= LIT_LEVEL)
+    if reaching.size == 0:
+        return max(float(threshold_otsu(levels)), MIN_LAMP_LEVEL)
+    widest = reaching[np.argmax(gaps[reaching])]
+    return max(float(ordered[widest] + ordered[widest + 1]) / 2, MIN_LAMP_LEVEL)
 
 
 def read_light(times_s: Sequence[float], spots: Sequence[LightSpot]) -> ObservedLight:
