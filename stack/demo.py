@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import math
 import time
+from urllib.error import URLError
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -173,7 +174,10 @@ def fly_demo(base: str, options: UpOptions, demo: DemoPlan, supervisor: Supervis
     last_visited = -1
     while mission["status"] not in TERMINAL:
         _wait(supervisor, math.inf, "", 0.5)
-        mission = get_json(f"{base}/missions/{mission['id']}")
+        try:
+            mission = get_json(f"{base}/missions/{mission['id']}")
+        except (TimeoutError, URLError) as error:  # a machine loaded by others: the supervisor watches the service
+            say(f"demo: the service did not answer ({error}); asking again")
         visited = mission["progress"]["visited"]
         if visited != last_visited:
             say(f"demo: {mission['status']}, {visited}/{mission['progress']['buoys']} buoys")

@@ -110,7 +110,7 @@ class FrameAnalysis:
 
     def shutdown(self) -> None:
         if self._pool is not None:
-            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool.shutdown(wait=True, cancel_futures=True)  # the workers gone, their semaphores released
             self._pool = None
 
 
