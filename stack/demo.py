@@ -16,10 +16,10 @@ from __future__ import annotations
 import json
 import math
 import time
-from urllib.error import URLError
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
+from urllib.error import URLError
 
 import numpy as np
 
