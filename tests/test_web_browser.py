@@ -4,12 +4,15 @@ Place four buoys by clicking the map, plan (the route and its length appear), fl
 (`python -m sitl_quad --lockstep`) until the mission completes, and check the live track and the history; the
 battery gauge shows the vehicle's charge live. Then hostile text: a vehicle (the ArduCopter double, real MAVLink
 over UDP) whose STATUSTEXTs and a buoy file whose ids carry markup and script, shown literally on the page and
-in the report, where nothing of it runs. A multi-sortie mission (the energy model's pack at 1000 mAh splits the
-reference buoys in three) shows each sortie in its own colour with a legend, and its predicted against used
-energy per sortie. A plan's answer that arrives after the buoys changed is dropped, and Plan and Fly wait for the
-request in flight. Screenshots go to test-artifacts/.
+in the report, where nothing of it runs; so are the inspection's texts (a buoy's id, the reason it was not
+inspected, its findings, its light read, the camera's name), in the panel, the frames' gallery and the report.
+A multi-sortie mission (the energy model's pack at 1000 mAh splits the reference buoys in three) shows each sortie
+in its own colour with a legend, and its predicted against used energy per sortie. A plan's answer that arrives
+after the buoys changed is dropped, and Plan and Fly wait for the request in flight. Screenshots go to
+test-artifacts/.
 """
 
+import io
 import json
 import re
 import socket
@@ -22,6 +25,7 @@ from urllib.parse import urlsplit
 
 import pytest
 from ardupilot_double import ArduCopterDouble
+from PIL import Image
 from playwright.sync_api import Browser, Page, Playwright, expect, sync_playwright
 from playwright.sync_api import TimeoutError as PlaywrightTimeoutError
 from service_process import serving
@@ -30,6 +34,7 @@ from stored_missions import SORTIES_FLOWN
 
 from bench.long_mission import store_long_mission
 from bench.processes import free_port, stop_process
+from gcs.domain.inspection import Finding, StoredFrame
 from gcs.domain.records import MissionProgress
 from gcs.domain.schemas import PreflightCheck
 from gcs.storage import open_storage
@@ -239,7 +244,29 @@ def double_and_service(tmp_path):
     logs.close()
 
 
-def test_text_from_the_vehicle_and_from_files_shows_literally_and_never_runs(double_and_service):
+def hostile_inspection(db: Path, mission_id: int) -> None:
+    """The first buoy's record made of markup: judged a defect whose finding, light read and reason carry IMG_TEXT
+    and SCRIPT_TEXT, with a frame; and the camera named IMG_TEXT (as a camera's CAMERA_INFORMATION could)."""
+    storage = open_storage(db)
+    record = storage.inspections(mission_id)[0]
+    jpeg = io.BytesIO()
+    Image.new("RGB", (64, 36), (40, 70, 90)).save(jpeg, "JPEG")
+    lat, lon = record.result.buoy.lat, record.result.buoy.lon
+    frame = StoredFrame(buoy=record.buoy, image_index=0, t_s=1.0, lat=lat, lon=lon, height_m=5.0, q=(1, 0, 0, 0),
+                        file_url=IMG_TEXT)  # fmt: skip
+    frame_id = storage.add_frame(mission_id, frame, jpeg.getvalue(), 1_000_000)
+    finding = Finding(code="wrong_character", charted=IMG_TEXT, seen=SCRIPT_TEXT)
+    result = record.result.model_copy(
+        update={"verdict": "defect", "findings": [finding], "light_seen": IMG_TEXT, "reason": SCRIPT_TEXT}
+    )
+    storage.set_inspection(mission_id, record.model_copy(update={"result": result, "frame_ids": [frame_id],
+                                                                 "best_frame": frame_id}))  # fmt: skip
+    progress = storage.get_mission(mission_id).progress
+    storage.set_progress(mission_id, progress.model_copy(update={"camera": IMG_TEXT}))
+    storage.close()
+
+
+def test_text_from_the_vehicle_and_from_files_shows_literally_and_never_runs(double_and_service, tmp_path):
     url, double = double_and_service
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
@@ -277,11 +304,35 @@ def test_text_from_the_vehicle_and_from_files_shows_literally_and_never_runs(dou
         assert page.evaluate("window.injected") is None
         page.screenshot(path=str(ARTIFACTS / "web_hostile_text.png"))
 
+        # the inspections (the double has no camera: each buoy not inspected, said at upload) list the ids as text;
+        # then the first buoy's record and the camera's name made of markup show as text in the list and gallery
+        inspections = page.get_by_test_id("inspection-list")
+        expect(inspections.get_by_test_id("inspection-row")).to_have_count(2)
+        expect(inspections).to_contain_text(IMG_TEXT)
+        expect(inspections).to_contain_text(SCRIPT_TEXT)
         mission_id = page.evaluate("fetch('/missions?limit=1').then(r => r.json()).then(m => m[0].id)")
-        page.goto(f"{url}/missions/{mission_id}/report/index.html")
+        hostile_inspection(tmp_path / "gcs.sqlite", mission_id)
+        expect(inspections).to_contain_text(f"why: {SCRIPT_TEXT}", timeout=10_000)
+        expect(inspections).to_contain_text(f"wrong light character: charted {IMG_TEXT}, seen {SCRIPT_TEXT}")
+        expect(inspections).to_contain_text(f"read {IMG_TEXT}")
+        expect(page.get_by_test_id("inspection-camera")).to_have_text(f"camera: {IMG_TEXT}")
+        markers.get_by_title(IMG_TEXT, exact=True).click()  # its frames
+        expect(page.get_by_test_id("gallery-title")).to_have_text(re.compile(rf"^✗ \d {re.escape(IMG_TEXT)}: defect$"))
+        expect(page.get_by_test_id("gallery-details")).to_contain_text(f"why: {SCRIPT_TEXT}")
+        page.wait_for_function("() => document.querySelector('#gallery-large').naturalWidth > 0", timeout=10_000)
+        assert page.locator("#panel img, .leaflet-marker-pane img, script:not([src]), img[src=x]").count() == 0
+        assert page.evaluate("window.injected") is None
+        page.screenshot(path=str(ARTIFACTS / "web_hostile_inspection.png"))
+
+        # drawn on this first request (eight figures: a loaded machine takes longer than Playwright's 30 s default)
+        page.goto(f"{url}/missions/{mission_id}/report/index.html", timeout=120_000)
         buoy_table = page.locator("table").nth(1)
         expect(buoy_table).to_contain_text(IMG_TEXT)
         expect(buoy_table).to_contain_text(SCRIPT_TEXT)
+        inspection_table = page.get_by_test_id("inspections")
+        for text in (IMG_TEXT, SCRIPT_TEXT, f"wrong light character: charted {IMG_TEXT}, seen {SCRIPT_TEXT}"):
+            expect(inspection_table).to_contain_text(text)
+        expect(page.locator("img[src='defect-0.jpg']")).to_have_count(1)  # its best frame, by the buoy's index
         assert page.locator("img[src=x], body script").count() == 0
         assert page.evaluate("window.injected") is None
         browser.close()
