@@ -584,9 +584,6 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         {"id": f"B{i + 1}", "lat": float(lat), "lon": float(lon)}
         for i, (lat, lon, _) in enumerate(frame.from_ned(n, e, 0.0) for n, e in places)
     ]
-    mission = post_json(f"{url}/missions", {"vehicles": "fleet", "buoys": buoys})
-    shares = mission["fleet"]["shares"]  # a fleet mission flies its shares (FleetShareOut), no tour of its own
-    assert mission["sorties"] == [] and mission["route"] == []
     errors: list[str] = []
     with sync_playwright() as p:
         browser, page = open_page(p, errors)
@@ -598,6 +595,10 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         for sysid in (1, 2, 3):
             expect(page.locator(f".leaflet-marker-icon[title='vehicle {sysid}']")).to_have_count(1, timeout=30_000)
         expect(page.locator(".leaflet-marker-icon.vehicle-icon")).to_have_count(3)
+        # flown once the page is up: a page slow to start on a loaded machine saw the whole flight end before it
+        mission = post_json(f"{url}/missions", {"vehicles": "fleet", "buoys": buoys})
+        shares = mission["fleet"]["shares"]  # a fleet mission flies its shares (FleetShareOut), no tour of its own
+        assert mission["sorties"] == [] and mission["route"] == []
         # and they move as the stream says: a vehicle flying its share leaves where it was first drawn (measured
         # from a buoy's icon, so that the map panning meanwhile moves nothing; the view is fitted to the routes
         # before the mission shows as flying)
