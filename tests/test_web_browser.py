@@ -525,12 +525,13 @@ def test_a_multi_sortie_mission_shows_its_sorties_and_their_energy(service_with_
 
 @pytest.fixture
 def fleet_service(tmp_path):
-    """Three vehicles (`python -m sitl_quad --sysid N`, homes 160 m apart) and `python -m gcs serve` linked to
-    each; yields the service's URL once it has heard all three."""
+    """Three vehicles (`python -m sitl_quad --sysid N`, homes 160 m apart, at twice real time: the flight outlasts a
+    page slow to open on a loaded machine) and `python -m gcs serve` linked to each; yields the service's URL once
+    it has heard all three."""
     frame = LocalFrame(*DEFAULT_HOME)
     homes = {1: DEFAULT_HOME, 2: frame.from_ned(0.0, 160.0, 0.0), 3: frame.from_ned(160.0, 0.0, 0.0)}
     vehicles = [
-        SitlProcess(speed=5.0, extra_args=("--sysid", str(n), "--home", ",".join(f"{v:.8f}" for v in home))).start()
+        SitlProcess(speed=2.0, extra_args=("--sysid", str(n), "--home", ",".join(f"{v:.8f}" for v in home))).start()
         for n, home in homes.items()
     ]
     http = free_port(socket.SOCK_STREAM)
@@ -595,10 +596,13 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         for sysid in (1, 2, 3):
             expect(page.locator(f".leaflet-marker-icon[title='vehicle {sysid}']")).to_have_count(1, timeout=30_000)
         expect(page.locator(".leaflet-marker-icon.vehicle-icon")).to_have_count(3)
-        # flown once the page is up: a page slow to start on a loaded machine saw the whole flight end before it
+        # flown once the page is up (a page slow to start on a loaded machine saw the whole flight end before it),
+        # and the page opened again: it shows the latest mission when it opens
         mission = post_json(f"{url}/missions", {"vehicles": "fleet", "buoys": buoys})
         shares = mission["fleet"]["shares"]  # a fleet mission flies its shares (FleetShareOut), no tour of its own
         assert mission["sorties"] == [] and mission["route"] == []
+        page.reload()
+        expect(page.locator(".leaflet-marker-icon.vehicle-icon")).to_have_count(3, timeout=30_000)
         # and they move as the stream says: a vehicle flying its share leaves where it was first drawn (measured
         # from a buoy's icon, so that the map panning meanwhile moves nothing; the view is fitted to the routes
         # before the mission shows as flying)
