@@ -13,20 +13,29 @@ MAVLink FTP from the FtpServer, finds the buoys in them and judges each:
 - B1, lit as charted: ok; B2, its light dark in every frame: defect light_out;
 - B3, the camera names files its FtpServer does not have (FileNotFound), and B4, files that are text: both
   not_inspected with the reason naming the cause; the mission still completes and nothing in the service raises.
+The camera's clock is its own (CAMERA_IMAGE_CAPTURED.time_boot_ms): where a time namespace can be had (unshare), it
+is set 8 s behind the autopilot's, as a camera that booted after the flight controller; the frames must still go
+to the buoys they show.
 
 Wall clock: the double flies in real time at 30 m/s, so the run is its flight (about 50 s: bursts of 5 s and 2 s
-at 10 Hz, a few short legs) plus start-up. Every wait polls a condition against a generous deadline.
+at 10 Hz, a few short legs) plus start-up, about 70 s in all. Every wait polls a condition against a generous
+deadline.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import math
+import os
+import shutil
+import signal
 import subprocess
 import sys
 import time
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -86,21 +95,41 @@ BUOYS = (
     Charted("B4", "special", None, (-50.0, 50.0)),  # the camera's files are text
 )
 CAMERA_FAULTS = ("--missing", "B3", "--not-image", "B4")
+CAMERA_BEHIND_S = 8.0  # the camera's clock against the autopilot's, where it can be set
+
+
+def clock_shifted(offset_s: float) -> list[str] | None:
+    """A command prefix running a program in a new time namespace whose CLOCK_MONOTONIC reads offset_s (whole
+    seconds) more than ours (util-linux unshare; as root, or in a user namespace where those are allowed); None
+    where neither works. The program is unshare's child: unshare ignores SIGTERM, and kills it if itself killed."""
+    shift = ["--time", f"--monotonic={round(offset_s)}", "--fork", "--kill-child=SIGKILL"]
+    for prefix in (["unshare", *shift], ["unshare", "--user", "--map-root-user", *shift]):
+        if shutil.which("unshare") and subprocess.run([*prefix, "true"], capture_output=True).returncode == 0:
+            return prefix
+    return None
 
 
 class Peer:
-    """One of the MAVSDK processes, its output in a log file."""
+    """One of the MAVSDK processes (under `prefix`, e.g. clock_shifted's), its output in a log file."""
 
-    def __init__(self, directory: Path, script: Path, *args: str) -> None:
+    def __init__(self, directory: Path, script: Path, *args: str, prefix: Sequence[str] = ()) -> None:
         self.log_path = directory / f"{script.stem}.log"
         self._log = self.log_path.open("w")
-        self.process = subprocess.Popen([sys.executable, str(script), *args], stdout=self._log,
+        self.wrapped = bool(prefix)
+        self.process = subprocess.Popen([*prefix, sys.executable, str(script), *args], stdout=self._log,
                                         stderr=subprocess.STDOUT)  # fmt: skip
 
     def log(self) -> str:
         return self.log_path.read_text()
 
     def stop(self) -> int:
+        """SIGTERM to the program (under unshare: to unshare's child; unshare exits with its code)."""
+        pid = self.process.pid
+        children = Path(f"/proc/{pid}/task/{pid}/children")
+        if self.wrapped and self.process.poll() is None and children.exists():
+            for child in children.read_text().split():
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(int(child), signal.SIGTERM)
         stop_process(self.process, 15)
         self._log.close()
         return self.process.returncode
@@ -108,11 +137,11 @@ class Peer:
 
 @pytest.fixture
 def start_peer(tmp_path):
-    """start_peer(script, *args); each must exit cleanly on SIGTERM, without a traceback."""
+    """start_peer(script, *args, prefix=()); each must exit cleanly on SIGTERM, without a traceback."""
     started: list[Peer] = []
 
-    def start(script: Path, *args: str) -> Peer:
-        started.append(Peer(tmp_path, script, *args))
+    def start(script: Path, *args: str, prefix: Sequence[str] = ()) -> Peer:
+        started.append(Peer(tmp_path, script, *args, prefix=prefix))
         return started[-1]
 
     yield start
@@ -155,11 +184,19 @@ def test_the_service_inspects_with_mavsdks_camera_and_ftp_servers(tmp_path, star
     with TestClient(create_app(settings)) as client, hub:
         vehicle = start_peer(VEHICLE_SCRIPT, "--connect", f"udpout://127.0.0.1:{autopilot_port}",
                              "--items-out", str(tmp_path / "items.json"), "--speed", "30")  # fmt: skip
-        camera = start_peer(CAMERA_SCRIPT, "--connect", f"udpout://127.0.0.1:{camera_port}", "--root", str(root),
-                            "--world", str(world_file), *CAMERA_FAULTS)  # fmt: skip
-        wait_for(lambda: "ready" in camera.log(), CONNECT_S, lambda: f"the camera did not start:\n{camera.log()}")
-        wait_for(lambda: client.get("/vehicle").json()["connected"], CONNECT_S,
+        # the camera's clock is its own: CAMERA_IMAGE_CAPTURED's time_boot_ms is its host's CLOCK_MONOTONIC (MAVSDK's
+        # CameraServer), the autopilot's the time since its TelemetryServer started. Where a time namespace can be
+        # had, the camera's reads CAMERA_BEHIND_S less than the autopilot's, as a camera that booted after the
+        # flight controller (a companion computer's) would; else its host's uptime, hours ahead.
+        shifting = clock_shifted(-1.0) is not None
+        least_s = CAMERA_BEHIND_S + 1.0 if shifting else 0.0  # a clock is never negative
+        wait_for(lambda: (client.get("/vehicle").json()["t_s"] or -1.0) >= least_s, CONNECT_S,
                  lambda: f"the service never saw the MAVSDK vehicle:\n{vehicle.log()}")  # fmt: skip
+        autopilot_s = client.get("/vehicle").json()["t_s"]
+        prefix = clock_shifted(autopilot_s - CAMERA_BEHIND_S - time.monotonic()) if shifting else None
+        camera = start_peer(CAMERA_SCRIPT, "--connect", f"udpout://127.0.0.1:{camera_port}", "--root", str(root),
+                            "--world", str(world_file), *CAMERA_FAULTS, prefix=prefix or ())  # fmt: skip
+        wait_for(lambda: "ready" in camera.log(), CONNECT_S, lambda: f"the camera did not start:\n{camera.log()}")
 
         created = client.post("/missions", json={"buoys": [b.request() for b in BUOYS]})
         assert created.status_code == 201, created.text
@@ -174,7 +211,10 @@ def test_the_service_inspects_with_mavsdks_camera_and_ftp_servers(tmp_path, star
         inspections = {i["buoy"]: i for i in client.get(f"/missions/{mission_id}/inspections").json()}
         frames = {buoy: [client.get(url).content for url in inspections[buoy]["frames"]] for buoy in ("B1", "B2")}
     elapsed = time.monotonic() - started
-    print(f"flown and judged in {elapsed:.1f} s")
+    stamps = [h.message.time_boot_ms / 1000.0 for h in hub.messages("CAMERA_IMAGE_CAPTURED", "camera")]
+    clock = f"set {CAMERA_BEHIND_S:g} s behind the autopilot's" if prefix else "its host's uptime"
+    print(f"flown and judged in {elapsed:.1f} s; the camera's clock {clock}: it stamped {stamps[0]:.1f}..")
+    print(f"..{stamps[-1]:.1f} s; the autopilot's read {autopilot_s:.1f} s as the camera started")
 
     # the verdicts: from real frames of the rendered world, downloaded from MAVSDK's FtpServer
     summary = {b: (i["verdict"], [f["code"] for f in i["findings"]], i["reason"]) for b, i in inspections.items()}
