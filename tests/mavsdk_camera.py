@@ -7,15 +7,21 @@ IMAGE_START_CAPTURE's interval and count (its own timer calls the take-photo cal
 - where the vehicle is: the autopilot's GLOBAL_POSITION_INT, and where the camera looks: the GIMBAL_DEVICE_SET_ATTITUDE
   the autopilot sends its gimbal (earth frame; level along the heading until the first), both read off the link
   with MavlinkDirectServer;
-- each photo MAVSDK asks for is rendered there and then (sitl_quad.camera_render: the --world buoys, their
-  lights as they really show), written to --root as IMG_<n>.jpg (n counts the camera's life: MAVSDK's index
-  restarts with each sequence) and answered with respond_take_photo: the position, the camera's attitude
-  quaternion and the file's mftp:// URL;
+- each photo MAVSDK asks for is rendered (sitl_quad.camera_render: the --world buoys, their lights as they really
+  show), written to --root as IMG_<n>.jpg (n counts the camera's life: MAVSDK's index restarts with each
+  sequence) and answered with respond_take_photo: the position, the camera's attitude quaternion and the file's
+  mftp:// URL. The exposures keep the commanded interval on the camera's own clock (the sequence's k-th at
+  start + k x interval, the interval read off the IMAGE_START_CAPTURE that came), however late MAVSDK's timer
+  calls on a busy machine. MAVSDK stamps CAMERA_IMAGE_CAPTURED's time_boot_ms as it sends it, not at the
+  exposure; so each is answered REPORT_LATENCY_S after its exposure (a camera's pipeline), or as soon after as
+  its rendering allows where the machine is too busy, and shows the world as it is at that instant: frames and
+  stamps agree;
 - faults on purpose, for the buoy nearest the vehicle: `--missing ID` answers with the URL of a file it never
   writes, `--not-image ID` writes text where the JPEG should be.
-Each capture is printed as a JSON line ({"capture": n, "buoy": ID, "file": NAME, "fault": ...}) for the test.
+Each capture is written to --records as a JSON line ({"capture": n, "buoy": ID, "file": NAME, "fault": ...}), for
+the test (not to stdout, where MAVSDK's own log lines can cut into it).
 
-    python tests/mavsdk_camera.py --connect udpout://127.0.0.1:PORT --root DIR --world WORLD.geojson
+    python tests/mavsdk_camera.py --connect udpout://127.0.0.1:PORT --root DIR --world WORLD.geojson --records FILE
 
 It prints "ready" once serving and runs until SIGTERM.
 """
@@ -42,11 +48,16 @@ from sitl_quad.camera import CameraSpec, Environment, WorldView, camera_pose
 from sitl_quad.camera_render import encode_jpeg, render
 from uavcore.buoy_world import load_world
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
+from uavcore.mavlink import mavlink
 from uavcore.rotation import quat_from_euler
 
 AUTOPILOT = (1, 1)
+COMPONENT = mavlink.MAV_COMP_ID_CAMERA  # 100
+START_CAPTURE = mavlink.MAV_CMD_IMAGE_START_CAPTURE
 JPEG_QUALITY = 80
 NOT_AN_IMAGE = b"this is no image: the card's file system lost the frame\n" * 8
+REPORT_LATENCY_S = 0.5  # exposure to report: the slack rendering has on a busy machine
+Report = tuple[float, CaptureInfo | None, dict]  # when it is due (time.monotonic()), what, the record written
 
 
 @dataclass(frozen=True)
@@ -73,9 +84,12 @@ class Payload:
         self.lock = threading.Lock()
         self.fix: Fix | None = None
         self.gimbal_q: tuple[float, float, float, float] | None = None  # earth frame; None: not commanded yet
+        self.interval_s = 0.0  # the last IMAGE_START_CAPTURE's (0: a single shot)
+        self.sequence_start_s = 0.0  # when MAVSDK asked for the sequence's first photo (index 0)
         self.count = 0
         self.jobs: queue.Queue[tuple[float, Fix | None, tuple[float, float, float, float] | None] | None]
         self.jobs = queue.Queue()
+        self.reports: queue.Queue[Report | None] = queue.Queue()
 
         configuration = Configuration.create_with_component_type(ComponentType.CAMERA)  # 1/100
         self.mavsdk = Mavsdk(configuration)
@@ -97,9 +111,12 @@ class Payload:
         self.camera.set_information(information)
         self.direct.subscribe_message("GLOBAL_POSITION_INT", self._on_position)
         self.direct.subscribe_message("GIMBAL_DEVICE_SET_ATTITUDE", self._on_gimbal)
+        self.direct.subscribe_message("COMMAND_LONG", self._on_command)
         self.camera.subscribe_take_photo(self._on_take_photo)
-        self.worker = threading.Thread(target=self._work, name="camera-frames")
-        self.worker.start()
+        self.threads = [threading.Thread(target=self._render, name="camera-render"),
+                        threading.Thread(target=self._report, name="camera-report")]  # fmt: skip
+        for thread in self.threads:
+            thread.start()
 
     # ----- MAVSDK's callbacks (its threads): only note what came
     def _on_position(self, message: MavlinkMessage, _user_data) -> None:
@@ -118,21 +135,39 @@ class Payload:
         with self.lock:
             self.gimbal_q = (w, x, y, z)
 
-    def _on_take_photo(self, _index: int, _user_data) -> None:
-        """MAVSDK's timer asks for a photo: the pose now; rendered and answered by the worker."""
+    def _on_command(self, message: MavlinkMessage, _user_data) -> None:
+        f = json.loads(message.fields_json)  # CameraServer answers it; only its interval is noted here
+        if f["command"] == START_CAPTURE and f["target_component"] in (0, COMPONENT):
+            with self.lock:
+                self.interval_s = f["param2"] if f["param3"] != 1 else 0.0
+
+    def _on_take_photo(self, index: int, _user_data) -> None:
+        """MAVSDK asks for a photo: its exposure time and the pose now; rendered and answered by the worker."""
         with self.lock:
-            self.jobs.put((time.monotonic(), self.fix, self.gimbal_q))
+            now = time.monotonic()
+            if index == 0 or self.interval_s == 0.0:
+                self.sequence_start_s = now
+            exposure_s = self.sequence_start_s + index * self.interval_s if self.interval_s else now
+            self.jobs.put((exposure_s, self.fix, self.gimbal_q))
 
-    # ----- the frames (worker thread)
-    def _work(self) -> None:
+    # ----- the frames: rendered as soon as asked for (one thread), reported when due (another)
+    def _render(self) -> None:
+        render_s = 0.05  # how long a frame takes (a running estimate)
+        report_s = 0.0
         while (job := self.jobs.get()) is not None:
-            t_s, fix, gimbal_q = job
+            exposure_s, fix, gimbal_q = job
+            started_s = time.monotonic()
+            # the instant the report can be made, which MAVSDK stamps it with: the frame shows the world then
+            report_s = max(exposure_s + REPORT_LATENCY_S, started_s + 2.0 * render_s, report_s + 0.01)
             if fix is None:  # no position heard yet: the camera cannot geotag
-                self.camera.respond_take_photo(CameraFeedback.FAILED, CaptureInfo())
+                self.reports.put((report_s, None, {}))
                 continue
-            self._capture(t_s, fix, gimbal_q)
+            self.reports.put(self._capture(report_s, fix, gimbal_q))
+            render_s = 0.8 * render_s + 0.2 * (time.monotonic() - started_s)
+        self.reports.put(None)
 
-    def _capture(self, t_s: float, fix: Fix, gimbal_q: tuple[float, float, float, float] | None) -> None:
+    def _capture(self, t_s: float, fix: Fix, gimbal_q: tuple[float, float, float, float] | None) -> Report:
+        """The frame of instant t_s (time.monotonic(), MAVSDK's clock), to be reported at t_s."""
         q = gimbal_q or tuple(float(c) for c in quat_from_euler(0.0, 0.0, fix.heading_rad))
         north, east, down = self.home.to_ned(fix.lat, fix.lon, fix.alt_m)
         buoy = self.world.buoys[int(np.argmin(np.linalg.norm(self.buoys_ne - [north, east], axis=1)))]
@@ -148,13 +183,24 @@ class Payload:
         info = CaptureInfo(
             position=Position(fix.lat, fix.lon, fix.alt_m, fix.relative_alt_m),
             attitude_quaternion=Quaternion(*q),
-            time_utc_us=round(time.time() * 1e6),
+            time_utc_us=round((time.time() + t_s - time.monotonic()) * 1e6),
             is_success=True,
             index=index,
             file_url=f"mftp://[;comp=100]/{name}",
         )
-        self.camera.respond_take_photo(CameraFeedback.OK, info)
-        print(json.dumps({"capture": index, "buoy": buoy.id, "file": name, "fault": fault, "t_s": t_s}), flush=True)
+        return t_s, info, {"capture": index, "buoy": buoy.id, "file": name, "fault": fault, "t_s": t_s}
+
+    def _report(self) -> None:
+        while (report := self.reports.get()) is not None:
+            due_s, info, record = report
+            late_s = time.monotonic() - due_s  # > 0: rendering fell behind, MAVSDK's stamp is late by that much
+            time.sleep(max(0.0, -late_s))
+            if info is None:
+                self.camera.respond_take_photo(CameraFeedback.FAILED, CaptureInfo())
+                continue
+            self.camera.respond_take_photo(CameraFeedback.OK, info)
+            with self.args.records.open("a") as records:
+                records.write(json.dumps(record | {"late_s": late_s}) + "\n")
 
     def _write(self, name: str, data: bytes) -> None:
         """Whole or not at all: the file appears under its name once written."""
@@ -164,7 +210,8 @@ class Payload:
 
     def close(self) -> None:
         self.jobs.put(None)
-        self.worker.join(timeout=10)
+        for thread in self.threads:
+            thread.join(timeout=10)
         self.mavsdk.destroy()
 
 
@@ -178,9 +225,10 @@ def main() -> int:
     parser.add_argument("--connect", required=True, help="MAVSDK connection URL, e.g. udpout://127.0.0.1:14550")
     parser.add_argument("--root", type=Path, required=True, help="the directory the frames are written to and served")
     parser.add_argument("--world", required=True, help="the buoy world's GeoJSON (uavcore.buoy_world)")
+    parser.add_argument("--records", type=Path, required=True, help="JSON lines: one per capture reported")
     parser.add_argument("--home", type=parse_home, default=DEFAULT_HOME, help="lat,lon,alt (the sea at 0 m AMSL)")
-    parser.add_argument("--width", type=int, default=640)
-    parser.add_argument("--height", type=int, default=360)
+    parser.add_argument("--width", type=int, default=384)  # a frame in about 20 ms (640 x 360: 80 ms)
+    parser.add_argument("--height", type=int, default=216)
     parser.add_argument("--missing", action="append", default=[], help="a buoy whose frames are never written")
     parser.add_argument("--not-image", action="append", default=[], help="a buoy whose frames are text")
     args = parser.parse_args()
