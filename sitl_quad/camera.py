@@ -64,6 +64,8 @@ class CaptureSchedule:
         self.remaining: int | None = 0  # captures left in the sequence; None: until stopped
         self.next_at: float | None = None
         self.image_count = 0  # captured in the camera's life
+        self._start = 0.0
+        self._step = 0
 
     @property
     def interval_running(self) -> bool:
@@ -71,11 +73,18 @@ class CaptureSchedule:
         return self.next_at is not None and self.interval_s > 0 and self.remaining != 1
 
     def start(self, t: float, interval_s: float, count: int) -> None:
-        """From t: count captures (0: until stop()) interval_s apart; count 1 is a single shot."""
-        if count < 0 or (count != 1 and not interval_s > 0):
+        """From t: count captures (0: until stop()) interval_s apart; count 1 is a single shot.
+
+        The interval is taken to the microsecond: MAVLink carries it as a float32 (0.1 s arrives as
+        0.10000000149 s), whose excess would otherwise make every capture meant for a tick wait for the next one.
+        """
+        interval = round(interval_s, 6) if math.isfinite(interval_s) else 0.0
+        if count < 0 or (count != 1 and not interval > 0):
             raise ValueError(f"capture sequence of {count} images every {interval_s} s")
-        self.interval_s = interval_s if count != 1 else 0.0
+        self.interval_s = interval if count != 1 else 0.0
         self.remaining = None if count == 0 else count
+        self._start = t
+        self._step = 0  # next_at = start + step * interval, never a running sum
         self.next_at = t
 
     def stop(self) -> None:
@@ -93,10 +102,11 @@ class CaptureSchedule:
         if self.remaining == 0:
             self.stop()
         else:
-            self.next_at += self.interval_s
-            if self.next_at < t - TIME_TOLERANCE_S:  # a stall (the process was suspended): resume on the grid
-                missed = math.ceil((t - self.next_at) / self.interval_s)
-                self.next_at += missed * self.interval_s
+            self._step += 1
+            behind = t - (self._start + self._step * self.interval_s)
+            if behind > TIME_TOLERANCE_S:  # a stall (the process was suspended): resume on the grid
+                self._step += math.ceil(behind / self.interval_s)
+            self.next_at = self._start + self._step * self.interval_s
         return index
 
 
