@@ -4,9 +4,10 @@ Pure computation (the MAVLink camera component, sitl_quad.mavlink.camera, writes
 - `CameraSpec`: the figures CAMERA_INFORMATION reports, from which the renderer's intrinsics follow
   (DEFAULT_SPEC gives sitl_quad.camera_render.DEFAULT_CAMERA).
 - `CaptureSchedule`: MAV_CMD_IMAGE_START_CAPTURE's single shot or interval x count (0: until stopped), on the
-  simulated clock, so a lockstep run captures the same instants at any speed. Capture k of a sequence is due at
-  start + k * interval; the first at once. Images are numbered from 0 for the camera's whole life
-  (CAMERA_IMAGE_CAPTURED.image_index = image_count - 1, MAVLink's camera protocol).
+  simulated clock, so a lockstep run captures the same instants at any speed. The first capture of a sequence is
+  taken at once (the first tick at or after the start), capture k is due k intervals after it. Images are
+  numbered from 0 for the camera's whole life (CAMERA_IMAGE_CAPTURED.image_index = image_count - 1, MAVLink's
+  camera protocol).
 - `WorldView`: the buoy world (uavcore.buoy_world) as the renderer's Scene at time t: each buoy where it floats
   in the wind and current, in its IALA paint, its light drawn only while its actual character shows it.
 - `camera_pose`: the camera's pose for the renderer from the vehicle's local NED position (origin at home) and
@@ -83,7 +84,7 @@ class CaptureSchedule:
             raise ValueError(f"capture sequence of {count} images every {interval_s} s")
         self.interval_s = interval if count != 1 else 0.0
         self.remaining = None if count == 0 else count
-        self._start = t
+        self._start = t  # set again by the first capture
         self._step = 0  # next_at = start + step * interval, never a running sum
         self.next_at = t
 
@@ -97,6 +98,8 @@ class CaptureSchedule:
             return None
         index = self.image_count
         self.image_count += 1
+        if self._step == 0:  # the grid runs from the first capture: a command handled between two ticks is
+            self._start = t  # taken at the next one, and the others follow it at whole intervals
         if self.remaining is not None:
             self.remaining -= 1
         if self.remaining == 0:

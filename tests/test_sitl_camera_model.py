@@ -138,6 +138,13 @@ def test_an_interval_sent_as_float32_still_captures_on_the_ticks_it_means():
         assert [t for t, _ in run_schedule(schedule, 1.0, 3.0)] == expected
 
 
+def test_a_sequence_started_between_ticks_runs_from_its_first_capture():
+    """A command handled after the tick at 1.0 (its capture already taken) is first captured by the tick at 1.02."""
+    schedule = CaptureSchedule()
+    schedule.start(1.0, 0.2, 3)
+    assert [t for t, _ in run_schedule(schedule, 1.02, 3.0)] == [1.02, 1.22, 1.42]
+
+
 def test_single_shot_and_numbering_across_sequences():
     schedule = CaptureSchedule()
     schedule.start(0.0, 0.0, 1)
