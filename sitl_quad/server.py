@@ -98,7 +98,11 @@ class VehicleServer:
         self.camera: CameraComponent | None = None
         if image_dir is not None:
             boot_unix_us = self.telemetry.boot_unix_us
-            self.payload = Payload(vehicle, link, self.commands, image_dir, world, current, boot_unix_us=boot_unix_us)
+            # paced, frames are made in a worker process so the ticks stay on time; lockstep, in the loop (exact)
+            self.payload = Payload(
+                vehicle, link, self.commands, image_dir, world, current, boot_unix_us=boot_unix_us,
+                frames_in_loop=lockstep,
+            )  # fmt: skip
             self.gimbal, self.camera = self.payload.gimbal, self.payload.camera
             self.dispatch.update(self.gimbal.handlers())
         self._log_file = None
@@ -327,6 +331,8 @@ class VehicleServer:
         }
 
     def close(self) -> None:
+        if self.payload is not None:
+            self.payload.close()
         if self._log_file is not None:
             self._log_file.close()
             self._log_file = self._log_writer = None

@@ -26,13 +26,16 @@ class Payload:
         current: Environment | None = None,
         spec: CameraSpec = DEFAULT_SPEC,
         boot_unix_us: int | None = None,
+        frames_in_loop: bool = True,
     ) -> None:
-        """The gimbal manager registers its commands with `commands`; the camera writes into `image_dir`."""
+        """The gimbal manager registers its commands with `commands`; the camera writes into `image_dir`, making
+        its frames in the loop (lockstep) or in a worker process (paced: sitl_quad.mavlink.camera_frames)."""
         self.vehicle = vehicle
         self.gimbal = GimbalManager(vehicle, link, commands)
         self.camera = CameraComponent(
-            vehicle, link, self.gimbal.gimbal, image_dir, world, current, spec=spec, boot_unix_us=boot_unix_us
-        )
+            vehicle, link, self.gimbal.gimbal, image_dir, world, current, spec=spec, boot_unix_us=boot_unix_us,
+            frames_in_loop=frames_in_loop,
+        )  # fmt: skip
 
     def run_mission_item(self, seq: int) -> None:
         """A camera or gimbal mission item the navigator reached (PX4 re-issues them as commands)."""
@@ -48,3 +51,7 @@ class Payload:
         self.gimbal.update()
         self.camera.capture_due()
         self.gimbal.publish_due()
+
+    def close(self) -> None:
+        """The frames still being made are written and reported, the camera's worker stopped."""
+        self.camera.close()
