@@ -123,7 +123,10 @@ def _serve(connection: Connection, warm_up: FrameJob | None) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the vehicle stops it, after its frames in hand
     os.nice(WORKER_NICENESS)
     if warm_up is not None:
-        render(warm_up.pose, warm_up.intrinsics, warm_up.scene)
+        try:
+            render(warm_up.pose, warm_up.intrinsics, warm_up.scene)
+        except Exception:  # a real frame will say what is wrong
+            log.debug("warm-up frame failed", exc_info=True)
     while True:
         try:
             job = connection.recv()
