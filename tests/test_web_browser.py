@@ -533,7 +533,9 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         {"id": f"B{i + 1}", "lat": float(lat), "lon": float(lon)}
         for i, (lat, lon, _) in enumerate(frame.from_ned(n, e, 0.0) for n, e in places)
     ]
-    mission = post_json(f"{url}/missions", {"vehicles": "fleet", "buoys": buoys})
+    # planned, and started once the page shows it: started at once, the shares (a few seconds of wall clock each at
+    # 5x) could all be flown before a loaded machine's browser had drawn the vehicles, which then never moved again
+    mission = post_json(f"{url}/missions", {"vehicles": "fleet", "buoys": buoys, "start": False})
     shares = mission["fleet"]["shares"]  # a fleet mission flies its shares (FleetShareOut), no tour of its own
     assert mission["sorties"] == [] and mission["route"] == []
     errors: list[str] = []
@@ -547,17 +549,20 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         for sysid in (1, 2, 3):
             expect(page.locator(f".leaflet-marker-icon[title='vehicle {sysid}']")).to_have_count(1, timeout=30_000)
         expect(page.locator(".leaflet-marker-icon.vehicle-icon")).to_have_count(3)
-        # and they move as the stream says: a vehicle flying its share leaves where it was first drawn (measured
-        # from a buoy's icon, so that the map panning meanwhile moves nothing; the view is fitted to the routes
-        # before the mission shows as flying)
+        # and they move as the stream says: a vehicle flying its share leaves where it was first drawn, at home
+        # before the start (measured from a buoy's icon, so that the map panning meanwhile moves nothing; the view
+        # is fitted to the routes once they are drawn)
+        routes = page.locator(".leaflet-overlay-pane path[stroke-dasharray]")
+        expect(routes).to_have_count(len(shares), timeout=30_000)
         flier = f".leaflet-marker-icon[title='vehicle {shares[0]['sysid']}']"  # a vehicle given buoys
         offset = f"""() => {{
             const vehicle = document.querySelector("{flier}").getBoundingClientRect();
             const buoy = document.querySelector(".buoy-icon").getBoundingClientRect();
             return [vehicle.x - buoy.x, vehicle.y - buoy.y];
         }}"""
-        expect(page.locator("#mission-status")).to_contain_text("flying", timeout=120_000)
         first_drawn = page.evaluate(offset)
+        post_json(f"{url}/missions/{mission['id']}/start", {})
+        expect(page.locator("#mission-status")).to_contain_text("flying", timeout=120_000)
         try:
             page.wait_for_function(
                 f"(first) => {{ const [x, y] = ({offset})(); return Math.hypot(x - first[0], y - first[1]) > 3; }}",
@@ -567,7 +572,6 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         except PlaywrightTimeoutError:  # say whether the vehicles flew and the page missed it, or they never flew
             raise AssertionError(fleet_state(url, mission["id"], tmp_path / "service.log")) from None
         # each vehicle's route in its own colour, and the legend naming each one's share
-        routes = page.locator(".leaflet-overlay-pane path[stroke-dasharray]")
         expect(routes).to_have_count(len(shares))
         assert len({routes.nth(k).get_attribute("stroke") for k in range(len(shares))}) == len(shares)
         legend = page.get_by_test_id("sortie-legend").locator("li")
