@@ -1,7 +1,7 @@
 """The map page in a real browser (headless Chromium via Playwright) against the real service and vehicle.
 
 Place four buoys by clicking the map, plan (the route and its length appear), fly against the SITL vehicle
-(`python -m sitl_quad --lockstep`) until the mission completes, and check the live track and the history; the
+(`python -m sitl_quad --speed 10`) until the mission completes, and check the live track and the history; the
 battery gauge shows the vehicle's charge live. Then hostile text: a vehicle (the ArduCopter double, real MAVLink
 over UDP) whose STATUSTEXTs and a buoy file whose ids carry markup and script, shown literally on the page and
 in the report, where nothing of it runs. A multi-sortie mission (the energy model's pack at 1000 mAh splits the
@@ -86,8 +86,9 @@ BATTERY_PERCENT = 60  # the simulated vehicle's charge at start
 
 @pytest.fixture
 def stack(tmp_path):
-    """The vehicle (lockstep, its pack at BATTERY_PERCENT) and `python -m gcs serve` on free ports; yields the
-    page's URL."""
+    """The vehicle (10x real time, its pack at BATTERY_PERCENT) and `python -m gcs serve` on free ports; yields the
+    page's URL. Paced, not lockstep: with no offboard controller a lockstep vehicle runs freely, a whole core spent
+    on simulating the ground while the service starts and the page loads (the flight takes a few seconds longer)."""
     udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
     logs = open(tmp_path / "stack.log", "w")  # noqa: SIM115 - closed below
     vehicle = subprocess.Popen(
@@ -97,7 +98,8 @@ def stack(tmp_path):
             "sitl_quad",
             "--port",
             str(udp),
-            "--lockstep",
+            "--speed",
+            "10",
             "--battery-percent",
             str(BATTERY_PERCENT),
         ],
