@@ -1,7 +1,7 @@
 """The map page in a real browser (headless Chromium via Playwright) against the real service and vehicle.
 
 Place four buoys by clicking the map, plan (the route and its length appear), fly against the SITL vehicle
-(`python -m sitl_quad --lockstep`) until the mission completes, and check the live track and the history; the
+(`python -m sitl_quad --speed 10`) until the mission completes, and check the live track and the history; the
 battery gauge shows the vehicle's charge live. Then hostile text: a vehicle (the ArduCopter double, real MAVLink
 over UDP) whose STATUSTEXTs and a buoy file whose ids carry markup and script, shown literally on the page and
 in the report, where nothing of it runs; so are the inspection's texts (a buoy's id, the reason it was not
@@ -91,8 +91,9 @@ BATTERY_PERCENT = 60  # the simulated vehicle's charge at start
 
 @pytest.fixture
 def stack(tmp_path):
-    """The vehicle (lockstep, its pack at BATTERY_PERCENT) and `python -m gcs serve` on free ports; yields the
-    page's URL."""
+    """The vehicle (10x real time, its pack at BATTERY_PERCENT) and `python -m gcs serve` on free ports; yields the
+    page's URL. Paced, not lockstep: with no offboard controller a lockstep vehicle runs freely, a whole core spent
+    on simulating the ground while the service starts and the page loads (the flight takes a few seconds longer)."""
     udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
     logs = open(tmp_path / "stack.log", "w")  # noqa: SIM115 - closed below
     vehicle = subprocess.Popen(
@@ -102,7 +103,8 @@ def stack(tmp_path):
             "sitl_quad",
             "--port",
             str(udp),
-            "--lockstep",
+            "--speed",
+            "10",
             "--battery-percent",
             str(BATTERY_PERCENT),
         ],
@@ -525,13 +527,12 @@ def test_a_multi_sortie_mission_shows_its_sorties_and_their_energy(service_with_
 
 @pytest.fixture
 def fleet_service(tmp_path):
-    """Three vehicles (`python -m sitl_quad --sysid N`, homes 160 m apart, at twice real time: the flight outlasts a
-    page slow to open on a loaded machine) and `python -m gcs serve` linked to each; yields the service's URL once
-    it has heard all three."""
+    """Three vehicles (`python -m sitl_quad --sysid N`, homes 160 m apart) and `python -m gcs serve` linked to
+    each; yields the service's URL once it has heard all three."""
     frame = LocalFrame(*DEFAULT_HOME)
     homes = {1: DEFAULT_HOME, 2: frame.from_ned(0.0, 160.0, 0.0), 3: frame.from_ned(160.0, 0.0, 0.0)}
     vehicles = [
-        SitlProcess(speed=2.0, extra_args=("--sysid", str(n), "--home", ",".join(f"{v:.8f}" for v in home))).start()
+        SitlProcess(speed=5.0, extra_args=("--sysid", str(n), "--home", ",".join(f"{v:.8f}" for v in home))).start()
         for n, home in homes.items()
     ]
     http = free_port(socket.SOCK_STREAM)
@@ -585,6 +586,11 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         {"id": f"B{i + 1}", "lat": float(lat), "lon": float(lon)}
         for i, (lat, lon, _) in enumerate(frame.from_ned(n, e, 0.0) for n, e in places)
     ]
+    # planned, and started once the page shows it: started at once, the shares (a few seconds of wall clock each at
+    # 5x) could all be flown before a loaded machine's browser had drawn the vehicles, which then never moved again
+    mission = post_json(f"{url}/missions", {"vehicles": "fleet", "buoys": buoys, "start": False})
+    shares = mission["fleet"]["shares"]  # a fleet mission flies its shares (FleetShareOut), no tour of its own
+    assert mission["sorties"] == [] and mission["route"] == []
     errors: list[str] = []
     with sync_playwright() as p:
         browser, page = open_page(p, errors)
@@ -596,24 +602,20 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         for sysid in (1, 2, 3):
             expect(page.locator(f".leaflet-marker-icon[title='vehicle {sysid}']")).to_have_count(1, timeout=30_000)
         expect(page.locator(".leaflet-marker-icon.vehicle-icon")).to_have_count(3)
-        # flown once the page is up (a page slow to start on a loaded machine saw the whole flight end before it),
-        # and the page opened again: it shows the latest mission when it opens
-        mission = post_json(f"{url}/missions", {"vehicles": "fleet", "buoys": buoys})
-        shares = mission["fleet"]["shares"]  # a fleet mission flies its shares (FleetShareOut), no tour of its own
-        assert mission["sorties"] == [] and mission["route"] == []
-        page.reload()
-        expect(page.locator(".leaflet-marker-icon.vehicle-icon")).to_have_count(3, timeout=30_000)
-        # and they move as the stream says: a vehicle flying its share leaves where it was first drawn (measured
-        # from a buoy's icon, so that the map panning meanwhile moves nothing; the view is fitted to the routes
-        # before the mission shows as flying)
+        # and they move as the stream says: a vehicle flying its share leaves where it was first drawn, at home
+        # before the start (measured from a buoy's icon, so that the map panning meanwhile moves nothing; the view
+        # is fitted to the routes once they are drawn)
+        routes = page.locator(".leaflet-overlay-pane path[stroke-dasharray]")
+        expect(routes).to_have_count(len(shares), timeout=30_000)
         flier = f".leaflet-marker-icon[title='vehicle {shares[0]['sysid']}']"  # a vehicle given buoys
         offset = f"""() => {{
             const vehicle = document.querySelector("{flier}").getBoundingClientRect();
             const buoy = document.querySelector(".buoy-icon").getBoundingClientRect();
             return [vehicle.x - buoy.x, vehicle.y - buoy.y];
         }}"""
-        expect(page.locator("#mission-status")).to_contain_text("flying", timeout=120_000)
         first_drawn = page.evaluate(offset)
+        post_json(f"{url}/missions/{mission['id']}/start", {})
+        expect(page.locator("#mission-status")).to_contain_text("flying", timeout=120_000)
         try:
             page.wait_for_function(
                 f"(first) => {{ const [x, y] = ({offset})(); return Math.hypot(x - first[0], y - first[1]) > 3; }}",
@@ -623,7 +625,6 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         except PlaywrightTimeoutError:  # say whether the vehicles flew and the page missed it, or they never flew
             raise AssertionError(fleet_state(url, mission["id"], tmp_path / "service.log")) from None
         # each vehicle's route in its own colour, and the legend naming each one's share
-        routes = page.locator(".leaflet-overlay-pane path[stroke-dasharray]")
         expect(routes).to_have_count(len(shares))
         assert len({routes.nth(k).get_attribute("stroke") for k in range(len(shares))}) == len(shares)
         legend = page.get_by_test_id("sortie-legend").locator("li")
