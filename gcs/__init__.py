@@ -14,8 +14,8 @@ from the bottom up:
   manager; `errors` what it raises), `autopilots`, `mission_protocol` (upload/download), `parameters`, `ftp`
   (files over MAVLink FTP), `camera` (the vehicle's camera: found, its lens read, its capture reports checked)
 - `reports` what is shown of stored missions: `views` (records -> documents), `report` (PNG figures +
-  index.html, cached per mission), `fleet_report`, `drawing` (what both draw with), `exports` (track.geojson,
-  QGC .plan and WPL 110, inspections CSV and GeoJSON), `track_display`
+  index.html, cached per mission; its inspection section `inspection_report`), `fleet_report`, `drawing` (what
+  both draw with), `exports` (track.geojson, QGC .plan and WPL 110, inspections CSV and GeoJSON), `track_display`
 - `settings` (every default, overridable from BUOY_GCS_* variables)
 - `missions` the work: `validation` (limits -> 422), `energy_planning`, `recorder` (a mission's samples and
   progress), `results` (a flown mission's figures), `inspector` (a sortie's camera frames to a verdict per buoy),

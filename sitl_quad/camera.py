@@ -4,9 +4,10 @@ Pure computation (the MAVLink camera component, sitl_quad.mavlink.camera, writes
 - `CameraSpec`: the figures CAMERA_INFORMATION reports, from which the renderer's intrinsics follow
   (DEFAULT_SPEC gives sitl_quad.camera_render.DEFAULT_CAMERA).
 - `CaptureSchedule`: MAV_CMD_IMAGE_START_CAPTURE's single shot or interval x count (0: until stopped), on the
-  simulated clock, so a lockstep run captures the same instants at any speed. Capture k of a sequence is due at
-  start + k * interval; the first at once. Images are numbered from 0 for the camera's whole life
-  (CAMERA_IMAGE_CAPTURED.image_index = image_count - 1, MAVLink's camera protocol).
+  simulated clock, so a lockstep run captures the same instants at any speed. The first capture of a sequence is
+  taken at once (the first tick at or after the start), capture k is due k intervals after it. Images are
+  numbered from 0 for the camera's whole life (CAMERA_IMAGE_CAPTURED.image_index = image_count - 1, MAVLink's
+  camera protocol).
 - `WorldView`: the buoy world (uavcore.buoy_world) as the renderer's Scene at time t: each buoy where it floats
   in the wind and current, in its IALA paint, its light drawn only while its actual character shows it.
 - `camera_pose`: the camera's pose for the renderer from the vehicle's local NED position (origin at home) and
@@ -64,6 +65,8 @@ class CaptureSchedule:
         self.remaining: int | None = 0  # captures left in the sequence; None: until stopped
         self.next_at: float | None = None
         self.image_count = 0  # captured in the camera's life
+        self._start = 0.0
+        self._step = 0
 
     @property
     def interval_running(self) -> bool:
@@ -71,11 +74,18 @@ class CaptureSchedule:
         return self.next_at is not None and self.interval_s > 0 and self.remaining != 1
 
     def start(self, t: float, interval_s: float, count: int) -> None:
-        """From t: count captures (0: until stop()) interval_s apart; count 1 is a single shot."""
-        if count < 0 or (count != 1 and not interval_s > 0):
+        """From t: count captures (0: until stop()) interval_s apart; count 1 is a single shot.
+
+        The interval is taken to the microsecond: MAVLink carries it as a float32 (0.1 s arrives as
+        0.10000000149 s), whose excess would otherwise make every capture meant for a tick wait for the next one.
+        """
+        interval = round(interval_s, 6) if math.isfinite(interval_s) else 0.0
+        if count < 0 or (count != 1 and not interval > 0):
             raise ValueError(f"capture sequence of {count} images every {interval_s} s")
-        self.interval_s = interval_s if count != 1 else 0.0
+        self.interval_s = interval if count != 1 else 0.0
         self.remaining = None if count == 0 else count
+        self._start = t  # set again by the first capture
+        self._step = 0  # next_at = start + step * interval, never a running sum
         self.next_at = t
 
     def stop(self) -> None:
@@ -88,15 +98,18 @@ class CaptureSchedule:
             return None
         index = self.image_count
         self.image_count += 1
+        if self._step == 0:  # the grid runs from the first capture: a command handled between two ticks is
+            self._start = t  # taken at the next one, and the others follow it at whole intervals
         if self.remaining is not None:
             self.remaining -= 1
         if self.remaining == 0:
             self.stop()
         else:
-            self.next_at += self.interval_s
-            if self.next_at < t - TIME_TOLERANCE_S:  # a stall (the process was suspended): resume on the grid
-                missed = math.ceil((t - self.next_at) / self.interval_s)
-                self.next_at += missed * self.interval_s
+            self._step += 1
+            behind = t - (self._start + self._step * self.interval_s)
+            if behind > TIME_TOLERANCE_S:  # a stall (the process was suspended): resume on the grid
+                self._step += math.ceil(behind / self.interval_s)
+            self.next_at = self._start + self._step * self.interval_s
         return index
 
 

@@ -20,6 +20,11 @@ carries the same mode and arming), the slower ground-station streams, command ac
 node's DEBUG_VECT. Without a controller the harness just ticks the vehicle, as the lockstep server does when
 no offboard peer streams: the vehicle's built-in PID cascade flies ("PX4 defaults").
 
+A harness may carry the server's payload (`carry_payload`: the camera on its gimbal, sitl_quad.mavlink.payload):
+it runs the mission's camera and gimbal items and captures after each tick as the lockstep server does,
+rendering and writing each frame before the next tick; what the payload would send is dropped (its
+CAMERA_IMAGE_CAPTURED messages stay readable in `payload.camera.captured`).
+
 Ground-station actions (`upload_mission`, `arm`, `start_mission`) take effect between two ticks, as a
 command arriving while the lockstep server waits does; missions go through a MISSION_ITEM_INT round trip.
 """
@@ -27,14 +32,18 @@ command arriving while the lockstep server waits does; missions go through a MIS
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 from types import SimpleNamespace
 
 from adrc_offboard.node import OffboardProtocol
+from sitl_quad.camera import DEFAULT_SPEC, CameraSpec, Environment
 from sitl_quad.mavlink.commands import Commands
 from sitl_quad.mavlink.heartbeat import heartbeat_message
 from sitl_quad.mavlink.offboard import Offboard
+from sitl_quad.mavlink.payload import Payload
 from sitl_quad.mavlink.telemetry import ONBOARD_STREAMS, Telemetry
-from sitl_quad.vehicle import CommandResult, TickRecord, Vehicle
+from sitl_quad.vehicle import CommandResult, TickRecord, Vehicle, VehicleEvent
+from uavcore.buoy_world import World
 from uavcore.control import OuterLoopController
 from uavcore.mavlink import item_from_message, item_message, mavlink
 from uavcore.mission import MissionItem
@@ -82,6 +91,27 @@ class LockstepHarness:
         self._to_node = _WireCodec(*VEHICLE_IDS)
         self._to_vehicle = _WireCodec(*OFFBOARD_IDS)
         self._from_gcs = _WireCodec(*GCS_IDS)
+        self.payload: Payload | None = None
+        self.last_events: list[VehicleEvent] = []  # what the last tick would have published
+
+    def carry_payload(
+        self,
+        image_dir: Path,
+        world: World | None = None,
+        current: Environment | None = None,
+        spec: CameraSpec = DEFAULT_SPEC,
+    ) -> Payload:
+        """Give the vehicle the server's camera on its gimbal (module docstring); `image_dir` must exist."""
+        link = SimpleNamespace(
+            sysid=VEHICLE_IDS[0],
+            compid=VEHICLE_IDS[1],
+            send=_discard,
+            send_batch=_discard,
+            live_peers=list,
+            add_component=_discard,
+        )
+        self.payload = Payload(self.vehicle, link, self._commands, image_dir, world, current, spec=spec)
+        return self.payload
 
     # ----- ground-station actions, between ticks
     def upload_mission(self, items: list[MissionItem]) -> None:
@@ -105,7 +135,13 @@ class LockstepHarness:
     def tick(self) -> TickRecord:
         """The vehicle's tick alone: where the lockstep server writes its flight-log row."""
         record = self.vehicle.tick()
-        self.vehicle.events.clear()  # what the server would publish; nothing here listens
+        # what the server would publish: only the payload's mission items are acted on here
+        self.last_events, self.vehicle.events = self.vehicle.events, []
+        if self.payload is not None:
+            for event in self.last_events:
+                if event.kind == "payload_item":
+                    self.payload.run_mission_item(event.seq)
+            self.payload.tick()
         return record
 
     def exchange(self) -> None:

@@ -24,6 +24,7 @@ from sitl_quad.mavlink.link import UdpLink
 from sitl_quad.mavlink.mission import MissionProtocol
 from sitl_quad.mavlink.offboard import Offboard
 from sitl_quad.mavlink.parameters import Parameters
+from sitl_quad.mavlink.payload import Payload
 from sitl_quad.mavlink.telemetry import Telemetry
 from sitl_quad.pacing import WallPacing
 from sitl_quad.params import ParameterTable
@@ -92,14 +93,17 @@ class VehicleServer:
             self.dispatch.update(capability.handlers())
         self._setpoint_types = set(self.offboard.handlers())
         # ----- the camera on its gimbal: the gimbal manager is the autopilot's, the camera its own component
+        self.payload: Payload | None = None
         self.gimbal: GimbalManager | None = None
         self.camera: CameraComponent | None = None
         if image_dir is not None:
-            self.gimbal = GimbalManager(vehicle, link, self.commands)
             boot_unix_us = self.telemetry.boot_unix_us
-            self.camera = CameraComponent(
-                vehicle, link, self.gimbal.gimbal, image_dir, world, current, boot_unix_us=boot_unix_us
-            )
+            # paced, frames are made in a worker process so the ticks stay on time; lockstep, in the loop (exact)
+            self.payload = Payload(
+                vehicle, link, self.commands, image_dir, world, current, boot_unix_us=boot_unix_us,
+                frames_in_loop=lockstep,
+            )  # fmt: skip
+            self.gimbal, self.camera = self.payload.gimbal, self.payload.camera
             self.dispatch.update(self.gimbal.handlers())
         self._log_file = None
         self._log_writer = None
@@ -157,7 +161,8 @@ class VehicleServer:
                     self.armed_lateness_s.append(self.tick_lateness_s[-1])
             record = self.vehicle.tick()
             self._publish_events()
-            self._payload_tick()
+            if self.payload is not None:
+                self.payload.tick()
             self.telemetry.publish_due()
             if self._log_writer is not None:
                 self._write_log(record)
@@ -169,23 +174,6 @@ class VehicleServer:
     def _request_message(self, msg_id: float) -> CommandResult:
         answered = self.gimbal.request_message(int(msg_id)) if self.gimbal and math.isfinite(msg_id) else None
         return answered if answered is not None else self.telemetry.request_message(msg_id)
-
-    def _payload_tick(self) -> None:
-        """After each tick: the gimbal moves, the camera takes what is due at this instant (before simulated time
-        goes on, so lockstep captures exactly there), the gimbal's status streams."""
-        if self.gimbal is None or self.camera is None:
-            return
-        self.gimbal.update()
-        self.camera.capture_due()
-        self.gimbal.publish_due()
-
-    def _run_payload_item(self, seq: int) -> None:
-        """A camera or gimbal mission item the navigator reached (PX4 re-issues them as commands)."""
-        if self.gimbal is None or self.camera is None or not 0 <= seq < len(self.vehicle.mission):
-            return
-        item = self.vehicle.mission[seq]
-        if not self.gimbal.run_mission_item(item):
-            self.camera.run_mission_item(item)
 
     def arrival_step(self) -> int:
         """Paced mode: the physics step the message being handled arrived at (sitl_quad.pacing)."""
@@ -221,7 +209,8 @@ class VehicleServer:
             self._report_offboard_loss()
             return
         if event.kind == "payload_item":
-            self._run_payload_item(event.seq)
+            if self.payload is not None:
+                self.payload.run_mission_item(event.seq)
             return
         if event.kind == "text" or (event.kind in ("armed", "mission_complete") and event.text):
             self.send(mavlink.MAVLink_statustext_message(event.severity, event.text.encode()[:50]))
@@ -342,6 +331,8 @@ class VehicleServer:
         }
 
     def close(self) -> None:
+        if self.payload is not None:
+            self.payload.close()
         if self._log_file is not None:
             self._log_file.close()
             self._log_file = self._log_writer = None

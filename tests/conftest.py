@@ -2,15 +2,55 @@
 
 from __future__ import annotations
 
+import json
+from collections import defaultdict
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
+from longest_first import RECORDED_FROM_S, LongestFirstScheduling
 from postgres_server import PostgresServer, postgres_bindir
 from sitl_process import GroundStation, SitlProcess
 
 # The fixtures below that start a real process: the vehicle (`python -m sitl_quad`) or a PostgreSQL server.
 # `make test-fast` leaves the integration tier out, so a test using one must carry that marker.
 PROCESS_FIXTURES = frozenset({"start_sitl", "shared_sitl", "postgres_server"})
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--record-durations",
+        metavar="PATH",
+        help="write each test's seconds (setup, call, teardown) to PATH as JSON, for the longest-first order "
+        "of `pytest -n N` (tests/longest_first.py)",
+    )
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log) -> LongestFirstScheduling | None:
+    """`-n N` (xdist's `--dist load`, the default) hands the tests out longest first; another --dist is xdist's."""
+    return LongestFirstScheduling(config, log) if config.getvalue("dist") == "load" else None
+
+
+class DurationRecorder:
+    """--record-durations: in the process that reports every test (the only one, or xdist's controller)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.seconds: defaultdict[str, float] = defaultdict(float)
+
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        self.seconds[report.nodeid] += report.duration
+
+    def pytest_sessionfinish(self) -> None:
+        kept = {nodeid: round(s, 1) for nodeid, s in sorted(self.seconds.items()) if s >= RECORDED_FROM_S}
+        self.path.write_text(json.dumps(kept, indent=0) + "\n")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    path = config.getoption("--record-durations")
+    if path and not hasattr(config, "workerinput"):
+        config.pluginmanager.register(DurationRecorder(Path(path)), "record-durations")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

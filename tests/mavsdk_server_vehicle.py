@@ -265,7 +265,8 @@ def parse_home(text: str) -> tuple[float, float, float]:
     return lat, lon, alt
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, vehicle_type: type[MavsdkServerVehicle] | None = None) -> int:
+    """Run the double (or `vehicle_type`, a subclass taking the same arguments) until SIGTERM."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--connect", required=True, help="MAVSDK connection URL, e.g. udpout://127.0.0.1:14550")
     parser.add_argument("--items-out", type=Path, required=True, help="JSON file for the uploaded mission items")
@@ -277,7 +278,7 @@ def main(argv: list[str] | None = None) -> int:
         "--unix-time", action="store_true", help="publish SYSTEM_TIME (TelemetryServer.publish_unix_epoch_time)"
     )
     args = parser.parse_args(argv)
-    vehicle = MavsdkServerVehicle(args.connect, args.home, args.speed, args.items_out, args.unix_time)
+    vehicle = (vehicle_type or MavsdkServerVehicle)(args.connect, args.home, args.speed, args.items_out, args.unix_time)
     signal.signal(signal.SIGTERM, lambda *_: vehicle.stopping.set())
     signal.signal(signal.SIGINT, lambda *_: vehicle.stopping.set())
     print(f"MAVSDK {vehicle.mavsdk.version()} autopilot on {args.connect}", flush=True)

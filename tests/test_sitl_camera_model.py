@@ -130,6 +130,21 @@ def test_interval_and_count_capture_at_their_simulated_instants():
     assert not schedule.interval_running and schedule.image_count == 5
 
 
+def test_an_interval_sent_as_float32_still_captures_on_the_ticks_it_means():
+    """MAVLink's float32 makes 0.1 s 0.10000000149 s and 0.075 s 0.07500000298 s: no capture may slip a tick."""
+    for interval, expected in ((0.1, [1.0, 1.1, 1.2, 1.3, 1.4, 1.5]), (0.075, [1.0, 1.08, 1.16, 1.24, 1.3, 1.38])):
+        schedule = CaptureSchedule()
+        schedule.start(1.0, float(np.float32(interval)), len(expected))
+        assert [t for t, _ in run_schedule(schedule, 1.0, 3.0)] == expected
+
+
+def test_a_sequence_started_between_ticks_runs_from_its_first_capture():
+    """A command handled after the tick at 1.0 (its capture already taken) is first captured by the tick at 1.02."""
+    schedule = CaptureSchedule()
+    schedule.start(1.0, 0.2, 3)
+    assert [t for t, _ in run_schedule(schedule, 1.02, 3.0)] == [1.02, 1.22, 1.42]
+
+
 def test_single_shot_and_numbering_across_sequences():
     schedule = CaptureSchedule()
     schedule.start(0.0, 0.0, 1)

@@ -1,15 +1,18 @@
 """The map page in a real browser (headless Chromium via Playwright) against the real service and vehicle.
 
 Place four buoys by clicking the map, plan (the route and its length appear), fly against the SITL vehicle
-(`python -m sitl_quad --lockstep`) until the mission completes, and check the live track and the history; the
+(`python -m sitl_quad --speed 10`) until the mission completes, and check the live track and the history; the
 battery gauge shows the vehicle's charge live. Then hostile text: a vehicle (the ArduCopter double, real MAVLink
 over UDP) whose STATUSTEXTs and a buoy file whose ids carry markup and script, shown literally on the page and
-in the report, where nothing of it runs. A multi-sortie mission (the energy model's pack at 1000 mAh splits the
-reference buoys in three) shows each sortie in its own colour with a legend, and its predicted against used
-energy per sortie. A plan's answer that arrives after the buoys changed is dropped, and Plan and Fly wait for the
-request in flight. Screenshots go to test-artifacts/.
+in the report, where nothing of it runs; so are the inspection's texts (a buoy's id, the reason it was not
+inspected, its findings, its light read, the camera's name), in the panel, the frames' gallery and the report.
+A multi-sortie mission (the energy model's pack at 1000 mAh splits the reference buoys in three) shows each sortie
+in its own colour with a legend, and its predicted against used energy per sortie. A plan's answer that arrives
+after the buoys changed is dropped, and Plan and Fly wait for the request in flight. Screenshots go to
+test-artifacts/.
 """
 
+import io
 import json
 import re
 import socket
@@ -22,6 +25,7 @@ from urllib.parse import urlsplit
 
 import pytest
 from ardupilot_double import ArduCopterDouble
+from PIL import Image
 from playwright.sync_api import Browser, Page, Playwright, expect, sync_playwright
 from playwright.sync_api import TimeoutError as PlaywrightTimeoutError
 from service_process import serving
@@ -30,6 +34,7 @@ from stored_missions import SORTIES_FLOWN
 
 from bench.long_mission import store_long_mission
 from bench.processes import free_port, stop_process
+from gcs.domain.inspection import Finding, StoredFrame
 from gcs.domain.records import MissionProgress
 from gcs.domain.schemas import PreflightCheck
 from gcs.storage import open_storage
@@ -86,8 +91,9 @@ BATTERY_PERCENT = 60  # the simulated vehicle's charge at start
 
 @pytest.fixture
 def stack(tmp_path):
-    """The vehicle (lockstep, its pack at BATTERY_PERCENT) and `python -m gcs serve` on free ports; yields the
-    page's URL."""
+    """The vehicle (10x real time, its pack at BATTERY_PERCENT) and `python -m gcs serve` on free ports; yields the
+    page's URL. Paced, not lockstep: with no offboard controller a lockstep vehicle runs freely, a whole core spent
+    on simulating the ground while the service starts and the page loads (the flight takes a few seconds longer)."""
     udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
     logs = open(tmp_path / "stack.log", "w")  # noqa: SIM115 - closed below
     vehicle = subprocess.Popen(
@@ -97,7 +103,8 @@ def stack(tmp_path):
             "sitl_quad",
             "--port",
             str(udp),
-            "--lockstep",
+            "--speed",
+            "10",
             "--battery-percent",
             str(BATTERY_PERCENT),
         ],
@@ -239,7 +246,29 @@ def double_and_service(tmp_path):
     logs.close()
 
 
-def test_text_from_the_vehicle_and_from_files_shows_literally_and_never_runs(double_and_service):
+def hostile_inspection(db: Path, mission_id: int) -> None:
+    """The first buoy's record made of markup: judged a defect whose finding, light read and reason carry IMG_TEXT
+    and SCRIPT_TEXT, with a frame; and the camera named IMG_TEXT (as a camera's CAMERA_INFORMATION could)."""
+    storage = open_storage(db)
+    record = storage.inspections(mission_id)[0]
+    jpeg = io.BytesIO()
+    Image.new("RGB", (64, 36), (40, 70, 90)).save(jpeg, "JPEG")
+    lat, lon = record.result.buoy.lat, record.result.buoy.lon
+    frame = StoredFrame(buoy=record.buoy, image_index=0, t_s=1.0, lat=lat, lon=lon, height_m=5.0, q=(1, 0, 0, 0),
+                        file_url=IMG_TEXT)  # fmt: skip
+    frame_id = storage.add_frame(mission_id, frame, jpeg.getvalue(), 1_000_000)
+    finding = Finding(code="wrong_character", charted=IMG_TEXT, seen=SCRIPT_TEXT)
+    result = record.result.model_copy(
+        update={"verdict": "defect", "findings": [finding], "light_seen": IMG_TEXT, "reason": SCRIPT_TEXT}
+    )
+    storage.set_inspection(mission_id, record.model_copy(update={"result": result, "frame_ids": [frame_id],
+                                                                 "best_frame": frame_id}))  # fmt: skip
+    progress = storage.get_mission(mission_id).progress
+    storage.set_progress(mission_id, progress.model_copy(update={"camera": IMG_TEXT}))
+    storage.close()
+
+
+def test_text_from_the_vehicle_and_from_files_shows_literally_and_never_runs(double_and_service, tmp_path):
     url, double = double_and_service
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
@@ -277,11 +306,35 @@ def test_text_from_the_vehicle_and_from_files_shows_literally_and_never_runs(dou
         assert page.evaluate("window.injected") is None
         page.screenshot(path=str(ARTIFACTS / "web_hostile_text.png"))
 
+        # the inspections (the double has no camera: each buoy not inspected, said at upload) list the ids as text;
+        # then the first buoy's record and the camera's name made of markup show as text in the list and gallery
+        inspections = page.get_by_test_id("inspection-list")
+        expect(inspections.get_by_test_id("inspection-row")).to_have_count(2)
+        expect(inspections).to_contain_text(IMG_TEXT)
+        expect(inspections).to_contain_text(SCRIPT_TEXT)
         mission_id = page.evaluate("fetch('/missions?limit=1').then(r => r.json()).then(m => m[0].id)")
-        page.goto(f"{url}/missions/{mission_id}/report/index.html")
+        hostile_inspection(tmp_path / "gcs.sqlite", mission_id)
+        expect(inspections).to_contain_text(f"why: {SCRIPT_TEXT}", timeout=10_000)
+        expect(inspections).to_contain_text(f"wrong light character: charted {IMG_TEXT}, seen {SCRIPT_TEXT}")
+        expect(inspections).to_contain_text(f"read {IMG_TEXT}")
+        expect(page.get_by_test_id("inspection-camera")).to_have_text(f"camera: {IMG_TEXT}")
+        markers.get_by_title(IMG_TEXT, exact=True).click()  # its frames
+        expect(page.get_by_test_id("gallery-title")).to_have_text(re.compile(rf"^✗ \d {re.escape(IMG_TEXT)}: defect$"))
+        expect(page.get_by_test_id("gallery-details")).to_contain_text(f"why: {SCRIPT_TEXT}")
+        page.wait_for_function("() => document.querySelector('#gallery-large').naturalWidth > 0", timeout=10_000)
+        assert page.locator("#panel img, .leaflet-marker-pane img, script:not([src]), img[src=x]").count() == 0
+        assert page.evaluate("window.injected") is None
+        page.screenshot(path=str(ARTIFACTS / "web_hostile_inspection.png"))
+
+        # drawn on this first request (eight figures: a loaded machine takes longer than Playwright's 30 s default)
+        page.goto(f"{url}/missions/{mission_id}/report/index.html", timeout=120_000)
         buoy_table = page.locator("table").nth(1)
         expect(buoy_table).to_contain_text(IMG_TEXT)
         expect(buoy_table).to_contain_text(SCRIPT_TEXT)
+        inspection_table = page.get_by_test_id("inspections")
+        for text in (IMG_TEXT, SCRIPT_TEXT, f"wrong light character: charted {IMG_TEXT}, seen {SCRIPT_TEXT}"):
+            expect(inspection_table).to_contain_text(text)
+        expect(page.locator("img[src='defect-0.jpg']")).to_have_count(1)  # its best frame, by the buoy's index
         assert page.locator("img[src=x], body script").count() == 0
         assert page.evaluate("window.injected") is None
         browser.close()
@@ -533,7 +586,9 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         {"id": f"B{i + 1}", "lat": float(lat), "lon": float(lon)}
         for i, (lat, lon, _) in enumerate(frame.from_ned(n, e, 0.0) for n, e in places)
     ]
-    mission = post_json(f"{url}/missions", {"vehicles": "fleet", "buoys": buoys})
+    # planned, and started once the page shows it: started at once, the shares (a few seconds of wall clock each at
+    # 5x) could all be flown before a loaded machine's browser had drawn the vehicles, which then never moved again
+    mission = post_json(f"{url}/missions", {"vehicles": "fleet", "buoys": buoys, "start": False})
     shares = mission["fleet"]["shares"]  # a fleet mission flies its shares (FleetShareOut), no tour of its own
     assert mission["sorties"] == [] and mission["route"] == []
     errors: list[str] = []
@@ -547,17 +602,20 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         for sysid in (1, 2, 3):
             expect(page.locator(f".leaflet-marker-icon[title='vehicle {sysid}']")).to_have_count(1, timeout=30_000)
         expect(page.locator(".leaflet-marker-icon.vehicle-icon")).to_have_count(3)
-        # and they move as the stream says: a vehicle flying its share leaves where it was first drawn (measured
-        # from a buoy's icon, so that the map panning meanwhile moves nothing; the view is fitted to the routes
-        # before the mission shows as flying)
+        # and they move as the stream says: a vehicle flying its share leaves where it was first drawn, at home
+        # before the start (measured from a buoy's icon, so that the map panning meanwhile moves nothing; the view
+        # is fitted to the routes once they are drawn)
+        routes = page.locator(".leaflet-overlay-pane path[stroke-dasharray]")
+        expect(routes).to_have_count(len(shares), timeout=30_000)
         flier = f".leaflet-marker-icon[title='vehicle {shares[0]['sysid']}']"  # a vehicle given buoys
         offset = f"""() => {{
             const vehicle = document.querySelector("{flier}").getBoundingClientRect();
             const buoy = document.querySelector(".buoy-icon").getBoundingClientRect();
             return [vehicle.x - buoy.x, vehicle.y - buoy.y];
         }}"""
-        expect(page.locator("#mission-status")).to_contain_text("flying", timeout=120_000)
         first_drawn = page.evaluate(offset)
+        post_json(f"{url}/missions/{mission['id']}/start", {})
+        expect(page.locator("#mission-status")).to_contain_text("flying", timeout=120_000)
         try:
             page.wait_for_function(
                 f"(first) => {{ const [x, y] = ({offset})(); return Math.hypot(x - first[0], y - first[1]) > 3; }}",
@@ -567,7 +625,6 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         except PlaywrightTimeoutError:  # say whether the vehicles flew and the page missed it, or they never flew
             raise AssertionError(fleet_state(url, mission["id"], tmp_path / "service.log")) from None
         # each vehicle's route in its own colour, and the legend naming each one's share
-        routes = page.locator(".leaflet-overlay-pane path[stroke-dasharray]")
         expect(routes).to_have_count(len(shares))
         assert len({routes.nth(k).get_attribute("stroke") for k in range(len(shares))}) == len(shares)
         legend = page.get_by_test_id("sortie-legend").locator("li")

@@ -2,8 +2,8 @@
 
 For a sortie flown with an inspection group per buoy (gcs.domain.planning.inspection_items) an `Inspector`:
 - takes every CAMERA_IMAGE_CAPTURED the camera sends, checks it (gcs.vehicle.camera.Capture), and gives it to the
-  buoy whose items were current when it was taken (its geotag's vehicle time against the MISSION_CURRENT changes
-  seen: the burst's report may arrive after the vehicle went on);
+  buoy whose items were current when it was taken (its geotag's time, moved from the camera's clock onto the
+  vehicle's, against the MISSION_CURRENT changes seen: the burst's report may arrive after the vehicle went on);
 - downloads each frame (MAVLink FTP from the camera; HTTP when its file_url is http(s)) up to `max_frame_bytes`,
   decodes it and looks for the buoy in it (gcs.domain.buoy_detection) in a worker thread, and stores the frame
   with what was found (up to the mission's `max_mission_frame_bytes`);
@@ -22,7 +22,7 @@ import io
 import logging
 import multiprocessing
 import time
-from collections import Counter, defaultdict
+from collections import Counter, defaultdict, deque
 from collections.abc import Sequence
 from concurrent.futures import BrokenExecutor, ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -47,6 +47,7 @@ log = logging.getLogger(__name__)
 SETTLE_S = 1.0  # vehicle seconds after the vehicle left a buoy's burst before its last report is taken as in
 HTTP_TIMEOUT_S = 10.0
 DRAIN_POLL_S = 1.0
+CLOCK_SAMPLES = 32  # the camera's latest time-stamped messages its clock's offset is taken from
 NO_CAMERA = "the vehicle has no camera"
 NOT_ASKED = "the mission asked for no inspection (inspect: false)"
 MAX_PIXELS = 50_000_000  # a frame larger than this is no camera's: refused before it is decoded
@@ -152,6 +153,7 @@ class Inspector:
         self.limits, self.analysis = limits, analysis
         self.layout = MissionLayout(len(plan.order), inspected=True)
         self._seqs: list[tuple[float, int]] = []  # (vehicle s, current item) at each change seen
+        self._clock_offsets: deque[float] = deque(maxlen=CLOCK_SAMPLES)  # vehicle s - camera s, as each arrived
         self._buoys: dict[int, _Buoy] = defaultdict(_Buoy)  # by position in the sortie's order
         self._work: asyncio.Queue[tuple[int, Capture] | int] = asyncio.Queue()  # frames, and positions to judge
         self._tasks: list[asyncio.Task] = []
@@ -210,7 +212,11 @@ class Inspector:
                 left, progress_at = self._work.qsize(), time.monotonic()
 
     def _heard(self, message: Any) -> None:
-        """Each MISSION_CURRENT change (vehicle time), and each buoy the vehicle has gone on from: judged."""
+        """Each MISSION_CURRENT change (vehicle time), and each buoy the vehicle has gone on from: judged; each
+        time-stamped message of the camera, for its clock (`_vehicle_time`)."""
+        boot_ms, now_ms = getattr(message, "time_boot_ms", 0), self.link.status.time_boot_ms
+        if message.get_srcComponent() == self.camera.component and boot_ms and now_ms:
+            self._clock_offsets.append((now_ms - boot_ms) / 1000.0)
         if message.get_type() != "MISSION_CURRENT" or message.get_srcComponent() != self.link.target[1]:
             return
         seq = self.link.autopilot.planned_seq(message.seq)
@@ -235,6 +241,17 @@ class Inspector:
             self._queued_judgement.add(position)
             self._work.put_nowait(position)
 
+    def _vehicle_time(self, capture: Capture) -> float:
+        """The capture's instant on the vehicle's clock, the one the MISSION_CURRENT changes are timed by.
+
+        CAMERA_IMAGE_CAPTURED's time_boot_ms is the camera's clock: the autopilot's only where the camera is a part
+        of it (our simulator's); a camera of its own counts from its own boot (MAVSDK's CameraServer stamps its
+        host's uptime), ahead of the autopilot or behind it. The offset comes from the camera's time-stamped
+        messages (CAMERA_IMAGE_CAPTURED, CAMERA_CAPTURE_STATUS...) as they arrive: the vehicle's latest time less
+        the message's stamp, the smallest of the recent ones (a message is sent as it is stamped; one slow in
+        coming only makes the difference larger)."""
+        return capture.geotag.t_s + min(self._clock_offsets, default=0.0)
+
     def _position_at(self, t_s: float) -> int | None:
         """The buoy whose items were current at vehicle time t_s."""
         current = None
@@ -256,7 +273,7 @@ class Inspector:
                     if position is not None:
                         self._buoys[position].problems[f"a malformed CAMERA_IMAGE_CAPTURED ({error})"] += 1
                     continue
-                position = self._position_at(capture.geotag.t_s)
+                position = self._position_at(self._vehicle_time(capture))
                 if position is None or position in self._queued_judgement:
                     log.info("mission %s: a frame outside any buoy's burst: %s", self.mission_id, capture.file_url)
                     continue

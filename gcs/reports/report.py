@@ -1,7 +1,9 @@
 """The mission report: the paper's Section VI (route, flown track, tracking error, altitude and yaw tracking,
 ESO estimates) drawn from one recorded mission, as PNG figures and an index.html with the figures table. A
 mission of several sorties draws each sortie's route in its own colour; one planned for a battery (issue 12) adds
-a per-sortie table and a chart of the energy predicted against the energy the vehicle reported using.
+a per-sortie table and a chart of the energy predicted against the energy the vehicle reported using. The
+inspection section (gcs.reports.inspection_report) tables every buoy's verdict, findings and light read, maps the
+buoys by verdict and shows each defective buoy's best frame, copied into the folder.
 
 `report_series` turns the stored samples into time series (pure); `write_report` draws them into a folder;
 `cached_report` keeps one folder per mission under a cache root and redraws it only when the mission changed
@@ -25,16 +27,29 @@ from gcs.domain.records import MissionResults
 from gcs.domain.schemas import SortieOut
 from gcs.reports.drawing import REPORT_STYLE, SORTIE_COLOURS, column, new_figure, save_figure, sortie_style
 from gcs.reports.fleet_report import FLEET_FIGURE, write_fleet_report
+from gcs.reports.inspection_report import (
+    INSPECTION_FIGURE,
+    InspectionSection,
+    is_frame_file,
+    load_inspections,
+    write_inspection_section,
+)
 from gcs.reports.views import sorties_out
 from gcs.storage import MissionRecord, Storage
 
 FIGURES = ("route.png", "tracking_error.png", "cross_track.png", "altitude.png", "yaw.png", "eso.png")
 ENERGY_FIGURE = "energy.png"  # drawn only for a mission planned with energy figures
-# every file a report folder may hold (a fleet mission's report: index.html and FLEET_FIGURE only)
-REPORT_FILES = ("index.html", *FIGURES, ENERGY_FIGURE, FLEET_FIGURE)
+# every file a report folder may hold (a fleet mission's report: index.html and FLEET_FIGURE only), besides the
+# defective buoys' frames (is_report_file)
+REPORT_FILES = ("index.html", *FIGURES, ENERGY_FIGURE, INSPECTION_FIGURE, FLEET_FIGURE)
 # Okabe & Ito's colour-blind-safe palette less its yellow and black, as the map page draws sorties
 # (gcs/web/sorties.js); past six sorties the colours repeat with another dash.
 STAMP_FILE = "stamp.json"
+
+
+def is_report_file(name: str) -> bool:
+    """Whether `name` may be a file of a report folder (what GET /missions/{id}/report/{name} serves)."""
+    return name in REPORT_FILES or is_frame_file(name)
 
 
 class ReportError(LookupError):
@@ -285,8 +300,14 @@ def _draw_eso(series: ReportSeries, path: Path) -> None:
     _draw_lines(path, "ESO total-disturbance estimates z3 (paper eq. 11, Figure 7)", "m/s²", series.t_s, lines)
 
 
-def write_report(record: MissionRecord, samples: list[dict[str, Any]], out_dir: Path) -> Path:
-    """Draw every figure and write index.html into out_dir; returns the index.html path."""
+def write_report(
+    record: MissionRecord,
+    samples: list[dict[str, Any]],
+    out_dir: Path,
+    inspections: InspectionSection | None = None,
+) -> Path:
+    """Draw every figure and write index.html into out_dir; returns the index.html path. `inspections`: the
+    mission's inspection records and defective buoys' best frames (none: the section says there are none)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     plan = record.plan
     series = report_series(samples)
@@ -326,9 +347,12 @@ def write_report(record: MissionRecord, samples: list[dict[str, Any]], out_dir: 
     if plan.energy:
         _draw_energy(sorties, plan.energy.budget_wh, out_dir / ENERGY_FIGURE)
         figures = (*FIGURES, ENERGY_FIGURE)
+    flown = np.isfinite(series.east) & np.isfinite(series.north)
+    track = np.column_stack([series.east[flown], series.north[flown]])
+    inspection = write_inspection_section(plan, inspections or InspectionSection(), track, out_dir)
     index = out_dir / "index.html"
     shown = sorties if plan.sorties or plan.energy else []
-    index.write_text(report_html(record, summary_rows(record, series), shown, figures))
+    index.write_text(report_html(record, summary_rows(record, series), shown, figures, inspection))
     return index
 
 
@@ -343,9 +367,11 @@ def report_html(
     rows: list[tuple[str, str]],
     sorties: list[SortieOut] | None = None,
     figures: tuple[str, ...] = FIGURES,
+    inspection: str = "",
 ) -> str:
-    """The page: figures table, per-sortie table (for `sorties`, SortieOut documents), per-buoy table, then the
-    PNGs (by relative name, so the folder is portable)."""
+    """The page: figures table, per-sortie table (for `sorties`, SortieOut documents), per-buoy table, the
+    inspection section (`inspection`, HTML already escaped), then the PNGs (by relative name, so the folder is
+    portable)."""
     table = "\n".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows)
     buoys = (record.results or MissionResults()).buoys or []
     buoy_rows = "\n".join(
@@ -370,6 +396,8 @@ def report_html(
 <tbody>
 {buoy_rows}
 </tbody></table>
+{inspection}
+<h2>Flight</h2>
 {images}
 </body></html>
 """
@@ -442,7 +470,7 @@ def write_stored_report(storage: Storage, record: MissionRecord, out_dir: Path) 
     """A stored mission's report into out_dir: a mission's (write_report), or a fleet mission's, over its parts'
     telemetry (gcs.reports.fleet_report)."""
     if not record.is_fleet:
-        return write_report(record, storage.telemetry(record.id), out_dir)
+        return write_report(record, storage.telemetry(record.id), out_dir, load_inspections(storage, record.id))
 
     parts = storage.fleet_parts(record.id)
     return write_fleet_report(record, parts, {part.id: storage.telemetry(part.id) for part in parts}, out_dir)

@@ -89,7 +89,13 @@ export class GcsApi {
     return this.request("POST", `/imports?filename=${encodeURIComponent(file.name)}`, await file.text(), type);
   }
 
-  // name: track.geojson, plan, waypoints or report
+  // Each buoy's inspection record so far (GET /missions/{id}/inspections: InspectionOut, by input index): verdict,
+  // findings, light read, the frames' URLs (GET /missions/{id}/frames/{frame}) and the best one's.
+  inspections(id) {
+    return this.request("GET", `/missions/${encodeURIComponent(id)}/inspections`);
+  }
+
+  // name: track.geojson, plan, waypoints, report, inspections.csv or inspections.geojson
   missionFileUrl(id, name) {
     return `/missions/${encodeURIComponent(id)}/${name}`;
   }

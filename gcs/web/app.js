@@ -1,14 +1,19 @@
-// The map page: place buoys, plan, fly, watch the vehicle live, browse history. This module wires the parts:
-// api.js (the service), state.js (what is shown), map.js (Leaflet), charts.js (uPlot), panel.js and
-// history.js (the text around the map). Leaflet and uPlot are served locally (no CDN), so it works offline.
+// The map page: place buoys, plan, fly, watch the vehicle live and each buoy's inspection, browse history. This
+// module wires the parts: api.js (the service), state.js (what is shown), map.js (Leaflet), charts.js (uPlot),
+// panel.js and history.js (the text around the map), inspections.js (the records fetched), findings.js (the
+// inspection list) and gallery.js (a buoy's frames). Leaflet and uPlot are served locally (no CDN), so it works
+// offline.
 import { ApiError, GcsApi } from "./api.js";
 import { FlightCharts } from "./charts.js";
 import { byId } from "./dom.js";
+import { showInspections } from "./findings.js";
+import { closeGallery, refreshGallery, showGallery, wireGallery } from "./gallery.js";
 import { showHistory } from "./history.js";
+import { InspectionFeed } from "./inspections.js";
 import { MissionMap } from "./map.js";
 import * as panel from "./panel.js";
 import { sortieLook } from "./sorties.js";
-import { buoyMarkings, buoysEditable, state } from "./state.js";
+import { buoyMarkings, buoysEditable, inspectionRows, state } from "./state.js";
 import { defineMissionStatus, isFinished, isUnderway } from "./status.js";
 
 const FALLBACK_DEPOT = { lat: 38.921, lon: 121.663 }; // when the service cannot tell the vehicle's home
@@ -39,9 +44,18 @@ function setDepot(depot) {
 
 function addBuoy(lat, lon, id = null) {
   const buoy = { id, lat, lon };
-  map.addBuoy(buoy, removeBuoy);
+  map.addBuoy(buoy, clickBuoy);
   state.buoys.push(buoy);
   invalidatePlan();
+}
+
+// A click on a buoy's marker: a buoy of the mission shown with an inspection record shows its frames; any other
+// is removed (while the buoys may be edited).
+function clickBuoy(buoy) {
+  const index = state.buoys.indexOf(buoy);
+  const row = inspectionRows().find((r) => r.index === index);
+  if (row && row.record) showGallery(row);
+  else removeBuoy(buoy);
 }
 
 function removeBuoy(buoy) {
@@ -61,12 +75,23 @@ function invalidatePlan() {
   state.plan = null;
   map.clearRoute();
   panel.clearPlanSummary();
+  closeGallery();
   relabelBuoys();
 }
 
+// The markers (visiting rank, progress, sortie, verdict) and the inspection list, from what the page knows now.
 function relabelBuoys() {
   panel.showBuoyCount(state.buoys.length);
-  map.markBuoys(state.buoys, buoyMarkings());
+  const markings = buoyMarkings();
+  map.markBuoys(state.buoys, markings);
+  const id = state.missionId;
+  const exports = {
+    csv: api.missionFileUrl(id, "inspections.csv"),
+    geojson: api.missionFileUrl(id, "inspections.geojson"),
+  };
+  const camera = state.progress ? state.progress.camera : null;
+  const open = (row) => row.record && showGallery(row);
+  showInspections(inspectionRows(markings), `${id} ${state.inspectionsSeq}`, camera, exports, open);
 }
 
 function flightRequest() {
@@ -119,11 +144,41 @@ function watchingFlight() {
   return true;
 }
 
+// ----- inspections: the watched mission's records, fetched when it is opened and as its progress changes
+let recordsText = null; // the latest answer as fetched, so that an unchanged one redraws nothing
+let liveProgressText = null; // the latest progress the live stream brought
+
+const inspectionFeed = new InspectionFeed(
+  (id) => api.inspections(id),
+  (_id, records) => {
+    const text = JSON.stringify(records);
+    if (text === recordsText) return;
+    recordsText = text;
+    state.inspections = new Map(records.map((record) => [record.index, record]));
+    state.inspectionsSeq += 1;
+    relabelBuoys();
+    refreshGallery(inspectionRows());
+  },
+  (error) => {
+    panel.say(error.message);
+    if (!(error instanceof ApiError)) throw error;
+  },
+);
+
+function watchInspections(missionId) {
+  state.inspections = new Map();
+  state.inspectionsSeq += 1;
+  recordsText = null;
+  closeGallery();
+  inspectionFeed.watch(missionId);
+}
+
 // ----- a mission: planned route, status, figures
 // Watch a mission: its own route (not the plan shown before: the service plans the mission's sorties anew when
-// it creates it), then its status as it changes.
+// it creates it), then its status and its inspections as they change.
 function startWatching(mission) {
   state.missionId = mission.id;
+  watchInspections(mission.id);
   map.setTrack([]);
   charts.clear();
   showPlan(mission);
@@ -141,7 +196,9 @@ const pollMission = showingErrors(async () => {
   if (!state.missionId) return;
   const mission = await api.mission(state.missionId);
   const wasActive = state.mission && !isFinished(state.mission.status);
+  const changed = state.mission && state.mission.id === mission.id && state.mission.updated_at !== mission.updated_at;
   showMission(mission);
+  if (changed) inspectionFeed.refresh(); // a record stored (or the mission ended) since
   if (wasActive && isFinished(mission.status)) refreshHistory();
 });
 
@@ -158,7 +215,12 @@ function onLiveMessage(message) {
   const mission = message.mission;
   if (!mission || mission.id !== state.missionId) return;
   state.firstBuoySeq = mission.first_buoy_seq;
-  if (mission.progress) state.progress = mission.progress;
+  if (mission.progress) {
+    state.progress = mission.progress;
+    const text = JSON.stringify(mission.progress);
+    if (text !== liveProgressText) inspectionFeed.refresh(); // a buoy passed: its verdict may be in
+    liveProgressText = text;
+  }
   if (mission.sample && mission.sample.lat != null) {
     map.extendTrack(mission.sample.lat, mission.sample.lon);
     charts.add(mission.sample);
@@ -199,6 +261,7 @@ const displayMission = showingErrors(async (id) => {
 // ----- controls
 function wireControls() {
   panel.wireBatteryOptions();
+  wireGallery();
   map.onClick((point) => (panel.placing() === "depot" ? setDepot(point) : addBuoy(point.lat, point.lon)));
 
   byId("plan").addEventListener(

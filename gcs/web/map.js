@@ -1,18 +1,22 @@
-// The Leaflet map: base layers (offline metric grid, OpenStreetMap when reachable), the depot, the buoys,
-// the planned route (dashed; one colour per sortie, with a legend, when the plan has several), the flown track
-// and the vehicle. Icons and the legend are built as DOM elements, never HTML.
+// The Leaflet map: base layers (offline metric grid, OpenStreetMap when reachable), the depot, the buoys (with their
+// inspection's verdict as a badge once the watched mission has one), the planned route (dashed; one colour per
+// sortie, with a legend, when the plan has several), the flown track and the vehicle. Icons and the legend are built
+// as DOM elements, never HTML.
 import { h, svg } from "./dom.js";
 import { metricGridLayer, tilesReachable } from "./grid.js";
 import { hasSortieFigures, legsOf, routeLook, sortieLook, swatch } from "./sorties.js";
+import { verdictBadge } from "./verdicts.js";
 
 const L = window.L;
 const OSM_URL = "https://tile.openstreetmap.org/{z}/{x}/{y}.png";
 
-// look: {label, cls, colour}; colour (a sortie's, or null) fills the marker through a CSS variable set on the
-// element (CSSOM, which the page's Content-Security-Policy allows, unlike a style attribute)
+// look: {label, cls, colour, verdict}; colour (a sortie's, or null) fills the marker through a CSS variable set on
+// the element (CSSOM, which the page's Content-Security-Policy allows, unlike a style attribute); verdict (null:
+// none) adds its badge at the marker's top right
 function buoyIcon(look) {
-  const html = h("div", { class: `buoy-icon ${look.cls}${look.colour ? " in-sortie" : ""}` }, String(look.label));
-  if (look.colour) html.style.setProperty("--sortie-colour", look.colour);
+  const icon = h("div", { class: `buoy-icon ${look.cls}${look.colour ? " in-sortie" : ""}` }, String(look.label));
+  if (look.colour) icon.style.setProperty("--sortie-colour", look.colour);
+  const html = look.verdict ? h("div", { class: "buoy-marker" }, icon, verdictBadge(look.verdict)) : icon;
   return L.divIcon({ className: "", html, iconSize: [22, 22], iconAnchor: [11, 11] });
 }
 
@@ -89,7 +93,7 @@ export class MissionMap {
   // buoy: {id, lat, lon}; onClick(buoy) when its marker is clicked. The marker's title (a DOM property) is
   // the buoy's name.
   addBuoy(buoy, onClick) {
-    const icon = buoyIcon({ label: this.buoyMarkers.size + 1, cls: "", colour: null });
+    const icon = buoyIcon({ label: this.buoyMarkers.size + 1, cls: "", colour: null, verdict: null });
     const marker = L.marker([buoy.lat, buoy.lon], { icon, title: buoy.id || "buoy" });
     marker.on("click", () => onClick(buoy));
     marker.addTo(this.buoyLayer);
@@ -112,14 +116,15 @@ export class MissionMap {
   // markings: state.buoyMarkings(), parallel to buoys. An icon is replaced only when its look changes.
   markBuoys(buoys, markings) {
     buoys.forEach((buoy, index) => {
-      const { label, visited, current, sortie } = markings[index];
+      const { label, visited, current, sortie, verdict } = markings[index];
       const look = {
         label,
         cls: visited ? "visited" : current ? "current" : "",
         colour: sortie == null ? null : sortieLook(sortie).colour,
+        verdict,
       };
       const marker = this.buoyMarkers.get(buoy);
-      const key = `${look.label} ${look.cls} ${look.colour}`;
+      const key = `${look.label} ${look.cls} ${look.colour} ${look.verdict}`;
       if (this.buoyLooks.get(marker) === key) return;
       this.buoyLooks.set(marker, key);
       marker.setIcon(buoyIcon(look));

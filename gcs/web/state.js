@@ -1,5 +1,5 @@
-// What the page is looking at: the placed depot and buoys, the plan, and the mission being watched.
-// Plain data; map.js draws it and app.js changes it.
+// What the page is looking at: the placed depot and buoys, the plan, and the mission being watched with its
+// inspection records. Plain data; map.js draws it and app.js changes it.
 import { sortieOfBuoy } from "./sorties.js";
 import { isUnderway } from "./status.js";
 
@@ -11,6 +11,8 @@ export const state = {
   mission: null, // the latest GET /missions/{id}
   progress: null, // the mission's progress, from the mission or, fresher, from the live stream
   firstBuoySeq: 2, // the mission item sequence number of the first buoy (after home and takeoff)
+  inspections: new Map(), // the watched mission's inspection records (InspectionOut) by buoy input index
+  inspectionsSeq: 0, // bumped whenever the records change
 };
 
 // The buoys may be edited unless the watched mission is on its way to or on the vehicle.
@@ -39,20 +41,48 @@ function visitedAndCurrent(plan, progress) {
   return { visited, current };
 }
 
+// Whether the map shows the watched mission's own plan (not a plan made since, which has no id and has not flown).
+const showsWatchedMission = () => Boolean(state.plan && state.plan.id != null && state.plan.id === state.missionId);
+
+// A buoy's verdict on the watched mission: its record's, "pending" while the mission is under way and the buoy not
+// judged yet, else null (nothing to show: the mission ended without a record of it).
+function verdictOf(index) {
+  const record = state.inspections.get(index);
+  if (record) return record.verdict;
+  return state.mission && isUnderway(state.mission.status) ? "pending" : null;
+}
+
 // How each buoy is drawn: its label (visiting rank when planned, else placing order), whether the vehicle has
-// visited it or is heading to it, and its sortie (0-based; null for a single tour, whose buoys keep their look).
-// Returns [{label, visited, current, sortie}] parallel to state.buoys.
+// visited it or is heading to it, its sortie (0-based; null for a single tour, whose buoys keep their look) and its
+// inspection's verdict (null: none to show). Returns [{label, visited, current, sortie, verdict}] parallel to
+// state.buoys.
 export function buoyMarkings() {
   const order = state.plan ? state.plan.order : [];
   const visitRank = new Map(order.map((index, rank) => [index, rank]));
   const sortieOf = sortieOfBuoy(state.plan);
-  // progress only on the watched mission's own plan (a plan made since, which has no id, has not flown)
-  const flown = state.progress && state.plan && state.plan.id != null && state.plan.id === state.missionId;
+  const flown = showsWatchedMission() && state.progress; // progress only on the watched mission's own plan
   const { visited, current } = flown ? visitedAndCurrent(state.plan, state.progress) : { visited: new Set() };
+  const judged = showsWatchedMission();
   return state.buoys.map((_buoy, index) => ({
     label: visitRank.has(index) ? visitRank.get(index) + 1 : index + 1,
     visited: visited.has(index),
     current: !visited.has(index) && index === current,
     sortie: sortieOf.get(index) ?? null,
+    verdict: judged ? verdictOf(index) : null,
   }));
+}
+
+// The buoys with a verdict to show, as the inspection list and the gallery take them, in visiting order:
+// [{index, id, label, verdict, record}] (record null while pending).
+export function inspectionRows(markings = buoyMarkings()) {
+  return state.buoys
+    .map((buoy, index) => ({
+      index,
+      id: buoy.id,
+      label: markings[index].label,
+      verdict: markings[index].verdict,
+      record: state.inspections.get(index) ?? null,
+    }))
+    .filter((row) => row.verdict != null)
+    .sort((a, b) => a.label - b.label);
 }

@@ -13,12 +13,16 @@ MAVSDK 4 CameraServer probe copied where MAVLink leaves a choice):
   (stop it first); a single shot whose sequence number > 0 repeats the last one is a retry: ACCEPTED again,
   not captured twice (MAVSDK 3 always sends sequence 0, which is never taken for a retry).
   MAV_CMD_IMAGE_STOP_CAPTURE: ACCEPTED, whether or not a sequence ran.
-- Each capture happens at its simulated instant (the first tick at or after it: the loop renders before it
-  flies on, so lockstep stays exact), is rendered from the true pose of the vehicle and the gimbal, written as
-  JPEG to the image directory as IMG_<index>.jpg, and reported by CAMERA_IMAGE_CAPTURED: geotag = the vehicle's
-  estimate (what a real autopilot would tag with), q = the camera's attitude (FRD -> NED), file_url
-  mftp://[;comp=100]/IMG_<index>.jpg (the MAVLink FTP URL of the file when the image directory is what the
-  camera component serves), capture_result 0 if the file could not be written.
+- Each capture happens at its simulated instant (the first tick at or after it), is rendered from the true pose of
+  the vehicle and the gimbal at that instant, written as JPEG to the image directory as IMG_<index>.jpg, and
+  reported by CAMERA_IMAGE_CAPTURED once the file is written (a client downloads it on receipt): time_boot_ms and
+  time_utc = the capture's instant, geotag = the vehicle's estimate then (what a real autopilot would tag with),
+  q = the camera's attitude (FRD -> NED), file_url mftp://[;comp=100]/IMG_<index>.jpg (the MAVLink FTP URL of the
+  file when the image directory is what the camera component serves), capture_result 0 if the file could not be
+  written. Where the frame is made (sitl_quad.mavlink.camera_frames): in lockstep inside the loop, before the
+  vehicle flies on, so the report follows its tick as exactly as the tick itself; paced, in a worker process, so
+  the loop's ticks stay on time, and the report goes out when the loop next polls after the file is written
+  (CAMERA_CAPTURE_STATUS's image_count counts reported images). Reports keep the images' order.
 Commands addressed to component 0 reach the camera only if they are camera commands (the autopilot answers the
 rest): PX4 re-emits a mission's camera items as broadcast commands, and here the navigator's camera items are
 handed over directly (`run_mission_item`).
@@ -30,6 +34,8 @@ import logging
 import math
 import shutil
 import time
+from collections import deque
+from dataclasses import dataclass
 from pathlib import Path
 
 from sitl_quad.camera import (
@@ -41,8 +47,9 @@ from sitl_quad.camera import (
     camera_pose,
     image_name,
 )
-from sitl_quad.camera_render import encode_jpeg, render
+from sitl_quad.camera_render import CameraPose
 from sitl_quad.gimbal import Gimbal
+from sitl_quad.mavlink.camera_frames import FrameJob, FrameResult, FrameWorker, WorkerGoneError, write_frame
 from sitl_quad.vehicle import CommandResult, Vehicle
 from uavcore.buoy_world import World
 from uavcore.mavlink import mavlink
@@ -84,6 +91,21 @@ def file_url(name: str) -> str:
     return f"mftp://[;comp={CAMERA_COMPID}]/{name}"
 
 
+@dataclass(frozen=True)
+class _Capture:
+    """A capture whose frame is being made: its report's fields, all taken at its instant."""
+
+    index: int
+    time_boot_ms: int
+    time_utc_us: int
+    lat_e7: int
+    lon_e7: int
+    alt_mm: int
+    relative_alt_mm: int
+    q: tuple[float, float, float, float]
+    taken_at: float  # wall clock (time.monotonic)
+
+
 class CameraComponent:
     def __init__(
         self,
@@ -95,9 +117,11 @@ class CameraComponent:
         environment: Environment | None = None,
         spec: CameraSpec = DEFAULT_SPEC,
         boot_unix_us: int | None = None,
+        frames_in_loop: bool = True,
     ) -> None:
         """boot_unix_us: the vehicle's UTC at boot (sitl_quad.mavlink.telemetry's), so time_utc agrees with
-        SYSTEM_TIME; the image directory must exist."""
+        SYSTEM_TIME; the image directory must exist. frames_in_loop: each frame made before the loop flies on
+        (lockstep), else in a worker process (module docstring)."""
         self.vehicle = vehicle
         self.link = link
         link.add_component(CAMERA_COMPID)
@@ -111,15 +135,23 @@ class CameraComponent:
         self.captured: list = []  # CAMERA_IMAGE_CAPTURED by index, for REQUEST_MESSAGE(263, index)
         self.last_sequence: int | None = None
         self.render_s: list[float] = []  # wall time spent per frame (render + JPEG + write), for --stats
+        self.report_s: list[float] = []  # wall time from each capture's tick to its report, for --stats
         self._next_heartbeat = 0.0
         self.boot_unix_us = int(time.time() * 1e6) if boot_unix_us is None else boot_unix_us
+        self._in_hand: deque[_Capture] = deque()  # captures handed to the worker, oldest first
+        self.frames_in_loop = frames_in_loop
+        self.worker: FrameWorker | None = None
+        self.worker_lost = False
+        if not frames_in_loop:
+            self.worker = FrameWorker(warm_up=self._job(0, vehicle.t))
 
     # ----- sending as the camera
     def send(self, msg, peer=None) -> None:
         self.link.send(msg, peer, compid=CAMERA_COMPID)
 
     def poll(self, now: float) -> None:
-        """Wall-clock timers: the heartbeat and a capture status with it."""
+        """Wall-clock timers: the heartbeat and a capture status with it; the reports of frames finished."""
+        self.report_finished()
         if now >= self._next_heartbeat:
             self._next_heartbeat = max(self._next_heartbeat + HEARTBEAT_PERIOD_S, now)
             heartbeat = mavlink.MAVLink_heartbeat_message(
@@ -207,56 +239,109 @@ class CameraComponent:
 
     # ----- capturing, on simulated time
     def capture_due(self) -> None:
-        """Called after each tick: take the image due now, if any."""
+        """Called after each tick: take the image due now, if any (in the loop: made and reported at once)."""
         index = self.schedule.take_due(self.vehicle.t)
-        if index is not None:
-            self.send(self.capture(index))
-            self.send(self.capture_status())
+        if index is None:
+            return
+        capture = self._describe(index)
+        job = self._job(index, self.vehicle.t)
+        if self.worker is not None:
+            try:
+                self.worker.submit(job)
+                self._in_hand.append(capture)
+                return
+            except WorkerGoneError as exc:
+                self._lose_worker(exc)
+        self._report(capture, write_frame(job))
 
-    def capture(self, index: int):
-        """Render, write and describe image `index` (CAMERA_IMAGE_CAPTURED)."""
-        started = time.perf_counter()
+    def report_finished(self, timeout: float = 0.0) -> None:
+        """Report the frames the worker has written (polled by the loop)."""
+        if self.worker is None or not self._in_hand:
+            return
+        try:
+            results = self.worker.finished(timeout)
+        except WorkerGoneError as exc:
+            self._lose_worker(exc)
+            return
+        for result in results:
+            self._report(self._in_hand.popleft(), result)
+
+    def close(self) -> None:
+        """Stop the worker once the frames in hand are written, and report them."""
+        if self.worker is None:
+            return
+        worker, self.worker = self.worker, None
+        for result in worker.close():
+            self._report(self._in_hand.popleft(), result)
+        self._fail_in_hand()
+
+    def _lose_worker(self, exc: Exception) -> None:
+        """The worker died: its frames in hand are reported failed, the next ones made in the loop."""
+        log.error("%s: frames are made in the loop from now on", exc)
+        self.worker = None
+        self.worker_lost = True
+        self._fail_in_hand()
+
+    def _fail_in_hand(self) -> None:
+        while self._in_hand:
+            capture = self._in_hand.popleft()
+            self._report(capture, FrameResult(capture.index, False, 0.0))
+
+    def _job(self, index: int, t: float) -> FrameJob:
+        """Frame `index` as the camera sees it now: the true pose of the vehicle and the gimbal, the world at t."""
         v = self.vehicle
         truth = v.sim.state
         _, _, true_yaw = euler_from_quat(truth.quaternion)
-        pose = camera_pose(truth.position, v.home[2], self.gimbal.camera_quaternion(true_yaw))
+        pose: CameraPose = camera_pose(truth.position, v.home[2], self.gimbal.camera_quaternion(true_yaw))
         wind = v.config.wind
         environment = Environment(
             wind.direction_from_deg, wind.speed_m_s, self.current.current_to_deg, self.current.current_speed_m_s
         )
-        name = image_name(index)
-        try:
-            jpeg = encode_jpeg(render(pose, self.intrinsics, self.view.scene(v.t, environment)), JPEG_QUALITY)
-            (self.image_dir / name).write_bytes(jpeg)
-            ok = True
-        except OSError as exc:  # a full or vanished disk must not stop the vehicle: the capture failed
-            log.warning("image %s not written: %s", name, exc)
-            ok = False
-        except Exception:  # nor may a renderer bug: it is logged, and the capture reported failed
-            log.exception("image %s not rendered", name)
-            ok = False
-        self.render_s.append(time.perf_counter() - started)
+        path = self.image_dir / image_name(index)
+        return FrameJob(index, path, pose, self.intrinsics, self.view.scene(t, environment), JPEG_QUALITY)
+
+    def _describe(self, index: int) -> _Capture:
+        """The report's fields at the capture's instant: the estimate's geotag, the camera's attitude."""
+        v = self.vehicle
         n, e, d = (float(c) for c in v.estimate.position)
         lat, lon, alt = (float(c) for c in v.frame.from_ned(n, e, d))
         _, _, est_yaw = euler_from_quat(v.estimate.quaternion)
+        return _Capture(
+            index, v.time_boot_ms, self._unix_us(), round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
+            round(-d * 1000), self.gimbal.camera_quaternion(est_yaw), time.monotonic(),
+        )  # fmt: skip
+
+    def _report(self, capture: _Capture, result: FrameResult) -> None:
+        """CAMERA_IMAGE_CAPTURED (the file written, or capture_result 0) and the capture status after it."""
+        self.render_s.append(result.seconds)
+        c = capture
         msg = mavlink.MAVLink_camera_image_captured_message(
-            v.time_boot_ms, self._unix_us(), 0, round(lat * 1e7), round(lon * 1e7), round(alt * 1000),
-            round(-d * 1000), list(self.gimbal.camera_quaternion(est_yaw)), index, int(ok),
-            file_url(name).encode(),
+            c.time_boot_ms, c.time_utc_us, 0, c.lat_e7, c.lon_e7, c.alt_mm, c.relative_alt_mm, list(c.q), c.index,
+            int(result.ok), file_url(image_name(c.index)).encode(),
         )  # fmt: skip
         self.captured.append(msg)
-        return msg
+        self.report_s.append(time.monotonic() - c.taken_at)
+        self.send(msg)
+        self.send(self.capture_status())
 
     def _unix_us(self) -> int:
         """The vehicle's UTC on simulated time (SYSTEM_TIME's clock: wall time at boot + simulated time)."""
         return self.boot_unix_us + self.vehicle.time_boot_ms * 1000
 
     def stats(self) -> dict:
-        """For --stats: images taken and the wall time each cost (render, JPEG, write)."""
-        ms = sorted(s * 1000 for s in self.render_s)
+        """For --stats: images taken, the wall time each cost (render, JPEG, write) and from its tick to its
+        report, and where frames were made."""
+
+        def summary(seconds: list[float]) -> dict[str, float] | None:
+            ms = sorted(s * 1000 for s in seconds)
+            return {"p50": ms[len(ms) // 2], "max": ms[-1]} if ms else None
+
         return {
             "images": self.schedule.image_count,
-            "frame_ms": {"p50": ms[len(ms) // 2], "max": ms[-1]} if ms else None,
+            "frames_made": "loop" if self.frames_in_loop else "worker",
+            "worker_lost": self.worker_lost,
+            "frame_ms": summary(self.render_s),
+            "report_after_ms": summary(self.report_s),
         }
 
     # ----- messages
@@ -278,7 +363,7 @@ class CameraComponent:
         image_status = 2 if schedule.interval_running else 0  # 2: interval set (captures are instantaneous)
         return mavlink.MAVLink_camera_capture_status_message(
             self.vehicle.time_boot_ms, image_status, 0, schedule.interval_s, 0,
-            self._free_mib(), schedule.image_count, 0,
+            self._free_mib(), len(self.captured), 0,
         )  # fmt: skip
 
     def storage_information(self):

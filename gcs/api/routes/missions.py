@@ -162,12 +162,13 @@ async def get_report(mission_id: MissionId, service: ServiceDep) -> RedirectResp
 @router.get(
     "/missions/{mission_id}/report/{name}",
     response_class=FileResponse,
-    responses=file_responses("text/html", "image/png"),
+    responses=file_responses("text/html", "image/png", "image/jpeg"),
 )
 async def get_report_file(mission_id: MissionId, name: str, service: ServiceDep) -> FileResponse:
-    """index.html or one of its figures, drawn on first request and again only after the mission changed."""
+    """index.html, one of its figures or a defective buoy's best frame, drawn (copied) on first request and again
+    only after the mission changed."""
     await service.get(mission_id)
-    if name not in report.REPORT_FILES:
+    if not report.is_report_file(name):
         raise HTTPException(404, f"no report file {name!r}")
     index = await service.report_index(mission_id)
     if not (index.parent / name).is_file():  # energy.png: only for a mission planned with energy figures
