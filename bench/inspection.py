@@ -40,6 +40,7 @@ dozen of its frames (JPEG) plus the world file, for diagnosis.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -118,6 +119,9 @@ class Child:
     def stop(self) -> None:
         if self.process is not None:
             stop_process(self.process)
+            # what it left behind in its session (the service's analysis workers): its process group, only ours
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(self.process.pid, signal.SIGKILL)
 
 
 class Stack:
