@@ -132,7 +132,13 @@ class _Buoy:
 
     frames: list[tuple[FrameGeotag, BuoyDetection, int]] = field(default_factory=list)  # with the stored id
     problems: Counter[str] = field(default_factory=Counter)
+    reported: int = 0  # captures given to it; each ends in `frames` or in `problems`
     judged: bool = False
+
+    @property
+    def pending(self) -> int:
+        """Its captures still being downloaded or analysed."""
+        return self.reported - len(self.frames) - sum(self.problems.values())
 
 
 class Inspector:
@@ -172,8 +178,10 @@ class Inspector:
         ]
 
     async def close(self, why_unjudged: str = "the sortie ended before the vehicle inspected it") -> None:
-        """The sortie is over: judge every buoy reached with the frames in (waiting up to drain_s for the ones still
-        downloading), and record the others as not inspected, with `why_unjudged`."""
+        """The sortie is over: judge every buoy reached once its frames are in (waiting for the ones still being
+        downloaded while that goes on: `_drain`), and record the others as not inspected: a buoy whose burst is not
+        all in says how much is missing (a part of a burst would misread its light), one never reached
+        `why_unjudged`."""
         self.link.remove_listener(self._heard)
         receiving = self._tasks[0] if self._tasks else None
         if receiving is not None:
@@ -193,11 +201,16 @@ class Inspector:
             if buoy is not None and buoy.judged:
                 continue
             reason = why_unjudged
-            if buoy is not None and buoy.frames:
-                reason = "the sortie ended while its frames were still being downloaded and analysed"
-                await self._store(position, index, buoy, reason)
-                continue
-            await self.storage.set_inspection(self.mission_id, not_inspected(self.plan, index, reason))
+            if buoy is not None and buoy.pending:  # a part of a burst is not judged: its light would read wrong
+                reason = (
+                    f"the sortie's inspection stopped while {buoy.pending} of its {buoy.reported} frames were still "
+                    "being downloaded and analysed"
+                )
+            record = not_inspected(self.plan, index, reason)
+            if buoy is not None:  # the frames that are in stay with it, as evidence
+                ids = [frame_id for _, _, frame_id in sorted(buoy.frames, key=lambda f: f[0].t_s)]
+                record = record.model_copy(update={"frame_ids": ids, "best_frame": _best_frame(buoy.frames)})
+            await self.storage.set_inspection(self.mission_id, record)
 
     async def _drain(self) -> None:
         """Wait for the frames still queued while their processing goes on: until none is left, or none has been
@@ -277,7 +290,7 @@ class Inspector:
                 if position is None or position in self._queued_judgement:
                     log.info("mission %s: a frame outside any buoy's burst: %s", self.mission_id, capture.file_url)
                     continue
-                self._buoys.setdefault(position, _Buoy())  # it has a burst from now on, even if every frame fails
+                self._buoys.setdefault(position, _Buoy()).reported += 1  # even if every frame of it fails
                 self._work.put_nowait((position, capture))
 
     async def _process(self) -> None:
