@@ -10,10 +10,11 @@ only when it starts its last test:
 * the other tests of a module stay together, in their order, so that what a module's tests share (a module- or
   session-scoped fixture: a vehicle, a service, a PostgreSQL server) is set up once, on one worker.
 
-tests/durations.json holds the seconds each test took (setup, call and teardown) in a full `make test` run on a
+tests/durations.json holds the seconds each test took (setup, call and teardown) in full `pytest -n 6` runs on a
 2-core machine, for the tests that took 0.5 s or more; a test it does not name counts as UNKNOWN_S. Rewrite it
 after tests are added or become much faster or slower: `pytest -n 6 --record-durations tests/durations.json`
-(a stale file only makes the order less good, never a test wrong).
+(a stale file only makes the order less good, never a test wrong). A run in this order starts the longest tests
+together, and they then take longer than they would alone: what the order needs is their ranking, which holds.
 """
 
 from __future__ import annotations
