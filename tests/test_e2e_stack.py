@@ -94,12 +94,17 @@ class Stack:
         self.dir = tmp_path
         self.children: list[Child] = []
         self.vehicle_port = free_udp_port()
+        # Held until the vehicle starts: most tests start the service first (a lockstep vehicle and its controller
+        # would otherwise spin on the ground while it starts), and nothing else may take the port meanwhile.
+        self._vehicle_port_held: socket.socket | None = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._vehicle_port_held.bind(("127.0.0.1", self.vehicle_port))
         self.http_port = free_tcp_port()
         # a report drawn on a loaded machine takes a while: the client waits as long as any other wait here
         self.api = httpx.Client(base_url=f"http://127.0.0.1:{self.http_port}", timeout=WAIT_S, follow_redirects=True)
         self.vehicle = self.offboard = self.gcs = None
 
     def start_vehicle(self, *extra: str) -> Child:
+        self._release_vehicle_port()
         child = Child(
             "sitl_quad", ["sitl_quad", "--port", str(self.vehicle_port), "--lockstep", "--seed", "1", *extra], self.dir
         )
@@ -166,11 +171,17 @@ class Stack:
 
         return wait_until(finished, timeout_s, lambda: f"mission {mission_id}: {self.mission(mission_id)}")
 
+    def _release_vehicle_port(self) -> None:
+        if self._vehicle_port_held is not None:
+            self._vehicle_port_held.close()
+            self._vehicle_port_held = None
+
     def close(self) -> list[str]:
-        """Stop everything; the logs of children that logged a traceback."""
+        """Stop everything, the service first; the logs of children that logged a traceback."""
         self.api.close()
+        self._release_vehicle_port()
         problems = []
-        for child in reversed(self.children):
+        for child in sorted(reversed(self.children), key=lambda child: child.name != "gcs"):
             child.stop()
             if "Traceback" in child.log():
                 problems.append(f"{child.name} logged a traceback:\n{child.log()[-4000:]}")
@@ -220,9 +231,9 @@ def assert_landed_at_depot(stack: Stack, radius_m: float) -> None:
 
 # ----- the reference scenario
 def test_reference_scenario_flies_from_post_to_landed_at_the_depot_within_the_adrc_targets(stack):
+    stack.start_gcs()
     stack.start_vehicle()
     stack.start_offboard()
-    stack.start_gcs()
     stack.wait_connected()
     mission_id = stack.fly(REFERENCE)
     mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
@@ -252,9 +263,9 @@ def test_reference_scenario_flies_from_post_to_landed_at_the_depot_within_the_ad
 
 # ----- faults
 def test_offboard_controller_killed_mid_flight_returns_and_the_mission_fails_naming_the_failsafe(stack):
+    stack.start_gcs()
     stack.start_vehicle("--param", "OFFB_LOSS_ACT=2")  # 2: return to launch
     offboard = stack.start_offboard()
-    stack.start_gcs()
     stack.wait_connected()
     request = near_buoys(3)
     mission_id = stack.fly(request)
@@ -277,9 +288,9 @@ def test_offboard_controller_killed_mid_flight_returns_and_the_mission_fails_nam
 
 
 def test_gcs_restarted_mid_flight_reattaches_keeps_recording_and_completes(stack):
+    gcs = stack.start_gcs()
     stack.start_vehicle()
     stack.start_offboard()
-    gcs = stack.start_gcs()
     stack.wait_connected()
     mission_id = stack.fly(REFERENCE)
     stack.wait_mission(mission_id, lambda m: m["progress"].get("visited", 0) >= 2, timeout_s=FLIGHT_S)
@@ -337,13 +348,13 @@ def test_gcs_restarted_while_the_vehicle_flies_nothing_fails_the_unfinished_miss
 
 
 def test_mission_uploads_and_completes_through_20_percent_datagram_loss(stack):
-    stack.start_vehicle()
-    stack.start_offboard()
     with LossyUdpRelay(stack.vehicle_port, drop_fraction=0.2, seed=6) as relay:
         # Heartbeats come at 1 Hz: at 20 % loss three in a row go missing once a minute or so, which the default
         # 3 s timeout rightly calls a lost link (series run 2 at bcaeb66). An operator of such a radio raises it:
         # eight in a row is once in about four days of heartbeats.
         stack.start_gcs(relay.port, "--heartbeat-timeout", "8")
+        stack.start_vehicle()
+        stack.start_offboard()
         stack.wait_connected()
         request = near_buoys(3)
         mission_id = stack.fly(request)
@@ -363,11 +374,11 @@ def test_mission_uploads_and_completes_through_20_percent_datagram_loss(stack):
 def test_a_mission_whose_progress_messages_are_lost_but_which_flew_is_completed(stack):
     """Every MISSION_CURRENT and MISSION_ITEM_REACHED of the vehicle is lost on the way to the service (the relay
     drops them on purpose): the positions show each buoy visited and the landing at home, so it completed."""
-    stack.start_vehicle()
-    stack.start_offboard()
     lost = frozenset({mavlink.MAVLINK_MSG_ID_MISSION_CURRENT, mavlink.MAVLINK_MSG_ID_MISSION_ITEM_REACHED})
     with LossyUdpRelay(stack.vehicle_port, drop_fraction=0.0, drop_to_client=lost) as relay:
         stack.start_gcs(relay.port)
+        stack.start_vehicle()
+        stack.start_offboard()
         stack.wait_connected()
         request = near_buoys(3)
         mission_id = stack.fly(request)
@@ -383,9 +394,9 @@ def test_a_mission_whose_progress_messages_are_lost_but_which_flew_is_completed(
 def test_a_new_mission_takes_nothing_from_the_last_ones_sequence_numbers(stack):
     """A mission flown to completion leaves its last sequence number on the vehicle; the next mission, aborted at
     once, visits nothing and measures no cross-track error against the last mission's leg."""
+    stack.start_gcs()
     stack.start_vehicle()
     stack.start_offboard()
-    stack.start_gcs()
     stack.wait_connected()
     first = stack.fly(near_buoys(4))
     done = stack.wait_mission(first, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
@@ -408,9 +419,9 @@ def test_a_new_mission_takes_nothing_from_the_last_ones_sequence_numbers(stack):
 def test_the_preflight_check_refuses_a_tour_the_charge_cannot_fly_unless_overridden(stack):
     """At 28 % the reference tour (about 21 Wh) is refused before arming, naming both figures; with override it
     flies, and the override is recorded."""
+    stack.start_gcs()
     stack.start_vehicle("--battery-percent", "28")
     stack.start_offboard()
-    stack.start_gcs()
     stack.wait_connected()
     refused = stack.wait_mission(stack.fly(REFERENCE), lambda m: m["status"] in TERMINAL, timeout_s=WAIT_S)
     assert refused["status"] == "failed", refused
@@ -433,9 +444,9 @@ def test_the_preflight_check_refuses_a_tour_the_charge_cannot_fly_unless_overrid
 
 
 def test_vehicle_restarted_mid_mission_fails_it_with_a_reason_and_a_new_mission_flies(stack):
+    stack.start_gcs()
     vehicle = stack.start_vehicle()
     stack.start_offboard()
-    stack.start_gcs()
     stack.wait_connected()
     mission_id = stack.fly(near_buoys(3))
     stack.wait_mission(mission_id, lambda m: m["progress"].get("visited", 0) >= 1, timeout_s=FLIGHT_S)
@@ -524,9 +535,9 @@ def sys_status(station: GroundStation):
 
 
 def test_hostile_datagrams_at_every_udp_port_change_nothing(stack):
+    stack.start_gcs()
     stack.start_vehicle()
     stack.start_offboard()
-    stack.start_gcs()
     stack.wait_connected()
     station = GroundStation(stack.vehicle_port, sysid=254)
     try:
@@ -575,8 +586,8 @@ def test_hostile_datagrams_at_every_udp_port_change_nothing(stack):
 def test_signed_vehicle_refuses_an_unkeyed_peer_while_the_keyed_gcs_flies(stack):
     from uavcore.mavlink import parse_signing_key
 
-    stack.start_vehicle("--signing-key", SIGNING_PASSPHRASE)
     stack.start_gcs(None, "--signing-key", SIGNING_PASSPHRASE)  # no offboard controller: the built-in loop flies
+    stack.start_vehicle("--signing-key", SIGNING_PASSPHRASE)
     stack.wait_connected()
     keyed = GroundStation(stack.vehicle_port, sysid=250)
     keyed.conn.setup_signing(parse_signing_key(SIGNING_PASSPHRASE), sign_outgoing=True)
@@ -609,9 +620,9 @@ def test_signed_vehicle_refuses_an_unkeyed_peer_while_the_keyed_gcs_flies(stack)
 
 
 def test_signed_stack_flies_with_the_adrc_offboard_controller(stack):
+    stack.start_gcs(None, "--signing-key", SIGNING_PASSPHRASE)
     stack.start_vehicle("--signing-key", SIGNING_PASSPHRASE)
     stack.start_offboard("--signing-key", SIGNING_PASSPHRASE)
-    stack.start_gcs(None, "--signing-key", SIGNING_PASSPHRASE)
     stack.wait_connected()
     mission_id = stack.fly(near_buoys(2))
     mission = stack.wait_mission(mission_id, lambda m: m["status"] in TERMINAL, timeout_s=FLIGHT_S)
@@ -663,9 +674,9 @@ def fly_with_swaps(stack: Stack, mission_id: int) -> tuple[dict, int]:
 
 
 def test_a_mission_of_two_and_a_half_batteries_flies_three_sorties_with_operator_confirmed_swaps(stack):
+    stack.start_gcs()
     stack.start_vehicle(*SMALL_PACK_VEHICLE)
     stack.start_offboard()
-    stack.start_gcs()
     stack.wait_connected()
     mission_id = stack.fly(ring_request())
     planned = stack.mission(mission_id)
@@ -709,9 +720,9 @@ def test_a_mission_of_two_and_a_half_batteries_flies_three_sorties_with_operator
 
 
 def test_the_same_mission_forced_into_one_sortie_returns_on_the_battery_failsafe_and_ends_aborted(stack):
+    stack.start_gcs()
     stack.start_vehicle(*SMALL_PACK_VEHICLE)
     stack.start_offboard()
-    stack.start_gcs()
     stack.wait_connected()
     mission_id = stack.fly(ring_request(split=False) | {"override": True})  # short of charge: flown anyway
     planned = stack.mission(mission_id)
@@ -738,9 +749,9 @@ def planned_position(mission: dict) -> Callable[[str], int]:
 
 
 def test_gcs_killed_during_the_second_sortie_carries_on_with_it_and_flies_the_third(stack):
+    gcs = stack.start_gcs()
     stack.start_vehicle(*SMALL_PACK_VEHICLE)
     stack.start_offboard()
-    gcs = stack.start_gcs()
     stack.wait_connected()
     mission_id = stack.fly(ring_request())
     stack.wait_mission(mission_id, lambda m: m["status"] == "waiting_for_battery", timeout_s=FLIGHT_S)
