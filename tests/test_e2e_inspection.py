@@ -59,9 +59,9 @@ def world_document() -> dict:
 def test_an_inspection_mission_finds_the_worlds_faults_serves_the_evidence_and_deletes_with_it(stack, tmp_path):
     world = tmp_path / "world.geojson"
     world.write_text(json.dumps(world_document()))
+    stack.start_gcs()  # first: a lockstep vehicle and its controller would spin on the ground while it starts
     stack.start_vehicle("--world", str(world), "--image-dir", str(tmp_path / "images"))
     stack.start_offboard()
-    stack.start_gcs()
     stack.wait_connected()
     imported = stack.api.post("/imports?filename=world.geojson", content=world.read_bytes())
     buoys = imported.json()["buoys"]
@@ -105,9 +105,9 @@ def test_an_inspection_mission_finds_the_worlds_faults_serves_the_evidence_and_d
 
 
 def test_a_vehicle_without_a_camera_flies_the_mission_and_every_buoy_says_it_was_not_inspected(stack):
+    stack.start_gcs()
     stack.start_vehicle()  # no --world: no camera, no gimbal
     stack.start_offboard()
-    stack.start_gcs()
     stack.wait_connected()
     buoys = [
         dict(zip(("lat", "lon"), HOME.from_ned(n, e)[:2], strict=True)) | {"kind": "port"} for n, e in POSITIONS_NE
@@ -129,10 +129,10 @@ def test_frames_over_the_size_limit_are_refused_and_each_buoy_says_so_while_the_
 ):
     world = tmp_path / "world.geojson"
     world.write_text(json.dumps(world_document()))
-    stack.start_vehicle("--world", str(world), "--image-dir", str(tmp_path / "images"))
-    stack.start_offboard()
     monkeypatch.setenv("BUOY_GCS_MAX_FRAME_BYTES", "1000")  # a 1280x720 JPEG is some 70 kB
     stack.start_gcs()
+    stack.start_vehicle("--world", str(world), "--image-dir", str(tmp_path / "images"))
+    stack.start_offboard()
     stack.wait_connected()
     buoys = stack.api.post("/imports?filename=world.geojson", content=world.read_bytes()).json()["buoys"]
     mission_id = stack.fly({"buoys": buoys})
