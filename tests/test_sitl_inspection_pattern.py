@@ -1,10 +1,12 @@
 """The ground station's inspection pattern, flown by the vehicle in lockstep with its camera on its gimbal.
 
-Per buoy the ground station uploads (frame GLOBAL_RELATIVE_ALT_INT for the placed items, MISSION for the others):
-DO_SET_ROI_LOCATION at the buoy's charted position (1 m up), NAV_WAYPOINT at the standoff point (on the straight
-approach line, STANDOFF_M short of the buoy, hold 0), IMAGE_START_CAPTURE (interval 1 / rate, count
-ceil(duration * rate), uavcore.light_character.burst_for), NAV_WAYPOINT at the same standoff point holding the
-burst's duration + 0.5 s, IMAGE_STOP_CAPTURE, DO_SET_ROI_NONE, NAV_WAYPOINT at the buoy (dwell, acceptance radius).
+Per buoy the ground station uploads (gcs.domain.planning.inspection_items; frame GLOBAL_RELATIVE_ALT_INT for the
+placed items, MISSION for the others, unused params NaN): DO_SET_ROI_LOCATION at the buoy's charted position (1 m
+up), NAV_WAYPOINT at the standoff point (on the straight approach line, STANDOFF_M short of the buoy, hold 0),
+IMAGE_START_CAPTURE (interval 1 / rate, count ceil(duration * rate), uavcore.light_character.burst_for),
+NAV_WAYPOINT at the same standoff point holding the burst (count / rate) + 0.5 s, IMAGE_STOP_CAPTURE,
+DO_SET_ROI_NONE, NAV_WAYPOINT at the buoy (dwell, acceptance radius). Built here, not by the ground station's
+planner, so that this test of the vehicle does not move with the planner's API.
 
 Two buoys (a north cardinal's quick light: 5 s at 13.3 Hz, a rate off the 50 Hz tick grid; an unlit special mark:
 burst_for(None), 2 s at 10 Hz) in a 5 m/s crosswind with Dryden turbulence, the cascade ADRC flying (the stack's
@@ -94,12 +96,12 @@ class Group:
     buoy_seq: int = 0
 
 
-def item(command: int, frame: int, params=(0.0, 0.0, 0.0, 0.0), ne=None, z: float = 0.0) -> dict:
+def item(command: int, frame: int, params=(), ne=None, z: float = 0.0) -> dict:
     x = y = 0
     if ne is not None:
         lat, lon = lat_lon(ne)
         x, y = round(lat * 1e7), round(lon * 1e7)
-    p1, p2, p3, p4 = params
+    p1, p2, p3, p4 = (*map(float, params), math.nan, math.nan, math.nan, math.nan)[:4]
     return dict(command=command, frame=frame, param1=p1, param2=p2, param3=p3, param4=p4, x=x, y=y, z=z)
 
 
@@ -122,21 +124,21 @@ def inspection_mission(with_groups: bool) -> tuple[list[MissionItem], list[Group
         if with_groups:
             duration, rate = burst_for(parse(buoy.light) if buoy.light else None)
             count = math.ceil(duration * rate)
-            group = Group(buoy, uploaded_ne(item(0, REL, ne=standoff)), 1 / rate, count, duration + HOLD_MARGIN_S)
+            group = Group(buoy, uploaded_ne(item(0, REL, ne=standoff)), 1 / rate, count, count / rate + HOLD_MARGIN_S)
             group.standoff_seq, group.hold_seq, group.roi_none_seq = len(items) + 1, len(items) + 3, len(items) + 5
             items += [
                 item(MavCmd.DO_SET_ROI_LOCATION, REL, ne=at, z=ROI_UP_M),
                 item(MavCmd.NAV_WAYPOINT, REL, (0.0, ACCEPTANCE_M, 0.0, math.nan), standoff, ALTITUDE_M),
                 item(MavCmd.IMAGE_START_CAPTURE, MISSION, (0.0, 1 / rate, count, 0.0)),
                 item(MavCmd.NAV_WAYPOINT, REL, (group.hold_s, ACCEPTANCE_M, 0.0, math.nan), standoff, ALTITUDE_M),
-                item(MavCmd.IMAGE_STOP_CAPTURE, MISSION),
-                item(MavCmd.DO_SET_ROI_NONE, MISSION),
+                item(MavCmd.IMAGE_STOP_CAPTURE, MISSION, (0.0,)),
+                item(MavCmd.DO_SET_ROI_NONE, MISSION, (0.0,)),
             ]
             group.buoy_seq = len(items)
             groups.append(group)
         items.append(item(MavCmd.NAV_WAYPOINT, REL, (DWELL_S, ACCEPTANCE_M, 0.0, math.nan), at, ALTITUDE_M))
         previous = at
-    items.append(item(MavCmd.NAV_RETURN_TO_LAUNCH, MISSION))
+    items.append(item(MavCmd.NAV_RETURN_TO_LAUNCH, MISSION, (0.0, 0.0, 0.0, 0.0)))
     mission = [MissionItem(seq=seq, current=int(seq == 0), **it) for seq, it in enumerate(items)]
     for it in mission:  # what the vehicle's mission protocol accepts on upload
         assert validate_item(it, it.seq) == mavlink.MAV_MISSION_ACCEPTED, it
