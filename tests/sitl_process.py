@@ -33,6 +33,7 @@ START_TIMEOUT_S = 60.0  # a loaded 2-core machine can take long to import numpy/
 # A wait's deadline: only reached when the behaviour is wrong, however loaded the machine (a paced vehicle covers
 # less simulated time per wall second when it is, and a lockstep one runs at the CPU's pace).
 WAIT_S = 60.0
+HEARTBEAT_PERIOD_S = 1.0  # a ground station's heartbeat (MAVLink's heartbeat protocol: 1 Hz)
 
 
 def start_lockstep_pair(port: int, seed: int, log: Path) -> tuple[subprocess.Popen, subprocess.Popen]:
@@ -124,6 +125,7 @@ class GroundStation:
     def __init__(self, port: int, sysid: int = GCS_SYSID, compid: int = GCS_COMPID) -> None:
         self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=sysid, source_component=compid)
         self.mav = self.conn.mav
+        self._next_heartbeat = 0.0
 
     def close(self) -> None:
         self.conn.close()
@@ -135,11 +137,19 @@ class GroundStation:
 
     def send_heartbeat(self) -> None:
         self.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        self._next_heartbeat = time.monotonic() + HEARTBEAT_PERIOD_S
+
+    def _keep_alive(self) -> None:
+        """A heartbeat a second while waiting, as every ground station sends: the vehicle drops a peer silent for
+        10 s, and on a busy machine a wait for slow replies (camera frames made in a worker) can last longer."""
+        if time.monotonic() >= self._next_heartbeat:
+            self.send_heartbeat()
 
     def recv(self, kinds: str | list[str], timeout: float = 5.0, condition: Callable[[object], bool] | None = None):
         """The next message of one of `kinds` from the vehicle satisfying condition, or None after timeout."""
         deadline = time.monotonic() + timeout
         while (remaining := deadline - time.monotonic()) > 0:
+            self._keep_alive()
             msg = self.conn.recv_match(type=kinds, blocking=True, timeout=min(remaining, 0.2))
             if msg is None or msg.get_srcSystem() != VEHICLE_SYSID:
                 continue
