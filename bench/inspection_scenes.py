@@ -86,10 +86,12 @@ def capture_burst(
     jpeg_quality: int = 85,
     hide_target: bool = False,
     yaw_offset_deg: float = 0.0,
+    pitch_offset_deg: float = 0.0,
 ) -> Burst:
     """The burst of world.buoys[target] (module docstring); frames: that many at the burst's rate instead of its
-    full duration; hide_target: the target is not drawn (the other buoys are); yaw_offset_deg: the camera turned
-    that far right of the buoy (the buoy at the frame's edge, or out of it)."""
+        full duration; hide_target: the target is not drawn (the other buoys are); yaw_offset_deg: the camera turned
+        that far right of the buoy (the buoy at the frame's edge, or out of it); pitch_offset_deg: the camera raised that
+    far above it (the buoy at the frame's bottom edge)."""
     buoy = world.buoys[target]
     duration_s, rate_hz = burst_for(buoy.light)
     count = frames if frames is not None else math.ceil(duration_s * rate_hz)
@@ -100,7 +102,7 @@ def capture_burst(
     pose = CameraPose.from_euler(
         (camera_ne[0], camera_ne[1], -height_m),
         0.0,
-        -math.atan2(height_m, range_m),
+        -math.atan2(height_m, range_m) + math.radians(pitch_offset_deg),
         math.atan2(look[1], look[0]) + math.radians(yaw_offset_deg),
     )
     intrinsics = Intrinsics.from_sensor(

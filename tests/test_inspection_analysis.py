@@ -19,7 +19,7 @@ from gcs.domain.buoy_detection import BuoyDetection, ChartedBuoy, detect_buoy
 from gcs.domain.camera_geometry import FrameGeotag, pixel_to_sea, sea_to_pixel
 from gcs.domain.inspection import BuoyInspection, inspect_buoy
 from sitl_quad import camera_render
-from uavcore.buoy_world import KINDS, World, WorldBuoy, default_light
+from uavcore.buoy_world import APPEARANCE, KINDS, World, WorldBuoy, default_light
 from uavcore.light_character import parse
 
 # every test here renders frames (bursts of up to 413): the slow tier, out of `make test-fast`
@@ -30,13 +30,16 @@ SHORT_BURST_KINDS = ("port", "starboard", "north", "isolated_danger", "special")
 LONG_BURST_KINDS = ("east", "south", "west", "safe_water")
 
 
-def world_buoy(kind: str, north: float, east: float, shows: str | None = "charted", **faults: object) -> WorldBuoy:
+def world_buoy(
+    kind: str, north: float, east: float, shows: str | None = "charted", swing_radius_m: float = 5.0, **faults: object
+) -> WorldBuoy:
     """A buoy of the kind at (north, east) of HOME with its default light; shows: "dark", another character's
     text, or "charted"."""
     lat, lon, _ = HOME.from_ned(north, east)
     light = default_light(kind)
     actual = light if shows == "charted" else None if shows == "dark" else parse(shows)
-    return WorldBuoy(f"{kind}-{north:g}-{east:g}", kind, (float(lat), float(lon)), light, 5.0, actual, **faults)  # type: ignore[arg-type]
+    position = (float(lat), float(lon))
+    return WorldBuoy(f"{kind}-{north:g}-{east:g}", kind, position, light, swing_radius_m, actual, **faults)  # type: ignore[arg-type]
 
 
 def charted(buoy: WorldBuoy) -> ChartedBuoy:
@@ -183,12 +186,48 @@ def test_the_buoy_nearest_the_chart_is_picked_among_others_of_its_colours() -> N
         assert math.hypot(north - shot.true_north_east[0], east - shot.true_north_east[1]) < 1.0
 
 
-def test_a_buoy_cut_by_the_frames_edge_is_found_without_a_waterline() -> None:
+HALF_FIELD_DEG = math.degrees(math.atan(480 / (4.5 / 6.17 * 960)))  # the 960 x 540 frame's, either side
+
+
+@pytest.mark.parametrize("kind", ["port", "east", "safe_water"])
+@pytest.mark.parametrize("side", [-1, 1])
+def test_a_buoy_cut_by_the_frames_side_is_placed_from_the_side_in_view(kind: str, side: int) -> None:
+    """A buoy at the frame's side (far off station, at the edge of a frame aimed at its chart position): with its
+    middle in view it is placed within half a metre, and neither its colours (its bands cut short) nor a lamp cut
+    by the edge are read; with less of it in view it is found but not placed."""
+    buoy = world_buoy(kind, 60.0, 0.0, swing_radius_m=0.05)  # held still: the share in view is the one set here
+    half_body_deg = math.degrees(math.asin(APPEARANCE[kind].diameter_m / 2 / 25.0))
+    for share in (0.75, 0.6, 0.25):  # of its width in view
+        yaw = side * (HALF_FIELD_DEG + (1 - 2 * share) * half_body_deg)
+        burst = capture_burst(World((buoy,)), 0, 25.0, 180.0, frames=1, yaw_offset_deg=yaw)
+        shot = burst.shots[0]
+        detection = detect_buoy(shot.image, burst.model, shot.geotag, charted(buoy))
+        assert detection.found and detection.waterline_px is None and detection.colours == (), (share, detection)
+        if share < 0.5:
+            assert detection.why.startswith("clipped") and detection.position is None and detection.light is None
+            continue
+        assert detection.cut and detection.position is not None, (share, detection.why)
+        north, east, _ = HOME.to_ned(*detection.position)
+        assert math.hypot(north - shot.true_north_east[0], east - shot.true_north_east[1]) < 0.6, share
+
+
+def test_a_buoy_cut_by_the_frames_bottom_is_found_without_a_waterline_colours_or_light() -> None:
     buoy = world_buoy("east", 60.0, 0.0)
-    half_field = math.degrees(math.atan(480 / (4.5 / 6.17 * 960)))
-    burst = capture_burst(World((buoy,)), 0, 25.0, 180.0, frames=1, yaw_offset_deg=half_field)
+    half_height_deg = math.degrees(math.atan(270 / (4.5 / 6.17 * 960)))
+    burst = capture_burst(World((buoy,)), 0, 25.0, 180.0, frames=1, pitch_offset_deg=half_height_deg + 1.0)
     detection = detect_buoy(burst.shots[0].image, burst.model, burst.shots[0].geotag, charted(buoy))
-    assert detection.found and detection.waterline_px is None and detection.why.startswith("clipped")
+    assert detection.found and detection.why.startswith("clipped"), detection.why
+    assert (detection.waterline_px, detection.position, detection.colours, detection.light) == (None, None, (), None)
+
+
+def test_an_off_station_buoy_at_the_frames_side_is_off_station_not_a_wrong_colour_or_a_dark_light() -> None:
+    """A buoy dragged sideways, so far that the frame aimed at its charted position cuts it in every frame: the
+    verdict says where it is (off_station), not what the cut body and a lamp half in view would suggest."""
+    aside = 30.0 * math.tan(math.radians(HALF_FIELD_DEG))  # at 30 m across the camera's axis (bearing 20 deg)
+    across = math.radians(20.0 + 90.0)
+    inspection = inspected("north", offset_m=(aside * math.cos(across), aside * math.sin(across)))
+    assert inspection.verdict == "defect"
+    assert [f.code for f in inspection.findings] == ["off_station"], inspection.findings
 
 
 def test_a_burst_looking_away_from_the_buoy_is_not_inspected() -> None:

@@ -9,6 +9,15 @@ one of its saturated colours are the candidates; the one whose waterline lies ne
 Its waterline pixel is the bottom centre of its region: the near edge of the body's base circle, which is on the
 sea. That pixel's ray meets the sea (camera_geometry.pixel_to_sea_ne) at the near edge, a radius short of the
 buoy's centre along the line of sight: the centre is that point pushed one base radius further away.
+
+A body cut by the frame's left or right edge (a buoy far off station lies at the edge of a frame aimed at its
+charted position) has no bottom centre in view, but its lowest row and the side still in view fix it: the base
+circle (its known diameter) is placed on the sea where it would show that lowest row and that side
+(_placed_from_uncut_side), to a few tenths of a metre while half its width is in view (with less, the lowest row
+in view is no longer the near edge's, and it is not placed); its colours are not read (a band
+cut short reads as missing), its light only while the lantern is in the frame. One cut by the bottom edge, or by
+both sides, has no waterline; nor are its colours or its light read, since neither where its body ends nor where
+its lantern is can be told.
 """
 
 from __future__ import annotations
@@ -76,6 +85,7 @@ class BuoyDetection:
     distance_m: float | None = None  # of the waterline centre from the charted position
     colours: tuple[str, ...] = ()  # body colours seen, top to bottom (vertical stripes: the kind's order)
     light: LightSpot | None = None
+    cut: bool = False  # cut by the frame's side: placed from the side in view (module docstring)
 
 
 @dataclass(frozen=True)
@@ -83,9 +93,10 @@ class _Candidate:
     mask: np.ndarray  # the region within its box
     box: tuple[slice, slice]  # frame rows, columns
     labels: np.ndarray  # paint_labels within the box
-    bottom_centre: tuple[float, float]  # (u, v) frame pixels
-    clipped: bool  # touches the frame's left, right or bottom edge
-    near_edge_ne: np.ndarray | None  # where the bottom centre's ray meets the sea, NE m from the camera's foot
+    bottom_centre: tuple[float, float]  # (u, v) frame pixels (of the part in view, for a body cut by the edge)
+    cut: bool  # cut by the frame's left or right edge
+    clipped: bool  # cut by the frame's bottom edge or by both sides, or not placed from its side: no waterline
+    near_edge_ne: np.ndarray | None  # the base circle's near edge on the sea, NE m from the camera's foot
 
 
 def search_window(
@@ -145,10 +156,68 @@ def _edge_row(lab: np.ndarray, column: int, bottom: int) -> float:
     return float(np.interp(0.5, share, rows)) if share[-1] > share[0] else bottom + 0.5
 
 
+def _placed_from_uncut_side(
+    model: CameraModel, geotag: FrameGeotag, radius_m: float, side: int, inner_u: float, bottom_v: float
+) -> np.ndarray | None:
+    """The near edge (NE m from the camera's foot) of a body cut by the frame's left (side -1) or right (+1) edge.
+
+    Two things are seen: inner_u, the column of its silhouette's side in view (the base circle is the body's
+    widest part for every shape here), and bottom_v, its lowest row in view. The base circle's centre on the sea is
+    the point whose projected circle shows both (its lowest point among those in the frame, its extreme column on
+    the side in view): two equations in two unknowns, solved by Newton's method from the guess one radius beyond
+    the ray through (inner_u, bottom_v). None if the body is not in front of the camera, the solution fails, or
+    less than half its width is in view (bottom_v, measured as for a whole body, then misleads)."""
+    start = pixel_to_sea_ne(model, geotag, inner_u + side * 0.5, bottom_v)
+    if start is None:
+        return None
+    angles = np.linspace(0.0, 2 * math.pi, 72, endpoint=False)
+    circle = radius_m * np.column_stack((np.cos(angles), np.sin(angles)))
+    measured = np.array([inner_u, bottom_v])
+
+    def outline(centre: np.ndarray) -> np.ndarray | None:
+        """The base circle's pixels (N x 2), None if part of it is behind the camera."""
+        pixels = [ned_to_pixel(model, geotag, (*point, 0.0)) for point in centre + circle]
+        return None if any(p is None for p in pixels) else np.array(pixels)
+
+    def seen(centre: np.ndarray) -> np.ndarray | None:
+        pixels = outline(centre)
+        if pixels is None:
+            return None
+        u, v = pixels.T
+        in_view = (u >= -0.5) & (u < model.width_px - 0.5)
+        lowest = v[in_view].max() if in_view.any() else v.max()
+        return np.array([u.min() if side > 0 else u.max(), lowest])
+
+    centre = centre_from_near_edge(start, radius_m)
+    step_m = 0.01
+    for _ in range(6):
+        predicted = seen(centre)
+        columns = [seen(centre + step_m * axis) for axis in np.eye(2)]
+        if predicted is None or columns[0] is None or columns[1] is None:
+            return None
+        jacobian = np.column_stack([(columns[0] - predicted) / step_m, (columns[1] - predicted) / step_m])
+        try:
+            move = np.linalg.solve(jacobian, measured - predicted)
+        except np.linalg.LinAlgError:
+            return None
+        centre = centre + np.clip(move, -2 * radius_m, 2 * radius_m)  # a bad guess far off does not run away
+        if np.hypot(*move) < 0.005:
+            break
+    distance = float(np.hypot(*centre))
+    pixels = outline(centre)
+    if distance <= radius_m or pixels is None:
+        return None
+    in_view = inner_u + 0.5 if side < 0 else model.width_px - 0.5 - inner_u
+    if in_view < 0.5 * float(np.ptp(pixels[:, 0])):
+        return None  # less than half of it in view: its lowest row in view is no longer its near edge's
+    return centre * (1 - radius_m / distance)
+
+
 def _candidates(
-    image: np.ndarray, model: CameraModel, geotag: FrameGeotag, colours: tuple[str, ...], window: tuple[slice, slice]
+    image: np.ndarray, model: CameraModel, geotag: FrameGeotag, look: Appearance, window: tuple[slice, slice]
 ) -> list[_Candidate]:
     """Regions of the kind's paints holding one of its saturated colours, in the window."""
+    colours = look.colours
     anchors = [k + 1 for k, name in enumerate(colours) if name in SATURATED]
     found = []
     for top, bottom, left, right in _merged(_widened(paint_boxes(image[window], MIN_REGION_PX // 3), model, window)):
@@ -168,12 +237,18 @@ def _candidates(
             below = slice(sub_box[0].start, min(lab.shape[0], sub_box[0].stop + 4))
             u, v = _bottom_centre(mask, lab[below, sub_box[1]])
             u, v = u + frame_box[1].start, v + frame_box[0].start
-            clipped = (
-                frame_box[1].start == 0 or frame_box[1].stop == model.width_px or frame_box[0].stop == model.height_px
-            )
-            found.append(
-                _Candidate(mask, frame_box, labels[sub_box], (u, v), clipped, pixel_to_sea_ne(model, geotag, u, v))
-            )
+            cut_left, cut_right = frame_box[1].start == 0, frame_box[1].stop == model.width_px
+            clipped = frame_box[0].stop == model.height_px or (cut_left and cut_right)
+            near_edge = pixel_to_sea_ne(model, geotag, u, v)
+            if not clipped and (cut_left or cut_right):
+                in_view = np.flatnonzero(mask.any(axis=0)) + frame_box[1].start
+                inner_u = in_view.max() + 0.5 if cut_left else in_view.min() - 0.5  # the pixel's outer side
+                side = -1 if cut_left else 1
+                placed = _placed_from_uncut_side(model, geotag, look.diameter_m / 2, side, inner_u, v)
+                clipped = placed is None  # then the part in view still ranks it (its near edge is roughly right)
+                near_edge = near_edge if placed is None else placed
+            cut = cut_left or cut_right
+            found.append(_Candidate(mask, frame_box, labels[sub_box], (u, v), cut, clipped, near_edge))
     return _unique(found)
 
 
@@ -268,7 +343,7 @@ def detect_buoy(
     on_station = SearchTolerance(1.0, tolerance.position_m, tolerance.attitude_deg)
     if window is None or search_window(model, geotag, charted, on_station) is None:  # not even its swing circle
         return BuoyDetection(False, "out_of_view: the buoy's swing circle is outside the frame")
-    candidates = _candidates(image, model, geotag, look.colours, window)
+    candidates = _candidates(image, model, geotag, look, window)
     if not candidates:
         return BuoyDetection(False, f"no_candidate: no region of {'/'.join(look.colours)} paint in the search area")
     charted_ne = lat_lon_to_ne(geotag, charted.lat, charted.lon)
@@ -284,19 +359,23 @@ def detect_buoy(
         return BuoyDetection(
             False, f"too_far: the nearest {'/'.join(look.colours)} region is {distance(best):.0f} m from the chart"
         )
-    centre = centre_from_near_edge(best.near_edge_ne, radius) if best.near_edge_ne is not None else None
-    light = body_top = None
-    if centre is not None:
-        body_top = ned_to_pixel(model, geotag, (*centre, -look.height_m))
-        lantern = ned_to_pixel(model, geotag, (*centre, -(look.height_m + LANTERN_ABOVE_BODY_M)))
-        if lantern is not None:
-            core = max(MIN_LANTERN_PX, model.fx * LANTERN_RADIUS_M / float(np.hypot(*centre)))
-            light = measure_spot(image, lantern, 2 * core + 3, body_top[1]) if body_top else None
-    colours = _band_colours(best, look, body_top[1] if body_top else best.box[0].start)
-    if best.clipped or centre is None:
+    if best.clipped or best.near_edge_ne is None:
+        return BuoyDetection(True, "clipped: the frame's edge cuts the body: no waterline")
+    centre = centre_from_near_edge(best.near_edge_ne, radius)
+    light = None
+    body_top = ned_to_pixel(model, geotag, (*centre, -look.height_m))
+    lantern = ned_to_pixel(model, geotag, (*centre, -(look.height_m + LANTERN_ABOVE_BODY_M)))
+    if lantern is not None and body_top is not None:
+        core = max(MIN_LANTERN_PX, model.fx * LANTERN_RADIUS_M / float(np.hypot(*centre)))
+        spot = 2 * core + 3
+        if spot - 0.5 <= lantern[0] <= model.width_px - 0.5 - spot:  # a lamp cut by the frame's side may read dark
+            light = measure_spot(image, lantern, spot, body_top[1])
+    if best.cut:
         return BuoyDetection(
-            True, "clipped: the frame's edge cuts the body: no waterline", colours=colours, light=light
-        )
+            True, "found: cut by the frame's side, placed from the side in view", None,
+            ne_to_lat_lon(geotag, centre), distance(best), (), light, cut=True,
+        )  # fmt: skip
+    colours = _band_colours(best, look, body_top[1] if body_top else best.box[0].start)
     return BuoyDetection(
         True,
         "found",

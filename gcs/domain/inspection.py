@@ -141,7 +141,9 @@ def inspect_buoy(
         not_found = Finding(code="not_found", frames=len(frames), why=reasons.most_common(1)[0][0])
         return result("defect", [not_found])
     findings: list[Finding] = []
-    positions = [d.position for _, d in found if d.position is not None]
+    # a body cut by the frame's side is placed less well: its frames count only when no whole one was seen
+    whole = [d.position for _, d in found if d.position is not None and not d.cut]
+    positions = whole or [d.position for _, d in found if d.position is not None]
     observed = offset = None
     if positions:
         observed, offset, bearing = _median_position(buoy, positions)
