@@ -3,6 +3,7 @@
     .venv/bin/python -m bench.inspection                          # 30 worlds (seeds 0-29), the first 3 flown again
     .venv/bin/python -m bench.inspection --worlds 2 --baseline 1  # a quick check
     .venv/bin/python -m bench.inspection --worlds 10 --first-seed 30 --keep-misses /tmp/misses
+    .venv/bin/python -m bench.inspection --jobs 2                 # two worlds at a time (see below)
 
 Per world (seed S): the reference scenario (planner.scenario.reference_scenario(1): 13 buoys in 1200 m x 700 m,
 depot (269, 293)) made a world by uavcore.buoy_world.World.random(S, ...): each buoy a kind with its default
@@ -31,8 +32,11 @@ Measured:
   the difference per buoy; the wall time of each world (start-up, flight, evaluation).
 
 Each world gets its own free ports and temporary directory; the processes are stopped at the end of each world
-and on an error, Ctrl-C or SIGTERM. Results are written after every world (bench/results/inspection.json, with
-the command line, the git commit and the machine's load), so a stopped campaign keeps what it measured.
+and on an error, Ctrl-C or SIGTERM. --jobs N flies N worlds at a time: a world's vehicle renders its frames in its
+lockstep loop, one core, while the service analyses them on others, so on two cores two worlds at a time finish
+the campaign sooner; each world's wall times then include the other's load (its verdicts do not: lockstep).
+Results are written after every world (bench/results/inspection.json, with the command line, the git commit and
+the machine's load), so a stopped campaign keeps what it measured.
 --keep-misses DIR keeps, for every buoy judged wrongly or not inspected, its record, its frames' analysis and a
 dozen of its frames (JPEG) plus the world file, for diagnosis.
 """
@@ -51,8 +55,10 @@ import sqlite3
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections import Counter, defaultdict
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -79,6 +85,7 @@ WRONG_LIGHT = frozenset({"wrong_character", "wrong_period", "wrong_colour"})
 FAULT_KINDS = ("off_station", "light_out", "wrong_character")
 TARGETS = {"precision": 0.95, "recall": 0.95, "position_rms_m": 1.0, "light_right": 0.95}
 KEPT_FRAMES = 12
+STOPPING = threading.Event()  # Ctrl-C or SIGTERM: every world's waits end, and its processes are stopped
 
 
 class TerminatedError(Exception):
@@ -103,6 +110,8 @@ class Child:
             )  # fmt: skip
         deadline = time.monotonic() + START_TIMEOUT_S
         while not ready():
+            if STOPPING.is_set():
+                raise RuntimeError(f"{self.name}: the campaign was stopped")
             if self.process.poll() is not None:
                 raise RuntimeError(f"{self.name} exited while starting:\n{self.log()[-3000:]}")
             if time.monotonic() > deadline:
@@ -171,6 +180,8 @@ class Stack:
         while (mission := self.api.get(f"/missions/{mission_id}").json())["status"] not in TERMINAL:
             if time.monotonic() - started > FLIGHT_TIMEOUT_S:
                 raise RuntimeError(f"mission {mission_id} still {mission['status']} after {FLIGHT_TIMEOUT_S:.0f} s")
+            if STOPPING.is_set():
+                raise RuntimeError(f"mission {mission_id}: the campaign was stopped while it was {mission['status']}")
             for child in self.children:
                 child.check()
             time.sleep(1.0)
@@ -561,6 +572,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--baseline", type=int, default=3, help="fly the first N worlds again without inspection")
     parser.add_argument("--keep-misses", type=Path, metavar="DIR", help="keep the frames of buoys judged wrongly")
     parser.add_argument("--note", default="", help="a note for the results (e.g. the machine's other work)")
+    parser.add_argument("--jobs", type=int, default=1, help="worlds flown at a time (default 1)")
     parser.add_argument(
         "--resume", action="store_true", help="keep the worlds of these seeds already in the results file, fly the rest"
     )
@@ -585,21 +597,30 @@ def main(argv: list[str] | None = None) -> int:
     print(HEADER, flush=True)
     for world in worlds:
         print(world_line(world) + "  (earlier run)", flush=True)
+    pool = ThreadPoolExecutor(max_workers=max(1, args.jobs))
     try:
-        for k, seed in enumerate(seeds):
-            if seed in done:
-                continue
+        futures = {
+            pool.submit(fly_world, seed, k < args.baseline, args.keep_misses): seed
+            for k, seed in enumerate(seeds)
+            if seed not in done
+        }
+        for future in as_completed(futures):
+            seed = futures[future]
             try:
-                world = fly_world(seed, k < args.baseline, args.keep_misses)
+                world = future.result()
             except (RuntimeError, httpx.HTTPError) as error:
                 failures.append({"seed": seed, "error": str(error)[-2000:]})
                 print(f"{seed:>4} failed: {str(error)[:500]}", flush=True)
                 continue
             worlds.append(world)
+            worlds.sort(key=lambda w: w["seed"])
             print(world_line(world), flush=True)
             write_results(args, argv, worlds, failures, started)
     except (KeyboardInterrupt, TerminatedError):
         print(f"stopped after {len(worlds)} worlds", flush=True)
+        STOPPING.set()  # the worlds in flight stop their processes; the others are not started
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
     summary = write_results(args, argv, worlds, failures, started)
     print_totals(summary, time.monotonic() - started)
     print(f"wrote {RESULTS.relative_to(REPO)}")
