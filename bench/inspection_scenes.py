@@ -89,9 +89,9 @@ def capture_burst(
     pitch_offset_deg: float = 0.0,
 ) -> Burst:
     """The burst of world.buoys[target] (module docstring); frames: that many at the burst's rate instead of its
-        full duration; hide_target: the target is not drawn (the other buoys are); yaw_offset_deg: the camera turned
-        that far right of the buoy (the buoy at the frame's edge, or out of it); pitch_offset_deg: the camera raised that
-    far above it (the buoy at the frame's bottom edge)."""
+    full duration; hide_target: the target is not drawn (the other buoys are); yaw_offset_deg: the camera turned
+    that far right of the buoy (the buoy at the frame's edge, or out of it); pitch_offset_deg: the camera raised
+    that far above it (the buoy at the frame's bottom edge)."""
     buoy = world.buoys[target]
     duration_s, rate_hz = burst_for(buoy.light)
     count = frames if frames is not None else math.ceil(duration_s * rate_hz)
