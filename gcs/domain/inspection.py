@@ -9,14 +9,17 @@ unreadable and nothing else wrong), "defect" with at least one finding, else "ok
   against the burst's reading (light_reading.read_light);
 - wrong_body_colour: the bands most frames show differ from the kind's (APPEARANCE);
 - not_found: the search area was in view but the buoy was in none of the frames.
+
+A fleet mission stores no record of its own: each part stores its buoys' records, and `gather_fleet_inspections`
+gathers them by the fleet's input index (what the API lists and the fleet report shows).
 """
 
 from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Iterable, Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
@@ -24,6 +27,7 @@ from pydantic import BaseModel, ConfigDict
 from gcs.domain.buoy_detection import BuoyDetection, ChartedBuoy
 from gcs.domain.camera_geometry import FrameGeotag
 from gcs.domain.light_reading import read_light
+from gcs.domain.planning import Plan
 from uavcore.buoy_world import APPEARANCE
 from uavcore.geodesy import LocalFrame
 from uavcore.light_character import ObservedLight, matches, parse
@@ -201,3 +205,29 @@ class InspectionRecord(BaseModel):
     result: BuoyInspection
     frame_ids: list[int] = []
     best_frame: int | None = None
+
+
+class HeldInspection(NamedTuple):
+    """A record and the mission holding its frames (for a fleet mission's record: its part's)."""
+
+    mission_id: int
+    record: InspectionRecord
+
+
+def gather_fleet_inspections(
+    plan: Plan, parts: Iterable[tuple[int, Plan, Sequence[InspectionRecord]]]
+) -> list[HeldInspection]:
+    """A fleet mission's records from its parts ((part mission id, part plan, its records) each), re-indexed to the
+    fleet plan's input indices, in that order. A part's record is buoy `buoy` of its own plan: it is found in the
+    fleet's by id and position (ids need not be unique). A buoy re-shared in flight has a record in several parts:
+    one whose verdict is not not_inspected (the vehicle that inspected it) wins over the lost vehicle's."""
+    index_of = {
+        (buoy_id, tuple(at)): i for i, (buoy_id, at) in enumerate(zip(plan.buoy_ids, plan.buoys_lat_lon, strict=True))
+    }
+    found: dict[int, HeldInspection] = {}
+    for part_id, part_plan, records in parts:
+        for record in records:
+            index = index_of.get((record.buoy_id, tuple(part_plan.buoys_lat_lon[record.buoy])))
+            if index is not None and (index not in found or found[index].record.result.verdict == "not_inspected"):
+                found[index] = HeldInspection(part_id, record.model_copy(update={"buoy": index}))
+    return [found[i] for i in sorted(found)]

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from gcs.domain.inspection import gather_fleet_inspections
 from gcs.domain.planning import BuoyMark, FlightParams, Plan, fenced_legs, make_plan, mission_items, sorties_plan
 from gcs.domain.schemas import InspectionOut, MissionRequest, PlanRequest
 from gcs.domain.status import TERMINAL, MissionStatus
@@ -415,23 +416,17 @@ class MissionService:
 
     # ----- inspections
     async def inspections(self, mission_id: int) -> list[InspectionOut]:
-        """Each buoy's inspection record so far, by input index; a fleet mission's gathered from its parts (a buoy
-        re-shared in flight: the record of the vehicle that inspected it, else of the one that could not)."""
+        """Each buoy's inspection record so far, by input index; a fleet mission's gathered from its parts
+        (gather_fleet_inspections; a buoy re-shared in flight: the record of the vehicle that inspected it, else of
+        the one that could not), each naming its part's frames."""
         record = await self.get(mission_id)
         if not record.is_fleet:
             return [views.inspection_out(mission_id, r) for r in await self._storage.inspections(mission_id)]
-        plan = record.plan
-        index_of = {
-            (buoy_id, tuple(at)): i
-            for i, (buoy_id, at) in enumerate(zip(plan.buoy_ids, plan.buoys_lat_lon, strict=True))
-        }
-        found: dict[int, InspectionOut] = {}
-        for part in await self._storage.fleet_parts(mission_id):
-            for r in await self._storage.inspections(part.id):
-                index = index_of.get((r.buoy_id, tuple(part.plan.buoys_lat_lon[r.buoy])))
-                if index is not None and (index not in found or found[index].verdict == "not_inspected"):
-                    found[index] = views.inspection_out(part.id, r, index)
-        return [found[i] for i in sorted(found)]
+        parts = [
+            (part.id, part.plan, await self._storage.inspections(part.id))
+            for part in await self._storage.fleet_parts(mission_id)
+        ]
+        return [views.inspection_out(part_id, r) for part_id, r in gather_fleet_inspections(record.plan, parts)]
 
     async def frame(self, mission_id: int, frame_id: int) -> bytes:
         """A stored camera frame's bytes; raises MissionNotFoundError (no such mission) or FrameNotFoundError."""

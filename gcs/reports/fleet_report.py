@@ -4,7 +4,9 @@ The figure draws each vehicle's share (its route from its home, in its colour, a
 track its part mission recorded, a lost vehicle's last position and the buoys it handed over; the page has the
 fleet's figures (planned makespan, each part's flight time, the closest two vehicles came), a row per vehicle
 (buoys, inspected, status, why it was lost and who took its buoys, its own report) and a row per buoy (the
-vehicle that inspected it). Every text from the missions goes through html.escape; the style is the mission
+vehicle that inspected it), then the inspection section of the single mission's report
+(gcs.reports.inspection_report: every buoy's verdict, the map by verdict, the defective buoys' best frames) over the
+records gathered from the parts. Every text from the missions goes through html.escape; the style is the mission
 report's (gcs.reports.drawing.REPORT_STYLE, which the service's Content-Security-Policy allows by its hash).
 """
 
@@ -19,46 +21,60 @@ import numpy as np
 from gcs.domain.planning import Plan
 from gcs.domain.schemas import FleetOut, FleetShareOut
 from gcs.reports.drawing import REPORT_STYLE, column, new_figure, save_figure, sortie_style
+from gcs.reports.inspection_report import InspectionSection, write_inspection_section
 from gcs.reports.views import fleet_out
 from gcs.storage import MissionRecord
 
-FLEET_FIGURE = "fleet.png"  # a fleet mission's report has this figure only
+FLEET_FIGURE = "fleet.png"  # a fleet mission's report has this figure and the inspection section's
 
 
 def write_fleet_report(
-    record: MissionRecord, parts: list[MissionRecord], samples: dict[int, list[dict[str, Any]]], out_dir: Path
+    record: MissionRecord,
+    parts: list[MissionRecord],
+    samples: dict[int, list[dict[str, Any]]],
+    out_dir: Path,
+    inspections: InspectionSection | None = None,
 ) -> Path:
-    """Draw the fleet figure and write index.html into out_dir (samples: each part's telemetry by mission id)."""
+    """Draw the fleet figure and the inspection section and write index.html into out_dir (samples: each part's
+    telemetry by mission id; inspections: the records gathered from the parts, by the fleet's input index, with
+    the defective buoys' best frames: gcs.reports.inspection_report.load_fleet_inspections)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     plan = record.plan
     fleet = fleet_out(record)
-    _draw_fleet(plan, fleet, parts, samples, out_dir / FLEET_FIGURE)
+    recorded = {part.vehicle_sysid: samples.get(part.id, []) for part in parts}
+    # sysid -> its part's flown track in the fleet's frame
+    tracks = {share.sysid: _flown_en(plan, recorded.get(share.sysid, [])) for share in fleet.shares}
+    routes = [plan.frame.project(np.asarray(share.route)) for share in fleet.shares]
+    _draw_fleet(plan, fleet, routes, tracks, out_dir / FLEET_FIGURE)
+    # The inspection map draws each share's route, not the fleet plan's own (route_local): that is one tour from
+    # the first vehicle's home through every share's buoys in turn, with legs no vehicle flew; and each vehicle's
+    # track apart, never one line from one vehicle's last position to another's first.
+    section = inspections or InspectionSection()
+    inspection = write_inspection_section(plan, section, list(tracks.values()), out_dir, routes)
     index = out_dir / "index.html"
-    index.write_text(fleet_report_html(record, fleet, parts))
+    index.write_text(fleet_report_html(record, fleet, parts, inspection))
     return index
 
 
+def _flown_en(plan: Plan, samples: list[dict[str, Any]]) -> np.ndarray:
+    """A part's recorded positions, (n, 2) east/north in the fleet's frame: projected from lat/lon, since each
+    vehicle's local frame (the samples' north/east) is its own."""
+    lat, lon = column(samples, "lat"), column(samples, "lon")
+    located = ~(np.isnan(lat) | np.isnan(lon))
+    return plan.frame.project(np.column_stack([lat[located], lon[located]])) if located.any() else np.empty((0, 2))
+
+
 def _draw_fleet(
-    plan: Plan,
-    fleet: FleetOut,
-    parts: list[MissionRecord],
-    samples: dict[int, list[dict[str, Any]]],
-    path: Path,
+    plan: Plan, fleet: FleetOut, routes: list[np.ndarray], tracks: dict[int, np.ndarray], path: Path
 ) -> None:
+    """Each share's route (`routes`, in the shares' order) and track (`tracks`, by sysid) in its colour."""
     figure, ax = new_figure(6.5)
-    frame = plan.frame
     buoys = np.asarray(plan.buoys_local)
-    part_of = {part.vehicle_sysid: part for part in parts}
-    for k, share in enumerate(fleet.shares):
+    for k, (share, route) in enumerate(zip(fleet.shares, routes, strict=True)):
         style = sortie_style(k)
-        route = frame.project(np.asarray(share.route))
         ax.plot(route[:, 0], route[:, 1], lw=1.2, label=f"vehicle {share.sysid}: planned", **style)
-        part = part_of.get(share.sysid)
-        recorded = samples.get(part.id, []) if part is not None else []
-        lat, lon = column(recorded, "lat"), column(recorded, "lon")  # each vehicle's local frame is its own
-        located = ~(np.isnan(lat) | np.isnan(lon))
-        if located.any():
-            flown = frame.project(np.column_stack([lat[located], lon[located]]))
+        flown = tracks[share.sysid]
+        if len(flown):
             ax.plot(flown[:, 0], flown[:, 1], color=style["color"], lw=0.8, alpha=0.6)
             if share.lost:
                 east, north = flown[-1]
@@ -85,7 +101,9 @@ def _number(value: float | None, digits: int = 1) -> str:
     return "–" if value is None else f"{value:.{digits}f}"
 
 
-def fleet_report_html(record: MissionRecord, fleet: FleetOut, parts: list[MissionRecord]) -> str:
+def fleet_report_html(record: MissionRecord, fleet: FleetOut, parts: list[MissionRecord], inspection: str = "") -> str:
+    """The page: figures, a row per vehicle and per buoy, the inspection section (`inspection`, HTML already
+    escaped), then the fleet figure."""
     ids = record.plan.buoy_ids
     # each part's flight time (None: not flown, or no tracking figures)
     flown = {part.vehicle_sysid: _flight_time_s(part) for part in parts}
@@ -165,6 +183,8 @@ def fleet_report_html(record: MissionRecord, fleet: FleetOut, parts: list[Missio
 <tbody>
 {buoy_rows}
 </tbody></table>
+{inspection}
+<h2>Flight</h2>
 <figure><img src="{FLEET_FIGURE}" alt="fleet"></figure>
 </body></html>
 """

@@ -1,10 +1,12 @@
-"""The report's inspection section (gcs.reports.report): every buoy's verdict, findings and light read as a table,
-a figure of the route with each buoy coloured and marked by its verdict (an off-station buoy with a line to where it
-was seen), and the best frame of each defective buoy copied beside index.html and shown.
+"""The reports' inspection section (gcs.reports.report, gcs.reports.fleet_report): every buoy's verdict, findings
+and light read as a table, a figure of the route (a fleet's: each share's) with each buoy coloured and marked by its
+verdict (an off-station buoy with a line to where it was seen), and the best frame of each defective buoy copied
+beside index.html and shown.
 
-`load_inspections` reads what the section needs from storage (the records, the defective buoys' best frames);
-`write_inspection_section` draws the figure, writes the frames and returns the section's HTML. The words for the
-findings are the map page's (gcs/web/verdicts.js says the same). Every text from the mission (buoy ids, reasons,
+`load_inspections` reads what the section needs from storage (the records, the defective buoys' best frames), and
+`load_fleet_inspections` a fleet mission's, from its parts; `write_inspection_section` draws the figure, writes the
+frames and returns the section's HTML. The words for the findings are the map page's (gcs/web/verdicts.js says the
+same). Every text from the mission (buoy ids, reasons,
 light readings) goes through html.escape; the frames' file names are made of the buoy's input index, never its id.
 """
 
@@ -20,10 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from gcs.domain.inspection import InspectionRecord
+from gcs.domain.inspection import HeldInspection, InspectionRecord, gather_fleet_inspections
 from gcs.domain.planning import Plan
 from gcs.reports.drawing import new_figure, save_figure
-from gcs.storage import Storage
+from gcs.storage import MissionRecord, Storage
 
 INSPECTION_FIGURE = "inspection.png"
 # a defective buoy's best frame in the report folder: defect-<input index>.<jpg|png>
@@ -52,14 +54,25 @@ class InspectionSection:
 
 def load_inspections(storage: Storage, mission_id: int) -> InspectionSection:
     """The mission's inspection records and its defective buoys' best frames, from storage."""
-    records = storage.inspections(mission_id)
+    return _section(storage, [HeldInspection(mission_id, record) for record in storage.inspections(mission_id)])
+
+
+def load_fleet_inspections(storage: Storage, fleet: MissionRecord, parts: Sequence[MissionRecord]) -> InspectionSection:
+    """A fleet mission's records, gathered from its parts by the fleet's input index (gather_fleet_inspections),
+    and its defective buoys' best frames, each read from the part that holds it."""
+    held = gather_fleet_inspections(fleet.plan, [(part.id, part.plan, storage.inspections(part.id)) for part in parts])
+    return _section(storage, held)
+
+
+def _section(storage: Storage, held: Sequence[HeldInspection]) -> InspectionSection:
+    """The records, and the best frame of each defective one from the mission holding its frames."""
     frames = {}
-    for record in records:
+    for mission_id, record in held:
         if record.result.verdict == "defect" and record.best_frame is not None:
             data = storage.frame_data(mission_id, record.best_frame)
             if data is not None:
                 frames[record.buoy] = data
-    return InspectionSection(records, frames)
+    return InspectionSection([record for _, record in held], frames)
 
 
 def is_frame_file(name: str) -> bool:
@@ -118,17 +131,27 @@ def counts_line(plan: Plan, records: Sequence[InspectionRecord]) -> str:
 
 
 # ----- the figure
-def draw_inspection_map(plan: Plan, records: Sequence[InspectionRecord], track_en: np.ndarray, path: Path) -> None:
-    """The route (dashed) and the flown track (`track_en`, (n, 2) east/north, may be empty) with each buoy drawn
-    by its verdict (VERDICT_LOOK), its swing circle, and a line from its charted position to where it was seen."""
+def draw_inspection_map(
+    plan: Plan,
+    records: Sequence[InspectionRecord],
+    tracks_en: Sequence[np.ndarray],
+    path: Path,
+    routes_en: Sequence[np.ndarray] | None = None,
+) -> None:
+    """The routes (dashed; default: the plan's) and the flown tracks (`tracks_en`, each (n, 2) east/north, may be
+    empty: a fleet's vehicles each have their own, never joined into one line) with each buoy drawn by its verdict
+    (VERDICT_LOOK), its swing circle, and a line from its charted position to where it was seen. Each route
+    starts at its depot (a fleet's: each vehicle's home)."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Circle
 
     figure, ax = new_figure(6.0)
-    route = plan.route_local()
-    ax.plot(route[:, 0], route[:, 1], "--", color="0.6", lw=1, zorder=1)
-    if len(track_en):
-        ax.plot(track_en[:, 0], track_en[:, 1], color="tab:blue", lw=0.8, alpha=0.6, zorder=1)
+    routes = [plan.route_local()] if routes_en is None else routes_en
+    for route in routes:
+        ax.plot(route[:, 0], route[:, 1], "--", color="0.6", lw=1, zorder=1)
+    for track in tracks_en:
+        if len(track):
+            ax.plot(track[:, 0], track[:, 1], color="tab:blue", lw=0.8, alpha=0.6, zorder=1)
     by_index = {r.buoy: r for r in records}
     buoys = np.asarray(plan.buoys_local, dtype=float).reshape(-1, 2)
     counts: Counter[str | None] = Counter()
@@ -148,7 +171,8 @@ def draw_inspection_map(plan: Plan, records: Sequence[InspectionRecord], track_e
                 ax.plot([east, seen_en[0]], [north, seen_en[1]], color=colour, lw=1.2, zorder=2)
                 ax.scatter([seen_en[0]], [seen_en[1]], s=18, marker="+", color=colour, zorder=3)
         ax.annotate(plan.buoy_ids[index], (east, north), textcoords="offset points", xytext=(8, 8), fontsize=8)
-    ax.scatter([0.0], [0.0], marker="s", color="k", zorder=3)
+    depots = np.array([route[0] for route in routes]).reshape(-1, 2)
+    ax.scatter(depots[:, 0], depots[:, 1], marker="s", color="k", zorder=3)
     handles = [
         Line2D([], [], ls="", marker=VERDICT_LOOK[v][1], markersize=9, color=VERDICT_LOOK[v][0],
                markerfacecolor="none" if v is None else VERDICT_LOOK[v][0], label=f"{VERDICT_LOOK[v][2]} ({counts[v]})")
@@ -156,8 +180,8 @@ def draw_inspection_map(plan: Plan, records: Sequence[InspectionRecord], track_e
         if counts[v]
     ]  # fmt: skip
     handles += [
-        Line2D([], [], ls="", marker="s", color="k", label="depot"),
-        Line2D([], [], ls="--", color="0.6", label="planned route"),
+        Line2D([], [], ls="", marker="s", color="k", label="depot" if len(routes) == 1 else "depots (homes)"),
+        Line2D([], [], ls="--", color="0.6", label="planned route" if len(routes) == 1 else "planned routes"),
         Line2D([], [], marker="+", color="0.3", label="where seen (line from the charted position)"),
     ]
     ax.set_aspect("equal", adjustable="datalim")
@@ -167,16 +191,23 @@ def draw_inspection_map(plan: Plan, records: Sequence[InspectionRecord], track_e
 
 
 # ----- the section
-def write_inspection_section(plan: Plan, section: InspectionSection, track_en: np.ndarray, out_dir: Path) -> str:
-    """Draw INSPECTION_FIGURE and copy the defective buoys' best frames into out_dir (the frames of an earlier
-    drawing removed first); returns the section's HTML. A mission with no record gets a line saying so, no figure."""
+def write_inspection_section(
+    plan: Plan,
+    section: InspectionSection,
+    tracks_en: Sequence[np.ndarray],
+    out_dir: Path,
+    routes_en: Sequence[np.ndarray] | None = None,
+) -> str:
+    """Draw INSPECTION_FIGURE (draw_inspection_map: `tracks_en`, `routes_en`) and copy the defective buoys' best
+    frames into out_dir (the frames of an earlier drawing removed first); returns the section's HTML. A mission
+    with no record gets a line saying so, no figure."""
     for old in out_dir.iterdir():
         if is_frame_file(old.name):
             old.unlink()
     (out_dir / INSPECTION_FIGURE).unlink(missing_ok=True)
     if not section.records:
         return '<h2>Inspection</h2>\n<p data-testid="inspection-none">No inspection records.</p>'
-    draw_inspection_map(plan, section.records, track_en, out_dir / INSPECTION_FIGURE)
+    draw_inspection_map(plan, section.records, tracks_en, out_dir / INSPECTION_FIGURE, routes_en)
     frame_files = {}
     for index, data in sorted(section.best_frames.items()):
         name = frame_file_name(index, data)

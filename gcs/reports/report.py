@@ -31,6 +31,7 @@ from gcs.reports.inspection_report import (
     INSPECTION_FIGURE,
     InspectionSection,
     is_frame_file,
+    load_fleet_inspections,
     load_inspections,
     write_inspection_section,
 )
@@ -39,8 +40,8 @@ from gcs.storage import MissionRecord, Storage
 
 FIGURES = ("route.png", "tracking_error.png", "cross_track.png", "altitude.png", "yaw.png", "eso.png")
 ENERGY_FIGURE = "energy.png"  # drawn only for a mission planned with energy figures
-# every file a report folder may hold (a fleet mission's report: index.html and FLEET_FIGURE only), besides the
-# defective buoys' frames (is_report_file)
+# every file a report folder may hold (a fleet mission's report: index.html, FLEET_FIGURE and INSPECTION_FIGURE
+# only), besides the defective buoys' frames (is_report_file)
 REPORT_FILES = ("index.html", *FIGURES, ENERGY_FIGURE, INSPECTION_FIGURE, FLEET_FIGURE)
 # Okabe & Ito's colour-blind-safe palette less its yellow and black, as the map page draws sorties
 # (gcs/web/sorties.js); past six sorties the colours repeat with another dash.
@@ -349,7 +350,7 @@ def write_report(
         figures = (*FIGURES, ENERGY_FIGURE)
     flown = np.isfinite(series.east) & np.isfinite(series.north)
     track = np.column_stack([series.east[flown], series.north[flown]])
-    inspection = write_inspection_section(plan, inspections or InspectionSection(), track, out_dir)
+    inspection = write_inspection_section(plan, inspections or InspectionSection(), [track], out_dir)
     index = out_dir / "index.html"
     shown = sorties if plan.sorties or plan.energy else []
     index.write_text(report_html(record, summary_rows(record, series), shown, figures, inspection))
@@ -468,9 +469,10 @@ def cached_report(storage: Storage, mission_id: int, cache_root: Path) -> Path:
 
 def write_stored_report(storage: Storage, record: MissionRecord, out_dir: Path) -> Path:
     """A stored mission's report into out_dir: a mission's (write_report), or a fleet mission's, over its parts'
-    telemetry (gcs.reports.fleet_report)."""
+    telemetry and inspections (gcs.reports.fleet_report)."""
     if not record.is_fleet:
         return write_report(record, storage.telemetry(record.id), out_dir, load_inspections(storage, record.id))
 
     parts = storage.fleet_parts(record.id)
-    return write_fleet_report(record, parts, {part.id: storage.telemetry(part.id) for part in parts}, out_dir)
+    samples = {part.id: storage.telemetry(part.id) for part in parts}
+    return write_fleet_report(record, parts, samples, out_dir, load_fleet_inspections(storage, record, parts))

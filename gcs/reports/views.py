@@ -252,13 +252,13 @@ def frame_url(mission_id: int, frame_id: int) -> str:
     return f"/missions/{mission_id}/frames/{frame_id}"
 
 
-def inspection_out(mission_id: int, record: InspectionRecord, index: int | None = None) -> InspectionOut:
-    """A stored inspection record as the API shows it; `mission_id`: the mission holding its frames, `index`: the
-    buoy's index in the mission asked about (a fleet mission's, where the record is its part's)."""
+def inspection_out(mission_id: int, record: InspectionRecord) -> InspectionOut:
+    """A stored inspection record as the API shows it; `mission_id`: the mission holding its frames (a fleet
+    mission's record, re-indexed to the fleet's buoys by gather_fleet_inspections: its part's)."""
     result = record.result
     return InspectionOut(
         buoy=record.buoy_id,
-        index=record.buoy if index is None else index,
+        index=record.buoy,
         verdict=result.verdict,
         findings=[finding.model_dump() for finding in result.findings],
         observed=None if result.observed is None else LatLon(lat=result.observed.lat, lon=result.observed.lon),
