@@ -14,6 +14,7 @@ import io
 import json
 import math
 import sqlite3
+import time
 from collections.abc import Iterator
 
 import numpy as np
@@ -146,3 +147,44 @@ def test_frames_over_the_size_limit_are_refused_and_each_buoy_says_so_while_the_
         assert "over the limit of 1000" in inspection["reason"], inspection["reason"]
     with sqlite3.connect(stack.dir / "gcs.sqlite") as db:
         assert db.execute("SELECT COUNT(*) FROM frames WHERE mission_id = ?", (mission_id,)).fetchone() == (0,)
+
+
+def test_a_buoy_whose_burst_an_abort_cuts_short_is_not_judged_on_a_part_of_it(stack, tmp_path):
+    """The operator aborts while the camera is half-way through the second buoy's burst (a long-period light: 21 s
+    of frames): the first buoy is judged, the second is not (a part of a burst would misread its light) and says
+    its burst was cut short, with the frames that came kept as evidence; the third was never reached."""
+    document = world_document()
+    for feature in document["features"]:
+        feature["properties"].pop("shows", None)
+        feature["properties"].pop("offset_m", None)
+    lat_lon = [HOME.from_ned(n, e)[:2] for n, e in POSITIONS_NE]
+    first, second, third = make_plan(DEFAULT_HOME[:2], lat_lon, ["A", "B", "C"]).order
+    document["features"][second]["properties"] |= {"kind": "safe_water", "light": "LFl W 10s"}  # 210 frames
+    world = tmp_path / "world.geojson"
+    world.write_text(json.dumps(document))
+    images = tmp_path / "images"
+    stack.start_gcs()
+    stack.start_vehicle("--world", str(world), "--image-dir", str(images))
+    stack.start_offboard()
+    stack.wait_connected()
+    buoys = stack.api.post("/imports?filename=world.geojson", content=world.read_bytes()).json()["buoys"]
+    mission_id = stack.fly({"buoys": buoys})
+    # the first burst is 20 frames: 60 written means the second buoy's has 170 of its 210 to go (17 s of its time)
+    deadline = time.monotonic() + FLIGHT_S
+    while len(list(images.glob("IMG_*.jpg"))) < 60:
+        assert time.monotonic() < deadline, "the second burst never started"
+        time.sleep(0.05)
+    assert stack.api.post(f"/missions/{mission_id}/abort").status_code == 200
+    # "aborted" comes as the vehicle turns for home; the sortie's inspection closes once it has landed
+    mission = stack.wait_mission(mission_id, lambda m: "returned" in (m["reason"] or ""), timeout_s=FLIGHT_S)
+    assert mission["status"] == "aborted", mission["events"]
+
+    by_index = {i["index"]: i for i in stack.api.get(f"/missions/{mission_id}/inspections").json()}
+    assert sorted(by_index) == [0, 1, 2], (first, second, third, by_index)
+    assert by_index[first]["verdict"] == "ok", by_index[first]
+    cut = by_index[second]
+    assert cut["verdict"] == "not_inspected" and cut["findings"] == [], cut
+    assert cut["reason"].startswith("its burst was cut short"), cut["reason"]
+    assert "of its 210 frames reported" in cut["reason"], cut["reason"]
+    assert len(cut["frames"]) >= 40  # what came before the abort, kept as evidence
+    assert by_index[third]["verdict"] == "not_inspected" and by_index[third]["frames"] == []

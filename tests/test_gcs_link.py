@@ -179,3 +179,24 @@ def test_vehicle_that_never_arms_ends_failed_not_flying_forever(tmp_path, vehicl
     mission = fly(tmp_path, vehicle)
     assert mission["status"] == "failed" and "disarmed before completing" in mission["reason"]
     assert mavlink.MAV_CMD_DO_SET_MODE in vehicle.commands_seen
+
+
+def test_a_busy_service_behind_on_its_reading_does_not_take_a_talking_vehicle_for_lost(vehicle):
+    """The event loop held up longer than the heartbeat timeout (a busy service: asyncio reads one datagram a
+    turn) while the vehicle goes on talking: its heartbeats wait unread in the socket, and the watchdog, run
+    before they are read, must not call the link lost. A vehicle that really falls silent still is."""
+
+    async def scenario():
+        link = await connected_link(vehicle, timeout_s=0.5)
+        try:
+            time.sleep(1.0)  # the loop blocked: nothing read for twice the timeout, the vehicle's thread sending
+            assert link._transport is not None and link._transport.backlogged()
+            link._check_heartbeat_timeout()  # what the heartbeat task does when the loop next runs it
+            held = link.status.connected
+            vehicle.silent = True
+            await eventually(lambda: not link.status.connected, "the silent vehicle's link lost")
+            return held
+        finally:
+            await link.stop()
+
+    assert asyncio.run(scenario()) is True

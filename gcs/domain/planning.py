@@ -61,6 +61,11 @@ class BuoyMark:
         """(duration s, rate Hz) of the camera burst that reads this light (uavcore.light_character.burst_for)."""
         return burst_for(None if self.light is None else parse(self.light))
 
+    def burst_frames(self) -> int:
+        """How many frames that burst is (IMAGE_START_CAPTURE's count)."""
+        duration_s, rate_hz = self.burst()
+        return math.ceil(duration_s * rate_hz)
+
 
 @dataclass(frozen=True)
 class Plan:
@@ -272,8 +277,8 @@ def inspection_items(plan: Plan, flight: FlightParams, position: int) -> list[Mi
     the buoy itself (the visit the route is measured by)."""
     index = plan.order[position]
     lat, lon = plan.buoys_lat_lon[index]
-    duration_s, rate_hz = plan.mark(index).burst()
-    count = math.ceil(duration_s * rate_hz)
+    _, rate_hz = plan.mark(index).burst()
+    count = plan.mark(index).burst_frames()
     s_lat, s_lon = standoff_point(plan, position, flight.inspection_range_m)
     alt, acceptance = float(flight.altitude_m), float(flight.acceptance_radius_m)
     roi = replace(_command(MavCmd.DO_SET_ROI_LOCATION), frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,

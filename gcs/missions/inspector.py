@@ -178,9 +178,10 @@ class Inspector:
         ]
 
     async def close(self, why_unjudged: str = "the sortie ended before the vehicle inspected it") -> None:
-        """The sortie is over: judge every buoy reached once its frames are in (waiting for the ones still being
-        downloaded while that goes on: `_drain`), and record the others as not inspected: a buoy whose burst is not
-        all in says how much is missing (a part of a burst would misread its light), one never reached
+        """The sortie is over: judge every buoy the vehicle went on from once its frames are in (waiting for the
+        ones still being downloaded while that goes on: `_drain`), and record the others as not inspected, since a
+        part of a burst would misread the light: one the vehicle was still at says its burst was cut short and how
+        much of it was reported, one whose frames are not all in says how many are missing, one never reached
         `why_unjudged`."""
         self.link.remove_listener(self._heard)
         receiving = self._tasks[0] if self._tasks else None
@@ -188,8 +189,10 @@ class Inspector:
             receiving.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await receiving
+        # only a buoy the vehicle went on from has its whole burst: one it was still at when the sortie ended (or
+        # its link was lost) has a part of it, which would misread the light
         reached = {p for p in range(len(self.plan.order)) if self._passed(p)}
-        for position in sorted(reached | set(self._buoys)):
+        for position in sorted(reached):
             self._judge_later(position)
         if len(self._tasks) > 1:
             await self._drain()
@@ -201,7 +204,13 @@ class Inspector:
             if buoy is not None and buoy.judged:
                 continue
             reason = why_unjudged
-            if buoy is not None and buoy.pending:  # a part of a burst is not judged: its light would read wrong
+            if buoy is not None and position not in reached:
+                expected = self.plan.mark(index).burst_frames()
+                reason = (
+                    f"its burst was cut short: the sortie's inspection stopped while the camera was at it "
+                    f"({buoy.reported} of its {expected} frames reported)"
+                )
+            elif buoy is not None and buoy.pending:  # a part of a burst is not judged: its light would read wrong
                 reason = (
                     f"the sortie's inspection stopped while {buoy.pending} of its {buoy.reported} frames were still "
                     "being downloaded and analysed"

@@ -18,6 +18,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import os
+import select
 import socket
 import termios
 from collections.abc import Callable
@@ -119,6 +120,10 @@ class Transport:
     async def close(self) -> None:
         pass
 
+    def backlogged(self) -> bool:
+        """Whether data has arrived that has not been read yet (a stream transport reads what is there at once)."""
+        return False
+
     def _received(self, data: bytes, source: object = None) -> None:
         if self._on_data is not None:
             self._on_data(data, source)
@@ -169,6 +174,15 @@ class UdpTransport(Transport):
     @property
     def local_port(self) -> int:
         return self._socket.get_extra_info("sockname")[1] if self._socket is not None else 0
+
+    def backlogged(self) -> bool:
+        """Datagrams wait in the socket: asyncio reads one per turn of its loop, so on a busy service a heartbeat can
+        wait there behind a burst of telemetry and file data for longer than the link's timeout."""
+        sock = self._socket.get_extra_info("socket") if self._socket is not None else None
+        if sock is None:
+            return False
+        readable, _, _ = select.select([sock], [], [], 0.0)
+        return bool(readable)
 
     def reply_to(self, address: object) -> None:
         if self.connection.kind == "udpin" and isinstance(address, tuple):

@@ -331,7 +331,11 @@ class LinkManager:
             await asyncio.sleep(1.0)
 
     def _check_heartbeat_timeout(self) -> None:
+        """The link is lost after heartbeat_timeout_s without a heartbeat read, unless what the vehicle sent is
+        still waiting to be read: then this service is behind, and the vehicle may well not be silent."""
         last = self.status.last_heartbeat
+        if self._transport is not None and self._transport.backlogged():
+            return
         if self.status.connected and last is not None and time.monotonic() - last > self.heartbeat_timeout_s:
             self.status.connected = False
             self._connected_event.clear()

@@ -26,7 +26,9 @@ from sitl_quad.camera_render import CameraPose, Intrinsics, Scene, encode_jpeg, 
 
 log = logging.getLogger(__name__)
 
-STOP_WAIT_S = 5.0  # at most this long for the frames still being made when the vehicle stops
+# at most this long, all told, for the frames still being made and the worker's exit when the vehicle stops: a
+# vehicle told to stop (SIGTERM) must be gone well within the 10 s a supervisor gives it before SIGKILL
+STOP_WAIT_S = 4.0
 WORKER_NICENESS = 10  # the loop's ticks come first: on a busy machine the worker's frames wait, not the ticks
 
 
@@ -101,7 +103,7 @@ class FrameWorker:
         return results
 
     def close(self) -> list[FrameResult]:
-        """Stop the worker after the frames in hand (at most STOP_WAIT_S); returns their results."""
+        """Stop the worker after the frames in hand (STOP_WAIT_S for all of it); returns their results."""
         results = []
         deadline = time.monotonic() + STOP_WAIT_S
         try:
@@ -110,7 +112,7 @@ class FrameWorker:
             self._connection.send(None)
         except (WorkerGoneError, OSError):
             pass
-        self._process.join(STOP_WAIT_S)
+        self._process.join(max(0.1, deadline - time.monotonic()))
         if self._process.is_alive():
             self._process.terminate()
             self._process.join()
