@@ -85,6 +85,10 @@ class ChartError(BuoyFileError):
     holding none. The message names the cell and what is wrong (HTTP 422, CLI exit 2)."""
 
 
+class NothingInAreaError(ChartError):
+    """The cell has buoys or beacons, but none in the area asked for (the message says where they are)."""
+
+
 def object_label(object_class: str, attributes: Mapping[str, Any]) -> str:
     """How a warning names an object of the cell: class, name and id."""
     name = _text(attributes.get("OBJNAM"))
@@ -459,7 +463,7 @@ def read_marks(contents: ChartContents, fallback_region: Region = "A", area: Bas
         shapely.prepare(area)
         chosen = [m for m in chosen if area.covers(Point(m.lon, m.lat))]
         if not chosen:
-            raise ChartError(_nothing_in_area(contents, area))
+            raise NothingInAreaError(_nothing_in_area(contents, area))
     warn = _Warnings()
     lights = lights_by_mark(chosen, contents.lights)
     marks = tuple(
