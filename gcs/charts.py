@@ -26,7 +26,11 @@ from __future__ import annotations
 
 import math
 import tempfile
-from collections.abc import Sequence
+import threading
+import warnings
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -51,6 +55,8 @@ from gcs.domain.charted_marks import (
 )
 
 CELL_SUFFIX = ".000"  # a base cell; .001, .002, ... are its updates
+_READING = threading.Lock()  # one cell at a time (see _gdal_warnings); it also bounds the memory reading takes
+_PYOGRIO = str(Path(pyogrio.__file__).parent)
 LEADER_BYTES = 24
 GDAL_MESSAGE_CHARS = 200
 
@@ -90,16 +96,35 @@ def _contents(path: Path, head: bytes, name: str, updates: bool) -> ChartContent
     if not _has_iso8211_leader(head):
         raise ChartError(f"{name}: not an S-57 cell: it does not start with an ISO 8211 record leader")
     options = {"UPDATES": "APPLY" if updates else "IGNORE", "LNAM_REFS": "ON"}  # LNAM_REFS: a mark's lights
+    gdal_warnings: list[str] = []
     try:
-        layers = {str(row[0]) for row in pyogrio.list_layers(path)}
-        if "DSID" not in layers:
-            raise ChartError(f"{name}: an ISO 8211 file but not an S-57 cell (it has no data set record, DSID)")
-        return _read_contents(path, name, layers, options)
+        with _gdal_warnings(gdal_warnings):
+            layers = {str(row[0]) for row in pyogrio.list_layers(path)}
+            if "DSID" not in layers:
+                raise ChartError(f"{name}: an ISO 8211 file but not an S-57 cell (it has no data set record, DSID)")
+            contents = _read_contents(path, name, layers, options)
     except (DataSourceError, DataLayerError) as error:
         raise ChartError(f"{name}: not a readable S-57 cell: {_gdal_message(error)}") from None
+    return replace(contents, warnings=(*gdal_warnings, *contents.warnings))
 
 
-def _gdal_message(error: Exception) -> str:
+@contextmanager
+def _gdal_warnings(into: list[str]) -> Iterator[None]:
+    """GDAL's warnings while a cell is read (a damaged record's attribute skipped, ...), as import warnings.
+
+    pyogrio raises them as Python RuntimeWarnings, and warnings.catch_warnings is process-wide: cells are read one
+    at a time, and a warning of another thread caught meanwhile is issued again."""
+    with _READING, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        yield
+    for warning in caught:
+        if warning.filename.startswith(_PYOGRIO):
+            into.append(f"GDAL: {_gdal_message(warning.message)}")
+        else:
+            warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
+
+
+def _gdal_message(error: Exception | Warning | str) -> str:
     lines = str(error).strip().splitlines() or ["(no message)"]
     return lines[0][:GDAL_MESSAGE_CHARS]
 
