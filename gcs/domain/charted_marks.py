@@ -149,6 +149,10 @@ class ChartedMark:
         return self.object_class in BEACON_CLASSES
 
     @property
+    def label(self) -> str:
+        return object_label(self.object_class, {"OBJNAM": self.name, "LNAM": self.id})
+
+    @property
     def swing_radius_m(self) -> float | None:
         """0 for a beacon (fixed); None for a buoy: the chart gives no mooring, the mission takes its default."""
         return 0.0 if self.beacon else None
@@ -247,6 +251,15 @@ def _codes(value: Any) -> tuple[list[int], list[str]]:
     return codes, unreadable
 
 
+def _shown(obj: S57Object, attribute: str) -> str:
+    """An attribute as a warning names it: "CATLAM 11", "COLOUR 3,4", "CATLAM missing"."""
+    value = obj.get(attribute)
+    if value is None:
+        return f"{attribute} missing"
+    shown = ",".join(map(str, value)) if isinstance(value, list | tuple) else str(value)
+    return f"{attribute} {shown}"
+
+
 def _code(value: Any) -> int | None:
     codes, _ = _codes(value)
     return codes[0] if len(codes) == 1 else None
@@ -307,7 +320,7 @@ def _lateral_kind(
     catlam = _code(obj.get("CATLAM"))
     if catlam in _CATLAM:
         return _CATLAM[catlam]
-    why = "CATLAM missing" if obj.get("CATLAM") is None else f"CATLAM {obj.get('CATLAM')} not a side this maps"
+    why = _shown(obj, "CATLAM") + ("" if obj.get("CATLAM") is None else " not a side this maps")
     side = _LATERAL_COLOUR[region].get(colours[0]) if region and len(colours) == 1 else None
     if side is None:
         warn.add(obj, f"{why}, and its colours {'/'.join(colours) or 'not charted'} do not tell the side: kind unknown")
@@ -324,7 +337,7 @@ def _kind(obj: S57Object, colours: list[str], region: Region | None, warn: _Warn
     if suffix == "CAR":
         catcam = _code(obj.get("CATCAM"))
         if catcam not in _CATCAM:
-            warn.add(obj, f"CATCAM {obj.get('CATCAM')} not a quadrant (1-4): kind unknown")
+            warn.add(obj, f"{_shown(obj, 'CATCAM')}, not a quadrant (1-4): kind unknown")
             return None, None
         return _CATCAM[catcam], None
     return _KIND_OF_CLASS[suffix], None
@@ -335,7 +348,7 @@ def _light_text(light: S57Object) -> str:
     """The light's chart text (LightCharacterError if it is not one this project reads)."""
     litchr = _code(light.get("LITCHR"))
     if litchr is None:
-        raise LightCharacterError(f"LITCHR {light.get('LITCHR')!r} is no light character")
+        raise LightCharacterError(f"{_shown(light, 'LITCHR')} is no light character")
     colours, unreadable = _codes(light.get("COLOUR"))
     if unreadable:
         raise LightCharacterError(f"COLOUR {', '.join(unreadable)} is no colour code")
@@ -350,7 +363,7 @@ def _light_text(light: S57Object) -> str:
 
 def _raw_light(light: S57Object) -> str:
     """A light this project cannot read, as the cell gives it."""
-    parts = [f"{name} {light.get(name)}" for name in ("LITCHR", "SIGGRP", "SIGPER", "COLOUR") if light.get(name)]
+    parts = [_shown(light, name) for name in ("LITCHR", "SIGGRP", "SIGPER", "COLOUR") if light.get(name)]
     return "S-57 " + ", ".join(parts) if parts else "S-57 light without attributes"
 
 
@@ -492,7 +505,7 @@ def world_of(marks: Sequence[ChartedMark]) -> tuple[World, list[str]]:
         light = None if mark.light is None else parse(mark.light)
         if mark.kind is None or (light is not None and light.cycle_s is None):
             why = "its kind is unknown" if mark.kind is None else f"its light {mark.light} has no period"
-            left_out.append(f"{mark.object_class} {mark.name or mark.id} ({mark.id}): not in the world file: {why}")
+            left_out.append(f"{mark.label}: not in the world file: {why}")
             continue
         radius = DEFAULT_SWING_RADIUS_M if mark.swing_radius_m is None else mark.swing_radius_m
         buoys.append(WorldBuoy(mark.id, mark.kind, (mark.lat, mark.lon), light, radius, light))
