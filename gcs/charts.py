@@ -103,7 +103,7 @@ def _contents(path: Path, head: bytes, name: str, updates: bool) -> ChartContent
             if "DSID" not in layers:
                 raise ChartError(f"{name}: an ISO 8211 file but not an S-57 cell (it has no data set record, DSID)")
             contents = _read_contents(path, name, layers, options)
-    except (DataSourceError, DataLayerError) as error:
+    except (DataSourceError, DataLayerError, shapely.errors.ShapelyError) as error:  # GDAL's, or a geometry's
         raise ChartError(f"{name}: not a readable S-57 cell: {_gdal_message(error)}") from None
     return replace(contents, warnings=(*gdal_warnings, *contents.warnings))
 
@@ -130,22 +130,21 @@ def _gdal_message(error: Exception | Warning | str) -> str:
 
 
 def _read_contents(path: Path, name: str, layers: set[str], options: dict[str, str]) -> ChartContents:
-    (dsid, _), *_ = _layer(path, "DSID", options) or [({}, None)]
-    cell = _cell_info(dsid, name)
-    warnings: list[str] = []
+    dsid = _layer(path, "DSID", options)  # one record, no geometry
+    cell = _cell_info(dsid[0][0] if dsid else {}, name)
+    left_out: list[str] = []
     marks = [
         obj
         for object_class in MARK_CLASSES
         if object_class in layers
-        for obj in _points(path, object_class, options, warnings)
+        for obj in _points(path, object_class, options, left_out)
     ]
-    lights = _points(path, "LIGHTS", options, warnings) if "LIGHTS" in layers else []
+    lights = _points(path, "LIGHTS", options, left_out) if "LIGHTS" in layers else []
     systems = [
         SystemArea(geometry, _integer(attributes.get("MARSYS")))
-        for attributes, geometry in (_layer(path, "M_NSYS", options) if "M_NSYS" in layers else [])
-        if geometry is not None
+        for attributes, geometry in _areas(path, "M_NSYS", layers, options)
     ]
-    return ChartContents(cell, marks, lights, systems, _coverage(path, layers, options), warnings)
+    return ChartContents(cell, marks, lights, systems, _coverage(path, layers, options), left_out)
 
 
 def _cell_info(dsid: dict[str, Any], name: str) -> CellInfo:
@@ -158,21 +157,29 @@ def _cell_info(dsid: dict[str, Any], name: str) -> CellInfo:
     )
 
 
+def _areas(path: Path, layer: str, layers: set[str], options: dict[str, str]) -> list[tuple[dict, BaseGeometry]]:
+    """A meta layer's areas (M_NSYS, M_COVR), made valid: a damaged cell's ring could otherwise break a test of
+    whether a mark lies inside."""
+    if layer not in layers:
+        return []
+    return [(attributes, shapely.make_valid(g)) for attributes, g in _layer(path, layer, options) if g is not None]
+
+
 def _coverage(path: Path, layers: set[str], options: dict[str, str]) -> BaseGeometry | None:
     """The area the cell covers: its M_COVR areas with coverage (CATCOV 1)."""
-    if "M_COVR" not in layers:
-        return None
-    covered = [geometry for attributes, geometry in _layer(path, "M_COVR", options) if attributes.get("CATCOV") == 1]
-    return shapely.union_all([g for g in covered if g is not None]) if covered else None
+    covered = [
+        geometry for attributes, geometry in _areas(path, "M_COVR", layers, options) if attributes.get("CATCOV") == 1
+    ]
+    return shapely.union_all(covered) if covered else None
 
 
-def _points(path: Path, object_class: str, options: dict[str, str], warnings: list[str]) -> list[S57Object]:
+def _points(path: Path, object_class: str, options: dict[str, str], left_out: list[str]) -> list[S57Object]:
     """A layer's point objects; an object of another geometry is left out with a warning."""
     objects = []
     for attributes, geometry in _layer(path, object_class, options):
         if not isinstance(geometry, shapely.Point) or geometry.is_empty:
             kind = "no geometry" if geometry is None else f"a {geometry.geom_type}"
-            warnings.append(f"{object_label(object_class, attributes)}: {kind}, not a point: left out")
+            left_out.append(f"{object_label(object_class, attributes)}: {kind}, not a point: left out")
             continue
         objects.append(S57Object(object_class, attributes, lat=geometry.y, lon=geometry.x))
     return objects
