@@ -6,17 +6,23 @@ the ground station itself starts no vehicle. The option helpers are public for t
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pydantic import ValidationError
 
 from gcs.settings import DB_FILENAME, Settings
 from gcs.storage import StorageError, is_postgres_url, open_storage
 from gcs.vehicle.connection import ConnectionStringError, parse_connection
+
+if TYPE_CHECKING:  # the chart reader (GDAL, shapely) loads only for `chart`
+    from shapely.geometry.base import BaseGeometry
+
+    from gcs.domain.charted_marks import ChartImport
 
 LOG_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
 # On SIGTERM uvicorn waits this long for requests in progress and /ws clients before it cancels them, then the
@@ -141,9 +147,39 @@ def build_parser(
         metavar="DIR",
         help="folder for the report (default: reports/mission-ID beside the database)",
     )
+    add_chart_command(commands)
     if more_commands is not None:
         more_commands(commands)
     return parser
+
+
+def add_chart_command(commands: Any) -> None:
+    """`chart`: the buoys and beacons of an S-57 cell, as POST /imports reads them."""
+    chart = commands.add_parser(
+        "chart",
+        help="list the buoys and beacons of an S-57 chart cell (.000), and write them as a world file",
+        description="Read an S-57 ENC cell (with its update files beside it) as POST /imports does: each buoy and "
+        "beacon with its kind, light, colours and position, and what could not be mapped.",
+    )
+    chart.add_argument("cell", type=Path, metavar="CELL.000", help="the cell's base file")
+    chart.add_argument(
+        "--area",
+        metavar="AREA",
+        help="only the marks inside: west,south,east,north in degrees (--area=W,S,E,N when W is negative), a "
+        "GeoJSON Polygon, or a file holding one",
+    )
+    chart.add_argument(
+        "--region",
+        dest="iala_region",
+        choices=("A", "B"),
+        help=option_help("IALA region of marks the cell places in none (its own MARSYS wins)", "iala_region"),
+    )
+    chart.add_argument(
+        "--geojson",
+        type=Path,
+        metavar="OUT",
+        help="write the marks as GeoJSON that POST /imports and sitl-quad --world read",
+    )
 
 
 def settings_from_args(args: argparse.Namespace, **overrides: object) -> Settings:
@@ -241,11 +277,74 @@ def main(argv: list[str] | None = None) -> int:
     return run(build_parser().parse_args(argv))
 
 
+def chart(args: argparse.Namespace) -> int:
+    """`python -m gcs chart`: the table on stdout, the warnings on stderr; a file that gives no buoys (not a cell,
+    damaged, none in the area) is a message and exit 2."""
+    from gcs.charts import read_cell
+    from gcs.domain.areas import AreaError
+    from gcs.domain.charted_marks import ChartError, world_of
+
+    try:
+        area = None if args.area is None else _area(args.area)
+        result = read_cell(args.cell, settings_from_args(args).iala_region, area)
+    except (AreaError, ChartError) as error:
+        print(f"buoy-gcs: chart: {error}", file=sys.stderr)
+        return 2
+    print("\n".join(chart_table(result)))
+    warnings = list(result.warnings)
+    if args.geojson is not None:
+        world, left_out = world_of(result.marks)
+        warnings += left_out
+        try:
+            args.geojson.write_text(json.dumps(world.to_geojson(), indent=1) + "\n", encoding="utf-8")
+        except OSError as error:
+            print(f"buoy-gcs: chart: cannot write {args.geojson}: {error.strerror}", file=sys.stderr)
+            return 2
+        print(f"wrote {args.geojson}: {len(world.buoys)} of the {len(result.marks)} marks")
+    for warning in warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    return 0
+
+
+def _area(text: str) -> BaseGeometry:
+    """--area: the text itself, or the file it names (AreaError, as a bad area, if it cannot be read)."""
+    from gcs.domain.areas import AreaError, parse_area
+
+    path = Path(text)
+    if not text.lstrip().startswith("{") and path.is_file():
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as error:
+            raise AreaError(f"{path}: cannot be read: {error}") from None
+    return parse_area(text)
+
+
+def chart_table(result: ChartImport) -> list[str]:
+    """The marks as a text table, then a line on the cell."""
+    rows = [("id", "kind", "mark", "light", "colours", "lat", "lon", "name")]
+    for m in result.marks:
+        what = "beacon" if m.beacon else "buoy"
+        colours = "/".join(m.colours) or "-"
+        rows.append((m.id, m.kind or "?", what, m.light or "-", colours, f"{m.lat:.6f}", f"{m.lon:.6f}", m.name or ""))
+    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]) - 1)]  # the name, last, runs on
+    lines = ["  ".join(c.ljust(w) for c, w in zip(row[:-1], widths, strict=True)) + "  " + row[-1] for row in rows]
+    cell, buoys = result.cell, sum(not m.beacon for m in result.marks)
+    lines.append(
+        f"{cell.name} (edition {cell.edition}, update {cell.update}, issued {cell.issued}), IALA region "
+        f"{result.region} ({'the chart' if result.region_source == 'chart' else 'the default'}'s): "
+        f"{len(result.marks)} marks, {buoys} buoys and {len(result.marks) - buoys} beacons, "
+        f"{sum(m.light is not None for m in result.marks)} lit"
+    )
+    return lines
+
+
 def run(args: argparse.Namespace) -> int:
-    """`serve` or `report`, from parsed arguments: a bad option is a message and exit 2."""
+    """`serve`, `report` or `chart`, from parsed arguments: a bad option is a message and exit 2."""
     try:
         if args.command == "report":
             return report(args)
+        if args.command == "chart":
+            return chart(args)
         settings = settings_from_args(args)
     except ValidationError as error:  # an option or a BUOY_GCS_ variable of the wrong type
         print(f"buoy-gcs: {settings_error(error)}", file=sys.stderr)

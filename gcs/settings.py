@@ -15,7 +15,7 @@ from __future__ import annotations
 import os
 import socket
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
@@ -74,6 +74,13 @@ class Settings(BaseSettings):
         description="origins (scheme://host[:port]) whose pages may call the API and open /ws; none by default",
     )
     max_body_bytes: int = Field(1 << 20, gt=0, description="largest request body (a buoy file too): 413 beyond")
+    # an S-57 cell is larger than any other body: IHO's ENC product specification allows 5 MB a cell
+    max_chart_bytes: int = Field(5 << 20, gt=0, description="largest S-57 cell POST /imports takes: 413 beyond")
+    iala_region: Literal["A", "B"] = Field(
+        "A",
+        description="the IALA buoyage region of a chart's marks where the chart names none (its MARSYS): A, or B "
+        "(the Americas, Japan, Korea, the Philippines: port marks green, starboard red)",
+    )
     home: tuple[float, float, float] = DEFAULT_HOME  # depot used while the vehicle has not reported its home
     limits: Limits = Field(default_factory=Limits)
     heartbeat_timeout_s: float = Field(

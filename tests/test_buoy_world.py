@@ -82,7 +82,7 @@ ERRORS = [
     (feature(id="B4", kind="east", light="Q(3) W"), "feature 0 (B4): light 'Q(3) W' has no period"),
     (feature(id="B4", kind="port", light=4), "feature 0 (B4): light must be a light character"),
     (feature(id="B4", kind="port", shows="Blink"), "feature 0 (B4): shows 'Blink': no light class"),
-    (feature(id="B4", kind="port", swing_radius_m=0), "feature 0 (B4): swing_radius_m must be a finite number > 0"),
+    (feature(id="B4", kind="port", swing_radius_m=-1), "feature 0 (B4): swing_radius_m must be a finite number >= 0"),
     (feature(id="B4", kind="port", swing_radius_m=math.nan), "feature 0 (B4): swing_radius_m must be a finite"),
     (feature(id="B4", kind="port", swing_radius_m=True), "feature 0 (B4): swing_radius_m must be a finite"),
     (feature(id="B4", kind="port", offset_m=[1.0]), "feature 0 (B4): offset_m must be [north, east]"),
@@ -223,6 +223,15 @@ def test_the_off_station_offset_moves_the_buoy():
         assert math.dist(world.positions(t, 0, 5, 45, 0.5)[0], (20.0, -10.0)) <= 4.0
     lat, lon = world.positions_lat_lon(0.0)[0]
     assert abs((lat - LAT) * 111_000 - 20.0) < 5 and abs((lon - LON) * 111_000 * math.cos(math.radians(LAT)) + 10) < 5
+
+
+def test_a_beacon_stands_where_it_is_built():
+    # swing radius 0: a chart's beacon (BCNLAT, ...) on its pile, whatever the wind and current
+    world = load_world(collection(feature(id="BN1", kind="starboard", swing_radius_m=0)))
+    assert world.buoys[0].faults == []
+    assert all(np.array_equal(world.positions(t, 270, 20, 90, 2.0), [[0.0, 0.0]]) for t in range(0, 600, 10))
+    moved = load_world(collection(feature(id="BN1", kind="starboard", swing_radius_m=0, offset_m=[0.5, 0.0])))
+    assert moved.buoys[0].faults == ["off_station"]  # a beacon moved at all is off its station
 
 
 def test_random_world_fault_rate_is_about_p():

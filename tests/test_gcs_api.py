@@ -282,7 +282,8 @@ def test_exports_of_a_planned_mission(client):
 def test_import_csv_and_geojson(client):
     csv_body = client.post("/imports?filename=b.csv", content=b"id,lat,lon\nA,38.92,121.66\n").json()
     uncharted = {"kind": None, "light": None, "swing_radius_m": None}
-    assert csv_body == {"buoys": [{"id": "A", "lat": 38.92, "lon": 121.66} | uncharted]}
+    # chart and warnings: an S-57 cell's (tests/test_gcs_chart_import.py)
+    assert csv_body == {"buoys": [{"id": "A", "lat": 38.92, "lon": 121.66} | uncharted], "chart": None, "warnings": []}
     charted = {"kind": "port", "light": "Fl(2) R 6s", "swing_radius_m": 8.0}
     faults = {"shows": "dark", "offset_m": [20.0, 0.0]}  # a world file's: not what the chart says, left out
     collection = {

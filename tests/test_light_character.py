@@ -303,6 +303,8 @@ def test_a_fixed_or_unlit_light_needs_only_a_short_burst():
     ("litchr", "siggrp", "sigper", "colour", "text"),
     [
         (2, "(2)", 6.0, "4", "Fl(2) G 6s"),
+        (2, "(1)", 2.5, "3", "Fl R 2.5s"),  # NOAA's cells give a single flash its group of one
+        (7, "(1)", 6.0, "1", "Iso W 6s"),  # ... and isophase, which takes no group
         (25, "(6)", 15.0, "1", "Q(6)+LFl W 15s"),
         (4, "()", None, "1", "Q W"),
         (12, "(A)", 6.0, "1", "Mo(A) W 6s"),

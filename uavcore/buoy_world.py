@@ -5,7 +5,8 @@ A world file is a GeoJSON FeatureCollection of Point features at the buoys' CHAR
 these properties (the contract; any other property is an error, so that a typo cannot silently drop a fault):
 - `id` (string, unique) and `kind` (one of KINDS) are required;
 - `light`: the charted character as chart text, e.g. "Fl(2) G 6s"; absent or null: unlit;
-- `swing_radius_m`: the radius of the circle the buoy swings in around its mooring (> 0, DEFAULT_SWING_RADIUS_M);
+- `swing_radius_m`: the radius of the circle the buoy swings in around its mooring (default DEFAULT_SWING_RADIUS_M;
+  0 for a beacon, which stands fixed on the seabed: the charts' BCN* marks);
 - `shows`: what the light really does, "dark" or another character; absent: as charted (a fault when it differs);
 - `offset_m`: [north, east] metres from the charted position to the real mooring; absent: [0, 0].
 The collection may carry a top-level integer `seed`: the buoys' wander in their swing circles (default 0).
@@ -244,8 +245,8 @@ def _buoy_from_feature(index: int, feature: Any) -> WorldBuoy:
 
     light = None if props.get("light") is None else character("light", props["light"])
     radius = _number(props.get("swing_radius_m", DEFAULT_SWING_RADIUS_M))
-    if radius is None or radius <= 0:
-        raise fail("swing_radius_m", f"must be a finite number > 0, got {props['swing_radius_m']!r}")
+    if radius is None or radius < 0:
+        raise fail("swing_radius_m", f"must be a finite number >= 0 (0: a beacon), got {props['swing_radius_m']!r}")
     shows = props.get("shows")
     if shows is None:
         actual = light

@@ -273,12 +273,13 @@ _S57_COLOUR = {1: "W", 3: "R", 4: "G", 5: "Bu", 6: "Y"}
 
 def from_s57(litchr: int, siggrp: str = "", sigper: float | None = None, colour: str = "1") -> LightCharacter:
     """The character of an S-57 LIGHTS object: LITCHR code, SIGGRP ("(2)", "(2+1)", "(A)"), SIGPER (s) and COLOUR
-    codes ("1" or "1,3"). LITCHR codes outside the classes above (13-16 fixed-and-flashing etc.) are refused."""
+    codes ("1" or "1,3"). LITCHR codes outside the classes above (13-16 fixed-and-flashing etc.) are refused.
+    A group of one is no group: S-57 writes SIGGRP "(1)" for a single flash where charts print "Fl R 4s"."""
     codes = [int(code) for code in colour.split(",") if code.strip()]
     if litchr not in _S57_LITCHR or any(code not in _S57_COLOUR for code in codes):
         raise LightCharacterError(f"S-57 LITCHR {litchr} COLOUR {colour!r}: not a character this module reads")
     rhythm, plus, suffix = _S57_LITCHR[litchr].partition("+")
-    group = "" if siggrp.strip() in ("", "()") else siggrp.strip()
+    group = "" if siggrp.strip() in ("", "()", "(1)") else siggrp.strip()
     period = "" if sigper is None else f" {_number(sigper)}s"
     return parse(f"{rhythm}{group}{plus}{suffix} {''.join(_S57_COLOUR[code] for code in codes)}{period}")
 

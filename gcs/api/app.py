@@ -124,7 +124,9 @@ def _install_middleware(app: FastAPI, settings: Settings) -> None:
             allow_methods=["GET", "POST"],
             allow_headers=["Authorization", "Content-Type", "X-API-Token"],
         )
-    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes)
+    # POST /imports takes an S-57 cell too: the route holds other files to max_body_bytes
+    imports = max(settings.max_body_bytes, settings.max_chart_bytes)
+    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes, path_limits={"/imports": imports})
     docs = frozenset(path for path in (app.docs_url, app.redoc_url, app.swagger_ui_oauth2_redirect_url) if path)
     app.add_middleware(SecurityHeadersMiddleware, docs_paths=docs)
 

@@ -4,11 +4,13 @@ Checked twice, because a client need not say how long its body is: a Content-Len
 before anything is read, and a body sent in chunks (Transfer-Encoding: chunked, no Content-Length) is counted
 as it arrives and refused as soon as it passes the limit. The body is read here, up to the limit, and handed to
 the application afterwards, so a route never sees a partial body and never starts answering one that is too big.
+A path may have a limit of its own (POST /imports takes S-57 cells, larger than any other body).
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -18,27 +20,28 @@ class BodyTooLargeError(Exception):
 
 
 class BodyLimitMiddleware:
-    def __init__(self, app: ASGIApp, max_bytes: int) -> None:
-        self.app, self.max_bytes = app, max_bytes
+    def __init__(self, app: ASGIApp, max_bytes: int, path_limits: Mapping[str, int] | None = None) -> None:
+        self.app, self.max_bytes, self.path_limits = app, max_bytes, dict(path_limits or {})
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
+        limit = self.path_limits.get(scope["path"], self.max_bytes)
         try:
-            self._check_declared_length(scope)
-            body = await self._read_body(receive)
+            self._check_declared_length(scope, limit)
+            body = await self._read_body(receive, limit)
         except BodyTooLargeError:
-            await self._refuse(send)
+            await refuse_too_large(send, limit)
             return
         await self.app(scope, _replaying(body, receive), send)
 
-    def _check_declared_length(self, scope: Scope) -> None:
+    def _check_declared_length(self, scope: Scope, limit: int) -> None:
         for name, value in scope["headers"]:
-            if name == b"content-length" and (not value.isdigit() or int(value) > self.max_bytes):
+            if name == b"content-length" and (not value.isdigit() or int(value) > limit):
                 raise BodyTooLargeError  # a length that is no number cannot be trusted either
 
-    async def _read_body(self, receive: Receive) -> bytes:
+    async def _read_body(self, receive: Receive, limit: int) -> bytes:
         chunks: list[bytes] = []
         size = 0
         while True:
@@ -47,19 +50,25 @@ class BodyLimitMiddleware:
                 return b"".join(chunks)
             chunk = message.get("body", b"")
             size += len(chunk)
-            if size > self.max_bytes:
+            if size > limit:
                 raise BodyTooLargeError
             chunks.append(chunk)
             if not message.get("more_body", False):
                 return b"".join(chunks)
 
-    async def _refuse(self, send: Send) -> None:
-        detail = json.dumps({"detail": f"the request body is larger than {self.max_bytes} bytes"}).encode()
-        headers = [(b"content-type", b"application/json"), (b"content-length", str(len(detail)).encode())]
-        # Connection: close: the rest of a body that was not read must not be taken for the next request
-        headers.append((b"connection", b"close"))
-        await send({"type": "http.response.start", "status": 413, "headers": headers})
-        await send({"type": "http.response.body", "body": detail})
+
+def too_large_detail(limit: int) -> str:
+    """The 413 answer's detail, the same wherever the limit is found out."""
+    return f"the request body is larger than {limit} bytes"
+
+
+async def refuse_too_large(send: Send, limit: int) -> None:
+    detail = json.dumps({"detail": too_large_detail(limit)}).encode()
+    headers = [(b"content-type", b"application/json"), (b"content-length", str(len(detail)).encode())]
+    # Connection: close: the rest of a body that was not read must not be taken for the next request
+    headers.append((b"connection", b"close"))
+    await send({"type": "http.response.start", "status": 413, "headers": headers})
+    await send({"type": "http.response.body", "body": detail})
 
 
 def _replaying(body: bytes, receive: Receive) -> Receive:

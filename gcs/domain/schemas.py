@@ -532,8 +532,47 @@ TELEMETRY_COMPUTED = ("t_s", "eso", "cross_track_m", "sortie")
 TELEMETRY_FROM_STATUS = tuple(name for name in TelemetrySample.model_fields if name not in TELEMETRY_COMPUTED)
 
 
+IalaRegion = Literal["A", "B"]
+
+
+class ChartedMarkOut(BaseModel):
+    """A buoy or beacon as an S-57 cell charts it (gcs.domain.charted_marks.ChartedMark.as_dict)."""
+
+    id: str = Field(description="the object's LNAM (stable across the cell's editions), else RCID<n>")
+    name: str | None = Field(description="OBJNAM, e.g. 'Annapolis Harbor Lighted Buoy 2'")
+    lat: float
+    lon: float
+    object_class: str = Field(description="the S-57 class: BOYLAT, BOYCAR, ..., BCNLAT, BCNSPP, ...")
+    beacon: bool = Field(description="a beacon stands fixed (swing radius 0); a buoy floats on its mooring")
+    kind: BuoyKind | None = Field(description="from the class, CATLAM or CATCAM; null: the chart does not tell")
+    preferred_channel: Literal["port", "starboard"] | None = Field(
+        description="a modified lateral mark at a fork (CATLAM 3, 4): the side of the preferred channel"
+    )
+    light: str | None = Field(description="the main light in chart abbreviation (null: unlit or not readable)")
+    other_lights: list[str] = Field(description="the other lights on the structure (chart text, or as charted)")
+    swing_radius_m: float | None = Field(description="0 for a beacon; null for a buoy (the mission's default)")
+    shape: str | None = Field(description="BOYSHP (cone, can, sphere, pillar, spar, ...) or BCNSHP (stake, pile...)")
+    colours: list[str] = Field(description="the body's colours as charted (COLOUR), top to bottom")
+    colour_pattern: str | None = Field(description="COLPAT: solid, horizontal, vertical, diagonal, squared, ...")
+    region: IalaRegion | None = Field(description="the IALA region its colours are read in; null: no IALA system")
+
+
+class ChartOut(BaseModel):
+    """The S-57 cell an import read, and its marks in the order of `buoys`."""
+
+    cell: str = Field(description="the cell's name, e.g. US4MD81M")
+    edition: str | None
+    update: str | None = Field(description="the last update applied (0: the base cell)")
+    issued: str | None = Field(description="the issue date, YYYYMMDD")
+    region: IalaRegion = Field(description="the cell's IALA region (its M_NSYS), else the request's or the default")
+    region_source: Literal["chart", "default"]
+    marks: list[ChartedMarkOut]
+
+
 class ImportOut(BaseModel):
-    buoys: list[BuoyIn]
+    buoys: list[BuoyIn] = Field(description="the buoys, as POST /missions takes them")
+    chart: ChartOut | None = Field(default=None, description="an S-57 cell's own description of them")
+    warnings: list[str] = Field(default_factory=list, description="what the import could not map, each named")
 
 
 # ----- inspections

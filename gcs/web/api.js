@@ -83,10 +83,14 @@ export class GcsApi {
     return this.request("GET", `/missions/${encodeURIComponent(id)}/track?max_points=${maxPoints}`);
   }
 
-  // file: a File from <input type=file>, GeoJSON or CSV (told apart by its name, as the service does)
+  // file: a File from <input type=file>: GeoJSON or CSV (told apart by its name, as the service does), or an S-57
+  // chart cell (.000), sent as its bytes (as text its binary records would be spoilt)
   async importBuoys(file) {
-    const type = file.name.toLowerCase().endsWith(".csv") ? "text/csv" : "application/geo+json";
-    return this.request("POST", `/imports?filename=${encodeURIComponent(file.name)}`, await file.text(), type);
+    const name = file.name.toLowerCase();
+    const path = `/imports?filename=${encodeURIComponent(file.name)}`;
+    if (name.endsWith(".000")) return this.request("POST", path, file, "application/octet-stream");
+    const type = name.endsWith(".csv") ? "text/csv" : "application/geo+json";
+    return this.request("POST", path, await file.text(), type);
   }
 
   // Each buoy's inspection record so far (GET /missions/{id}/inspections: InspectionOut, by input index): verdict,

@@ -333,7 +333,8 @@ function wireControls() {
       const answer = await api.importBuoys(file);
       answer.buoys.forEach((b) => addBuoy(b.lat, b.lon, b.id));
       map.fitBuoys(state.buoys);
-      panel.say(`imported ${answer.buoys.length} buoys`, true);
+      const unmapped = answer.warnings.length ? ` (${answer.warnings.length} chart warnings)` : "";
+      panel.say(`imported ${answer.buoys.length} buoys${unmapped}`, true);
     }),
   );
 
