@@ -31,15 +31,18 @@ FLOATING_AID_TYPES = range(20, 32)  # 20-31: the floating marks (cardinals, late
 AID_TYPE_NAMES: dict[int, str] = {aid.value: aid.name.lower() for aid in NavAid if aid.value < 32}
 # What a floating buoy of each of uavcore.buoy_world's kinds reports as its type
 AID_TYPE_OF_KIND: dict[str, int] = {
-    "north": NavAid.CARDINAL_MARK_N,
-    "east": NavAid.CARDINAL_MARK_E,
-    "south": NavAid.CARDINAL_MARK_S,
-    "west": NavAid.CARDINAL_MARK_W,
-    "port": NavAid.PORT_HAND_MARK,
-    "starboard": NavAid.STARBOARD_HAND_MARK,
-    "isolated_danger": NavAid.ISOLATED_DANGER,
-    "safe_water": NavAid.SAFE_WATER,
-    "special": NavAid.SPECIAL_MARK,
+    kind: aid.value
+    for kind, aid in {
+        "north": NavAid.CARDINAL_MARK_N,
+        "east": NavAid.CARDINAL_MARK_E,
+        "south": NavAid.CARDINAL_MARK_S,
+        "west": NavAid.CARDINAL_MARK_W,
+        "port": NavAid.PORT_HAND_MARK,
+        "starboard": NavAid.STARBOARD_HAND_MARK,
+        "isolated_danger": NavAid.ISOLATED_DANGER,
+        "safe_water": NavAid.SAFE_WATER,
+        "special": NavAid.SPECIAL_MARK,
+    }.items()
 }
 
 
