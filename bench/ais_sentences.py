@@ -65,3 +65,9 @@ def bad_checksum(line: bytes) -> bytes:
 def message_type_line(msg_type: int, mmsi: int) -> bytes:
     """A short position report of another type (1, 3, ...) as pyais encodes it."""
     return encode_dict({"msg_type": msg_type, "mmsi": mmsi, "lat": 55.0, "lon": 12.0}, sentence_type="VDM")[0].encode()
+
+
+def static_data_parts(mmsi: int, seq_id: int, channel: str = "A") -> list[bytes]:
+    """A vessel's static and voyage data (message 5: two sentences), as pyais encodes it."""
+    fields = {"msg_type": 5, "mmsi": mmsi, "shipname": f"VESSEL {mmsi % 1000}", "callsign": "CALL", "ship_type": 70}
+    return [line.encode() for line in encode_dict(fields, sentence_type="VDM", radio_channel=channel, seq_id=seq_id)]
