@@ -246,7 +246,7 @@ def test_a_udp_flood_is_bounded_to_the_rate_and_does_not_stall_the_loop():
         # what was read beyond the bucket was dropped unparsed; the rest the kernel dropped while reading paused
         assert counts.rate_dropped + feed.sources()[0].counts.kernel_dropped > 0
         assert counts.lines < 40_000  # reading paused: most of the flood never reached the loop
-        assert lag < 0.25, f"the loop stalled {lag:.3f} s"
+        assert lag < 0.5, f"the loop stalled {lag:.3f} s"  # a loaded machine delays a wake-up, never this long
 
     asyncio.run(with_feed([f"udp://127.0.0.1:{port}"], body, limits=limits))
 
@@ -344,7 +344,7 @@ def test_a_tcp_flood_is_dropped_a_chunk_at_a_time_and_the_loop_stays_responsive(
             counts = feed.sources()[0].counts
             assert counts.lines == 40_000 and counts.rate_dropped >= 35_000
             assert counts.decoded + counts.rate_dropped == counts.lines
-            assert lag < 0.25, f"the loop stalled {lag:.3f} s"
+            assert lag < 0.5, f"the loop stalled {lag:.3f} s"  # a loaded machine delays a wake-up, never this long
 
         try:
             await with_feed([f"tcp://127.0.0.1:{server.port}"], body, limits=limits)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import logging
 import random
 import socket
@@ -126,9 +127,10 @@ class UdpReceiver(AisReceiver):
                 data, ancillary, _, peer = sock.recvmsg(MAX_DATAGRAM_BYTES, ancillary_size)
             except (BlockingIOError, InterruptedError):
                 break
-            except OSError as error:  # e.g. ICMP port unreachable reported on the socket: the feed goes on
-                if not stopped.done() and error.errno not in (None, 111):
-                    stopped.set_exception(error)
+            except OSError as error:
+                # a peer's ICMP "port unreachable" comes back as ECONNREFUSED on the socket: nothing wrong here
+                if not stopped.done() and error.errno != errno.ECONNREFUSED:
+                    stopped.set_exception(error)  # anything else: reopen the socket (AisReceiver._run)
                 break
             read += 1
             self._count_overflow(ancillary)
