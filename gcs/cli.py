@@ -100,6 +100,18 @@ def build_parser(
     add_service_options(serve)
     add_database_option(serve, "the service's database")
     serve.add_argument(
+        "--ais",
+        dest="ais_sources",
+        action="append",
+        metavar="URL",
+        help=option_help(
+            "an NMEA AIS feed of AtoN reports: udp://[HOST]:PORT listens (a receiver's datagrams, e.g. "
+            "udp://0.0.0.0:10110), tcp://HOST:PORT connects to a shore station or receiver; repeatable",
+            "ais_sources",
+            "none",
+        ),
+    )
+    serve.add_argument(
         "--vehicle-wait",
         dest="vehicle_wait_s",
         type=float,

@@ -2,9 +2,9 @@
 
 `Settings` is a pydantic-settings `BaseSettings`: every field can be set by an environment variable named
 `BUOY_GCS_` + the field's name in capitals (BUOY_GCS_VEHICLE_URL, BUOY_GCS_DB_PATH, BUOY_GCS_DB, BUOY_GCS_TOKEN,
-BUOY_GCS_SIGNING_KEY, BUOY_GCS_LIVE_RATE_HZ, ...; a limit as BUOY_GCS_LIMITS__MAX_BUOYS). `python -m gcs serve`
-and `up` pass only the options given on their command line, so an option beats the environment, which beats
-the default below. An empty variable counts as unset.
+BUOY_GCS_SIGNING_KEY, BUOY_GCS_LIVE_RATE_HZ, BUOY_GCS_AIS_SOURCES (comma-separated), ...; a limit as
+BUOY_GCS_LIMITS__MAX_BUOYS). `python -m gcs serve` and `up` pass only the options given on their command line, so
+an option beats the environment, which beats the default below. An empty variable counts as unset.
 
 Airframe limits (altitude, speed) and the battery range are data here, not code, so a different airframe or
 battery is a settings change. Values are for the paper's quadrotor (Table 2) flying the reference scenario.
@@ -20,6 +20,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
+from gcs.domain.ais import parse_ais_source
 from gcs.vehicle.connection import parse_vehicle
 from uavcore.geodesy import DEFAULT_HOME
 from uavcore.mavlink import VEHICLE_UDP_PORT
@@ -116,9 +117,23 @@ class Settings(BaseSettings):
         description="wall seconds a landed sortie waits at most for its frames still downloading and being analysed "
         "(it stops waiting sooner when none of them gets done for a minute)",
     )
+    # the AIS feed (gcs.ais): AtoN reports (message 21) from AIS receivers and shore stations
+    ais_sources: Annotated[list[str], NoDecode] = Field(
+        default_factory=list,
+        description="NMEA AIS sources: udp://[HOST]:PORT listens for a receiver's datagrams, tcp://HOST:PORT "
+        "connects to a shore station or receiver; none: no AIS",
+    )
+    ais_stale_s: float = Field(
+        420.0, gt=0, description="an AtoN report older than this is stale (AtoNs report every 180 s: two missed + 60)"
+    )
+    ais_max_lines_s: float = Field(
+        500.0,
+        gt=0,
+        description="lines a second parsed per AIS source (bursts of twice that); beyond, dropped and counted",
+    )
     web_dir: Path = Path(__file__).resolve().parent / "web"  # package data: ships in the wheel
 
-    @field_validator("cors_origins", "vehicles", mode="before")
+    @field_validator("cors_origins", "vehicles", "ais_sources", mode="before")
     @classmethod
     def _comma_separated(cls, value: Any) -> Any:
         # BUOY_GCS_CORS_ORIGINS="https://a.example,https://b.example"
@@ -134,6 +149,11 @@ class Settings(BaseSettings):
         if len(set(sysids)) < len(sysids):
             raise ValueError(f"a system id is given to two vehicles: {value}")
         return value
+
+    @field_validator("ais_sources")
+    @classmethod
+    def _ais_sources(cls, value: list[str]) -> list[str]:
+        return [str(parse_ais_source(text)) for text in value]  # raises naming a bad one; written one way
 
     @model_validator(mode="after")
     def _first_vehicle_is_vehicle_url(self) -> Settings:

@@ -12,9 +12,14 @@ import signal
 import sys
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from uavcore.geodesy import DEFAULT_HOME
 from uavcore.mavlink import SIGNING_KEY_ENV, VEHICLE_UDP_PORT, parse_signing_key
+
+if TYPE_CHECKING:  # imported where used, after the arguments are checked: --help stays instant
+    from sitl_quad.ais_out import AisOut
+    from uavcore.buoy_world import World
 
 EPILOG = """\
 examples:
@@ -22,6 +27,7 @@ examples:
   sitl-quad --lockstep --seed 3               # deterministic, as fast as the offboard controller answers
   sitl-quad --speed 10 --out 127.0.0.1:14550  # 10x real time, also pushing to a listening QGroundControl
   sitl-quad --world buoys.geojson --image-dir img  # a camera (component 100) on a gimbal, seeing these buoys
+  sitl-quad --world buoys.geojson --ais-out 127.0.0.1:10110  # its buoys with an mmsi report themselves (AIS 21)
   mavproxy.py --master=udpout:127.0.0.1:14540 # connect a ground station to it
 """
 
@@ -221,6 +227,23 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="TO_DEG,M_S",
         help="the water's current moving the buoys on their moorings: direction it flows to, speed (default 0,0)",
     )
+    # ----- the world's AIS (sitl_quad.ais_station, sitl_quad.ais_out)
+    p.add_argument(
+        "--ais-out",
+        type=parse_host_port,
+        metavar="HOST:PORT",
+        help="send the world's AIS AtoN reports (message 21, NMEA !AIVDM) as UDP datagrams to this address: each "
+        "--world buoy with an mmsi every 3 minutes of simulated time, from where it floats, off-position flagged "
+        "outside its charted swing circle (e.g. a ground station's `serve --ais udp://0.0.0.0:10110`)",
+    )
+    p.add_argument(
+        "--ais-virtual",
+        action="append",
+        default=[],
+        metavar="MMSI,LAT,LON[,NAME[,KIND]]",
+        help="also report a virtual AtoN (nothing in the water; virtual flag set) at this position, e.g. over a new "
+        "wreck; KIND one of the world file's kinds (default isolated_danger); repeatable; needs --ais-out",
+    )
     p.add_argument("--list-params", action="store_true", help="print every parameter with its value and exit")
     p.add_argument("-v", "--verbose", action="store_true", help="log every peer and protocol event")
     return p
@@ -242,13 +265,19 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(f"--ftp-root {args.ftp_root} is not a directory")
     camera = args.camera if args.camera is not None else args.world is not None
     world = None
-    if camera and args.world is not None:
+    if (camera or args.ais_out) and args.world is not None:
         from uavcore.buoy_world import WorldFileError, load_world
 
         try:
             world = load_world(args.world)
         except (OSError, WorldFileError) as exc:
             return _fail(f"--world {args.world}: {exc}")
+    ais_out = None
+    if args.ais_out is not None or args.ais_virtual:
+        try:
+            ais_out = _ais_out(args.ais_out, world, args.ais_virtual)
+        except (OSError, ValueError) as exc:
+            return _fail(str(exc))
     # Imports after argument checks so that --help is instant.
     from sitl_quad.attitude_loops import attitude_loops
     from sitl_quad.camera import Environment
@@ -310,7 +339,8 @@ def main(argv: list[str] | None = None) -> int:
         ftp_component=args.ftp_component,
         image_dir=image_dir,
         world=world,
-        current=Environment(current_to_deg=args.current[0], current_speed_m_s=args.current[1]) if image_dir else None,
+        current=Environment(current_to_deg=args.current[0], current_speed_m_s=args.current[1]),
+        ais_out=ais_out,
     )
     signal.signal(signal.SIGTERM, lambda *_: server.stop())
     signal.signal(signal.SIGINT, lambda *_: server.stop())
@@ -325,6 +355,20 @@ def main(argv: list[str] | None = None) -> int:
     if args.stats is not None:
         args.stats.write_text(json.dumps(server.stats(), indent=2) + "\n")
     return 0
+
+
+def _ais_out(address: tuple[str, int] | None, world: World | None, virtual: list[str]) -> AisOut:
+    """The AIS sender for --ais-out and --ais-virtual; ValueError naming what is wrong, OSError for the address."""
+    from sitl_quad.ais_out import AisOut
+    from sitl_quad.ais_station import AisStation, VirtualAton
+    from uavcore.buoy_world import World
+
+    if address is None:
+        raise ValueError("--ais-virtual needs --ais-out HOST:PORT to send to")
+    station = AisStation(world or World(()), tuple(VirtualAton.parse(text) for text in virtual))
+    if not station.transmitters:
+        raise ValueError("--ais-out: nothing to report: give a --world whose buoys have an mmsi, or --ais-virtual")
+    return AisOut(address, station)
 
 
 def _fail(message: str) -> int:

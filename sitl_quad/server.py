@@ -14,6 +14,7 @@ import math
 import time
 from pathlib import Path
 
+from sitl_quad.ais_out import AisOut
 from sitl_quad.camera import Environment
 from sitl_quad.mavlink.camera import CameraComponent
 from sitl_quad.mavlink.commands import Commands
@@ -53,8 +54,10 @@ class VehicleServer:
         image_dir: Path | None = None,
         world: World | None = None,
         current: Environment | None = None,
+        ais_out: AisOut | None = None,
     ) -> None:
-        """image_dir: the camera's (None: no camera and no gimbal); world: what it sees; current: the water's."""
+        """image_dir: the camera's (None: no camera and no gimbal); world: what it sees; current: the water's;
+        ais_out: the world's AIS reports, sent as simulated time reaches them (their buoys move in the current)."""
         self.vehicle = vehicle
         vehicle.wall_clock = time.monotonic  # protocol-facing timers also respect the wall clock
         self.params = params
@@ -110,6 +113,8 @@ class VehicleServer:
         if flight_log is not None:
             self._open_log(flight_log)
         self._last_mission_seq = -1
+        self.ais_out = ais_out
+        self._current = current or Environment()
 
     # ----- sending and receiving
     def send(self, msg, peer=None) -> None:
@@ -164,12 +169,24 @@ class VehicleServer:
             if self.payload is not None:
                 self.payload.tick()
             self.telemetry.publish_due()
+            if self.ais_out is not None:
+                self._send_ais_due()
             if self._log_writer is not None:
                 self._write_log(record)
         self.close()
 
     def stop(self) -> None:
         self.running = False
+
+    def _send_ais_due(self) -> None:
+        """The AIS reports due at this tick, from the buoys as they float in the vehicle's mean wind and the current,
+        stamped with the simulated clock (SYSTEM_TIME's)."""
+        assert self.ais_out is not None
+        wind, current, t = self.vehicle.config.wind, self._current, self.vehicle.t
+        unix_s = self.telemetry.boot_unix_us / 1e6 + t
+        self.ais_out.poll(
+            t, unix_s, wind.direction_from_deg, wind.speed_m_s, current.current_to_deg, current.current_speed_m_s
+        )
 
     def _request_message(self, msg_id: float) -> CommandResult:
         answered = self.gimbal.request_message(int(msg_id)) if self.gimbal and math.isfinite(msg_id) else None
@@ -328,6 +345,7 @@ class VehicleServer:
             "offboard_setpoints": self.vehicle.offboard.count,
             "motor_saturated_ticks": self.vehicle.saturated_ticks,
             "camera": self.camera.stats() if self.camera is not None else None,
+            "ais": self.ais_out.stats() if self.ais_out is not None else None,
         }
 
     def close(self) -> None:
@@ -336,4 +354,6 @@ class VehicleServer:
         if self._log_file is not None:
             self._log_file.close()
             self._log_file = self._log_writer = None
+        if self.ais_out is not None:
+            self.ais_out.close()
         self.link.close()

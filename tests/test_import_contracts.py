@@ -23,6 +23,7 @@ IO_MODULES = {
     "adrc_offboard.cli",
     "adrc_offboard.node",
     "adrc_offboard.__main__",
+    "sitl_quad.ais_out",
     "sitl_quad.cli",
     "sitl_quad.server",
     "sitl_quad.lockstep_harness",

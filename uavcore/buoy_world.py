@@ -8,7 +8,9 @@ these properties (the contract; any other property is an error, so that a typo c
 - `swing_radius_m`: the radius of the circle the buoy swings in around its mooring (default DEFAULT_SWING_RADIUS_M;
   0 for a beacon, which stands fixed on the seabed: the charts' BCN* marks);
 - `shows`: what the light really does, "dark" or another character; absent: as charted (a fault when it differs);
-- `offset_m`: [north, east] metres from the charted position to the real mooring; absent: [0, 0].
+- `offset_m`: [north, east] metres from the charted position to the real mooring; absent: [0, 0];
+- `mmsi`: the buoy's AIS identity, a 9-digit MMSI (an AtoN's is 99MIDxxxx, ITU-R M.585), unique in the world; absent
+  or null: the buoy carries no AIS (sitl_quad.ais_station has those that do report themselves, message 21).
 The collection may carry a top-level integer `seed`: the buoys' wander in their swing circles (default 0).
 IALA facts (region A: port red, starboard green) are data here: APPEARANCE, DEFAULT_LIGHT and _LIGHT_RULES.
 """
@@ -33,7 +35,8 @@ from uavcore.light_character import LightCharacter, LightCharacterError, parse
 
 KINDS = ("port", "starboard", "north", "east", "south", "west", "isolated_danger", "safe_water", "special")
 CARDINALS = ("north", "east", "south", "west")
-PROPERTIES = ("id", "kind", "light", "swing_radius_m", "shows", "offset_m")
+PROPERTIES = ("id", "kind", "light", "swing_radius_m", "shows", "offset_m", "mmsi")
+MMSI_RANGE = range(100_000_000, 1_000_000_000)  # nine digits
 DEFAULT_SWING_RADIUS_M = 5.0
 DARK = "dark"  # `shows` of a light that is out
 
@@ -151,6 +154,7 @@ class WorldBuoy:
     swing_radius_m: float = DEFAULT_SWING_RADIUS_M
     actual_light: LightCharacter | None = None  # what it really shows; None: dark
     offset_m: tuple[float, float] = (0.0, 0.0)  # (north, east) from the charted position to the real mooring
+    mmsi: int | None = None  # its AIS transmitter's identity; None: no AIS
 
     @property
     def appearance(self) -> Appearance:
@@ -257,7 +261,10 @@ def _buoy_from_feature(index: int, feature: Any) -> WorldBuoy:
     if len(north_east) != 2:
         raise fail("offset_m", f"must be [north, east] as two finite numbers (metres), got {offset!r}")
     north, east = north_east
-    return WorldBuoy(buoy_id, kind, (lat, lon), light, radius, actual, (north, east))
+    mmsi = props.get("mmsi")
+    if mmsi is not None and (isinstance(mmsi, bool) or not isinstance(mmsi, int) or mmsi not in MMSI_RANGE):
+        raise fail("mmsi", f"must be a 9-digit integer (an AtoN's is 99MIDxxxx), got {mmsi!r}")
+    return WorldBuoy(buoy_id, kind, (lat, lon), light, radius, actual, (north, east), mmsi)
 
 
 # The swing model. The drag of water and wind on a buoy, 0.5 rho Cd A v^2 with Cd ~ 1, for a typical buoy
@@ -293,13 +300,20 @@ class World:
             )
         buoys: list[WorldBuoy] = []
         seen: dict[str, int] = {}
+        seen_mmsi: dict[int, int] = {}
         for index, feature in enumerate(obj["features"]):
             buoy = _buoy_from_feature(index, feature)
             if buoy.id in seen:
                 raise WorldFileError(
                     f"feature {index} ({buoy.id}): id {buoy.id!r} is already feature {seen[buoy.id]}'s"
                 )
+            if buoy.mmsi is not None and buoy.mmsi in seen_mmsi:
+                raise WorldFileError(
+                    f"feature {index} ({buoy.id}): mmsi {buoy.mmsi} is already feature {seen_mmsi[buoy.mmsi]}'s"
+                )
             seen[buoy.id] = index
+            if buoy.mmsi is not None:
+                seen_mmsi[buoy.mmsi] = index
             buoys.append(buoy)
         file_seed = obj.get("seed", 0)
         if isinstance(file_seed, bool) or not isinstance(file_seed, int):
@@ -307,7 +321,8 @@ class World:
         return cls(tuple(buoys), file_seed if seed is None else seed)
 
     def to_geojson(self) -> dict[str, Any]:
-        """The world as its file's GeoJSON (load_world(w.to_geojson()) == w); faults written only where present."""
+        """The world as its file's GeoJSON (load_world(w.to_geojson()) == w); faults and an MMSI written only where
+        present."""
         features = []
         for b in self.buoys:
             light = None if b.light is None else b.light.abbreviation()
@@ -316,6 +331,8 @@ class World:
                 props["shows"] = DARK if b.actual_light is None else b.actual_light.abbreviation()
             if b.offset_m != (0.0, 0.0):
                 props["offset_m"] = list(b.offset_m)
+            if b.mmsi is not None:
+                props["mmsi"] = b.mmsi
             point = {"type": "Point", "coordinates": [b.charted[1], b.charted[0]]}
             features.append({"type": "Feature", "geometry": point, "properties": props})
         return {"type": "FeatureCollection", "seed": self.seed, "features": features}

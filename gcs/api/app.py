@@ -23,7 +23,7 @@ from starlette.responses import Response
 
 from gcs.api.body_limit import BodyLimitMiddleware
 from gcs.api.http_headers import SecurityHeadersMiddleware
-from gcs.api.routes import buoy_files, inspections, live, missions, plans, vehicle
+from gcs.api.routes import ais, buoy_files, inspections, live, missions, plans, vehicle
 from gcs.domain.buoy_files import BuoyFileError
 from gcs.missions.lifecycle import MissionConflictError
 from gcs.missions.ownership import NotOwnerError
@@ -179,7 +179,7 @@ def create_app(settings: Settings | None = None, *, freeze_startup_heap: bool = 
     app.state.settings = settings
     _install_middleware(app, settings)
     _install_error_handlers(app)
-    for module in (plans, missions, inspections, buoy_files, vehicle, live):
+    for module in (plans, missions, inspections, buoy_files, vehicle, ais, live):
         app.include_router(module.router)
 
     index = settings.web_dir / "index.html"

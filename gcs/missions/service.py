@@ -5,7 +5,8 @@
   gcs.missions.recorder);
 - queries over what is stored: missions, telemetry, mission files, reports (gcs.storage, gcs.reports.report);
 - ownership of the vehicle link (gcs.missions.ownership): with several instances on one database, only the owner starts
-  the link and flies; a stand-by answers reads and refuses the rest (NotOwnerError) until it takes over.
+  the link and flies; a stand-by answers reads and refuses the rest (NotOwnerError) until it takes over;
+- the AIS feed (gcs.ais): the AtoN reports heard from the --ais sources, owner and stand-by alike (it only listens).
 
 The routes see no storage, link or lifecycle: only the methods here.
 """
@@ -22,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from gcs.ais.feed import AisFeed
+from gcs.domain.ais import AisSourceOut, AtonsOut
 from gcs.domain.inspection import gather_fleet_inspections
 from gcs.domain.planning import BuoyMark, FlightParams, Plan, fenced_legs, make_plan, mission_items, sorties_plan
 from gcs.domain.schemas import InspectionOut, MissionRequest, PlanRequest
@@ -48,6 +51,7 @@ from gcs.storage import MissionRecord
 from gcs.storage.off_loop import AsyncStorage
 from gcs.vehicle.link import LinkManager
 from planner.energy import EnergyModel
+from uavcore.ais_stream import StreamLimits
 from uavcore.battery_pack import PackSpec
 from uavcore.buoy_world import DEFAULT_SWING_RADIUS_M
 from uavcore.geofence import Geofence
@@ -117,9 +121,13 @@ class MissionService:
         )
         self._ownership = ownership or ownership_for(settings)
         self.documents = VersionedCache()  # the read routes' encoded documents by version (gcs.missions.read_cache)
+        limits = StreamLimits(rate_lines_s=settings.ais_max_lines_s, burst_lines=2 * settings.ais_max_lines_s)
+        self.ais = AisFeed(settings.ais_sources, settings.ais_stale_s, limits)
 
     async def start(self) -> None:
-        """Own the vehicle link now, or stand by until the owner is gone (then take it over in the background)."""
+        """Own the vehicle link now, or stand by until the owner is gone (then take it over in the background).
+        The AIS feed listens either way."""
+        await self.ais.start()
         await self._ownership.start(self._take_link)
 
     async def _take_link(self) -> None:
@@ -145,6 +153,7 @@ class MissionService:
             await vehicle.link.stop()
         await self._ownership.release()  # only now may a stand-by talk to the vehicle
         self._analysis.shutdown()
+        await self.ais.stop()
 
     def _vehicle(self, sysid: int | None) -> FleetVehicle:
         """The vehicle a request names (None: the first); raises RequestInvalidError at body.vehicle."""
@@ -347,6 +356,15 @@ class MissionService:
 
     def _described(self, vehicle: FleetVehicle) -> dict[str, Any]:
         return vehicle.describe() | {"role": self._ownership.as_dict()["role"]}
+
+    # ----- the AIS feed
+    def ais_atons(self) -> AtonsOut:
+        """Each AtoN's latest report, its age and flags, and the MMSIs several AtoNs report."""
+        return self.ais.atons()
+
+    def ais_sources(self) -> list[AisSourceOut]:
+        """Each AIS source's state and counts."""
+        return self.ais.sources()
 
     # ----- queries over what is stored (each storage call awaited in a thread: gcs.storage.off_loop)
     async def get(self, mission_id: int) -> MissionRecord:
