@@ -154,6 +154,17 @@ def test_a_light_showing_another_character_is_wrong_character_with_both_texts() 
     assert finding["seen"].startswith("flashing ..")
 
 
+def test_a_light_slower_than_its_burst_can_read_is_still_a_wrong_character() -> None:
+    """Charted Fl R 4s, showing Fl R 8s: the burst (two charted periods and a second) holds one flash at most, too
+    little to read a rhythm, but its dark outlasts the chart's longest: a defect, not "its light could not be read"
+    (the campaign's two misses of this kind)."""
+    inspection = inspected("port", shows="Fl R 8s")
+    assert inspection.verdict == "defect", inspection
+    finding = inspection.findings[0].model_dump()
+    assert finding["code"] == "wrong_character" and finding["charted"] == "Fl R 4s", finding
+    assert finding["seen"].startswith("dark up to "), finding
+
+
 def test_frames_without_the_buoy_are_not_found_even_with_other_buoys_in_view() -> None:
     target = world_buoy("port", 60.0, 0.0)
     others = (world_buoy("starboard", 62.0, 8.0), world_buoy("north", 58.0, -9.0))

@@ -322,3 +322,48 @@ def test_from_s57_refuses_codes_it_does_not_read():
         from_s57(13, "", 5.0, "1")
     with pytest.raises(LightCharacterError, match="COLOUR '2'"):
         from_s57(2, "", 5.0, "2")
+
+
+def burst_of(shows: LightCharacter, sized_for: LightCharacter, start_s: float) -> ObservedLight:
+    """What a burst sized for one character (burst_for) reads of a light showing another, from start_s."""
+    duration_s, rate_hz = burst_for(sized_for)
+    times = [start_s + k / rate_hz for k in range(math.ceil(duration_s * rate_hz))]
+    return read_sequence(times, [shows.is_on(t) for t in times])
+
+
+@pytest.mark.parametrize(
+    "charted, shows", [("Fl R 4s", "Fl R 8s"), ("Fl G 4s", "Fl G 10s"), ("Fl(2) W 5s", "Fl(2) W 12s")]
+)
+def test_a_light_slower_than_charted_is_a_wrong_character_even_where_the_burst_is_too_short_to_read_it(charted, shows):
+    """The burst covers two of the charted periods: a light whose period is twice that or more shows at most one
+    group in it, which cannot be read, but its darks outlast the chart's longest: it is not the charted light (and
+    where no flash fell in the burst at all, it is seen out). Never "unreadable": the buoy is a defect either way."""
+    for start_s in np.linspace(0.0, 12.0, 25):
+        observed = burst_of(parse(shows), parse(charted), float(start_s))
+        found = matches(parse(charted), observed)
+        expected = {"light_out"} if observed.rhythm == "dark" else {"wrong_character", "wrong_period"}
+        assert found and set(found) <= expected, (start_s, observed, found)
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "Fl R 4s",
+        "Fl(2) G 6s",
+        "Q(3) W 10s",
+        "Q(6)+LFl W 15s",
+        "Q(9) W 15s",
+        "LFl W 10s",
+        "Iso W 4s",
+        "Oc G 5s",
+        "Mo(A) W 8s",
+        "VQ W",
+        "Q W",
+        "Fl(2+1) R 6s",
+    ],
+)
+def test_a_light_showing_its_charted_character_is_never_taken_for_another(text):
+    """No false alarm from the longest-phase test: the charted light in its own burst, from any phase, matches."""
+    c = parse(text)
+    for start_s in np.linspace(0.0, c.period_s or 1.0, 17):
+        assert matches(c, burst_of(c, c, float(start_s))) == [], (text, start_s)

@@ -293,6 +293,11 @@ class ObservedLight:
     period_s: float | None = None  # one colour's turn for an alternating light
     colour: str | None = None  # the most frequent colour of the lit frames
     colours: tuple[str, ...] = ()  # every colour of at least COLOUR_SHARE of the lit frames, most frequent first
+    # the longest the light was seen dark and lit at a stretch (a run at the burst's edge counts as far as it was
+    # seen), and the frame interval: even a burst too short for the light's rhythm can show it is not the chart's
+    longest_dark_s: float | None = None
+    longest_lit_s: float | None = None
+    frame_interval_s: float | None = None
 
     @property
     def groups(self) -> tuple[int, ...]:
@@ -417,8 +422,36 @@ def read_sequence(
     change = np.flatnonzero(lit[1:] != lit[:-1]) + 1  # the first frame of every run after the first
     ends = np.concatenate(([t[0]], (t[change - 1] + t[change]) / 2, [t[-1]]))  # a run ends between two frames
     runs = [(bool(lit[i]), float(a), float(b - a)) for i, a, b in zip((0, *change), ends[:-1], ends[1:], strict=True)]
-    rhythm, pattern, period = _structure(runs, float(np.median(np.diff(t))))
-    return ObservedLight(rhythm, pattern, period, colour, common)
+    dt = float(np.median(np.diff(t)))
+    rhythm, pattern, period = _structure(runs, dt)
+    longest_dark = max((d for lit_run, _, d in runs if not lit_run), default=0.0)
+    longest_lit = max((d for lit_run, _, d in runs if lit_run), default=0.0)
+    return ObservedLight(rhythm, pattern, period, colour, common, longest_dark, longest_lit, dt)
+
+
+def longest_phases(character: LightCharacter) -> tuple[float, float]:
+    """(dark s, lit s): the longest the charted character stays dark and lit at a stretch (a colour change of an
+    alternating light is no change of state)."""
+    runs: list[tuple[bool, float]] = []
+    for lit, d in character.phases() * 2:  # two periods: a phase that wraps round the period's end is whole
+        if runs and runs[-1][0] == lit:
+            runs[-1] = (lit, runs[-1][1] + d)
+        else:
+            runs.append((lit, d))
+    return max((d for lit, d in runs if not lit), default=0.0), max((d for lit, d in runs if lit), default=0.0)
+
+
+def outlasts_chart(charted: LightCharacter, observed: ObservedLight) -> bool:
+    """Whether the light stayed dark or lit longer than the charted character ever does (beyond SPREAD and
+    FRAME_SLACK frames): then it is not showing that character, whether or not its own rhythm could be read."""
+    dark, lit = longest_phases(charted)
+    slack = FRAME_SLACK * (observed.frame_interval_s or 0.0)
+    too_long = [
+        seen > (1 + SPREAD) * chart + slack
+        for seen, chart in ((observed.longest_dark_s, dark), (observed.longest_lit_s, lit))
+        if seen is not None and chart > 0
+    ]
+    return any(too_long)
 
 
 def _expected(character: LightCharacter) -> tuple[str, str, float | None]:
@@ -437,8 +470,10 @@ def _expected(character: LightCharacter) -> tuple[str, str, float | None]:
 def matches(charted: LightCharacter, observed: ObservedLight, period_tolerance: float = 0.1) -> list[str]:
     """How the observation differs from the chart: "light_out", "unreadable", "wrong_character", "wrong_period"
     (beyond period_tolerance, a fraction of the period), "wrong_colour"; an empty list when it matches."""
-    if observed.rhythm in ("dark", "unreadable"):
-        return ["light_out" if observed.rhythm == "dark" else "unreadable"]
+    if observed.rhythm == "dark":
+        return ["light_out"]
+    if observed.rhythm == "unreadable":  # no whole group: yet a dark or a flash longer than the chart's says enough
+        return ["wrong_character"] if charted.kind != "F" and outlasts_chart(charted, observed) else ["unreadable"]
     rhythm, pattern, period = _expected(charted)
     findings = []
     if (observed.rhythm, observed.pattern) != (rhythm, pattern):

@@ -30,7 +30,7 @@ from gcs.domain.light_reading import read_light
 from gcs.domain.planning import Plan
 from uavcore.buoy_world import APPEARANCE
 from uavcore.geodesy import LocalFrame
-from uavcore.light_character import ObservedLight, matches, parse
+from uavcore.light_character import ObservedLight, longest_phases, matches, parse
 
 # The station's position error budget: the waterline's geolocation (~0.2 m RMS in the benchmark) plus the
 # camera's GNSS and attitude errors. A buoy this far beyond its swing circle is reported off station.
@@ -103,6 +103,13 @@ def _light_findings(charted: ChartedBuoy, observed: ObservedLight) -> list[Findi
         return []
     character = parse(charted.light)
     seen = describe_light(observed)
+    if observed.rhythm == "unreadable" and observed.longest_dark_s is not None:
+        # too short a burst for this light's rhythm: what it did show (matches() judges by it)
+        dark, lit = longest_phases(character)
+        seen = (
+            f"dark up to {observed.longest_dark_s:.1f} s and lit up to {observed.longest_lit_s or 0.0:.1f} s at a "
+            f"stretch (the chart's longest: {dark:.1f} s dark, {lit:.1f} s lit)"
+        )
     findings = []
     for code in matches(character, observed):
         figures: dict[str, float | str | None] = {"charted": character.abbreviation(), "seen": seen}
