@@ -64,7 +64,9 @@ def test_buoys_are_upserted_by_id_and_a_chart_change_joins_the_history(storage):
                                     "changes": {"lat": [38.96, 38.961], "light": ["Fl G 4s", "Fl G 6s"]}})  # fmt: skip
     assert storage.set_buoy_mmsi("A", 993_672_001) and not storage.set_buoy_mmsi("nope", 993_672_001)
     assert storage.buoy("A").mmsi == 993_672_001
-    assert storage.upsert_buoys([moved]) == ([], [], 1) and storage.buoy("A").mmsi == 993_672_001  # kept
+    assert storage.upsert_buoys([replace(moved, source="US4MD81M edition 33")]) == ([], [], 1)
+    again = storage.buoy("A")
+    assert (again.mmsi, again.buoy.source, len(storage.buoy_events("A"))) == (993_672_001, "US4MD81M edition 33", 2)
     assert storage.known_buoys(["A", "C", "Z"]) == {"A", "C"}
     assert storage.buoy("Z") is None
 

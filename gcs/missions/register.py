@@ -8,6 +8,7 @@ the record's own transaction (gcs.storage.base.Storage.set_inspection), whoever 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
@@ -71,7 +72,7 @@ class Register:
     async def buoys(self, where: BuoyFilter, overdue_days: float | None = None) -> list[BuoyOut]:
         if overdue_days is not None:
             since = datetime.now(UTC) - timedelta(days=overdue_days)
-            where = BuoyFilter(where.bbox, where.kind, since.isoformat(timespec="milliseconds"), where.open_defects)
+            where = replace(where, inspected_before=since.isoformat(timespec="milliseconds"))
         return [buoy_out(stored) for stored in await self._storage.buoys(where)]
 
     async def buoy(self, buoy_id: str) -> BuoyDetailOut:

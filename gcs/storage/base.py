@@ -521,8 +521,8 @@ class Storage(ABC):
     # ----- the buoy register (gcs.domain.register)
     def upsert_buoys(self, buoys: Sequence[RegisterBuoy]) -> tuple[list[str], list[str], int]:
         """Register buoys by id, in one transaction: a new one is inserted, a known one whose charted attributes
-        changed is updated (its history, MMSI and defects kept, the change an event). Returns (created ids,
-        updated ids, how many were unchanged)."""
+        changed is updated (its history, MMSI and defects kept, the change an event), an unchanged one takes the new
+        source. Returns (created ids, updated ids, how many were unchanged)."""
         created, updated, unchanged = [], [], 0
         now = _now()
         with self.transaction() as db:
@@ -545,6 +545,8 @@ class Storage(ABC):
                     self._add_event(db, buoy.id, now, "charted", detail={"source": buoy.source, "changes": changes})
                     updated.append(buoy.id)
                 else:
+                    # the same as charted: the source names the latest import that gave it, no history entry
+                    db.execute("UPDATE buoys SET source = ? WHERE id = ?", (buoy.source, buoy.id))
                     unchanged += 1
         return created, updated, unchanged
 
