@@ -75,7 +75,8 @@ def burst_jpegs(plan: Plan, index: int, count: int) -> list[bytes]:
     return jpegs
 
 
-def _result(plan: Plan, index: int, frames: int, reason: str) -> BuoyInspection:
+def inspection_result(plan: Plan, index: int, frames: int, reason: str) -> BuoyInspection:
+    """Buoy `index`'s result as the module's docstring gives it, found in `frames` frames."""
     lat, lon = plan.buoys_lat_lon[index]
     mark = plan.mark(index)
     charted = InspectedBuoy(lat=lat, lon=lon, kind=mark.kind or "unknown", light=mark.light,
@@ -137,7 +138,7 @@ def inspection_record(
     return InspectionRecord(
         buoy=index,
         buoy_id=plan.buoy_ids[index],
-        result=_result(plan, index, len(ids), reason),
+        result=inspection_result(plan, index, len(ids), reason),
         frame_ids=ids,
         best_frame=ids[len(ids) // 2] if ids else None,
     )

@@ -17,10 +17,11 @@ loaded the machine.
 
 import time
 
+import httpx
 import pytest
 import schemathesis
 from fastapi.testclient import TestClient
-from hypothesis import HealthCheck, settings
+from hypothesis import HealthCheck, reject, settings
 from schemathesis.checks import not_a_server_error
 from schemathesis.core.transport import Response
 from schemathesis.specs.openapi.checks import (
@@ -90,7 +91,11 @@ def send(client: TestClient, case) -> Response:
 @schema.parametrize()
 @settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
 def test_every_answer_is_declared(case, client):
-    case.validate_response(send(client, case), checks=CHECKS)
+    try:
+        response = send(client, case)
+    except httpx.InvalidURL:  # a query past the client's 64 KiB URL (an area of 8000 non-ASCII characters, each
+        reject()  # 9 bytes encoded): no HTTP server takes such a request line, so it never reaches a route
+    case.validate_response(response, checks=CHECKS)
 
 
 def test_the_schema_declares_links_from_a_created_mission():

@@ -23,10 +23,11 @@ from starlette.responses import Response
 
 from gcs.api.body_limit import BodyLimitMiddleware
 from gcs.api.http_headers import SecurityHeadersMiddleware
-from gcs.api.routes import ais, buoy_files, inspections, live, missions, plans, vehicle
+from gcs.api.routes import ais, buoy_files, buoys, inspections, live, missions, plans, vehicle
 from gcs.domain.buoy_files import BuoyFileError
 from gcs.missions.lifecycle import MissionConflictError
 from gcs.missions.ownership import NotOwnerError
+from gcs.missions.register import BuoyNotFoundError
 from gcs.missions.service import FrameNotFoundError, MissionNotFoundError, MissionService, VehicleNotFoundError
 from gcs.missions.validation import RequestInvalidError
 from gcs.settings import Settings
@@ -93,6 +94,10 @@ def _install_error_handlers(app: FastAPI) -> None:
     async def no_frame(_: Request, error: FrameNotFoundError) -> JSONResponse:
         return JSONResponse({"detail": error.args[0]}, status_code=404)
 
+    @app.exception_handler(BuoyNotFoundError)
+    async def no_buoy(_: Request, error: BuoyNotFoundError) -> JSONResponse:
+        return JSONResponse({"detail": error.args[0]}, status_code=404)
+
     @app.exception_handler(VehicleNotFoundError)
     async def no_vehicle(_: Request, error: VehicleNotFoundError) -> JSONResponse:
         return JSONResponse({"detail": f"no vehicle with system id {error.args[0]}"}, status_code=404)
@@ -121,12 +126,14 @@ def _install_middleware(app: FastAPI, settings: Settings) -> None:
         app.add_middleware(
             CORSMiddleware,
             allow_origins=list(settings.cors_origins),
-            allow_methods=["GET", "POST"],
+            allow_methods=["GET", "POST", "PATCH"],
             allow_headers=["Authorization", "Content-Type", "X-API-Token"],
         )
-    # POST /imports takes an S-57 cell too: the route holds other files to max_body_bytes
+    # POST /imports takes an S-57 cell too, as POST /buoys/imports (the register's) does: the routes hold other
+    # files to max_body_bytes
     imports = max(settings.max_body_bytes, settings.max_chart_bytes)
-    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes, path_limits={"/imports": imports})
+    cells = {"/imports": imports, "/buoys/imports": imports}
+    app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes, path_limits=cells)
     docs = frozenset(path for path in (app.docs_url, app.redoc_url, app.swagger_ui_oauth2_redirect_url) if path)
     app.add_middleware(SecurityHeadersMiddleware, docs_paths=docs)
 
@@ -179,7 +186,7 @@ def create_app(settings: Settings | None = None, *, freeze_startup_heap: bool = 
     app.state.settings = settings
     _install_middleware(app, settings)
     _install_error_handlers(app)
-    for module in (plans, missions, inspections, buoy_files, vehicle, ais, live):
+    for module in (plans, missions, inspections, buoy_files, buoys, vehicle, ais, live):
         app.include_router(module.router)
 
     index = settings.web_dir / "index.html"

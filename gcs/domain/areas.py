@@ -39,6 +39,12 @@ def parse_area(text: str) -> BaseGeometry:
     return _bbox(text.strip("[]"))
 
 
+def parse_bbox(text: str) -> tuple[float, float, float, float]:
+    """A bbox "west,south,east,north" in degrees as those four numbers; AreaError if it is not one."""
+    west, south, east, north = _bbox(text.strip().strip("[]")).bounds
+    return west, south, east, north
+
+
 def _bbox(text: str) -> BaseGeometry:
     numbers = [_number(part) for part in text.split(",")]
     if len(numbers) != 4 or None in numbers:

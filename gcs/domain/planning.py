@@ -51,11 +51,13 @@ class FlightParams:
 @dataclass(frozen=True)
 class BuoyMark:
     """What the chart says of a buoy beyond its position: its IALA kind (None: not charted, the inspection then
-    finds it by position alone), its light's character as charted (None: unlit) and its mooring's swing radius."""
+    finds it by position alone), its light's character as charted (None: unlit), its mooring's swing radius, and
+    which buoy of the register it is (None: none)."""
 
     kind: str | None = None
     light: str | None = None
     swing_radius_m: float = DEFAULT_SWING_RADIUS_M
+    register_id: str | None = None  # the buoy register's id of this buoy: its inspection joins that buoy's history
 
     def burst(self) -> tuple[float, float]:
         """(duration s, rate Hz) of the camera burst that reads this light (uavcore.light_character.burst_for)."""

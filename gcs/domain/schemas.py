@@ -50,6 +50,12 @@ class BuoyIn(LatLon):
     swing_radius_m: float | None = Field(
         default=None, ge=0.0, le=200.0, description=f"the mooring's swing radius; default {DEFAULT_SWING_RADIUS_M:g} m"
     )
+    register_id: str | None = Field(
+        default=None,
+        min_length=1,
+        max_length=64,
+        description="the buoy register's id of this buoy (GET /buoys): its inspection joins that buoy's history",
+    )
 
     @field_validator("light")
     @classmethod

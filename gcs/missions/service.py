@@ -6,7 +6,8 @@
 - queries over what is stored: missions, telemetry, mission files, reports (gcs.storage, gcs.reports.report);
 - ownership of the vehicle link (gcs.missions.ownership): with several instances on one database, only the owner starts
   the link and flies; a stand-by answers reads and refuses the rest (NotOwnerError) until it takes over;
-- the AIS feed (gcs.ais): the AtoN reports heard from the --ais sources, owner and stand-by alike (it only listens).
+- the AIS feed (gcs.ais): the AtoN reports heard from the --ais sources, owner and stand-by alike (it only listens);
+- the buoy register (gcs.missions.register, `register`): charts imported, buoys' histories and defects, alarms.
 
 The routes see no storage, link or lifecycle: only the methods here.
 """
@@ -37,6 +38,7 @@ from gcs.missions.inspector import FrameAnalysis
 from gcs.missions.lifecycle import ABORTED_BEFORE_TAKEOFF, MissionConflictError
 from gcs.missions.ownership import Ownership, ownership_for
 from gcs.missions.read_cache import VersionedCache
+from gcs.missions.register import Register
 from gcs.missions.validation import (
     RequestInvalidError,
     fence_from_request,
@@ -67,7 +69,9 @@ def _named_buoys(request: PlanRequest) -> tuple[list[str], list[tuple[float, flo
 def _marks(request: PlanRequest) -> list[BuoyMark]:
     """What the request charts of each buoy (kind, light, swing radius), in input order."""
     return [
-        BuoyMark(b.kind, b.light, DEFAULT_SWING_RADIUS_M if b.swing_radius_m is None else b.swing_radius_m)
+        BuoyMark(
+            b.kind, b.light, DEFAULT_SWING_RADIUS_M if b.swing_radius_m is None else b.swing_radius_m, b.register_id
+        )
         for b in request.buoys
     ]
 
@@ -123,6 +127,7 @@ class MissionService:
         self.documents = VersionedCache()  # the read routes' encoded documents by version (gcs.missions.read_cache)
         limits = StreamLimits(rate_lines_s=settings.ais_max_lines_s, burst_lines=2 * settings.ais_max_lines_s)
         self.ais = AisFeed(settings.ais_sources, settings.ais_stale_s, limits)
+        self.register = Register(storage, self.ais)  # the buoy register: the /buoys and /alarms routes' methods
 
     async def start(self) -> None:
         """Own the vehicle link now, or stand by until the owner is gone (then take it over in the background).
@@ -184,6 +189,7 @@ class MissionService:
         geofence, else the one the vehicle holds (read now), and with battery options against the vehicle's pack
         (read now). Raises RequestInvalidError or InputError."""
         vehicle = self._vehicle(request.vehicle)
+        await self.register.check_request(request.buoys)
         fence = fence_from_request(request.geofence) if request.geofence else await vehicle.fence()
         pack = await vehicle.pack() if request.battery is not None else None
         return await asyncio.to_thread(self._plan, request, vehicle.depot(), fence, pack)
@@ -248,6 +254,7 @@ class MissionService:
         homes = {sysid: vehicle.depot() for sysid, vehicle in zip(sysids, vehicles, strict=True)}
         first_home = homes[sysids[0]]
         validate_request(request, first_home, self.settings.limits)
+        await self.register.check_request(request.buoys)
         ids, buoys = _named_buoys(request)
         options = request.planner
         planned = await asyncio.to_thread(

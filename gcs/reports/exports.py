@@ -4,6 +4,7 @@
 - QGC .plan (JSON) and QGC WPL 110 `.waypoints` (tab separated, line 0 is home), with readers for both so a
   mission round-trips and can be re-flown by QGroundControl or MAVProxy (`wp load`).
 - inspections.csv and inspections.geojson: the per-buoy verdicts and findings (a spreadsheet or a GIS opens them).
+- buoys.csv and buoys.geojson: the buoy register's buoys (GET /buoys.csv, /buoys.geojson).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
+from gcs.domain.register import BuoyOut
 from gcs.domain.schemas import InspectionOut
 from uavcore.mission import MavCmd, MavFrame, MissionItem
 
@@ -213,3 +215,29 @@ def inspections_geojson(inspections: Sequence[InspectionOut], properties: dict[s
         features.append({"type": "Feature", "geometry": {"type": "Point", "coordinates": [at.lon, at.lat]},
                          "properties": props})  # fmt: skip
     return {"type": "FeatureCollection", "properties": properties, "features": features}
+
+
+BUOY_COLUMNS = ("id", "name", "lat", "lon", "kind", "light", "swing_radius_m", "mmsi", "source", "last_inspected_at",
+                "open_defects", "charted")  # fmt: skip
+
+
+def buoys_csv(buoys: Sequence[BuoyOut]) -> str:
+    """The register's buoys as CSV, a row per buoy (charted: the chart's other attributes, as JSON). Text from
+    the chart is formula-safe (_cell)."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(BUOY_COLUMNS)
+    for buoy in buoys:
+        document = buoy.model_dump(mode="json")
+        writer.writerow([_cell(json.dumps(document[c]) if c == "charted" else document[c]) for c in BUOY_COLUMNS])
+    return out.getvalue()
+
+
+def buoys_geojson(buoys: Sequence[BuoyOut]) -> dict[str, Any]:
+    """The register's buoys as GeoJSON Points at their charted positions, every attribute a property."""
+    features = [
+        {"type": "Feature", "geometry": {"type": "Point", "coordinates": [b.lon, b.lat]},
+         "properties": b.model_dump(mode="json", exclude={"lat", "lon"})}
+        for b in buoys
+    ]  # fmt: skip
+    return {"type": "FeatureCollection", "features": features}

@@ -19,6 +19,16 @@ from typing import Any, ClassVar, Protocol
 from gcs.domain.inspection import InspectionRecord, StoredFrame
 from gcs.domain.planning import FlightParams, Plan
 from gcs.domain.records import MissionProgress, MissionResults
+from gcs.domain.register import (
+    UNCLOSED,
+    BuoyEvent,
+    BuoyFilter,
+    Defect,
+    DefectState,
+    RegisterBuoy,
+    StoredBuoy,
+    defect_findings,
+)
 from gcs.domain.schemas import StatusEvent
 from gcs.domain.status import UNFINISHED, MissionKind, MissionStatus
 from gcs.storage.migrations import MIGRATIONS, TRACK_COLUMNS
@@ -118,6 +128,69 @@ def _record(row: Any, events: list[StatusEvent]) -> MissionRecord:
         vehicle_sysid=None if row["vehicle_sysid"] is None else int(row["vehicle_sysid"]),
         fleet_id=None if row["fleet_id"] is None else int(row["fleet_id"]),
     )
+
+
+_BUOY_COLUMNS = "id, name, lat, lon, kind, light, swing_radius_m, charted, source"
+# A register buoy with its last inspection that gave a verdict and its count of open or confirmed defects
+_STORED_BUOYS = f"""SELECT {_BUOY_COLUMNS}, mmsi, created_at, updated_at,
+    (SELECT MAX(at) FROM buoy_events AS e WHERE e.buoy_id = b.id AND e.kind = 'inspection'
+     AND e.verdict IN ('ok', 'defect')) AS last_inspected_at,
+    (SELECT COUNT(*) FROM buoy_defects AS d WHERE d.buoy_id = b.id AND d.state IN ('open', 'confirmed'))
+     AS unclosed_defects
+    FROM buoys AS b"""
+
+
+def _charted_values(buoy: RegisterBuoy) -> tuple[Any, ...]:
+    """The buoy's values in _BUOY_COLUMNS' order, without its source."""
+    return (buoy.id, buoy.name, buoy.lat, buoy.lon, buoy.kind, buoy.light, buoy.swing_radius_m, _json(buoy.charted))
+
+
+def _register_buoy(row: Any) -> RegisterBuoy:
+    return RegisterBuoy(id=row["id"], lat=float(row["lat"]), lon=float(row["lon"]), name=row["name"],
+                        kind=row["kind"], light=row["light"], swing_radius_m=float(row["swing_radius_m"]),
+                        charted=json.loads(row["charted"]), source=row["source"])  # fmt: skip
+
+
+def _stored_buoy(row: Any) -> StoredBuoy:
+    return StoredBuoy(buoy=_register_buoy(row), mmsi=None if row["mmsi"] is None else int(row["mmsi"]),
+                      created_at=row["created_at"], updated_at=row["updated_at"],
+                      last_inspected_at=row["last_inspected_at"],
+                      unclosed_defects=int(row["unclosed_defects"]))  # fmt: skip
+
+
+def _event(row: Any) -> BuoyEvent:
+    return BuoyEvent(id=int(row["id"]), buoy_id=row["buoy_id"], at=row["at"], kind=row["kind"],
+                     mission_id=_optional_int(row["mission_id"]), defect_id=_optional_int(row["defect_id"]),
+                     verdict=row["verdict"], detail=json.loads(row["detail"]), note=row["note"])  # fmt: skip
+
+
+def _defect(row: Any) -> Defect:
+    return Defect(id=int(row["id"]), buoy_id=row["buoy_id"], code=row["code"], state=row["state"],
+                  mission_id=int(row["mission_id"]), finding=json.loads(row["finding"]), opened_at=row["opened_at"],
+                  updated_at=row["updated_at"], note=row["note"])  # fmt: skip
+
+
+def _optional_int(value: Any) -> int | None:
+    return None if value is None else int(value)
+
+
+def _buoy_conditions(where: BuoyFilter) -> tuple[list[str], list[Any]]:
+    """GET /buoys' filters as SQL conditions on _STORED_BUOYS' columns, and their parameters."""
+    conditions: list[str] = []
+    parameters: list[Any] = []
+    if where.bbox is not None:
+        west, south, east, north = where.bbox
+        conditions.append("lat BETWEEN ? AND ? AND lon BETWEEN ? AND ?")
+        parameters += [south, north, west, east]  # west < east: gcs.domain.areas.parse_bbox
+    if where.kind is not None:
+        conditions.append("kind = ?")
+        parameters.append(where.kind)
+    if where.inspected_before is not None:
+        conditions.append("(last_inspected_at IS NULL OR last_inspected_at < ?)")
+        parameters.append(where.inspected_before)
+    if where.open_defects is not None:
+        conditions.append("unclosed_defects > 0" if where.open_defects else "unclosed_defects = 0")
+    return conditions, parameters
 
 
 class Storage(ABC):
@@ -437,12 +510,166 @@ class Storage(ABC):
             db.execute(
                 f"UPDATE missions SET updated_at = ?, version = {NEXT_VERSION} WHERE id = ?", (_now(), mission_id)
             )
+            self._add_to_register(db, mission_id, record)
 
     def inspections(self, mission_id: int) -> list[InspectionRecord]:
         """The mission's inspection records by buoy input index."""
         with self._reading() as db:
             rows = db.execute("SELECT record FROM inspections WHERE mission_id = ? ORDER BY buoy", (mission_id,))
             return [InspectionRecord.model_validate_json(row["record"]) for row in rows.fetchall()]
+
+    # ----- the buoy register (gcs.domain.register)
+    def upsert_buoys(self, buoys: Sequence[RegisterBuoy]) -> tuple[list[str], list[str], int]:
+        """Register buoys by id, in one transaction: a new one is inserted, a known one whose charted attributes
+        changed is updated (its history, MMSI and defects kept, the change an event), an unchanged one takes the new
+        source. Returns (created ids, updated ids, how many were unchanged)."""
+        created, updated, unchanged = [], [], 0
+        now = _now()
+        with self.transaction() as db:
+            for buoy in buoys:
+                row = db.execute(f"SELECT {_BUOY_COLUMNS} FROM buoys WHERE id = ?", (buoy.id,)).fetchone()
+                if row is None:
+                    db.execute(
+                        "INSERT INTO buoys (id, name, lat, lon, kind, light, swing_radius_m, charted, source,"
+                        " created_at, updated_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                        (*_charted_values(buoy), buoy.source, now, now),
+                    )
+                    self._add_event(db, buoy.id, now, "registered", detail={"source": buoy.source})
+                    created.append(buoy.id)
+                elif changes := buoy.changes_from(_register_buoy(row)):
+                    db.execute(
+                        "UPDATE buoys SET name = ?, lat = ?, lon = ?, kind = ?, light = ?, swing_radius_m = ?,"
+                        " charted = ?, source = ?, updated_at = ? WHERE id = ?",
+                        (*_charted_values(buoy)[1:], buoy.source, now, buoy.id),
+                    )
+                    self._add_event(db, buoy.id, now, "charted", detail={"source": buoy.source, "changes": changes})
+                    updated.append(buoy.id)
+                else:
+                    # the same as charted: the source names the latest import that gave it, no history entry
+                    db.execute("UPDATE buoys SET source = ? WHERE id = ?", (buoy.source, buoy.id))
+                    unchanged += 1
+        return created, updated, unchanged
+
+    def set_buoy_mmsi(self, buoy_id: str, mmsi: int | None) -> bool:
+        """Give a register buoy the MMSI of its AIS transmitter (None: it has none). False: no such buoy."""
+        with self.transaction() as db:
+            cursor = db.execute("UPDATE buoys SET mmsi = ?, updated_at = ? WHERE id = ?", (mmsi, _now(), buoy_id))
+            return cursor.rowcount == 1
+
+    def known_buoys(self, ids: Iterable[str]) -> set[str]:
+        """Those of `ids` that are register ids."""
+        wanted = sorted(set(ids))
+        known: set[str] = set()
+        with self._reading() as db:
+            for start in range(0, len(wanted), 500):  # a bounded IN list per query
+                chunk = wanted[start : start + 500]
+                rows = db.execute(f"SELECT id FROM buoys WHERE id IN ({', '.join('?' * len(chunk))})", chunk)
+                known.update(row["id"] for row in rows.fetchall())
+        return known
+
+    def buoys(self, where: BuoyFilter | None = None) -> list[StoredBuoy]:
+        """The register's buoys that pass the filter, by id."""
+        conditions, parameters = _buoy_conditions(where or BuoyFilter())
+        with self._reading() as db:
+            rows = db.execute(
+                f"SELECT * FROM ({_STORED_BUOYS}) AS buoy WHERE {' AND '.join(conditions) or 'TRUE'} ORDER BY id",
+                parameters,
+            ).fetchall()
+        return [_stored_buoy(row) for row in rows]
+
+    def buoy(self, buoy_id: str) -> StoredBuoy | None:
+        with self._reading() as db:
+            row = db.execute(f"SELECT * FROM ({_STORED_BUOYS}) AS buoy WHERE id = ?", (buoy_id,)).fetchone()
+        return None if row is None else _stored_buoy(row)
+
+    def buoy_events(self, buoy_id: str) -> list[BuoyEvent]:
+        """A register buoy's history, oldest first."""
+        with self._reading() as db:
+            rows = db.execute("SELECT * FROM buoy_events WHERE buoy_id = ? ORDER BY id", (buoy_id,)).fetchall()
+        return [_event(row) for row in rows]
+
+    def defects(self, buoy_id: str | None = None, code: str | None = None, unclosed: bool = True) -> list[Defect]:
+        """Defects (open or confirmed only, unless `unclosed` is False), of one buoy and of one code when given."""
+        conditions = ["state IN (?, ?)"] if unclosed else []
+        parameters: list[Any] = list(UNCLOSED) if unclosed else []
+        for column, value in (("buoy_id", buoy_id), ("code", code)):
+            if value is not None:
+                conditions.append(f"{column} = ?")
+                parameters.append(value)
+        with self._reading() as db:
+            rows = db.execute(
+                f"SELECT * FROM buoy_defects WHERE {' AND '.join(conditions) or 'TRUE'} ORDER BY id", parameters
+            ).fetchall()
+        return [_defect(row) for row in rows]
+
+    def set_defect_state(self, buoy_id: str, defect_id: int, state: DefectState, note: str) -> Defect | None:
+        """An operator's change of a defect's state, with a note, in its buoy's history. None: the buoy has no
+        such defect."""
+        now = _now()
+        with self.transaction() as db:
+            row = db.execute("SELECT * FROM buoy_defects WHERE id = ? AND buoy_id = ?", (defect_id, buoy_id)).fetchone()
+            if row is None:
+                return None
+            db.execute(
+                "UPDATE buoy_defects SET state = ?, note = ?, updated_at = ? WHERE id = ?",
+                (state, note, now, defect_id),
+            )
+            self._add_event(db, buoy_id, now, "defect_state", defect_id=defect_id, note=note,
+                            detail={"code": row["code"], "from": row["state"], "to": state})  # fmt: skip
+            row = db.execute("SELECT * FROM buoy_defects WHERE id = ?", (defect_id,)).fetchone()
+        return _defect(row)
+
+    def _add_to_register(self, db: Connection, mission_id: int, record: InspectionRecord) -> None:
+        """A stored inspection record of a register buoy (the plan's mark names its register id) joins the buoy's
+        history, in the record's transaction; a record stored again for the same buoy of the mission replaces its
+        event. Each defect finding opens a defect unless one of its code is still open or confirmed."""
+        buoy_id = self._register_id(db, mission_id, record.buoy)
+        if buoy_id is None:
+            return
+        now = _now()
+        db.execute(
+            "DELETE FROM buoy_events WHERE kind = 'inspection' AND mission_id = ? AND mission_buoy = ?",
+            (mission_id, record.buoy),
+        )
+        self._add_event(db, buoy_id, now, "inspection", mission_id=mission_id, mission_buoy=record.buoy,
+                        verdict=record.result.verdict, detail=record.model_dump(mode="json"))  # fmt: skip
+        for code, finding in defect_findings(record).items():
+            unclosed = db.execute(
+                "SELECT id FROM buoy_defects WHERE buoy_id = ? AND code = ? AND state IN (?, ?)",
+                (buoy_id, code, *UNCLOSED),
+            ).fetchone()
+            if unclosed is not None:
+                continue
+            defect_id = int(
+                db.execute(
+                    "INSERT INTO buoy_defects (buoy_id, code, state, mission_id, finding, opened_at, updated_at)"
+                    " VALUES (?, ?, 'open', ?, ?, ?, ?) RETURNING id",
+                    (buoy_id, code, mission_id, _json(finding.model_dump(mode="json")), now, now),
+                ).fetchone()["id"]
+            )
+            self._add_event(db, buoy_id, now, "defect_opened", mission_id=mission_id, mission_buoy=record.buoy,
+                            defect_id=defect_id, detail={"code": code})  # fmt: skip
+
+    @staticmethod
+    def _register_id(db: Connection, mission_id: int, index: int) -> str | None:
+        """The register id of buoy `index` of the mission's plan, when that buoy is in the register."""
+        row = db.execute("SELECT plan FROM missions WHERE id = ?", (mission_id,)).fetchone()
+        marks = (json.loads(row["plan"]).get("marks") or []) if row is not None else []
+        register_id = marks[index].get("register_id") if index < len(marks) else None
+        if register_id is None:
+            return None
+        known = db.execute("SELECT id FROM buoys WHERE id = ?", (register_id,)).fetchone()
+        return None if known is None else str(register_id)
+
+    @staticmethod
+    def _add_event(db: Connection, buoy_id: str, at: str, kind: str, *, mission_id: int | None = None,
+                   mission_buoy: int | None = None, defect_id: int | None = None, verdict: str | None = None,
+                   detail: dict[str, Any], note: str | None = None) -> None:  # fmt: skip
+        db.execute(
+            "INSERT INTO buoy_events (buoy_id, at, kind, mission_id, mission_buoy, defect_id, verdict, detail, note)"
+            " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+            (buoy_id, at, kind, mission_id, mission_buoy, defect_id, verdict, _json(detail), note),
+        )
 
     # ----- removal
     def delete_mission(self, mission_id: int) -> bool:

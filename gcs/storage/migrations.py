@@ -126,6 +126,56 @@ def _inspection_tables(integer: str, key: str, blob: str) -> str:
     """
 
 
+def _register_tables(integer: str, key: str, real: str) -> str:
+    """Migration 8: the buoy register. A buoy by its register id (the chart's LNAM, or the id given) with its
+    charted attributes (`charted`: a JSON document); its defects, one per finding code an inspection found, with the
+    state an operator sets; and its history of events. The events and defects name the mission they came from
+    without a foreign key: a buoy's history outlives a mission deleted later."""
+    return f"""
+    CREATE TABLE buoys (
+        id TEXT PRIMARY KEY,
+        name TEXT,
+        lat {real} NOT NULL,
+        lon {real} NOT NULL,
+        kind TEXT,
+        light TEXT,
+        swing_radius_m {real} NOT NULL,
+        charted TEXT NOT NULL,
+        mmsi {integer},
+        source TEXT NOT NULL,
+        created_at TEXT NOT NULL,
+        updated_at TEXT NOT NULL
+    );
+    CREATE INDEX buoys_by_mmsi ON buoys (mmsi);
+    CREATE TABLE buoy_defects (
+        id {key},
+        buoy_id TEXT NOT NULL REFERENCES buoys(id),
+        code TEXT NOT NULL,
+        state TEXT NOT NULL CHECK (state IN ('open', 'confirmed', 'closed')),
+        mission_id {integer} NOT NULL,
+        finding TEXT NOT NULL,
+        opened_at TEXT NOT NULL,
+        updated_at TEXT NOT NULL,
+        note TEXT
+    );
+    CREATE INDEX defects_by_buoy ON buoy_defects (buoy_id, state);
+    CREATE TABLE buoy_events (
+        id {key},
+        buoy_id TEXT NOT NULL REFERENCES buoys(id),
+        at TEXT NOT NULL,
+        kind TEXT NOT NULL,
+        mission_id {integer},
+        mission_buoy {integer},
+        defect_id {integer} REFERENCES buoy_defects(id),
+        verdict TEXT,
+        detail TEXT NOT NULL,
+        note TEXT
+    );
+    CREATE INDEX events_by_buoy ON buoy_events (buoy_id, id);
+    CREATE INDEX buoy_events_by_mission ON buoy_events (mission_id, mission_buoy);
+    """
+
+
 def _sqlite_status_check(db: Any) -> None:
     """Migration 6 in SQLite: the missions table's CHECK lists every MissionStatus. SQLite cannot alter a
     constraint; a CHECK that admits more values changes no stored row, so the table's definition is rewritten in
@@ -168,5 +218,9 @@ MIGRATIONS: list[Migration] = [
     Migration(
         sqlite=_inspection_tables("INTEGER", "INTEGER PRIMARY KEY AUTOINCREMENT", "BLOB"),
         postgresql=_inspection_tables("BIGINT", "BIGINT GENERATED ALWAYS AS IDENTITY PRIMARY KEY", "BYTEA"),
+    ),
+    Migration(
+        sqlite=_register_tables("INTEGER", "INTEGER PRIMARY KEY AUTOINCREMENT", "REAL"),
+        postgresql=_register_tables("BIGINT", "BIGINT GENERATED ALWAYS AS IDENTITY PRIMARY KEY", "DOUBLE PRECISION"),
     ),
 ]

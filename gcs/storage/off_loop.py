@@ -26,6 +26,7 @@ from typing import Any, ParamSpec, TypeVar
 from gcs.domain.inspection import InspectionRecord, StoredFrame
 from gcs.domain.planning import FlightParams, Plan
 from gcs.domain.records import MissionProgress, MissionResults
+from gcs.domain.register import BuoyEvent, BuoyFilter, Defect, DefectState, RegisterBuoy, StoredBuoy
 from gcs.domain.status import MissionStatus
 from gcs.storage.base import MissionRecord, Storage
 
@@ -108,6 +109,15 @@ class AsyncStorage:
     async def delete_mission(self, mission_id: int) -> bool:
         return await self._run(self._writer, self.blocking.delete_mission, mission_id)
 
+    async def upsert_buoys(self, buoys: list[RegisterBuoy]) -> tuple[list[str], list[str], int]:
+        return await self._run(self._writer, self.blocking.upsert_buoys, buoys)
+
+    async def set_buoy_mmsi(self, buoy_id: str, mmsi: int | None) -> bool:
+        return await self._run(self._writer, self.blocking.set_buoy_mmsi, buoy_id, mmsi)
+
+    async def set_defect_state(self, buoy_id: str, defect_id: int, state: DefectState, note: str) -> Defect | None:
+        return await self._run(self._writer, self.blocking.set_defect_state, buoy_id, defect_id, state, note)
+
     # ----- reads, side by side
     async def get_mission(self, mission_id: int) -> MissionRecord | None:
         return await self._run(self._readers, self.blocking.get_mission, mission_id)
@@ -152,3 +162,19 @@ class AsyncStorage:
 
     async def inspections(self, mission_id: int) -> list[InspectionRecord]:
         return await self._run(self._readers, self.blocking.inspections, mission_id)
+
+    async def known_buoys(self, ids: list[str]) -> set[str]:
+        return await self._run(self._readers, self.blocking.known_buoys, ids)
+
+    async def buoys(self, where: BuoyFilter | None = None) -> list[StoredBuoy]:
+        return await self._run(self._readers, self.blocking.buoys, where)
+
+    async def buoy(self, buoy_id: str) -> StoredBuoy | None:
+        return await self._run(self._readers, self.blocking.buoy, buoy_id)
+
+    async def buoy_events(self, buoy_id: str) -> list[BuoyEvent]:
+        return await self._run(self._readers, self.blocking.buoy_events, buoy_id)
+
+    async def defects(self, buoy_id: str | None = None, code: str | None = None) -> list[Defect]:
+        """Open and confirmed defects, of one buoy and of one code when given."""
+        return await self._run(self._readers, self.blocking.defects, buoy_id, code)

@@ -39,21 +39,22 @@ RegionQuery = Annotated[
 ]
 
 
+CELL_BODY = {"application/octet-stream": {"schema": {"type": "string", "format": "binary"}}}
+
+
+def file_body(content: dict[str, Any]) -> dict[str, Any]:
+    """A route's openapi_extra for a body that is the file itself."""
+    return {"requestBody": {"content": content, "required": True}}
+
+
 @router.post(
     "/imports",
     response_model=ImportOut,
     dependencies=[Depends(require_token)],
     responses=WITH_BODY,
-    openapi_extra={
-        "requestBody": {
-            "content": {
-                "text/csv": {"schema": {"type": "string"}},
-                "application/geo+json": {"schema": {"type": "object"}},
-                "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
-            },
-            "required": True,
-        }
-    },
+    openapi_extra=file_body(
+        {"text/csv": {"schema": {"type": "string"}}, "application/geo+json": {"schema": {"type": "object"}}} | CELL_BODY
+    ),
 )
 async def import_buoys(
     request: Request,
@@ -76,17 +77,22 @@ async def import_buoys(
     return {"buoys": [_checked(i, b.as_dict()) for i, b in enumerate(buoys)]}
 
 
-async def _chart_import(body: bytes, filename: str, area: str | None, region: IalaRegion) -> dict[str, Any]:
-    """The cell's marks as buoys, with the chart's description of each and the warnings. GDAL reads in a worker
+async def read_chart(body: bytes, filename: str, area: str | None, region: IalaRegion) -> ChartImport:
+    """An uploaded cell's marks (in `area`, a query parameter), a bad area the query's 422. GDAL reads in a worker
     thread (about half a second for a 3.5 MB cell): the event loop keeps serving the vehicle link meanwhile."""
     try:
         shape = None if area is None else parse_area(area)
     except AreaError as error:
         raise RequestInvalidError([(("query", "area"), str(error))]) from None
     try:
-        chart = await asyncio.to_thread(read_upload, body, filename, region, shape)
+        return await asyncio.to_thread(read_upload, body, filename, region, shape)
     except NothingInAreaError as error:
         raise RequestInvalidError([(("query", "area"), str(error))]) from None
+
+
+async def _chart_import(body: bytes, filename: str, area: str | None, region: IalaRegion) -> dict[str, Any]:
+    """The cell's marks as buoys, with the chart's description of each and the warnings."""
+    chart = await read_chart(body, filename, area, region)
     _check_count(len(chart.marks), f"{chart.cell.name} has {len(chart.marks)} buoys and beacons (an area takes fewer)")
     buoys = [_checked(i, mark.as_buoy()) for i, mark in enumerate(chart.marks)]
     return {"buoys": buoys, "chart": _chart_document(chart), "warnings": list(chart.warnings)}

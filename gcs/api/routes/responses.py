@@ -39,6 +39,7 @@ UNAUTHORIZED: Responses = {
     )
 }
 NOT_FOUND: Responses = {404: _error("no mission with this id")}
+NO_BUOY: Responses = {404: _error("no buoy with this register id (or it has no such defect)")}
 NO_VEHICLE: Responses = {404: _error("no vehicle with this system id")}
 CONFLICT: Responses = {
     409: _error("another mission uses the vehicle, or this mission is not in a state that allows it")
