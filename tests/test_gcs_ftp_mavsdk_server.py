@@ -31,6 +31,16 @@ SERVER_SCRIPT = REPO / "tests" / "mavsdk_ftp_server.py"
 CONNECT_S = 60.0  # a backstop for a loaded machine
 
 
+async def printed(log_path: Path, line: str, timeout_s: float) -> bool:
+    """Whether the server printed `line` within `timeout_s` (polled: a loaded machine starts it late)."""
+    deadline = asyncio.get_running_loop().time() + timeout_s
+    while line not in log_path.read_text().splitlines():
+        if asyncio.get_running_loop().time() > deadline:
+            return False
+        await asyncio.sleep(0.1)
+    return True
+
+
 @pytest.fixture
 def served(tmp_path) -> tuple[Path, dict[str, bytes]]:
     root = tmp_path / "images"
@@ -63,6 +73,9 @@ def test_the_ground_station_downloads_from_mavsdks_ftp_server(tmp_path, served, 
             )
         try:
             assert await link.wait_connected(CONNECT_S), f"no heartbeat from MAVSDK:\n{log_path.read_text()[-3000:]}"
+            # MAVSDK heartbeats from the moment it connects, before the script has given FtpServer its directory;
+            # an OpenFileRO in between is refused ("Fail"), so the test waits for the script to say it serves
+            assert await printed(log_path, "ready", CONNECT_S), f"MAVSDK never served:\n{log_path.read_text()[-3000:]}"
             client = FtpClient(link)
             for name, content in files.items():
                 assert await client.download(f"/{name}", component) == content, f"{name} by bursts"
