@@ -156,7 +156,8 @@ async def ws_fanout(base: str, rate_hz: float, duration_s: float) -> dict:
     async def listen(ws) -> tuple[list[float], float]:
         arrivals, heartbeat_age = [], 0.0
         while (now := time.monotonic()) < closes:
-            message = json.loads(await asyncio.wait_for(ws.recv(), 5))
+            async with asyncio.timeout(5):
+                message = json.loads(await ws.recv())
             if now >= opens:
                 arrivals.append(time.monotonic())
                 heartbeat_age = max(heartbeat_age, message["vehicle"]["heartbeat_age_s"] or 0.0)

@@ -26,7 +26,8 @@ def report(step: str, ok: bool, **detail) -> None:
 
 async def step(name: str, awaitable, timeout: float = STEP_TIMEOUT_S):
     try:
-        value = await asyncio.wait_for(awaitable, timeout)
+        async with asyncio.timeout(timeout):
+            value = await awaitable
     except Exception as exc:  # the test reads the exact error
         report(name, False, error=f"{type(exc).__name__}: {exc}")
         return None

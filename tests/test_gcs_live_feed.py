@@ -152,6 +152,7 @@ def test_many_websocket_clients_each_receive_the_live_state(service_url):
             assert all([v["connected"] for v in m["vehicles"]] == [False] for m in messages)
 
     async def receive(ws, count: int) -> list[dict]:
-        return [json.loads(await asyncio.wait_for(ws.recv(), 30)) for _ in range(count)]
+        async with asyncio.timeout(30 * count):
+            return [json.loads(await ws.recv()) for _ in range(count)]
 
     asyncio.run(scenario())

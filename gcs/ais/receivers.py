@@ -169,9 +169,8 @@ class TcpReceiver(AisReceiver):
         self.idle_timeout_s = idle_timeout_s
 
     async def _receive(self) -> None:
-        reader, writer = await asyncio.wait_for(
-            asyncio.open_connection(self.source.host, self.source.port), CONNECT_TIMEOUT_S
-        )
+        async with asyncio.timeout(CONNECT_TIMEOUT_S):
+            reader, writer = await asyncio.open_connection(self.source.host, self.source.port)
         try:
             sock = writer.get_extra_info("socket")
             if sock is not None:  # a vanished server (a host down, a cable cut) is found out by the kernel
@@ -181,7 +180,8 @@ class TcpReceiver(AisReceiver):
             log.info("AIS %s: connected", self.source)
             while True:
                 try:
-                    chunk = await asyncio.wait_for(reader.read(READ_CHUNK_BYTES), self.idle_timeout_s)
+                    async with asyncio.timeout(self.idle_timeout_s):
+                        chunk = await reader.read(READ_CHUNK_BYTES)
                 except TimeoutError:
                     raise ConnectionError(f"silent for {self.idle_timeout_s:g} s: reconnecting") from None
                 if not chunk:

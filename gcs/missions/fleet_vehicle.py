@@ -57,7 +57,8 @@ class FleetVehicle:
         if not link.status.connected or self._fence_unanswered == link.status.incarnation:
             return link.fence
         try:
-            return await asyncio.wait_for(link.download_fence(), FENCE_READ_TIMEOUT_S)
+            async with asyncio.timeout(FENCE_READ_TIMEOUT_S):
+                return await link.download_fence()
         except (TimeoutError, LinkError, MissionTransferError, FenceError):
             self._fence_unanswered = link.status.incarnation
             return link.fence

@@ -228,7 +228,8 @@ class Inspector:
         left, progress_at = self._work.qsize(), time.monotonic()
         while time.monotonic() < deadline and time.monotonic() - progress_at < self.limits.stall_s:
             with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(self._work.join(), DRAIN_POLL_S)
+                async with asyncio.timeout(DRAIN_POLL_S):
+                    await self._work.join()
                 return
             if self._work.qsize() < left:
                 left, progress_at = self._work.qsize(), time.monotonic()

@@ -484,7 +484,8 @@ class FlightLifecycle:
             while not self._swapped.is_set():
                 self._check_abort_between_sorties(mission_id, sortie)
                 with contextlib.suppress(TimeoutError):
-                    await asyncio.wait_for(self._swapped.wait(), FLUSH_PERIOD_S)
+                    async with asyncio.timeout(FLUSH_PERIOD_S):
+                        await self._swapped.wait()
                 await self.storage.add_telemetry(mission_id, recorder.take())
             deadline = time.monotonic() + SWAPPED_CHARGE_WAIT_S
             while time.monotonic() < deadline:

@@ -148,7 +148,8 @@ class PostgresLease:
         """Run one query on the lease connection; a broken or slow connection is closed (the lock with it)."""
         try:
             connection = await self._connect()
-            cursor = await asyncio.wait_for(connection.execute(sql, self.keys), QUERY_TIMEOUT_S)
+            async with asyncio.timeout(QUERY_TIMEOUT_S):
+                cursor = await connection.execute(sql, self.keys)
             return await cursor.fetchall()
         except (psycopg.Error, OSError, TimeoutError):
             await self._drop()

@@ -154,7 +154,8 @@ class CameraClient:
                     )
                 )
                 with contextlib.suppress(TimeoutError):
-                    message = await asyncio.wait_for(answers.get(), INFORMATION_TIMEOUT_S)
+                    async with asyncio.timeout(INFORMATION_TIMEOUT_S):
+                        message = await answers.get()
                     self.info = CameraInfo.from_message(message)
                     return self.info
         raise CameraError(f"the camera (component {component}) did not send its CAMERA_INFORMATION")

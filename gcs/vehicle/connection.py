@@ -211,7 +211,8 @@ class UdpTransport(Transport):
             assert self._protocol is not None  # open() sets it with the socket
             # asyncio closes the socket on a later turn of the loop: wait, so its port is free on return
             with contextlib.suppress(TimeoutError):
-                await asyncio.wait_for(self._protocol.closed, UDP_CLOSE_WAIT_S)
+                async with asyncio.timeout(UDP_CLOSE_WAIT_S):
+                    await self._protocol.closed
             self._socket = None
 
 

@@ -220,7 +220,8 @@ class _Transfer:
         deadline = loop.time() + timeout_s
         while (remaining := deadline - loop.time()) > 0:
             try:
-                message: Any = await asyncio.wait_for(self.inbox.get(), remaining)
+                async with asyncio.timeout(remaining):
+                    message: Any = await self.inbox.get()
             except TimeoutError:
                 return None
             if message.target_system not in (0, GCS_SYSID) or message.target_component not in (0, GCS_COMPID):

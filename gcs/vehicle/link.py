@@ -309,7 +309,8 @@ class LinkManager:
         if self.status.connected:
             return True
         try:
-            await asyncio.wait_for(self._connected_event.wait(), timeout_s)
+            async with asyncio.timeout(timeout_s):
+                await self._connected_event.wait()
         except TimeoutError:
             return False
         return self.status.connected
@@ -354,7 +355,8 @@ class LinkManager:
                     deadline = time.monotonic() + timeout_s
                     while (remaining := deadline - time.monotonic()) > 0:
                         try:
-                            ack = await asyncio.wait_for(acks.get(), remaining)
+                            async with asyncio.timeout(remaining):
+                                ack = await acks.get()
                         except TimeoutError:
                             break
                         if ack.command == command and ack.result != mavlink.MAV_RESULT_IN_PROGRESS:

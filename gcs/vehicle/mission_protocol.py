@@ -54,7 +54,8 @@ async def _next(inbox: asyncio.Queue, timeout_s: float, mission_type: int) -> An
     deadline = loop.time() + timeout_s
     while (remaining := deadline - loop.time()) > 0:
         try:
-            message = await asyncio.wait_for(inbox.get(), remaining)
+            async with asyncio.timeout(remaining):
+                message = await inbox.get()
         except TimeoutError:
             return None
         if _for_us(message, mission_type):

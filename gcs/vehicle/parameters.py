@@ -90,7 +90,8 @@ async def read_parameters(link: LinkManager, names: Sequence[str], timeout_s: fl
             deadline = loop.time() + timeout_s / PARAM_TRIES
             while len(values) < len(wanted) and (remaining := deadline - loop.time()) > 0:
                 try:
-                    message = await asyncio.wait_for(inbox.get(), remaining)
+                    async with asyncio.timeout(remaining):
+                        message = await inbox.get()
                 except TimeoutError:
                     break
                 name = param_name(message)  # PARAM_VALUE has no target: another station's answer serves too
