@@ -24,15 +24,11 @@ deadline.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import logging
 import math
-import os
 import shutil
-import signal
 import subprocess
-import sys
 import time
 from collections import Counter
 from collections.abc import Sequence
@@ -42,9 +38,10 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 from mavlink_hub import MavlinkHub
+from peer_process import PeerProcess, peers_stopped_cleanly
 from sitl_process import REPO
 
-from bench.processes import free_udp_port, stop_process
+from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.settings import Settings
 from uavcore.buoy_world import World, WorldBuoy
@@ -109,49 +106,17 @@ def clock_shifted(offset_s: float) -> list[str] | None:
     return None
 
 
-class Peer:
-    """One of the MAVSDK processes (under `prefix`, e.g. clock_shifted's), its output in a log file."""
-
-    def __init__(self, directory: Path, script: Path, *args: str, prefix: Sequence[str] = ()) -> None:
-        self.log_path = directory / f"{script.stem}.log"
-        self._log = self.log_path.open("w")
-        self.wrapped = bool(prefix)
-        self.process = subprocess.Popen([*prefix, sys.executable, str(script), *args], stdout=self._log,
-                                        stderr=subprocess.STDOUT)  # fmt: skip
-
-    def log(self) -> str:
-        return self.log_path.read_text()
-
-    def stop(self) -> int:
-        """SIGTERM to the program (under unshare: to unshare's child; unshare exits with its code)."""
-        pid = self.process.pid
-        children = Path(f"/proc/{pid}/task/{pid}/children")
-        if self.wrapped and self.process.poll() is None and children.exists():
-            for child in children.read_text().split():
-                with contextlib.suppress(ProcessLookupError):
-                    os.kill(int(child), signal.SIGTERM)
-        stop_process(self.process, 15)
-        self._log.close()
-        return self.process.returncode
-
-
 @pytest.fixture
 def start_peer(tmp_path):
     """start_peer(script, *args, prefix=()); each must exit cleanly on SIGTERM, without a traceback."""
-    started: list[Peer] = []
+    started: list[PeerProcess] = []
 
-    def start(script: Path, *args: str, prefix: Sequence[str] = ()) -> Peer:
-        started.append(Peer(tmp_path, script, *args, prefix=prefix))
+    def start(script: Path, *args: str, prefix: Sequence[str] = ()) -> PeerProcess:
+        started.append(PeerProcess(tmp_path, script, *args, prefix=prefix))
         return started[-1]
 
     yield start
-    problems = []
-    for peer in started:
-        code = peer.stop()
-        if code != 0 or "Traceback" in peer.log():
-            problems.append(f"{peer.log_path.name} exited with {code}:\n{peer.log()[-3000:]}")
-    if problems:
-        pytest.fail("\n".join(problems))
+    peers_stopped_cleanly(started)
 
 
 def wait_for(condition, timeout_s: float, what) -> None:

@@ -15,8 +15,6 @@ from __future__ import annotations
 import asyncio
 import json
 import math
-import subprocess
-import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -24,9 +22,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from peer_process import PeerProcess, peers_stopped_cleanly
 from sitl_process import REPO
 
-from bench.processes import free_udp_port, stop_process
+from bench.processes import free_udp_port
 from gcs.api.app import create_app
 from gcs.domain.planning import FlightParams, make_plan, mission_items
 from gcs.settings import Settings
@@ -49,28 +48,14 @@ SCENARIO = reference_scenario()
 BUOY_IDS = [f"B{i + 1}" for i in range(len(SCENARIO.buoys_lat_lon))]
 
 
-class MavsdkVehicle:
+class MavsdkVehicle(PeerProcess):
     """The double as a process, pushing MAVLink to 127.0.0.1:port; the items it received land in `items_path`."""
 
     def __init__(self, directory: Path, port: int, extra_args: tuple[str, ...] = ()) -> None:
         self.items_path = directory / f"received-items-{port}.json"
-        self.log_path = directory / f"mavsdk-vehicle-{port}.log"
-        self._log = self.log_path.open("w")
-        self.process = subprocess.Popen(
-            [
-                sys.executable,
-                str(VEHICLE_SCRIPT),
-                "--connect",
-                f"udpout://127.0.0.1:{port}",
-                "--items-out",
-                str(self.items_path),
-                "--speed",
-                str(SPEED_M_S),
-                *extra_args,
-            ],
-            stdout=self._log,
-            stderr=subprocess.STDOUT,
-        )
+        args = ["--connect", f"udpout://127.0.0.1:{port}", "--items-out", str(self.items_path)]
+        args += ["--speed", str(SPEED_M_S), *extra_args]
+        super().__init__(directory, VEHICLE_SCRIPT, *args, log_name=f"mavsdk-vehicle-{port}.log")
 
     def received_items(self, timeout_s: float = 30.0) -> list[MissionItem]:
         deadline = time.monotonic() + timeout_s
@@ -80,12 +65,7 @@ class MavsdkVehicle:
         return [MissionItem(**fields) for fields in json.loads(self.items_path.read_text())]
 
     def log(self) -> str:
-        return self.log_path.read_text()[-3000:]
-
-    def stop(self) -> int:
-        stop_process(self.process, 15)
-        self._log.close()
-        return self.process.returncode
+        return super().log()[-3000:]
 
 
 @pytest.fixture
@@ -98,13 +78,7 @@ def start_vehicle(tmp_path) -> Iterator[Callable[..., MavsdkVehicle]]:
         return started[-1]
 
     yield start
-    problems = []
-    for vehicle in started:
-        code = vehicle.stop()
-        if code != 0 or "Traceback" in vehicle.log():
-            problems.append(f"MAVSDK vehicle exited with {code}:\n{vehicle.log()}")
-    if problems:
-        pytest.fail("\n".join(problems))
+    peers_stopped_cleanly(started)
 
 
 def planned_items() -> list[MissionItem]:
