@@ -122,6 +122,78 @@ def test_an_ais_report_off_position_or_outside_the_swing_circle_is_an_alarm(insp
     assert client.get(f"/buoys/{ok}").json()["ais"]["name"] == "ANNAPOLIS 4"
 
 
+def hear(client, mmsi: int, name: str, lat: float, lon: float, virtual: bool = False, ago_s: float = 0.0) -> None:
+    """An AtoN report as the service's AIS feed would have received it `ago_s` ago."""
+    report = AtonReport(mmsi=mmsi, name=name, aid_type=24, lat=lat, lon=lon, position_accuracy=True,
+                        off_position=False, virtual=virtual, second=30)  # fmt: skip
+    heard = HeardReport(report, "udp://0.0.0.0:10110", time.time() - ago_s, time.monotonic() - ago_s)
+    client.app.state.service.ais.table.add(heard)
+
+
+def test_a_mission_takes_its_buoys_from_the_register_where_ais_last_saw_them_and_judges_them_by_the_chart(register):
+    client, _ = register
+    depot = {"lat": 38.96, "lon": -76.455}
+    annapolis = [float(x) for x in ANNAPOLIS.split(",")]
+    marks = {m["id"]: m for m in client.get("/buoys", params={"bbox": ANNAPOLIS}).json()}
+    seen_by_mmsi, seen_by_name, virtual = sorted(marks)[:3]
+    client.patch(f"/buoys/{seen_by_mmsi}", json={"mmsi": MMSI}, headers=TOKEN)
+    client.patch(f"/buoys/{virtual}", json={"mmsi": MMSI + 1}, headers=TOKEN)
+    moved = (marks[seen_by_mmsi]["lat"] + 0.0002, marks[seen_by_mmsi]["lon"])  # 22 m north: drifting, or dragged
+    chosen = {"ids": [seen_by_mmsi, seen_by_name]}
+    hear(client, MMSI, "WHATEVER", *moved, ago_s=client.app.state.service.ais.stale_after_s + 60.0)
+    stale = client.post("/plans", json={"depot": depot, "from_register": chosen}, headers=TOKEN).json()["buoys"]
+    assert all(b["charted"] is None for b in stale)  # a stale report is no current position: the chart's is taken
+    hear(client, MMSI, "WHATEVER", *moved)
+    by_name = marks[seen_by_name]
+    hear(client, MMSI + 2, by_name["name"].upper(), by_name["lat"] - 0.0001, by_name["lon"])
+    hear(client, MMSI + 1, "V", marks[virtual]["lat"], marks[virtual]["lon"], virtual=True)
+
+    planned = client.post("/plans", json={"depot": depot, "from_register": {"bbox": annapolis}}, headers=TOKEN)
+    assert planned.status_code == 200, planned.text
+    buoys = {b["register_id"]: b for b in planned.json()["buoys"]}
+    assert set(buoys) == set(marks) - {virtual}  # nothing physical is at a virtual AtoN
+    assert (buoys[seen_by_mmsi]["lat"], buoys[seen_by_mmsi]["lon"]) == pytest.approx(moved)
+    assert buoys[seen_by_mmsi]["charted"] == {"lat": marks[seen_by_mmsi]["lat"], "lon": marks[seen_by_mmsi]["lon"]}
+    assert buoys[seen_by_name]["lat"] == pytest.approx(by_name["lat"] - 0.0001) and buoys[seen_by_name]["charted"]
+    for register_id in set(buoys) - {seen_by_mmsi, seen_by_name}:  # no AIS: where the chart has them
+        assert (buoys[register_id]["lat"], buoys[register_id]["charted"]) == (marks[register_id]["lat"], None)
+    assert buoys[seen_by_mmsi]["id"] == marks[seen_by_mmsi]["name"]
+    assert client.get(f"/buoys/{seen_by_name}").json()["ais_match"] == "name"
+
+    # the mission stores what the inspection judges against: the chart, with the AIS position it looked at
+    created = client.post("/missions", json={"depot": depot, "from_register": chosen, "start": False}, headers=TOKEN)
+    assert created.status_code == 201, created.text
+    plan = client.app.state.service.register._storage.blocking.get_mission(created.json()["id"]).plan
+    (index,) = [i for i in range(2) if plan.mark(i).register_id == seen_by_mmsi]
+    assert plan.mark(index).charted_lat_lon == (marks[seen_by_mmsi]["lat"], marks[seen_by_mmsi]["lon"])
+    assert plan.buoys_lat_lon[index] == pytest.approx(list(moved))
+
+
+def test_a_register_selection_that_names_nothing_flyable_is_a_422_naming_it(register):
+    client, _ = register
+    depot = {"lat": 38.96, "lon": -76.455}
+    some = client.get("/buoys", params={"bbox": ANNAPOLIS}).json()[0]
+
+    def plan(**body) -> list:
+        return errors_of(client.post("/plans", json={"depot": depot} | body, headers=TOKEN))
+
+    assert plan() == [(["body", "buoys"], "at least 1 buoy is needed: give buoys, or select some with `from_register`")]
+    assert plan(from_register={"ids": [some["id"], "NOPE"]}) == [
+        (["body", "from_register", "ids", 1], "no buoy 'NOPE' in the register")
+    ]
+    assert plan(from_register={"bbox": [10.0, 50.0, 11.0, 51.0]}) == [
+        (["body", "from_register"], "no buoy of the register matches the selection")
+    ]
+    assert plan(from_register={"ids": [some["id"]], "open_defects": True})[0][0] == ["body", "from_register"]
+    named = {"lat": some["lat"], "lon": some["lon"], "register_id": some["id"]}
+    assert plan(buoys=[named], from_register={"ids": [some["id"]]}) == [
+        (["body", "from_register"], f"buoy {some['id']!r} is in `buoys` already")
+    ]
+    assert plan(from_register={"bbox": [11.0, 50.0, 10.0, 51.0]})[0][0] == ["body", "from_register", "bbox"]
+    assert plan(from_register={"overdue_days": 0})[0][0] == ["body", "from_register", "overdue_days"]
+    assert plan(from_register={"ids": []})[0][0] == ["body", "from_register", "ids"]
+
+
 def test_text_from_the_chart_is_data_in_json_and_csv(register, tmp_path):
     client, _ = register
     storage = open_storage(tmp_path / "gcs.sqlite")

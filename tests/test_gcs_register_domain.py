@@ -1,11 +1,22 @@
 """The register's pure rules: an import's duplicates reported (not merged), a mark as a register buoy, the defects a
-record opens, and when an AIS report is an off-station alarm."""
+record opens, when an AIS report is an off-station alarm, and which AtoN is which register buoy."""
 
 from __future__ import annotations
 
 from gcs.domain.charted_marks import ChartedMark
 from gcs.domain.inspection import BuoyInspection, Finding, InspectedBuoy, InspectionRecord
-from gcs.domain.register import RegisterBuoy, StoredBuoy, ais_alarm, defect_findings, from_mark, without_duplicates
+from gcs.domain.register import (
+    NAME_MATCH_M,
+    RegisterBuoy,
+    StoredBuoy,
+    ais_alarm,
+    current_report,
+    defect_findings,
+    from_mark,
+    match_atons,
+    without_duplicates,
+)
+from uavcore.geodesy import LocalFrame
 
 SOURCE = "US4MD81M edition 31 update 0"
 
@@ -56,3 +67,50 @@ def test_an_ais_report_is_an_alarm_off_position_or_beyond_the_swing_circle_and_t
     assert ais_alarm(stored, flagged | {"off_position_valid": False}, 1.0) is None
     assert ais_alarm(stored, flagged | {"stale": True}, 50.0) is None
     assert ais_alarm(stored, flagged | {"virtual": True}, 50.0) is None
+
+
+def stored_buoy(buoy_id: str, name: str | None, mmsi: int | None = None, at: tuple[float, float] = (38.95, -76.45)):
+    return StoredBuoy(RegisterBuoy(buoy_id, *at, name), mmsi, "t", "t", None, 0)
+
+
+def aton(mmsi: int, name: str, north_m: float = 0.0, **flags) -> dict:
+    """An AtonOut document `north_m` north of (38.95, -76.45)."""
+    lat, lon = LocalFrame(38.95, -76.45).unproject([[0.0, north_m]])[0]
+    return {"mmsi": mmsi, "name": name, "lat": lat, "lon": lon, "stale": False, "virtual": False} | flags
+
+
+def test_an_aton_is_a_buoys_by_its_mmsi_else_by_its_name_within_a_nautical_mile_and_never_by_a_guess():
+    buoys = [
+        stored_buoy("A", "Annapolis 4", mmsi=993672001),
+        stored_buoy("B", "Green 1"),  # no MMSI: its name, close by
+        stored_buoy("C", "Red 2"),  # its name, but too far
+        stored_buoy("D", "Twin"),  # two AtoNs of its name: ambiguous
+        stored_buoy("E", "Claimed"),  # its name's AtoN has buoy F's MMSI
+        stored_buoy("F", "Other", mmsi=993672009),
+    ]
+    atons = [
+        aton(993672001, "SOMETHING ELSE", 3000.0),  # an MMSI match needs neither name nor distance
+        aton(993672002, "GREEN  1", 40.0),  # AIS upper-cases and pads its names
+        aton(993672003, "RED 2", NAME_MATCH_M + 50.0),
+        aton(993672004, "TWIN", 10.0),
+        aton(993672005, "TWIN", 20.0),
+        aton(993672009, "CLAIMED", 5.0),
+    ]
+    matches, ambiguous = match_atons(buoys, atons)
+    assert {buoy: (m.aton["mmsi"], m.by) for buoy, m in matches.items()} == {
+        "A": (993672001, "mmsi"), "B": (993672002, "name"), "F": (993672009, "mmsi")
+    }  # fmt: skip
+    (why,) = ambiguous
+    assert why.startswith("buoy 'D'") and "993672004, 993672005" in why
+    # two buoys of one name near one AtoN: neither takes it
+    twins = [stored_buoy("G", "Green 1"), stored_buoy("H", "Green 1", at=(38.951, -76.45))]
+    matches, ambiguous = match_atons(twins, [aton(993672002, "GREEN 1", 40.0)])
+    assert matches == {} and len(ambiguous) == 2
+
+
+def test_a_mission_looks_at_an_ais_position_only_while_it_is_current_and_of_a_physical_buoy():
+    (match,) = match_atons([stored_buoy("A", None, mmsi=1)], [aton(1, "A", 30.0)])[0].values()
+    assert current_report(match) is match.aton and current_report(None) is None
+    for stale_or_virtual in ({"stale": True}, {"virtual": True}, {"lat": None, "lon": None}):
+        (match,) = match_atons([stored_buoy("A", None, mmsi=1)], [aton(1, "A", 30.0, **stale_or_virtual)])[0].values()
+        assert current_report(match) is None, stale_or_virtual

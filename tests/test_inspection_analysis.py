@@ -17,7 +17,7 @@ import pytest
 from bench.inspection_scenes import HOME, Burst, capture_burst
 from gcs.domain.buoy_detection import BuoyDetection, ChartedBuoy, detect_buoy
 from gcs.domain.camera_geometry import FrameGeotag, pixel_to_sea, sea_to_pixel
-from gcs.domain.inspection import BuoyInspection, inspect_buoy
+from gcs.domain.inspection import BuoyInspection, against_target, inspect_buoy
 from sitl_quad import camera_render
 from uavcore.buoy_world import APPEARANCE, KINDS, World, WorldBuoy, default_light
 from uavcore.light_character import parse
@@ -246,3 +246,19 @@ def test_a_burst_looking_away_from_the_buoy_is_not_inspected() -> None:
     burst = capture_burst(World((buoy,)), 0, 25.0, 180.0, frames=3, yaw_offset_deg=120.0)
     inspection = analyse(burst, buoy)[1]
     assert inspection.verdict == "not_inspected" and inspection.reason is not None
+
+
+def test_a_buoy_dragged_beyond_the_search_window_is_found_where_ais_saw_it_and_judged_against_the_chart() -> None:
+    # the world has the buoy where its AIS report puts it; the chart, 40 m south (8 swing radii: beyond the search
+    # window the chart alone would give): the mission looks at the report, the inspection judges by the chart
+    buoy = world_buoy("starboard", 60.0, 20.0)
+    burst = capture_burst(World((buoy,), seed=3), 0, 30.0, 200.0, resolution=LIGHT_BURST)
+    chart_lat, chart_lon, _ = HOME.from_ned(20.0, 20.0)
+    on_chart = ChartedBuoy(float(chart_lat), float(chart_lon), "starboard", charted(buoy).light, 5.0)
+    sought_at_chart = [detect_buoy(s.image, burst.model, s.geotag, on_chart) for s in burst.shots]
+    assert not any(d.found for d in sought_at_chart)
+    frames = [(s.geotag, detect_buoy(s.image, burst.model, s.geotag, charted(buoy))) for s in burst.shots]
+    inspection = against_target(inspect_buoy(on_chart, frames), buoy.charted)
+    assert [f.code for f in inspection.findings] == ["off_station"]
+    assert 39.0 < inspection.offset_m < 41.0 and inspection.offset_from_target_m < 1.0
+    assert (inspection.target.lat, inspection.target.lon) == buoy.charted

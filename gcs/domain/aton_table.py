@@ -58,7 +58,8 @@ def distance_m(a: tuple[float, float], b: tuple[float, float]) -> float:
     return 2 * EARTH_RADIUS_M * math.asin(min(1.0, math.sqrt(h)))
 
 
-def _same_name(a: str, b: str) -> bool:
+def same_name(a: str, b: str) -> bool:
+    """Whether two AtoN names are the same, case and spacing aside (AIS pads and upper-cases its 6-bit text)."""
     return " ".join(a.upper().split()) == " ".join(b.upper().split())
 
 
@@ -85,7 +86,7 @@ class AtonTable:
 
     def _same_aton(self, aton: _Aton, report: AtonReport) -> bool:
         known = aton.latest.report
-        if not _same_name(known.name, report.name):
+        if not same_name(known.name, report.name):
             return False
         if known.lat is None or known.lon is None or report.lat is None or report.lon is None:
             return True

@@ -75,6 +75,21 @@ class BuoyInspection(BaseModel):
     light_seen: str | None
     frames: list[int]
     reason: str | None = None
+    # when the mission looked for the buoy elsewhere than its charted position (its latest AIS report): that
+    # position and the observed position's distance from it
+    target: LatLon | None = None
+    offset_from_target_m: float | None = None
+
+
+def against_target(result: BuoyInspection, target: Sequence[float]) -> BuoyInspection:
+    """The inspection with the position the mission looked for the buoy at, and the observed one's distance from it
+    (the station is judged against the chart either way)."""
+    at = LatLon(lat=target[0], lon=target[1])
+    offset = None
+    if result.observed is not None:
+        east, north = LocalFrame(at.lat, at.lon).project(np.array([[result.observed.lat, result.observed.lon]]))[0]
+        offset = round(math.hypot(east, north), 2)
+    return result.model_copy(update={"target": at, "offset_from_target_m": offset})
 
 
 def describe_light(observed: ObservedLight) -> str:

@@ -58,6 +58,14 @@ class BuoyMark:
     light: str | None = None
     swing_radius_m: float = DEFAULT_SWING_RADIUS_M
     register_id: str | None = None  # the buoy register's id of this buoy: its inspection joins that buoy's history
+    # where the chart has it when the mission looks for it elsewhere (its latest AIS position); None: where it looks
+    charted_lat_lon: tuple[float, float] | None = None
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> BuoyMark:
+        """A mark as stored (a plan's JSON: the position pair is a list there)."""
+        charted = data.get("charted_lat_lon")
+        return cls(**(data | {"charted_lat_lon": None if charted is None else (charted[0], charted[1])}))
 
     def burst(self) -> tuple[float, float]:
         """(duration s, rate Hz) of the camera burst that reads this light (uavcore.light_character.burst_for)."""
@@ -150,7 +158,7 @@ class Plan:
             | {
                 "energy": None if energy is None else PlanEnergy.model_validate(energy),
                 "fleet": None if fleet is None else PlanFleet.model_validate(fleet),
-                "marks": None if marks is None else [BuoyMark(**mark) for mark in marks],
+                "marks": None if marks is None else [BuoyMark.from_dict(mark) for mark in marks],
             }
         )
 

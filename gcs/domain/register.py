@@ -1,10 +1,17 @@
 """The buoy register's vocabulary, pure: a register buoy from a charted mark, an import's duplicates, the defects an
-inspection record opens, the off-station alarms, and the documents the /buoys routes answer with.
+inspection record opens, the off-station alarms, which AIS AtoN is which register buoy, where a mission should look
+for a buoy, and the documents the /buoys routes answer with.
 
 A register buoy is known by its register id: the chart's LNAM (stable across the cell's editions), or the id a
 request gave. Its history is a list of events (registered, charted attributes changed, inspected, a defect opened,
 a defect's state set by an operator with a note). A defect is one finding code of an inspection whose verdict was
 "defect"; while one of that code is not closed, a new inspection finding the same adds evidence, not a defect.
+
+An AtoN of the AIS feed is a register buoy's by the buoy's MMSI (set by an operator, PATCH /buoys/{id}); a buoy with
+no MMSI takes the AtoN that has its name and is within NAME_MATCH_M of its charted position, when exactly one does
+and no other buoy claims it (two candidates either way: reported, not guessed). A mission looks for a buoy at its
+latest AIS position while that report is current (not stale, not virtual), else at its charted position; the
+inspection still judges the station against the chart.
 """
 
 from __future__ import annotations
@@ -17,6 +24,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field
 
+from gcs.domain.aton_table import distance_m, same_name
 from gcs.domain.charted_marks import ChartedMark, ChartImport
 from gcs.domain.inspection import Finding, InspectionRecord
 from gcs.domain.schemas import Strict
@@ -29,6 +37,10 @@ EventKind = Literal["registered", "charted", "inspection", "defect_opened", "def
 # 10 m. A reported position counts as off station only beyond the swing circle by more than this.
 AIS_TOLERANCE_M = {True: 2.0, False: 10.0}
 CHARTED_FIELDS = ("name", "lat", "lon", "kind", "light", "swing_radius_m", "charted")  # what an import may change
+# A buoy with no MMSI is matched to the AtoN of its name within this of its charted position: a nautical mile, wide
+# enough for a buoy dragged off station (what the authority wants found), narrow enough that a harbour's "No 1"
+# does not match the next harbour's.
+NAME_MATCH_M = 1852.0
 
 
 @dataclass(frozen=True)
@@ -142,6 +154,55 @@ def defect_findings(record: InspectionRecord) -> dict[str, Finding]:
     return found
 
 
+# ----- AIS AtoNs as register buoys
+@dataclass(frozen=True)
+class AisMatch:
+    """The AtoN report (an AtonOut document) a register buoy is matched to, and how: "mmsi" or "name"."""
+
+    aton: dict[str, Any]
+    by: Literal["mmsi", "name"]
+
+
+def match_atons(buoys: Sequence[StoredBuoy], atons: Sequence[dict[str, Any]]) -> tuple[dict[str, AisMatch], list[str]]:
+    """Each register buoy's AtoN (by id), and what could not be matched for being ambiguous. By MMSI: the buoy's
+    MMSI's report (the first when several AtoNs share it: the feed reports that conflict). By name and distance,
+    for a buoy with no MMSI: the one AtoN of its name within NAME_MATCH_M whose MMSI no register buoy has and no
+    other buoy matches by name."""
+    by_mmsi: dict[int, list[dict[str, Any]]] = {}
+    for aton in atons:
+        by_mmsi.setdefault(aton["mmsi"], []).append(aton)
+    matches = {b.buoy.id: AisMatch(by_mmsi[b.mmsi][0], "mmsi") for b in buoys if b.mmsi in by_mmsi}
+    claimed = {b.mmsi for b in buoys if b.mmsi is not None}
+    candidates: dict[str, list[dict[str, Any]]] = {}
+    for stored in buoys:
+        buoy = stored.buoy
+        if stored.mmsi is not None or not buoy.name:
+            continue
+        candidates[buoy.id] = [
+            aton for aton in atons
+            if aton["mmsi"] not in claimed and aton["lat"] is not None and same_name(aton["name"], buoy.name)
+            and distance_m((buoy.lat, buoy.lon), (aton["lat"], aton["lon"])) <= NAME_MATCH_M
+        ]  # fmt: skip
+    wanted = Counter(aton["mmsi"] for found in candidates.values() for aton in found)
+    ambiguous = []
+    for buoy_id, found in candidates.items():
+        if len(found) == 1 and wanted[found[0]["mmsi"]] == 1:
+            matches[buoy_id] = AisMatch(found[0], "name")
+        elif found:
+            mmsis = ", ".join(sorted({str(aton["mmsi"]) for aton in found}))
+            ambiguous.append(f"buoy {buoy_id!r}: its name matches AtoNs {mmsis} that other buoys match too, or "
+                             f"several: set its MMSI (PATCH /buoys/{{id}})")  # fmt: skip
+    return matches, ambiguous
+
+
+def current_report(match: AisMatch | None) -> dict[str, Any] | None:
+    """The matched AtoN report when it gives a current position of a physical buoy (not stale, not virtual)."""
+    if match is None:
+        return None
+    aton = match.aton
+    return None if aton["stale"] or aton["virtual"] or aton["lat"] is None or aton["lon"] is None else aton
+
+
 # ----- the documents
 class DefectOut(BaseModel):
     id: int
@@ -188,7 +249,11 @@ class BuoyDetailOut(BuoyOut):
     latest_inspection: BuoyEventOut | None
     defects: list[DefectOut] = Field(description="open and confirmed defects")
     history: list[BuoyEventOut] = Field(description="every event, oldest first")
-    ais: dict[str, Any] | None = Field(description="the AIS feed's latest report of its MMSI (GET /ais/atons' row)")
+    ais: dict[str, Any] | None = Field(
+        description="the AIS feed's latest report of its AtoN (GET /ais/atons' row): by its MMSI, else by its name "
+        "within a nautical mile of its charted position"
+    )
+    ais_match: Literal["mmsi", "name"] | None = Field(description="how `ais` was matched to this buoy")
 
 
 class RegisterImportOut(BaseModel):

@@ -56,6 +56,11 @@ class BuoyIn(LatLon):
         max_length=64,
         description="the buoy register's id of this buoy (GET /buoys): its inspection joins that buoy's history",
     )
+    charted: LatLon | None = Field(
+        default=None,
+        description="the charted position when lat/lon is another (e.g. the buoy's latest AIS report): the mission "
+        "looks for the buoy at lat/lon and the inspection judges its station against this; default: lat/lon",
+    )
 
     @field_validator("light")
     @classmethod
@@ -120,12 +125,46 @@ class BatteryIn(Strict):
     objective: Literal["time", "distance"] = Field(default="time", description="what the sorties minimise in total")
 
 
+class RegisterSelectionIn(Strict):
+    """Buoys of the register (GET /buoys), with GET /buoys' filters: each given narrows the selection."""
+
+    ids: list[Annotated[str, Field(min_length=1, max_length=64)]] | None = Field(
+        default=None, min_length=1, max_length=MAX_BUOYS, description="only these register ids"
+    )
+    bbox: tuple[float, float, float, float] | None = Field(
+        default=None, description="only buoys charted in [west, south, east, north] (degrees)"
+    )
+    kind: BuoyKind | None = Field(default=None, description="only buoys of this IALA kind")
+    overdue_days: float | None = Field(
+        default=None, gt=0.0, le=36_500.0, description="only buoys not inspected for this many days, or never"
+    )
+    open_defects: bool | None = Field(
+        default=None, description="true: only buoys with open or confirmed defects; false: only those without"
+    )
+
+    @field_validator("bbox")
+    @classmethod
+    def _box(cls, value: tuple[float, float, float, float] | None) -> tuple[float, float, float, float] | None:
+        if value is not None:
+            west, south, east, north = value
+            if not (-180.0 <= west < east <= 180.0 and -90.0 <= south < north <= 90.0):
+                raise ValueError("west < east within -180..180 and south < north within -90..90, in degrees")
+        return value
+
+
 class PlanRequest(Strict):
     depot: LatLon | None = Field(default=None, description="default: the vehicle's home")
     buoys: list[BuoyIn] = Field(
-        min_length=1,
+        default_factory=list,
         max_length=MAX_BUOYS,
-        description="a list of {id?, lat, lon} or a GeoJSON FeatureCollection of Points",
+        description="a list of {id?, lat, lon} or a GeoJSON FeatureCollection of Points (at least one, unless "
+        "`from_register` selects some)",
+    )
+    from_register: RegisterSelectionIn | None = Field(
+        default=None,
+        description="buoys taken from the register, after `buoys`: each is looked for at its latest AIS position "
+        "while that report is current, else at its charted position, and judged against the chart; virtual AtoNs "
+        "are never taken",
     )
     altitude_m: float = Field(default=5.0, description="flight altitude above home")
     speed_m_s: float = Field(default=10.0, description="cruise speed")
@@ -196,10 +235,14 @@ class MissionRequest(PlanRequest):
 class Buoy(BaseModel):
     index: int
     id: str
-    lat: float
+    lat: float = Field(description="where the mission looks for it")
     lon: float
     east_m: float
     north_m: float
+    register_id: str | None = Field(default=None, description="its id in the buoy register (null: none)")
+    charted: LatLon | None = Field(
+        default=None, description="its charted position when lat/lon is another (its latest AIS report)"
+    )
 
 
 class SortieOut(BaseModel):
@@ -607,3 +650,8 @@ class InspectionOut(BaseModel):
     frames: list[str] = Field(description="URLs of the burst's frames, capture order")
     best_frame: str | None = Field(description="URL of the frame to show first")
     reason: str | None = Field(description="why the buoy was not inspected (null otherwise)")
+    target: LatLon | None = Field(
+        default=None,
+        description="where the mission looked for the buoy when not at its charted position (its latest AIS report)",
+    )
+    offset_from_target_m: float | None = Field(default=None, description="observed position's distance from `target`")

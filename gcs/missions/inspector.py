@@ -34,7 +34,14 @@ from PIL import Image, UnidentifiedImageError
 
 from gcs.domain.buoy_detection import BuoyDetection, ChartedBuoy, detect_buoy
 from gcs.domain.camera_geometry import CameraModel, FrameGeotag
-from gcs.domain.inspection import BuoyInspection, InspectedBuoy, InspectionRecord, StoredFrame, inspect_buoy
+from gcs.domain.inspection import (
+    BuoyInspection,
+    InspectedBuoy,
+    InspectionRecord,
+    StoredFrame,
+    against_target,
+    inspect_buoy,
+)
 from gcs.domain.planning import MissionLayout, Plan
 from gcs.storage import FramesFullError
 from gcs.storage.off_loop import AsyncStorage
@@ -80,8 +87,8 @@ def not_inspected(plan: Plan, index: int, reason: str) -> InspectionRecord:
 
 
 def charted_record(plan: Plan, index: int) -> InspectedBuoy:
-    lat, lon = plan.buoys_lat_lon[index]
     mark = plan.mark(index)
+    lat, lon = mark.charted_lat_lon or plan.buoys_lat_lon[index]
     return InspectedBuoy(lat=lat, lon=lon, kind=mark.kind or "unknown", light=mark.light,
                          swing_radius_m=mark.swing_radius_m)  # fmt: skip
 
@@ -338,15 +345,15 @@ class Inspector:
         except (LinkError, httpx.HTTPError, ValueError) as error:
             buoy.problems[f"a frame could not be downloaded ({error})"] += 1
             return
-        charted = _charted(self.plan, index)
+        sought = _charted(self.plan, index, where_sought=True)
         try:
-            if charted is None:
+            if sought is None:
                 decode(data)  # kept only if it is an image
                 detection = BuoyDetection(
                     False, "uncharted: the buoy's kind is not charted: nothing says what to look for"
                 )
             else:
-                detection = await self.analysis.detect(data, self.camera.model, capture.geotag, charted)
+                detection = await self.analysis.detect(data, self.camera.model, capture.geotag, sought)
         except ValueError as error:
             buoy.problems[f"a frame is {error}"] += 1
             return
@@ -375,6 +382,8 @@ class Inspector:
             record = not_inspected(self.plan, index, frames_reason)
         else:
             result = inspect_buoy(charted, [(g, d) for g, d, _ in buoy.frames])
+            if self.plan.mark(index).charted_lat_lon is not None:  # looked for elsewhere: compared with both
+                result = against_target(result, self.plan.buoys_lat_lon[index])
             if result.verdict == "not_inspected":
                 result = result.model_copy(update={"reason": reason or _reason(result.reason, buoy)})
             record = InspectionRecord(buoy=index, buoy_id=self.plan.buoy_ids[index], result=result)
@@ -383,12 +392,13 @@ class Inspector:
         await self.storage.set_inspection(self.mission_id, record)
 
 
-def _charted(plan: Plan, index: int) -> ChartedBuoy | None:
-    """The buoy as the detection looks for it; None when its kind is not charted."""
+def _charted(plan: Plan, index: int, where_sought: bool = False) -> ChartedBuoy | None:
+    """The buoy as charted (`where_sought`: at the position the mission looked for it, the centre of the
+    detection's search: its latest AIS position when the plan took that); None when its kind is not charted."""
     mark = plan.mark(index)
     if mark.kind is None:
         return None
-    lat, lon = plan.buoys_lat_lon[index]
+    lat, lon = plan.buoys_lat_lon[index] if where_sought else (mark.charted_lat_lon or plan.buoys_lat_lon[index])
     return ChartedBuoy(lat, lon, mark.kind, mark.light, mark.swing_radius_m)
 
 

@@ -70,7 +70,11 @@ def _marks(request: PlanRequest) -> list[BuoyMark]:
     """What the request charts of each buoy (kind, light, swing radius), in input order."""
     return [
         BuoyMark(
-            b.kind, b.light, DEFAULT_SWING_RADIUS_M if b.swing_radius_m is None else b.swing_radius_m, b.register_id
+            b.kind,
+            b.light,
+            DEFAULT_SWING_RADIUS_M if b.swing_radius_m is None else b.swing_radius_m,
+            b.register_id,
+            None if b.charted is None else (b.charted.lat, b.charted.lon),
         )
         for b in request.buoys
     ]
@@ -189,7 +193,7 @@ class MissionService:
         geofence, else the one the vehicle holds (read now), and with battery options against the vehicle's pack
         (read now). Raises RequestInvalidError or InputError."""
         vehicle = self._vehicle(request.vehicle)
-        await self.register.check_request(request.buoys)
+        request = await self.register.resolve(request)
         fence = fence_from_request(request.geofence) if request.geofence else await vehicle.fence()
         pack = await vehicle.pack() if request.battery is not None else None
         return await asyncio.to_thread(self._plan, request, vehicle.depot(), fence, pack)
@@ -253,8 +257,8 @@ class MissionService:
                 vehicle.flights.ensure_vehicle_free()
         homes = {sysid: vehicle.depot() for sysid, vehicle in zip(sysids, vehicles, strict=True)}
         first_home = homes[sysids[0]]
+        request = await self.register.resolve(request)
         validate_request(request, first_home, self.settings.limits)
-        await self.register.check_request(request.buoys)
         ids, buoys = _named_buoys(request)
         options = request.planner
         planned = await asyncio.to_thread(

@@ -49,7 +49,9 @@ def validate_request(request: PlanRequest, depot: tuple[float, float], limits: L
                 f"{request.planner.time_limit_s:g} s exceeds {limits.max_time_limit_s:g} s",
             )
         )
-    if len(request.buoys) > limits.max_buoys:
+    if not request.buoys:
+        errors.append((("body", "buoys"), "at least 1 buoy is needed: give buoys, or select some with `from_register`"))
+    elif len(request.buoys) > limits.max_buoys:
         errors.append((("body", "buoys"), f"{len(request.buoys)} buoys; at most {limits.max_buoys}"))
     else:
         _check_geometry(errors, request, depot, limits)

@@ -38,6 +38,13 @@ TELEMETRY_CHUNK = 1000  # samples encoded at a time when streaming a mission's t
 CHART_SAMPLES = 1000  # the most samples a track sends for the charts (a few hundred pixels wide each)
 
 
+def _buoy_out(plan: Plan, index: int, ident: str, lat_lon: list[float], local: list[float]) -> Buoy:
+    mark = plan.mark(index)
+    charted = None if mark.charted_lat_lon is None else LatLon(lat=mark.charted_lat_lon[0], lon=mark.charted_lat_lon[1])
+    return Buoy(index=index, id=ident, lat=lat_lon[0], lon=lat_lon[1], east_m=local[0], north_m=local[1],
+                register_id=mark.register_id, charted=charted)  # fmt: skip
+
+
 def plan_out(plan: Plan) -> PlanOut:
     return PlanOut(
         order=plan.order,
@@ -48,7 +55,7 @@ def plan_out(plan: Plan) -> PlanOut:
         elapsed_s=plan.elapsed_s,
         depot=LatLon(lat=plan.depot[0], lon=plan.depot[1]),
         buoys=[
-            Buoy(index=i, id=ident, lat=ll[0], lon=ll[1], east_m=en[0], north_m=en[1])
+            _buoy_out(plan, i, ident, ll, en)
             for i, (ident, ll, en) in enumerate(zip(plan.buoy_ids, plan.buoys_lat_lon, plan.buoys_local, strict=True))
         ],
         route=plan.route_lat_lon(),
@@ -268,4 +275,6 @@ def inspection_out(mission_id: int, record: InspectionRecord) -> InspectionOut:
         frames=[frame_url(mission_id, frame_id) for frame_id in record.frame_ids],
         best_frame=None if record.best_frame is None else frame_url(mission_id, record.best_frame),
         reason=result.reason,
+        target=None if result.target is None else LatLon(lat=result.target.lat, lon=result.target.lon),
+        offset_from_target_m=result.offset_from_target_m,
     )
