@@ -37,6 +37,21 @@ def option_help(text: str, field: str, default: object = None) -> str:
     return f"{text} (default {shown}, or ${Settings.env_name(field)})"
 
 
+def add_ais_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--ais",
+        dest="ais_sources",
+        action="append",
+        metavar="URL",
+        help=option_help(
+            "an NMEA AIS feed of AtoN reports: udp://[HOST]:PORT listens (a receiver's datagrams, e.g. "
+            "udp://0.0.0.0:10110), tcp://HOST:PORT connects to a shore station or receiver; repeatable",
+            "ais_sources",
+            "none",
+        ),
+    )
+
+
 def add_service_options(parser: argparse.ArgumentParser) -> None:
     """The options `serve` and `up` share. Each defaults to None: "the settings' value" (environment, else
     Settings' default), so a default is written only in gcs.settings."""
@@ -99,18 +114,7 @@ def build_parser(
     )
     add_service_options(serve)
     add_database_option(serve, "the service's database")
-    serve.add_argument(
-        "--ais",
-        dest="ais_sources",
-        action="append",
-        metavar="URL",
-        help=option_help(
-            "an NMEA AIS feed of AtoN reports: udp://[HOST]:PORT listens (a receiver's datagrams, e.g. "
-            "udp://0.0.0.0:10110), tcp://HOST:PORT connects to a shore station or receiver; repeatable",
-            "ais_sources",
-            "none",
-        ),
-    )
+    add_ais_option(serve)
     serve.add_argument(
         "--vehicle-wait",
         dest="vehicle_wait_s",

@@ -8,6 +8,7 @@ the MAVLink signing key, a database URL) go by the environment, never a command 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 from gcs.settings import Settings
@@ -53,8 +54,13 @@ def children(options: UpOptions) -> list[ChildSpec]:
         children += [vehicle, *controller]
         url = f"udpout:127.0.0.1:{first_port + sysid - 1}"  # the children all run on this machine
         links.append(url if options.vehicles == 1 else f"{sysid}={url}")  # a fleet names each one's system id
-    children.append(_service(options, links))
+    children.append(_service(options, links, world_ais(options)))
     return children
+
+
+def world_ais(options: UpOptions) -> list[str]:
+    """The AIS source the service listens on for the simulated world's reports (none without a world)."""
+    return [f"udp://127.0.0.1:{options.world_ais_port}"] if options.world is not None and options.world_ais_port else []
 
 
 def vehicle_home(options: UpOptions, sysid: int) -> tuple[float, float, float] | None:
@@ -81,6 +87,8 @@ def _vehicle_children(options: UpOptions, sysid: int, port: int) -> tuple[ChildS
     vehicle_args += [arg for param in params for arg in ("--param", param)]
     if options.world is not None:  # a camera on a gimbal, seeing these buoys; its images in the data directory
         vehicle_args += ["--world", str(options.world), "--image-dir", str(settings.data_dir / f"images{suffix}")]
+        if sysid == 1 and options.world_ais_port:  # one station for the world: a fleet's vehicles share it
+            vehicle_args += ["--ais-out", f"127.0.0.1:{options.world_ais_port}"]
     vehicle_args += ["--lockstep"] if options.lockstep else ["--speed", f"{options.speed:g}"]
     signing = _signing_env(settings)
     vehicle_log = settings.data_dir / "logs" / f"sitl_quad{suffix}.log"
@@ -101,7 +109,7 @@ def _signing_env(settings: Settings) -> dict[str, str]:
     return {SIGNING_KEY_ENV: settings.signing_key} if settings.signing_key else {}
 
 
-def _service(options: UpOptions, vehicles: list[str]) -> ChildSpec:
+def _service(options: UpOptions, vehicles: list[str], extra_ais: Sequence[str] = ()) -> ChildSpec:
     settings = options.settings
     gcs_args = [
         "serve",
@@ -110,6 +118,7 @@ def _service(options: UpOptions, vehicles: list[str]) -> ChildSpec:
         settings.host,
         "--port",
         str(settings.port),
+        *(arg for source in [*settings.ais_sources, *extra_ais] for arg in ("--ais", source)),
     ]
     # the token, the signing key and a database URL (it may hold a password) go by the environment: a command line
     # is written to the child's log and shown by ps

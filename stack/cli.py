@@ -12,6 +12,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from gcs.cli import (
+    add_ais_option,
     add_database_option,
     add_service_options,
     check_serve,
@@ -118,6 +119,15 @@ def add_up(commands: Any) -> None:
         "light and swing radius, and faults: README, World files); with it each vehicle carries a camera on a "
         "gimbal (default: none; the demo's own world with --demo)",
     )
+    add_ais_option(up)
+    up.add_argument(
+        "--world-ais-port",
+        type=int,
+        default=10110,
+        metavar="PORT",
+        help="the simulated world's AIS: its buoys with an mmsi report themselves (message 21) to the service on "
+        "this UDP port of 127.0.0.1, besides any --ais (default 10110; 0: none)",
+    )
     up.add_argument("--demo", action="store_true", help="fly the paper's reference scenario and print its report")
     up.add_argument("--demo-seed", type=int, default=1, help="which reference scenario the demo flies")
     up.add_argument("--exit-after-demo", action="store_true", help="stop the stack once the demo has flown")
@@ -185,6 +195,9 @@ def up(args: argparse.Namespace) -> int:
     if args.compare and not args.demo:
         print("buoy-gcs: --compare compares two demo flights; it needs --demo", file=sys.stderr)
         return 2
+    if not 0 <= args.world_ais_port < 65536:
+        print(f"buoy-gcs: --world-ais-port {args.world_ais_port} is not a port (0: none)", file=sys.stderr)
+        return 2
     if args.world is not None and (external or not args.world.is_file()):
         why = "simulated vehicles see it; it does not go with --vehicle" if external else "no such file"
         print(f"buoy-gcs: --world {args.world}: {why}", file=sys.stderr)
@@ -213,6 +226,7 @@ def up(args: argparse.Namespace) -> int:
         vehicles=args.fleet_size,
         depots=tuple(args.depots or ()),
         world=args.world,
+        world_ais_port=args.world_ais_port,
     )
     return run_up(options, say=lambda text: print(text, flush=True))
 

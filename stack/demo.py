@@ -47,6 +47,8 @@ DEMO_DWELL_S = 1.0
 DEMO_ACCEPTANCE_M = 2.0
 COMPARISON_FIGURE = "demo-gust-comparison.png"
 DEMO_WORLD = "demo-world.geojson"
+# An AtoN's MMSI is 99 MID xxxx (ITU-R M.585); the reference scenario lies off Dalian, and 412 is a Chinese MID
+DEMO_MMSI = 994_120_001
 # The demo's two faults, by visiting position: the third buoy's light is out, the eighth is moored three swing radii
 # beyond its charted position along the way the vehicle comes in (in the camera's view, off station)
 LIGHT_OUT_AT, OFF_STATION_AT, OFF_STATION_RADII = 2, 7, 3.0
@@ -61,9 +63,11 @@ class DemoPlan:
 
 
 def charted_world(options: UpOptions) -> World:
-    """The reference scenario's buoys as charted: kinds and lights as World.default gives them, no faults."""
+    """The reference scenario's buoys as charted: kinds and lights as World.default gives them, no faults, and
+    each with an AIS transmitter (DEMO_MMSI + its index), so the page shows where AIS says they float."""
     scenario = reference_scenario(options.demo_seed)
-    return World.default(scenario.buoys_lat_lon, [f"B{i + 1}" for i in range(len(scenario.buoys_lat_lon))])
+    world = World.default(scenario.buoys_lat_lon, [f"B{i + 1}" for i in range(len(scenario.buoys_lat_lon))])
+    return replace(world, buoys=tuple(replace(b, mmsi=DEMO_MMSI + i) for i, b in enumerate(world.buoys)))
 
 
 def reference_request(options: UpOptions) -> dict:
@@ -149,6 +153,7 @@ class DemoFlight:
     gust: GustEffect | None = None
     gust_leg: int | None = None  # the leg being flown at the onset (1 = depot to the first buoy)
     inspections: list[dict[str, Any]] = field(default_factory=list)  # GET /missions/{id}/inspections
+    atons: list[dict[str, Any]] = field(default_factory=list)  # GET /ais/atons' rows once it ended
 
     @property
     def simulated_s(self) -> float:
@@ -186,6 +191,7 @@ def fly_demo(base: str, options: UpOptions, demo: DemoPlan, supervisor: Supervis
     samples = get_json(f"{base}/missions/{mission['id']}/telemetry")
     flight = measure_flight(options.controller, options.weather or Weather(), mission, samples, wall)
     flight.inspections = get_json(f"{base}/missions/{mission['id']}/inspections")
+    flight.atons = get_json(f"{base}/ais/atons")["atons"]
     return flight
 
 
@@ -290,6 +296,8 @@ def demo_report(flight: DemoFlight, options: UpOptions, demo: DemoPlan | None = 
     if flight.inspections:
         lines.append(f"  inspection {mission['progress'].get('camera') or 'no camera'}")
         lines += ["    " + line for line in findings_table(flight.inspections).splitlines()]
+    if flight.atons:
+        lines.append(f"  AIS        {ais_summary(flight.atons)}")
     lines.append(f"  report     python -m gcs report {mission['id']} --db {redacted(str(options.settings.database))}")
     return "\n".join(lines)
 
@@ -302,6 +310,13 @@ def _finding_text(finding: dict[str, Any]) -> str:
     if code in ("wrong_character", "wrong_period", "wrong_colour"):
         return f"{code} (charted {finding.get('charted')}, seen {finding.get('seen')})"
     return code
+
+
+def ais_summary(atons: list[dict[str, Any]]) -> str:
+    """The AtoNs the service heard, in a line: how many, and those reporting themselves off position."""
+    off = sorted(a["name"] for a in atons if a["off_position"] and a["off_position_valid"] and not a["stale"])
+    flagged = f"off position: {', '.join(off)}" if off else "none reports itself off position"
+    return f"{len(atons)} AtoNs heard (GET /ais/atons, the map's AIS layer); {flagged}"
 
 
 def findings_table(inspections: list[dict[str, Any]]) -> str:

@@ -44,6 +44,9 @@ class UpOptions:
     depots: tuple[tuple[float, float], ...] = ()  # (lat, lon) each; vehicle i at depot i mod len (none: home)
     # the buoys the simulated vehicles' cameras see (uavcore.buoy_world's GeoJSON; None: no camera, unless the demo's)
     world: Path | None = None
+    # the simulated world's AIS: the first vehicle's world reports its buoys that have an mmsi (AIS message 21) to
+    # the service on this UDP port of 127.0.0.1, which listens there besides its own --ais sources; 0: none
+    world_ais_port: int = 10110
 
     @property
     def base_url(self) -> str:

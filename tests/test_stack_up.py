@@ -17,7 +17,15 @@ from gcs.settings import Settings
 from planner.scenario import GUST_HOLD_S, Weather, compass_bearing_deg
 from stack.children import children
 from stack.cli import build_parser, main, requested_weather
-from stack.demo import LIGHT_OUT_AT, OFF_STATION_AT, OFF_STATION_RADII, findings_table, measure_flight, prepare
+from stack.demo import (
+    LIGHT_OUT_AT,
+    OFF_STATION_AT,
+    OFF_STATION_RADII,
+    ais_summary,
+    findings_table,
+    measure_flight,
+    prepare,
+)
 from stack.options import CONTROLLERS, UpOptions
 from uavcore.buoy_world import load_world
 from uavcore.mavlink import SIGNING_KEY_ENV
@@ -244,3 +252,39 @@ def test_the_findings_table_has_a_row_per_buoy_with_its_findings_or_reason_and_t
     assert lines[2].startswith("B2") and lines[2].endswith("off_station 15.2 m (swing 5 m)") and "15.2 m" in lines[2]
     assert "unlit" in lines[3] and lines[3].endswith("the vehicle has no camera")
     assert lines[-1] == "3 buoys: 1 ok, 1 defect, 1 not_inspected"
+
+
+def test_the_simulated_worlds_ais_reaches_the_service_and_the_users_feeds_are_passed_on(tmp_path):
+    world = tmp_path / "world.geojson"
+    world.write_text('{"type": "FeatureCollection", "features": []}')
+    settings = Settings(data_dir=tmp_path, vehicle_url="udpout:127.0.0.1:14600", ais_sources=["tcp://shore:5631"])
+
+    def sources(argv: list[str]) -> list[str]:
+        return [argv[i + 1] for i, arg in enumerate(argv) if arg == "--ais"]
+
+    started = children(UpOptions(settings=settings, world=world, vehicles=2))
+    first, second, service = started[0].argv, started[2].argv, started[-1].argv
+    assert first[first.index("--ais-out") + 1] == "127.0.0.1:10110"
+    assert "--ais-out" not in second  # one station for the world a fleet shares
+    assert sources(service) == ["tcp://shore:5631", "udp://127.0.0.1:10110"]
+    quiet = children(UpOptions(settings=settings, world=world, world_ais_port=0))
+    assert "--ais-out" not in quiet[0].argv and sources(quiet[-1].argv) == ["tcp://shore:5631"]
+    no_world = children(UpOptions(settings=settings))
+    assert "--ais-out" not in no_world[0].argv and sources(no_world[-1].argv) == ["tcp://shore:5631"]
+    # the demo's buoys each have an AtoN's MMSI of their own
+    options, demo = prepare(_options(tmp_path, demo=True))
+    mmsis = [b.mmsi for b in demo.world.buoys]
+    assert len(set(mmsis)) == len(mmsis) and all(str(m).startswith("99") and len(str(m)) == 9 for m in mmsis)
+    assert "--ais-out" in children(options)[0].argv
+
+
+def test_up_refuses_a_world_ais_port_that_is_no_port(capsys):
+    assert main(["up", "--world-ais-port", "70000"]) == 2
+    assert "--world-ais-port 70000 is not a port" in capsys.readouterr().err
+
+
+def test_the_demos_ais_line_counts_the_atons_and_names_those_off_position():
+    aton = {"name": "B1", "off_position": False, "off_position_valid": True, "stale": False}
+    off = aton | {"name": "B7", "off_position": True}
+    assert ais_summary([aton, off]) == "2 AtoNs heard (GET /ais/atons, the map's AIS layer); off position: B7"
+    assert ais_summary([aton, off | {"stale": True}]).endswith("none reports itself off position")
