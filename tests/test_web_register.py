@@ -163,6 +163,12 @@ def aton_marker(page, aton: Aton):
     return page.locator(f"[data-testid=aton][data-mmsi='{aton.mmsi}']")
 
 
+def tooltip_of(page, aton: Aton):
+    """The AtoN's tooltip, hovered (the one hovered before may still be fading out)."""
+    aton_marker(page, aton).hover()
+    return page.get_by_test_id("aton-tooltip").filter(has_text=f"MMSI {aton.mmsi},")
+
+
 def test_the_page_draws_the_ais_atons_and_the_register_and_shows_a_buoys_record(register_with_ais):
     scene = register_with_ais
     atons, target = scene.atons, scene.target
@@ -182,19 +188,15 @@ def test_the_page_draws_the_ais_atons_and_the_register_and_shows_a_buoys_record(
         for role in ("hostile", "off", "virtual", "matched"):
             expect(aton_marker(page, atons[role])).not_to_have_class(re.compile(r"\bstale\b"))
         # its tooltip: the name as text (markup from the air never becomes markup), MMSI, age, flags in words
-        aton_marker(page, atons["hostile"]).hover()
-        tooltip = page.get_by_test_id("aton-tooltip")
+        tooltip = tooltip_of(page, atons["hostile"])
         expect(tooltip.locator("b")).to_have_text(HOSTILE_NAME)
         assert tooltip.locator("b *").count() == 0
-        expect(tooltip).to_contain_text(f"MMSI {atons['hostile'].mmsi}")
         expect(tooltip).to_contain_text(re.compile(r"heard \d+ s ago"))
-        aton_marker(page, atons["stale"]).hover()
+        tooltip = tooltip_of(page, atons["stale"])
         expect(tooltip).to_contain_text("HEARD ONCE")
         expect(tooltip).to_contain_text("stale: no report for over 3 s")
-        aton_marker(page, atons["virtual"]).hover()
-        expect(tooltip).to_contain_text("virtual: nothing physical is at this position")
-        aton_marker(page, atons["off"]).hover()
-        expect(tooltip).to_contain_text("off position")
+        expect(tooltip_of(page, atons["virtual"])).to_contain_text("virtual: nothing physical is at this position")
+        expect(tooltip_of(page, atons["off"])).to_contain_text("off position: it reports itself off its station")
         page.screenshot(path=str(ARTIFACTS / "web_atons.png"))
 
         # the register overlay, turned on in the layer control: the chart's 316 buoys, by kind, overdue dimmed
@@ -215,7 +217,8 @@ def test_the_page_draws_the_ais_atons_and_the_register_and_shows_a_buoys_record(
         defect_mark.click()
         detail = page.get_by_test_id("register-detail")
         expect(detail.locator("h3")).to_have_text(target["name"], timeout=10_000)
-        expect(detail).to_contain_text(f"{target['kind']}, light {target['light']}" if target["light"] else "unlit")
+        kind = target["kind"].replace("_", " ")
+        expect(detail).to_contain_text(f"{kind}, light {target['light']}" if target["light"] else f"{kind}, unlit")
         expect(detail).to_contain_text(
             re.compile(r"last inspection: \d{4}-\d\d-\d\d \d\d:\d\d UTC, mission \d+: defect")
         )
