@@ -62,6 +62,7 @@ export class AtonLayer {
     this.layer = L.layerGroup();
     this.markers = new Map(); // key (MMSI, name, rank among the same) -> {marker, look}
     this.timer = null;
+    this.seq = 0; // the latest request's number: a slow answer overtaken by a newer one is dropped
     this.layer.on("add", () => this.start());
     this.layer.on("remove", () => this.stop());
     document.addEventListener("visibilitychange", () => {
@@ -82,14 +83,15 @@ export class AtonLayer {
   }
 
   async refresh() {
+    const seq = ++this.seq;
     let answer;
     try {
       answer = await this.fetchAtons();
     } catch (error) {
-      this.onError(error);
+      if (seq === this.seq) this.onError(error);
       return;
     }
-    if (this.timer === null) return; // turned off while the request was in flight
+    if (seq !== this.seq || this.timer === null) return; // overtaken, or turned off while in flight
     this.show(answer.atons, answer.stale_after_s, Date.now());
   }
 
@@ -108,7 +110,7 @@ export class AtonLayer {
       const look = `${atonClasses(aton)} ${aton.name}`;
       let entry = this.markers.get(key);
       if (!entry) {
-        const marker = L.marker([aton.lat, aton.lon], { icon: atonIcon(aton), keyboard: false });
+        const marker = L.marker([aton.lat, aton.lon], { icon: atonIcon(aton) });
         entry = { marker, look };
         this.markers.set(key, entry);
         marker.addTo(this.layer);

@@ -103,6 +103,7 @@ export class RegisterLayer {
     this.layer = L.layerGroup();
     this.timer = null;
     this.shownText = null; // the latest answer drawn, so that an unchanged one redraws nothing (an open popup stays)
+    this.seq = 0; // the latest request's number: a slow answer overtaken by a newer one is dropped
     this.layer.on("add", () => this.start());
     this.layer.on("remove", () => this.stop());
   }
@@ -120,14 +121,15 @@ export class RegisterLayer {
   }
 
   async refresh(turnedOn) {
+    const seq = ++this.seq;
     let buoys;
     try {
       buoys = await this.api.buoys();
     } catch (error) {
-      this.onError(error);
+      if (seq === this.seq) this.onError(error);
       return;
     }
-    if (this.timer === null) return; // turned off while the request was in flight
+    if (seq !== this.seq || this.timer === null) return; // overtaken, or turned off while in flight
     const text = JSON.stringify(buoys);
     if (text !== this.shownText) this.show(buoys);
     this.shownText = text;
