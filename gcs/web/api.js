@@ -99,6 +99,25 @@ export class GcsApi {
     return this.request("GET", `/missions/${encodeURIComponent(id)}/inspections`);
   }
 
+  // The AIS feed's AtoNs (GET /ais/atons: AtonsOut): each one's latest report, its age and flags.
+  atons() {
+    return this.request("GET", "/ais/atons");
+  }
+
+  // The register's buoys (GET /buoys: BuoyOut), filtered by {bbox: "W,S,E,N", kind, overdue_days, open_defects}
+  // (a filter left out or null: not filtered on).
+  buoys(filters = {}) {
+    const query = new URLSearchParams();
+    for (const [name, value] of Object.entries(filters)) if (value != null) query.set(name, String(value));
+    const text = query.toString();
+    return this.request("GET", text ? `/buoys?${text}` : "/buoys");
+  }
+
+  // One register buoy (GET /buoys/{id}: BuoyDetailOut): its defects, its history (oldest first), its AtoN.
+  buoy(id) {
+    return this.request("GET", `/buoys/${encodeURIComponent(id)}`);
+  }
+
   // name: track.geojson, plan, waypoints, report, inspections.csv or inspections.geojson
   missionFileUrl(id, name) {
     return `/missions/${encodeURIComponent(id)}/${name}`;

@@ -1,9 +1,10 @@
 // The map page: place buoys, plan, fly, watch the vehicle live and each buoy's inspection, browse history. This
 // module wires the parts: api.js (the service), state.js (what is shown), map.js (Leaflet), charts.js (uPlot),
 // panel.js and history.js (the text around the map), inspections.js (the records fetched), findings.js (the
-// inspection list) and gallery.js (a buoy's frames). Leaflet and uPlot are served locally (no CDN), so it works
-// offline.
+// inspection list), gallery.js (a buoy's frames), and the map's overlays atons.js (the AIS AtoNs) and register.js
+// (the buoy register). Leaflet and uPlot are served locally (no CDN), so it works offline.
 import { ApiError, GcsApi } from "./api.js";
+import { AtonLayer } from "./atons.js";
 import { FlightCharts } from "./charts.js";
 import { byId } from "./dom.js";
 import { showInspections } from "./findings.js";
@@ -12,6 +13,7 @@ import { showHistory } from "./history.js";
 import { InspectionFeed } from "./inspections.js";
 import { MissionMap } from "./map.js";
 import * as panel from "./panel.js";
+import { RegisterLayer } from "./register.js";
 import { sortieLook } from "./sorties.js";
 import { buoyMarkings, buoysEditable, inspectionRows, state } from "./state.js";
 import { defineMissionStatus, isFinished, isUnderway } from "./status.js";
@@ -33,6 +35,12 @@ function showingErrors(action, fallback = undefined) {
       return fallback;
     }
   };
+}
+
+// A failed request of a part that runs on its own (a feed, an overlay's poll): shown; anything else is a bug.
+function showRequestError(error) {
+  panel.say(error.message);
+  if (!(error instanceof ApiError)) throw error;
 }
 
 // ----- placing
@@ -159,10 +167,7 @@ const inspectionFeed = new InspectionFeed(
     relabelBuoys();
     refreshGallery(inspectionRows());
   },
-  (error) => {
-    panel.say(error.message);
-    if (!(error instanceof ApiError)) throw error;
-  },
+  showRequestError,
 );
 
 function watchInspections(missionId) {
@@ -341,6 +346,13 @@ function wireControls() {
   byId("refresh").addEventListener("click", refreshHistory);
 }
 
+// ----- the map's overlays: the AIS AtoNs (on at first: nothing to draw without an --ais feed) and the buoy
+// register (off at first: hundreds of a chart's buoys over the mission shown, and the view moves to them)
+function showOverlays() {
+  map.addOverlay(new AtonLayer(() => api.atons(), showRequestError).layer, "AIS AtoNs", true);
+  map.addOverlay(new RegisterLayer(map.map, api, showRequestError).layer, "Register buoys", false);
+}
+
 // ----- start: the service's mission states first (everything else refers to them), then centre on the depot
 // (the vehicle's home when it has reported one) and open on what matters: the mission flying now, else the
 // latest one (e.g. the one the demo `make run` flew).
@@ -349,6 +361,7 @@ async function start() {
   const vehicle = await showingErrors(() => api.vehicle(), null)();
   const depot = vehicle ? vehicle.depot : FALLBACK_DEPOT;
   map.showBaseLayers(depot);
+  showOverlays();
   setDepot(depot);
   wireControls();
   api.openLiveStream(onLiveMessage); // the vehicles, a fleet's every one, as they move

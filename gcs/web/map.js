@@ -1,7 +1,7 @@
-// The Leaflet map: base layers (offline metric grid, OpenStreetMap when reachable), the depot, the buoys (with their
-// inspection's verdict as a badge once the watched mission has one), the planned route (dashed; one colour per
-// sortie, with a legend, when the plan has several), the flown track and the vehicle. Icons and the legend are built
-// as DOM elements, never HTML.
+// The Leaflet map: base layers (offline metric grid, OpenStreetMap when reachable) and overlays in one layer
+// control (atons.js and register.js add theirs), the depot, the buoys (with their inspection's verdict as a badge
+// once the watched mission has one), the planned route (dashed; one colour per sortie, with a legend, when the plan
+// has several), the flown track and the vehicle. Icons and the legend are built as DOM elements, never HTML.
 import { h, svg } from "./dom.js";
 import { metricGridLayer, tilesReachable } from "./grid.js";
 import { hasSortieFigures, legsOf, routeLook, sortieLook, swatch } from "./sorties.js";
@@ -72,7 +72,7 @@ export class MissionMap {
     const grid = metricGridLayer(L, L.latLng(centre)).addTo(this.map);
     const osm = L.tileLayer(OSM_URL, { maxZoom: 19, attribution: "© OpenStreetMap contributors" });
     const baseLayers = { "Metric grid (offline)": grid, OpenStreetMap: osm };
-    L.control.layers(baseLayers, {}, { position: "topright" }).addTo(this.map);
+    this.layerControl = L.control.layers(baseLayers, {}, { position: "topright" }).addTo(this.map);
     L.control.scale({ metric: true, imperial: false }).addTo(this.map);
     tilesReachable(OSM_URL.replace("{z}/{x}/{y}", "0/0/0")).then((online) => {
       if (online) {
@@ -80,6 +80,12 @@ export class MissionMap {
         osm.addTo(this.map);
       }
     });
+  }
+
+  // An overlay the operator turns on and off in the layer control (after showBaseLayers); shown: on at first.
+  addOverlay(layer, name, shown) {
+    this.layerControl.addOverlay(layer, name);
+    if (shown) layer.addTo(this.map);
   }
 
   setDepot(depot) {
