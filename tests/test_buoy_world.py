@@ -15,6 +15,7 @@ from uavcore.buoy_world import (
     World,
     WorldBuoy,
     WorldFileError,
+    appearance,
     check_kind_light,
     default_light,
     load_world,
@@ -89,6 +90,7 @@ ERRORS = [
     (feature(id="B4", kind="port", offset_m=[1.0, math.inf]), "feature 0 (B4): offset_m must be [north, east]"),
     (feature(id="B4", kind="port", offset_m="1,2"), "feature 0 (B4): offset_m must be [north, east]"),
     (feature(id="B4", kind="port", offest_m=[9, 9]), "feature 0 (B4): properties offest_m unknown"),
+    (feature(id="B4", kind="port", region="C"), "feature 0 (B4): region must be one of A, B"),
     (feature(LON, 91.0, id="B4", kind="port"), "feature 0 (B4): coordinates [lon, lat] = [121.663, 91.0]"),
     (feature(181.0, LAT, id="B4", kind="port"), "feature 0 (B4): coordinates [lon, lat] = [181.0, 38.921]"),
     (feature(math.nan, LAT, id="B4", kind="port"), "feature 0 (B4): coordinates must be [lon, lat] as finite numbers"),
@@ -331,3 +333,32 @@ def test_every_kind_has_an_appearance_in_the_palette():
 def test_a_world_buoy_built_in_code_equals_the_loaded_one():
     loaded = buoy(light="Fl R 4s")
     assert loaded == WorldBuoy("B1", "port", (LAT, LON), parse("Fl R 4s"), 5.0, parse("Fl R 4s"))
+
+
+def test_in_region_b_a_lateral_mark_takes_the_other_colour_and_keeps_its_shape():
+    for kind, colour_a, colour_b in (("port", "red", "green"), ("starboard", "green", "red")):
+        a, b = appearance(kind), appearance(kind, "B")
+        assert (a.colours, a.topmark_colour, b.colours, b.topmark_colour) == (
+            (colour_a,),
+            colour_a,
+            (colour_b,),
+            colour_b,
+        )
+        assert (a.shape, a.topmark) == (b.shape, b.topmark)  # port a can, starboard a cone, in both regions
+    assert all(appearance(kind, "B") == APPEARANCE[kind] for kind in KINDS if kind not in ("port", "starboard"))
+    assert (default_light("port", "B").abbreviation(), default_light("starboard", "B").abbreviation()) == (
+        "Fl G 4s", "Fl R 4s"
+    )  # fmt: skip
+    assert check_kind_light("starboard", parse("Fl R 4s"), "B") == []
+    assert "IALA gives it R" in check_kind_light("starboard", parse("Fl G 4s"), "B")[0]
+    assert all(check_kind_light(kind, default_light(kind, "B"), "B") == [] for kind in KINDS)
+
+
+def test_a_region_b_buoy_round_trips_through_its_world_file_and_is_drawn_in_its_colours():
+    document = {"type": "FeatureCollection", "features": [feature(id="R2", kind="starboard", region="B"),
+                                                          feature(id="G1", kind="port")]}  # fmt: skip
+    world = World.from_geojson(document)
+    assert [(b.region, b.appearance.colours) for b in world.buoys] == [("B", ("red",)), ("A", ("red",))]
+    written = world.to_geojson()["features"]
+    assert written[0]["properties"]["region"] == "B" and "region" not in written[1]["properties"]
+    assert World.from_geojson(world.to_geojson()) == world

@@ -2,7 +2,8 @@
 whole stack as real processes on loopback UDP.
 
 The world the vehicle flies in is made of a real NOAA cell's buoys (tests/data/enc/US4MD81M: three Greenwood Creek
-buoys within 430 m, written as a world file by `python -m gcs chart --geojson`), one of them dragged off station.
+buoys within 430 m, written as a world file by `python -m gcs chart --geojson`, in IALA region B's colours as the
+chart has them), one of them dragged off station.
 The same cell fills the service's register (POST /buoys/imports), a mission takes the buoys from the register by
 area (POST /missions' from_register) and flies with the camera, and the register then holds each buoy's inspection
 in its history, the off-station buoy's open defect and its alarm.
@@ -71,6 +72,7 @@ def test_a_chart_fills_the_register_a_mission_inspects_its_buoys_and_their_histo
     assert imported.status_code == 200, imported.text
     registered = sorted(imported.json()["created"])
     assert registered == sorted(f["properties"]["id"] for f in features)
+    assert {f["properties"]["region"] for f in features} == {"B"}  # a US cell: port green, starboard red
     request = {"from_register": {"bbox": list(AREA)}, "depot": {"lat": DEPOT[0], "lon": DEPOT[1]}}
     planned = stack.api.post("/plans", json=request)  # the tour the mission will fly (the planner is seeded)
     assert planned.status_code == 200, planned.text
@@ -86,6 +88,8 @@ def test_a_chart_fills_the_register_a_mission_inspects_its_buoys_and_their_histo
     assert sorted(b["register_id"] for b in mission["buoys"]) == registered
     assert mission["order"] == planned.json()["order"]
 
+    inspections = stack.api.get(f"/missions/{mission_id}/inspections").json()
+    assert {i["charted"]["region"] for i in inspections} == {"B"}  # colours checked as the chart's region has them
     verdicts = {}
     for register_id in registered:
         buoy = stack.api.get(f"/buoys/{register_id}").json()

@@ -282,7 +282,14 @@ def test_exports_of_a_planned_mission(client):
 def test_import_csv_and_geojson(client):
     csv_body = client.post("/imports?filename=b.csv", content=b"id,lat,lon\nA,38.92,121.66\n").json()
     # register_id: a buoy of the register (POST /buoys/imports); a plain file's buoys are not
-    uncharted = {"kind": None, "light": None, "swing_radius_m": None, "register_id": None, "charted": None}
+    uncharted = {
+        "kind": None,
+        "light": None,
+        "swing_radius_m": None,
+        "register_id": None,
+        "charted": None,
+        "region": None,
+    }
     # chart and warnings: an S-57 cell's (tests/test_gcs_chart_import.py)
     assert csv_body == {"buoys": [{"id": "A", "lat": 38.92, "lon": 121.66} | uncharted], "chart": None, "warnings": []}
     charted = {"kind": "port", "light": "Fl(2) R 6s", "swing_radius_m": 8.0}
@@ -301,7 +308,7 @@ def test_import_csv_and_geojson(client):
     geo = client.post("/imports", content=json.dumps(collection), headers={"content-type": "application/geo+json"})
     assert geo.json()["buoys"] == [
         {"id": None, "lat": 38.92, "lon": 121.66} | uncharted,
-        {"id": "P1", "lat": 38.93, "lon": 121.67, "register_id": None, "charted": None} | charted,
+        {"id": "P1", "lat": 38.93, "lon": 121.67, "register_id": None, "charted": None, "region": None} | charted,
     ]
 
 

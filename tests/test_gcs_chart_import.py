@@ -278,7 +278,7 @@ def test_post_imports_takes_the_cell_and_answers_buoys_for_a_mission(client, cel
     buoy2 = next(i for i, m in enumerate(body["chart"]["marks"]) if m["name"] == "Annapolis Harbor Lighted Buoy 2")
     assert body["buoys"][buoy2] == {
         "id": "0226525A78F0270F", "lat": 38.9418108, "lon": -76.4261103, "kind": "starboard", "light": "Fl R 2.5s",
-        "swing_radius_m": None, "register_id": None, "charted": None,
+        "swing_radius_m": None, "register_id": None, "charted": None, "region": "B",
     }  # fmt: skip
     mark = body["chart"]["marks"][buoy2]
     assert (mark["colours"], mark["region"], mark["beacon"], mark["object_class"]) == (["red"], "B", False, "BOYLAT")

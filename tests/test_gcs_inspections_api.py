@@ -70,7 +70,8 @@ def test_the_inspections_list_each_buoy_with_its_verdict_findings_and_frame_urls
     first, second = client.get(f"/missions/{mission}/inspections").json()
     assert (first["buoy"], first["index"], first["verdict"], first["offset_m"]) == ("=HYPERLINK(1)", 0, "defect", 12.5)
     assert first["findings"] == [{"code": "off_station", "offset_m": 12.5, "swing_radius_m": 5.0, "bearing_deg": 90}]
-    assert first["charted"] == {"lat": 55.0005, "lon": 12.0, "kind": "port", "light": "Fl R 4s", "swing_radius_m": 5.0}
+    charted = {"lat": 55.0005, "lon": 12.0, "kind": "port", "light": "Fl R 4s", "swing_radius_m": 5.0, "region": "A"}
+    assert first["charted"] == charted
     assert first["frames"][1] == first["best_frame"] and first["frames"][0].startswith(f"/missions/{mission}/frames/")
     assert (second["verdict"], second["reason"], second["charted"]["kind"]) == (
         "not_inspected",

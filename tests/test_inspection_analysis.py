@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -262,3 +263,19 @@ def test_a_buoy_dragged_beyond_the_search_window_is_found_where_ais_saw_it_and_j
     assert [f.code for f in inspection.findings] == ["off_station"]
     assert 39.0 < inspection.offset_m < 41.0 and inspection.offset_from_target_m < 1.0
     assert (inspection.target.lat, inspection.target.lon) == buoy.charted
+
+
+def test_a_region_b_starboard_buoy_is_red_and_ok_there_and_not_found_by_region_as_green() -> None:
+    # a US chart's starboard buoy (IALA region B: red, a cone), its light red as charted there
+    light = parse("Fl R 4s")
+    buoy = replace(world_buoy("starboard", 60.0, 20.0), region="B", light=light, actual_light=light)
+    burst = capture_burst(World((buoy,), seed=5), 0, 30.0, 200.0, resolution=LIGHT_BURST)
+    results = {}
+    for region in ("B", "A"):
+        chart = charted(buoy)._replace(region=region)
+        frames = [(s.geotag, detect_buoy(s.image, burst.model, s.geotag, chart)) for s in burst.shots]
+        results[region] = inspect_buoy(chart, frames)
+    assert (results["B"].verdict, results["B"].findings, results["B"].buoy.region) == ("ok", [], "B")
+    assert results["B"].light_seen.startswith("flashing . R")
+    # looked for in region A's green, the red cone is not there: the region must be right, as the chart says
+    assert [f.code for f in results["A"].findings] == ["not_found"]

@@ -10,9 +10,13 @@ these properties (the contract; any other property is an error, so that a typo c
 - `shows`: what the light really does, "dark" or another character; absent: as charted (a fault when it differs);
 - `offset_m`: [north, east] metres from the charted position to the real mooring; absent: [0, 0];
 - `mmsi`: the buoy's AIS identity, a 9-digit MMSI (an AtoN's is 99MIDxxxx, ITU-R M.585), unique in the world; absent
-  or null: the buoy carries no AIS (sitl_quad.ais_station has those that do report themselves, message 21).
+  or null: the buoy carries no AIS (sitl_quad.ais_station has those that do report themselves, message 21);
+- `region`: the IALA buoyage region its lateral marks follow, "A" (port red, starboard green: Europe, Africa, most of
+  Asia and Oceania) or "B" (port green, starboard red: the Americas, Japan, Korea, the Philippines); absent: "A".
 The collection may carry a top-level integer `seed`: the buoys' wander in their swing circles (default 0).
-IALA facts (region A: port red, starboard green) are data here: APPEARANCE, DEFAULT_LIGHT and _LIGHT_RULES.
+IALA facts are data here: APPEARANCE, DEFAULT_LIGHT and _LIGHT_RULES give region A's; `appearance`,
+`default_light` and `check_kind_light` turn a lateral mark's red and green round for region B (its shape and
+topmark's shape stay: port is a can, starboard a cone, in both regions).
 """
 
 from __future__ import annotations
@@ -35,7 +39,10 @@ from uavcore.light_character import LightCharacter, LightCharacterError, parse
 
 KINDS = ("port", "starboard", "north", "east", "south", "west", "isolated_danger", "safe_water", "special")
 CARDINALS = ("north", "east", "south", "west")
-PROPERTIES = ("id", "kind", "light", "swing_radius_m", "shows", "offset_m", "mmsi")
+PROPERTIES = ("id", "kind", "light", "swing_radius_m", "shows", "offset_m", "mmsi", "region")
+REGIONS = ("A", "B")
+LATERAL = ("port", "starboard")
+_REGION_B_SWAP = {"red": "green", "green": "red", "R": "G", "G": "R"}  # a lateral mark's colours in region B
 MMSI_RANGE = range(100_000_000, 1_000_000_000)  # nine digits
 DEFAULT_SWING_RADIUS_M = 5.0
 DARK = "dark"  # `shows` of a light that is out
@@ -121,16 +128,35 @@ _LIGHT_RULES: dict[str, tuple[str, dict[str, float | None] | None, frozenset[str
 }
 
 
-def default_light(kind: str) -> LightCharacter:
-    """The typical charted character of a kind of buoy (DEFAULT_LIGHT)."""
-    return parse(DEFAULT_LIGHT[kind])
+def _in_region(kind: str, region: str, colour: str) -> str:
+    """A colour of region A's `kind` as region `region` has it."""
+    return _REGION_B_SWAP.get(colour, colour) if region == "B" and kind in LATERAL else colour
 
 
-def check_kind_light(kind: str, light: LightCharacter | None) -> list[str]:
-    """Warnings where a charted light contradicts its buoy's kind (colour, rhythm, period); [] when it fits."""
+def appearance(kind: str, region: str = "A") -> Appearance:
+    """How a kind of buoy looks in an IALA region (APPEARANCE is region A's)."""
+    look = APPEARANCE[kind]
+    if region == "A" or kind not in LATERAL:
+        return look
+    colours = tuple(_in_region(kind, region, c) for c in look.colours)
+    return replace(look, colours=colours, topmark_colour=_in_region(kind, region, look.topmark_colour))
+
+
+def default_light(kind: str, region: str = "A") -> LightCharacter:
+    """The typical charted character of a kind of buoy in an IALA region (DEFAULT_LIGHT is region A's)."""
+    text = DEFAULT_LIGHT[kind]
+    if region == "B" and kind in LATERAL:
+        text = " ".join(_in_region(kind, region, word) for word in text.split())
+    return parse(text)
+
+
+def check_kind_light(kind: str, light: LightCharacter | None, region: str = "A") -> list[str]:
+    """Warnings where a charted light contradicts its buoy's kind (colour, rhythm, period) in its IALA region;
+    [] when it fits."""
     if light is None:
         return []  # an unlit buoy is allowed for every kind
     colour, allowed, forbidden = _LIGHT_RULES[kind]
+    colour = _in_region(kind, region, colour)
     text, rhythm = light.abbreviation(), light.abbreviation().split()[0]
     warnings = []
     if set(light.colours) != {colour}:
@@ -155,11 +181,12 @@ class WorldBuoy:
     actual_light: LightCharacter | None = None  # what it really shows; None: dark
     offset_m: tuple[float, float] = (0.0, 0.0)  # (north, east) from the charted position to the real mooring
     mmsi: int | None = None  # its AIS transmitter's identity; None: no AIS
+    region: str = "A"  # its IALA buoyage region (REGIONS): a lateral mark's colours
 
     @property
     def appearance(self) -> Appearance:
-        """How the buoy looks (its kind's)."""
-        return APPEARANCE[self.kind]
+        """How the buoy looks (its kind's, in its region)."""
+        return appearance(self.kind, self.region)
 
     @cached_property
     def _light_phase_s(self) -> float:
@@ -264,7 +291,10 @@ def _buoy_from_feature(index: int, feature: Any) -> WorldBuoy:
     mmsi = props.get("mmsi")
     if mmsi is not None and (isinstance(mmsi, bool) or not isinstance(mmsi, int) or mmsi not in MMSI_RANGE):
         raise fail("mmsi", f"must be a 9-digit integer (an AtoN's is 99MIDxxxx), got {mmsi!r}")
-    return WorldBuoy(buoy_id, kind, (lat, lon), light, radius, actual, (north, east), mmsi)
+    region = props.get("region", "A")
+    if region not in REGIONS:
+        raise fail("region", f"must be one of {', '.join(REGIONS)} (IALA buoyage regions), got {region!r}")
+    return WorldBuoy(buoy_id, kind, (lat, lon), light, radius, actual, (north, east), mmsi, region)
 
 
 # The swing model. The drag of water and wind on a buoy, 0.5 rho Cd A v^2 with Cd ~ 1, for a typical buoy
@@ -333,6 +363,8 @@ class World:
                 props["offset_m"] = list(b.offset_m)
             if b.mmsi is not None:
                 props["mmsi"] = b.mmsi
+            if b.region != "A":
+                props["region"] = b.region
             point = {"type": "Point", "coordinates": [b.charted[1], b.charted[0]]}
             features.append({"type": "Feature", "geometry": point, "properties": props})
         return {"type": "FeatureCollection", "seed": self.seed, "features": features}

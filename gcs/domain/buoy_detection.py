@@ -40,7 +40,7 @@ from gcs.domain.camera_geometry import (
 )
 from gcs.domain.light_reading import LightSpot, measure_spot
 from gcs.domain.paint_segmentation import SATURATED, paint_boxes, paint_labels, to_lab
-from uavcore.buoy_world import APPEARANCE, Appearance
+from uavcore.buoy_world import Appearance, appearance
 
 SEAM_ROWS = 5  # rows of a band seam closed (JPEG's 8 x 8 blocks, chroma at half resolution)
 MIN_REGION_PX = 15  # a buoy 1.2 m wide at 60 m is still ~12 x 15 px at the default camera's 960 px
@@ -52,13 +52,15 @@ MIN_LANTERN_PX = 2.5
 
 
 class ChartedBuoy(NamedTuple):
-    """A buoy as the chart gives it: position (deg), IALA kind, light (chart text, None: unlit), swing radius."""
+    """A buoy as the chart gives it: position (deg), IALA kind, light (chart text, None: unlit), swing radius, and
+    the IALA region its lateral colours follow."""
 
     lat: float
     lon: float
     kind: str
     light: str | None
     swing_radius_m: float
+    region: str = "A"
 
 
 @dataclass(frozen=True)
@@ -103,7 +105,7 @@ def search_window(
     model: CameraModel, geotag: FrameGeotag, charted: ChartedBuoy, tolerance: SearchTolerance
 ) -> tuple[slice, slice] | None:
     """Frame rows and columns where the buoy may show (module docstring); None when none is in the frame."""
-    look = APPEARANCE[charted.kind]
+    look = appearance(charted.kind, charted.region)
     centre = lat_lon_to_ne(geotag, charted.lat, charted.lon)
     radius = tolerance.radius_m(charted)
     if np.hypot(*centre) <= radius:
@@ -338,7 +340,7 @@ def detect_buoy(
 ) -> BuoyDetection:
     """The charted buoy in one frame (H, W, 3 sRGB uint8): BuoyDetection, found or not and why."""
     tolerance = tolerance or SearchTolerance()
-    look = APPEARANCE[charted.kind]
+    look = appearance(charted.kind, charted.region)
     window = search_window(model, geotag, charted, tolerance)
     on_station = SearchTolerance(1.0, tolerance.position_m, tolerance.attitude_deg)
     if window is None or search_window(model, geotag, charted, on_station) is None:  # not even its swing circle

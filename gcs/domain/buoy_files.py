@@ -1,6 +1,6 @@
 """Buoys from files: GeoJSON (FeatureCollection of Points) or CSV. Pure: text in, buoys out.
 
-GeoJSON: a feature's properties `id` (or `name`), and the charted `kind`, `light` and `swing_radius_m` (the
+GeoJSON: a feature's properties `id` (or `name`), and the charted `kind`, `light`, `swing_radius_m` and `region` (the
 contract of a uavcore.buoy_world world file, whose fault properties are left out).
 
 CSV: with a header, the columns named lat/latitude, lon/lng/longitude and optionally id/name are used, in any
@@ -23,7 +23,7 @@ class BuoyFileError(ValueError):
     """The file or document cannot be read as buoys; the message names the place and the reason."""
 
 
-CHARTED_PROPERTIES = ("kind", "light", "swing_radius_m")  # a GeoJSON feature's, passed on as they are
+CHARTED_PROPERTIES = ("kind", "light", "swing_radius_m", "region")  # a GeoJSON feature's, passed on as they are
 
 
 @dataclass(frozen=True)

@@ -166,6 +166,7 @@ class ChartedMark:
             "kind": self.kind,
             "light": self.light,
             "swing_radius_m": self.swing_radius_m,
+            "region": self.region,
         }
 
     def as_dict(self) -> dict[str, Any]:
@@ -508,5 +509,6 @@ def world_of(marks: Sequence[ChartedMark]) -> tuple[World, list[str]]:
             left_out.append(f"{mark.label}: not in the world file: {why}")
             continue
         radius = DEFAULT_SWING_RADIUS_M if mark.swing_radius_m is None else mark.swing_radius_m
-        buoys.append(WorldBuoy(mark.id, mark.kind, (mark.lat, mark.lon), light, radius, light))
+        region = mark.region or "A"  # no IALA region (CEVNI, ...): the world draws region A's colours
+        buoys.append(WorldBuoy(mark.id, mark.kind, (mark.lat, mark.lon), light, radius, light, region=region))
     return World(tuple(buoys)), left_out

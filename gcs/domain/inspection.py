@@ -7,7 +7,7 @@ unreadable and nothing else wrong), "defect" with at least one finding, else "ok
   move it) farther from the charted one than the swing radius plus POSITION_TOLERANCE_M;
 - light_out, wrong_character, wrong_period, wrong_colour: uavcore.light_character.matches of the charted light
   against the burst's reading (light_reading.read_light);
-- wrong_body_colour: the bands most frames show differ from the kind's (APPEARANCE);
+- wrong_body_colour: the bands most frames show differ from the kind's in its IALA region (buoy_world.appearance);
 - not_found: the search area was in view but the buoy was in none of the frames.
 
 A fleet mission stores no record of its own: each part stores its buoys' records, and `gather_fleet_inspections`
@@ -28,7 +28,7 @@ from gcs.domain.buoy_detection import BuoyDetection, ChartedBuoy
 from gcs.domain.camera_geometry import FrameGeotag
 from gcs.domain.light_reading import read_light
 from gcs.domain.planning import Plan
-from uavcore.buoy_world import APPEARANCE
+from uavcore.buoy_world import appearance
 from uavcore.geodesy import LocalFrame
 from uavcore.light_character import ObservedLight, longest_phases, matches, parse
 
@@ -60,6 +60,7 @@ class InspectedBuoy(BaseModel):
     kind: str
     light: str | None
     swing_radius_m: float
+    region: str = "A"  # the IALA region its colours are checked in
 
 
 class BuoyInspection(BaseModel):
@@ -136,7 +137,7 @@ def _light_findings(charted: ChartedBuoy, observed: ObservedLight) -> list[Findi
 
 def _body_findings(charted: ChartedBuoy, detections: Sequence[BuoyDetection]) -> list[Finding]:
     """wrong_body_colour when the bands most frames show are not the kind's (as a set for vertical stripes)."""
-    look = APPEARANCE[charted.kind]
+    look = appearance(charted.kind, charted.region)
     seen_counts = Counter(d.colours for d in detections if d.colours)
     if not seen_counts:
         return []

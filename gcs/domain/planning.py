@@ -60,6 +60,7 @@ class BuoyMark:
     register_id: str | None = None  # the buoy register's id of this buoy: its inspection joins that buoy's history
     # where the chart has it when the mission looks for it elsewhere (its latest AIS position); None: where it looks
     charted_lat_lon: tuple[float, float] | None = None
+    region: str = "A"  # the IALA buoyage region its lateral colours follow
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> BuoyMark:

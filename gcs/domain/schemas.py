@@ -56,6 +56,11 @@ class BuoyIn(LatLon):
         max_length=64,
         description="the buoy register's id of this buoy (GET /buoys): its inspection joins that buoy's history",
     )
+    region: Literal["A", "B"] | None = Field(
+        default=None,
+        description="the IALA buoyage region its lateral colours follow (A: port red, starboard green; B: port "
+        "green, starboard red); default: the service's iala_region",
+    )
     charted: LatLon | None = Field(
         default=None,
         description="the charted position when lat/lon is another (e.g. the buoy's latest AIS report): the mission "
@@ -631,6 +636,7 @@ class ChartedBuoyOut(BaseModel):
     kind: str = Field(description="IALA kind as charted ('unknown': not given)")
     light: str | None = Field(description="the charted light (null: unlit)")
     swing_radius_m: float
+    region: str = Field(default="A", description="the IALA region its colours were checked in")
 
 
 class InspectionOut(BaseModel):

@@ -90,7 +90,7 @@ def charted_record(plan: Plan, index: int) -> InspectedBuoy:
     mark = plan.mark(index)
     lat, lon = mark.charted_lat_lon or plan.buoys_lat_lon[index]
     return InspectedBuoy(lat=lat, lon=lon, kind=mark.kind or "unknown", light=mark.light,
-                         swing_radius_m=mark.swing_radius_m)  # fmt: skip
+                         swing_radius_m=mark.swing_radius_m, region=mark.region)  # fmt: skip
 
 
 def detect_frame(data: bytes, model: CameraModel, geotag: FrameGeotag, charted: ChartedBuoy) -> BuoyDetection:
@@ -399,7 +399,7 @@ def _charted(plan: Plan, index: int, where_sought: bool = False) -> ChartedBuoy 
     if mark.kind is None:
         return None
     lat, lon = plan.buoys_lat_lon[index] if where_sought else (mark.charted_lat_lon or plan.buoys_lat_lon[index])
-    return ChartedBuoy(lat, lon, mark.kind, mark.light, mark.swing_radius_m)
+    return ChartedBuoy(lat, lon, mark.kind, mark.light, mark.swing_radius_m, mark.region)
 
 
 def _reason(result_reason: str | None, buoy: _Buoy) -> str:

@@ -202,4 +202,5 @@ def _target(stored: StoredBuoy, match: AisMatch | None) -> dict[str, Any]:
     at = (buoy.lat, buoy.lon) if report is None else (report["lat"], report["lon"])
     charted = None if report is None else {"lat": buoy.lat, "lon": buoy.lon}
     return {"lat": at[0], "lon": at[1], "id": (buoy.name or buoy.id)[:64], "kind": buoy.kind, "light": buoy.light,
-            "swing_radius_m": buoy.swing_radius_m, "register_id": buoy.id, "charted": charted}  # fmt: skip
+            "swing_radius_m": buoy.swing_radius_m, "register_id": buoy.id, "charted": charted,
+            "region": buoy.charted.get("region")}  # fmt: skip

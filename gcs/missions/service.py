@@ -66,8 +66,9 @@ def _named_buoys(request: PlanRequest) -> tuple[list[str], list[tuple[float, flo
     return ids, [(b.lat, b.lon) for b in request.buoys]
 
 
-def _marks(request: PlanRequest) -> list[BuoyMark]:
-    """What the request charts of each buoy (kind, light, swing radius), in input order."""
+def _marks(request: PlanRequest, region: str) -> list[BuoyMark]:
+    """What the request charts of each buoy (kind, light, swing radius, ...), in input order; `region`: the IALA
+    region of a buoy that names none."""
     return [
         BuoyMark(
             b.kind,
@@ -75,6 +76,7 @@ def _marks(request: PlanRequest) -> list[BuoyMark]:
             DEFAULT_SWING_RADIUS_M if b.swing_radius_m is None else b.swing_radius_m,
             b.register_id,
             None if b.charted is None else (b.charted.lat, b.charted.lon),
+            b.region or region,
         )
         for b in request.buoys
     ]
@@ -219,7 +221,7 @@ class MissionService:
             plan = energy_plan(depot, buoys, ids, flight, battery, options.seed, options.time_limit_s, fenced,
                                options.method, self.energy_model)  # fmt: skip
         validate_fenced_route(plan, fenced)
-        return replace(plan, marks=_marks(request)), flight
+        return replace(plan, marks=_marks(request, self.settings.iala_region)), flight
 
     # ----- the lifecycle
     def active_mission(self) -> int | None:
@@ -266,7 +268,7 @@ class MissionService:
             request.dwell_s, options.seed, options.time_limit_s,
         )  # fmt: skip
         flight = _flight(request, override=request.override)
-        marks = _marks(request)
+        marks = _marks(request, self.settings.iala_region)
         overview = sorties_plan(first_home, buoys, ids, [[b for s in planned.shares for b in s.buoys]], METHOD,
                                 planned.elapsed_s)  # fmt: skip
         overview = replace(
