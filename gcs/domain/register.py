@@ -163,8 +163,10 @@ class AisMatch:
     by: Literal["mmsi", "name"]
 
 
-def match_atons(buoys: Sequence[StoredBuoy], atons: Sequence[dict[str, Any]]) -> tuple[dict[str, AisMatch], list[str]]:
-    """Each register buoy's AtoN (by id), and what could not be matched for being ambiguous. By MMSI: the buoy's
+def match_atons(
+    buoys: Sequence[StoredBuoy], atons: Sequence[dict[str, Any]]
+) -> tuple[dict[str, AisMatch], dict[str, str]]:
+    """Each register buoy's AtoN, and why a buoy has none for being ambiguous (both by register id). By MMSI: the buoy's
     MMSI's report (the first when several AtoNs share it: the feed reports that conflict). By name and distance,
     for a buoy with no MMSI: the one AtoN of its name within NAME_MATCH_M whose MMSI no register buoy has and no
     other buoy matches by name."""
@@ -184,14 +186,16 @@ def match_atons(buoys: Sequence[StoredBuoy], atons: Sequence[dict[str, Any]]) ->
             and distance_m((buoy.lat, buoy.lon), (aton["lat"], aton["lon"])) <= NAME_MATCH_M
         ]  # fmt: skip
     wanted = Counter(aton["mmsi"] for found in candidates.values() for aton in found)
-    ambiguous = []
+    ambiguous = {}
     for buoy_id, found in candidates.items():
         if len(found) == 1 and wanted[found[0]["mmsi"]] == 1:
             matches[buoy_id] = AisMatch(found[0], "name")
+        elif len(found) > 1:
+            mmsis = ", ".join(sorted(str(aton["mmsi"]) for aton in found))
+            ambiguous[buoy_id] = f"{len(found)} AtoNs of its name within {NAME_MATCH_M:g} m ({mmsis}): set its MMSI"
         elif found:
-            mmsis = ", ".join(sorted({str(aton["mmsi"]) for aton in found}))
-            ambiguous.append(f"buoy {buoy_id!r}: its name matches AtoNs {mmsis} that other buoys match too, or "
-                             f"several: set its MMSI (PATCH /buoys/{{id}})")  # fmt: skip
+            ambiguous[buoy_id] = (f"the AtoN of its name within {NAME_MATCH_M:g} m ({found[0]['mmsi']}) has another "
+                                  "buoy's name too: set its MMSI")  # fmt: skip
     return matches, ambiguous
 
 
@@ -254,6 +258,9 @@ class BuoyDetailOut(BuoyOut):
         "within a nautical mile of its charted position"
     )
     ais_match: Literal["mmsi", "name"] | None = Field(description="how `ais` was matched to this buoy")
+    ais_unmatched: str | None = Field(
+        default=None, description="why no AtoN is matched though some transmit its name (ambiguous: never guessed)"
+    )
 
 
 class RegisterImportOut(BaseModel):

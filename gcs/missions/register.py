@@ -135,11 +135,13 @@ class Register:
         history = [event_out(event) for event in await self._storage.buoy_events(buoy_id)]
         inspections = [event for event in history if event.kind == "inspection"]
         defects = [defect_out(defect) for defect in await self._storage.defects(buoy_id)]
-        match = (await self._matches()).get(buoy_id)
+        matches, unmatched = await self._matches()
+        match = matches.get(buoy_id)
         latest = inspections[-1] if inspections else None
         return BuoyDetailOut(**buoy_out(stored).model_dump(), latest_inspection=latest, defects=defects,
                              history=history, ais=None if match is None else match.aton,
-                             ais_match=None if match is None else match.by)  # fmt: skip
+                             ais_match=None if match is None else match.by,
+                             ais_unmatched=unmatched.get(buoy_id))  # fmt: skip
 
     async def set_mmsi(self, buoy_id: str, mmsi: int | None) -> BuoyOut:
         if not await self._storage.set_buoy_mmsi(buoy_id, mmsi):
@@ -161,7 +163,7 @@ class Register:
             inspection_alarm(stored[defect.buoy_id], defect)
             for defect in await self._storage.defects(code="off_station")
         ]
-        for buoy_id, match in (await self._matches(list(stored.values()))).items():
+        for buoy_id, match in (await self._matches(list(stored.values())))[0].items():
             buoy, aton = stored[buoy_id], match.aton
             at = (aton["lat"], aton["lon"])
             distance = None if None in at else distance_m((buoy.buoy.lat, buoy.buoy.lon), at)
@@ -170,13 +172,12 @@ class Register:
                 alarms.append(alarm)
         return alarms
 
-    async def _matches(self, stored: list[StoredBuoy] | None = None) -> dict[str, AisMatch]:
-        """Each register buoy's AtoN of the feed (gcs.domain.register.match_atons), by register id."""
+    async def _matches(self, stored: list[StoredBuoy] | None = None) -> tuple[dict[str, AisMatch], dict[str, str]]:
+        """Each register buoy's AtoN of the feed, and why an ambiguous one has none (match_atons), by register id."""
         atons = [row.model_dump(mode="json") for row in self._ais.atons().atons]
         if not atons:
-            return {}
-        matches, _ = match_atons(await self._storage.buoys() if stored is None else stored, atons)
-        return matches
+            return {}, {}
+        return match_atons(await self._storage.buoys() if stored is None else stored, atons)
 
     async def _stored(self, buoy_id: str) -> StoredBuoy:
         stored = await self._storage.buoy(buoy_id)
