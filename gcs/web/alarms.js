@@ -56,9 +56,14 @@ function alarmItem(line, onSelect) {
       title: "centre the map on this buoy",
     },
     h("b", { class: "alarm-name", "data-testid": "alarm-name" }, line.name),
-    h("span", { "data-testid": "alarm-source" }, line.source),
+    h(
+      "span",
+      {},
+      h("span", { "data-testid": "alarm-source" }, line.source),
+      " · ",
+      h("span", { "data-testid": "alarm-at" }, line.at),
+    ),
     h("span", { "data-testid": "alarm-distance" }, line.distance),
-    h("span", { "data-testid": "alarm-at" }, line.at),
     h("span", { class: "alarm-why", "data-testid": "alarm-why" }, line.why),
   );
   button.addEventListener("click", () => onSelect(alarm));
