@@ -27,6 +27,7 @@ from test_web_browser import ARTIFACTS, open_page
 
 from bench.processes import free_port
 from gcs.domain.inspection import InspectionRecord
+from gcs.domain.register import RegisterBuoy
 from gcs.storage import open_storage
 from uavcore.ais import AtonReport, encode_aton_report
 
@@ -232,6 +233,121 @@ def test_the_page_draws_the_ais_atons_and_the_register_and_shows_a_buoys_record(
         expect(history.nth(1)).to_contain_text(re.compile(r"inspected · mission \d+ · defect"))
         expect(history.nth(2)).to_contain_text("registered")
         page.screenshot(path=str(ARTIFACTS / "web_register_buoy.png"))
+        assert page.evaluate("window.injected") is None
+        browser.close()
+    assert errors == []
+
+
+# ----- the register's off-station alarms on the page
+# a register buoy named with markup (a chart's names are free text), its AtoN the one reporting itself off position
+ALARM_BUOY_ID = "ALARM-MARKUP-1"
+ALARM_BUOY_NAME = '<img src=x onerror="window.injected=1"><b>Bad</b> buoy & co'
+
+
+@dataclass(frozen=True)
+class AlarmScene:
+    scene: Scene
+    alarms: list[dict]  # GET /alarms' rows once every AtoN is heard
+    inspection: dict  # the target's inspection alarm
+    ais: dict  # the markup-named buoy's AIS alarm
+
+
+@pytest.fixture
+def register_with_alarms(register_with_ais, tmp_path) -> AlarmScene:
+    """register_with_ais's scene (the target's inspection opened an off_station defect: an inspection alarm) and a
+    register buoy charted where the off-position AtoN reports itself, with that AtoN's MMSI: an AIS alarm."""
+    scene = register_with_ais
+    off = scene.atons["off"]
+    storage = open_storage(tmp_path / "gcs.sqlite")
+    try:
+        storage.upsert_buoys([RegisterBuoy(ALARM_BUOY_ID, off.lat, off.lon, name=ALARM_BUOY_NAME, kind="special")])
+    finally:
+        storage.close()
+    request(f"{scene.url}/buoys/{ALARM_BUOY_ID}", "PATCH", json.dumps({"mmsi": off.mmsi}).encode())
+    deadline = time.monotonic() + 30
+    mmsis = {aton.mmsi for aton in scene.atons.values()}
+    while not mmsis <= {aton["mmsi"] for aton in request(f"{scene.url}/ais/atons")["atons"]}:
+        assert time.monotonic() < deadline, "the service never heard every AtoN"
+        time.sleep(0.1)
+    alarms = request(f"{scene.url}/alarms")
+    by = {(alarm["source"], alarm["buoy"]): alarm for alarm in alarms}
+    return AlarmScene(scene, alarms, by["inspection", scene.target["id"]], by["ais", ALARM_BUOY_ID])
+
+
+def wait_in_map(page, element, centred: bool) -> None:
+    """Waits until the element is within the map's view, centred: its centre the map's (within 2 px)."""
+    page.wait_for_function(
+        """([el, map, centred]) => {
+            const a = el.getBoundingClientRect(), b = map.getBoundingClientRect();
+            if (centred) return Math.abs(a.x + a.width / 2 - (b.x + b.width / 2)) <= 2
+                && Math.abs(a.y + a.height / 2 - (b.y + b.height / 2)) <= 2;
+            return b.left <= a.left && a.right <= b.right && b.top <= a.top && a.bottom <= b.bottom;
+        }""",
+        arg=[element.element_handle(), page.locator("#map").element_handle(), centred],
+        timeout=10_000,
+    )
+
+
+def test_the_page_lists_the_off_station_alarms_and_a_click_shows_the_buoy(register_with_alarms):
+    scene = register_with_alarms.scene
+    target, off = scene.target, scene.atons["off"]
+    errors: list[str] = []
+    with sync_playwright() as p:
+        browser, page = open_page(p, errors)
+        page.on("console", lambda m: errors.append(m.text) if re.search("Content Security|injected", m.text) else None)
+        page.goto(scene.url)
+        expect(page.locator(".buoy-icon")).to_have_count(2, timeout=30_000)
+
+        # both alarms, as text, with the count in the heading
+        section = page.get_by_test_id("alarms")
+        count = len(register_with_alarms.alarms)  # the target's AtoN may raise one too: reported beside it
+        expect(section.get_by_test_id("alarm-count")).to_have_text(str(count), timeout=30_000)
+        expect(section.get_by_test_id("alarm")).to_have_count(count)
+        expect(section.get_by_test_id("alarms-empty")).to_have_count(0)
+        stamp = re.compile(r"^\d{4}-\d\d-\d\d \d\d:\d\d UTC$")
+
+        inspection = section.locator(f"[data-testid=alarm][data-source=inspection][data-buoy='{target['id']}']")
+        mission = register_with_alarms.inspection["mission_id"]
+        expect(inspection.get_by_test_id("alarm-name")).to_have_text(target["name"])
+        expect(inspection.get_by_test_id("alarm-source")).to_have_text(f"inspection, mission {mission}")
+        expect(inspection.get_by_test_id("alarm-distance")).to_have_text(
+            f"7.3 m from its charted position, swing radius {target['swing_radius_m']:.1f} m"
+        )
+        expect(inspection.get_by_test_id("alarm-at")).to_have_text(stamp)
+        expect(inspection.get_by_test_id("alarm-why")).to_have_text(
+            f"mission {mission}'s inspection saw it off station (open)"
+        )
+
+        ais = section.locator(f"[data-testid=alarm][data-source=ais][data-buoy='{ALARM_BUOY_ID}']")
+        name = ais.get_by_test_id("alarm-name")
+        expect(name).to_have_text(ALARM_BUOY_NAME)  # the markup as literal text
+        assert name.locator("*").count() == 0
+        expect(ais.get_by_test_id("alarm-source")).to_have_text(f"AIS, MMSI {off.mmsi}")
+        expect(ais.get_by_test_id("alarm-distance")).to_have_text(
+            f"{register_with_alarms.ais['distance_m']:.1f} m from its charted position, swing radius 5.0 m"
+        )
+        expect(ais.get_by_test_id("alarm-at")).to_have_text(stamp)
+        expect(ais.get_by_test_id("alarm-why")).to_have_text("the AtoN reports itself off position")
+        page.screenshot(path=str(ARTIFACTS / "web_alarms.png"))
+
+        # a click with the register overlay off: the map centred on the buoy (the mission's marker of it)
+        inspection.click()
+        wait_in_map(page, page.get_by_title(target["name"][:64], exact=True), centred=True)
+        expect(page.get_by_test_id("register-detail")).to_have_count(0)
+
+        # with the overlay on: centred on the buoy and its popup opened, its name as text
+        page.locator(".leaflet-control-layers").hover()
+        page.get_by_label("Register buoys").check()
+        expect(page.get_by_test_id("register-buoy")).to_have_count(317, timeout=30_000)
+        page.mouse.move(0, 0)
+        ais.click()
+        detail = page.get_by_test_id("register-detail")
+        expect(detail.locator("h3")).to_have_text(ALARM_BUOY_NAME, timeout=10_000)
+        assert detail.locator("h3 *").count() == 0
+        expect(detail.get_by_test_id("register-ais")).to_contain_text(f"MMSI {off.mmsi}, matched by MMSI")
+        expect(detail.get_by_test_id("register-ais")).to_contain_text("off position")
+        wait_in_map(page, page.locator(f"[data-testid=register-buoy][data-id='{ALARM_BUOY_ID}']"), centred=False)
+        page.screenshot(path=str(ARTIFACTS / "web_alarms_buoy.png"))
         assert page.evaluate("window.injected") is None
         browser.close()
     assert errors == []

@@ -118,6 +118,12 @@ export class GcsApi {
     return this.request("GET", `/buoys/${encodeURIComponent(id)}`);
   }
 
+  // The register's off-station alarms (GET /alarms: AlarmOut), each with its evidence: an inspection's (its
+  // mission, the distance seen) or the AIS feed's (the AtoN's report), and why.
+  alarms() {
+    return this.request("GET", "/alarms");
+  }
+
   // name: track.geojson, plan, waypoints, report, inspections.csv or inspections.geojson
   missionFileUrl(id, name) {
     return `/missions/${encodeURIComponent(id)}/${name}`;

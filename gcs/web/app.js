@@ -1,8 +1,10 @@
 // The map page: place buoys, plan, fly, watch the vehicle live and each buoy's inspection, browse history. This
 // module wires the parts: api.js (the service), state.js (what is shown), map.js (Leaflet), charts.js (uPlot),
 // panel.js and history.js (the text around the map), inspections.js (the records fetched), findings.js (the
-// inspection list), gallery.js (a buoy's frames), and the map's overlays atons.js (the AIS AtoNs) and register.js
-// (the buoy register). Leaflet and uPlot are served locally (no CDN), so it works offline.
+// inspection list), gallery.js (a buoy's frames), the map's overlays atons.js (the AIS AtoNs) and register.js
+// (the buoy register), and alarms.js (the register's off-station alarms, in the panel). Leaflet and uPlot are served
+// locally (no CDN), so it works offline.
+import { AlarmList } from "./alarms.js";
 import { ApiError, GcsApi } from "./api.js";
 import { AtonLayer } from "./atons.js";
 import { FlightCharts } from "./charts.js";
@@ -19,6 +21,7 @@ import { buoyMarkings, buoysEditable, inspectionRows, state } from "./state.js";
 import { defineMissionStatus, isFinished, isUnderway } from "./status.js";
 
 const FALLBACK_DEPOT = { lat: 38.921, lon: 121.663 }; // when the service cannot tell the vehicle's home
+const ALARM_ZOOM = 16; // an alarm's buoy is shown at least this close: a buoy among the register's many
 
 const api = new GcsApi(panel.token);
 const map = new MissionMap("map");
@@ -166,6 +169,7 @@ const inspectionFeed = new InspectionFeed(
     state.inspectionsSeq += 1;
     relabelBuoys();
     refreshGallery(inspectionRows());
+    alarms.refresh(); // a record stored may have opened an off_station defect: its alarm
   },
   showRequestError,
 );
@@ -348,10 +352,23 @@ function wireControls() {
 
 // ----- the map's overlays: the AIS AtoNs (on at first: nothing to draw without an --ais feed) and the buoy
 // register (off at first: hundreds of a chart's buoys over the mission shown, and the view moves to them)
+const register = new RegisterLayer(map.map, api, showRequestError);
+
 function showOverlays() {
   map.addOverlay(new AtonLayer(() => api.atons(), showRequestError).layer, "AIS AtoNs", true);
-  map.addOverlay(new RegisterLayer(map.map, api, showRequestError).layer, "Register buoys", false);
+  map.addOverlay(register.layer, "Register buoys", false);
 }
+
+// ----- the register's off-station alarms: a click centres the map on the buoy (an alarm has no position: the
+// register overlay's, else GET /buoys/{id}) and, while the overlay is on, opens the buoy's popup
+const showAlarmBuoy = showingErrors(async (alarm) => {
+  const buoy = register.buoyById(alarm.buoy) ?? (await api.buoy(alarm.buoy));
+  // not animated: the popup's pan into view starts from the view it ends in
+  map.map.setView([buoy.lat, buoy.lon], Math.max(map.map.getZoom(), ALARM_ZOOM), { animate: false });
+  register.openBuoy(buoy);
+});
+
+const alarms = new AlarmList(() => api.alarms(), showAlarmBuoy, showRequestError);
 
 // ----- start: the service's mission states first (everything else refers to them), then centre on the depot
 // (the vehicle's home when it has reported one) and open on what matters: the mission flying now, else the
@@ -364,6 +381,7 @@ async function start() {
   showOverlays();
   setDepot(depot);
   wireControls();
+  alarms.start();
   api.openLiveStream(onLiveMessage); // the vehicles, a fleet's every one, as they move
   setInterval(pollMission, 1000);
   setInterval(() => {

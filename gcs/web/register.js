@@ -2,7 +2,8 @@
 // (style.css .register-buoy), ringed with a count badge while it has open defects, dimmed while its inspection is
 // overdue; a click opens its record (GET /buoys/{id}) in a popup: kind, light, last inspection, open defects, its
 // AIS AtoN and the latest history. Fetched when the overlay is turned on and every 30 s while it is on. Names,
-// lights and notes come from the chart and from operators: text nodes only.
+// lights and notes come from the chart and from operators: text nodes only. The alarms (alarms.js, through app.js)
+// take a buoy's position from the buoys it holds and open a buoy's popup with openBuoy().
 import { h } from "./dom.js";
 import { ageText } from "./atons.js";
 
@@ -29,7 +30,7 @@ export function isOverdue(buoy, now = Date.now()) {
 }
 
 // "2026-11-27 20:31 UTC" from the service's ISO times (anything else as it came)
-function when(iso) {
+export function when(iso) {
   const at = new Date(iso);
   return Number.isNaN(at.getTime()) ? String(iso) : `${at.toISOString().slice(0, 16).replace("T", " ")} UTC`;
 }
@@ -103,6 +104,7 @@ export class RegisterLayer {
     this.layer = L.layerGroup();
     this.timer = null;
     this.shownText = null; // the latest answer drawn, so that an unchanged one redraws nothing (an open popup stays)
+    this.shown = new Map(); // register id -> {buoy, marker}, as drawn
     this.seq = 0; // the latest request's number: a slow answer overtaken by a newer one is dropped
     this.layer.on("add", () => this.start());
     this.layer.on("remove", () => this.stop());
@@ -118,6 +120,26 @@ export class RegisterLayer {
     this.timer = null;
     this.layer.clearLayers();
     this.shownText = null;
+    this.shown.clear();
+  }
+
+  isOn() {
+    return this.timer !== null;
+  }
+
+  // The buoy (a BuoyOut) of this register id as drawn, or null (the overlay off, or its answer not in yet).
+  buoyById(id) {
+    const entry = this.shown.get(id);
+    return entry ? entry.buoy : null;
+  }
+
+  // While the overlay is on: the popup of the buoy ({id, name, lat, lon}: a BuoyOut, or a BuoyDetailOut), at its
+  // marker (at its charted position when not drawn yet). False when the overlay is off.
+  openBuoy(buoy) {
+    if (!this.isOn()) return false;
+    const entry = this.shown.get(buoy.id);
+    this.open(entry ? entry.buoy : buoy, entry ? entry.marker.getLatLng() : L.latLng(buoy.lat, buoy.lon));
+    return true;
   }
 
   async refresh(turnedOn) {
@@ -138,10 +160,12 @@ export class RegisterLayer {
 
   show(buoys) {
     this.layer.clearLayers();
+    this.shown.clear();
     for (const buoy of buoys) {
       const marker = L.marker([buoy.lat, buoy.lon], { icon: buoyIcon(buoy), title: buoy.name || buoy.id });
-      marker.on("click", () => this.open(buoy, marker));
+      marker.on("click", () => this.open(buoy, marker.getLatLng()));
       marker.addTo(this.layer);
+      this.shown.set(buoy.id, { buoy, marker });
     }
   }
 
@@ -154,8 +178,8 @@ export class RegisterLayer {
     this.map.fitBounds(L.latLngBounds(buoys.map((b) => [b.lat, b.lon])).pad(0.05));
   }
 
-  async open(buoy, marker) {
-    const popup = L.popup({ maxWidth: 360, maxHeight: 320 }).setLatLng(marker.getLatLng());
+  async open(buoy, latLng) {
+    const popup = L.popup({ maxWidth: 360, maxHeight: 320 }).setLatLng(latLng);
     popup.setContent(h("div", { class: "register-detail" }, `${buoy.name || buoy.id}: loading…`)).openOn(this.map);
     try {
       popup.setContent(buoyDetail(await this.api.buoy(buoy.id)));
