@@ -167,6 +167,14 @@ def test_a_mission_takes_its_buoys_from_the_register_where_ais_last_saw_them_and
     (index,) = [i for i in range(2) if plan.mark(i).register_id == seen_by_mmsi]
     assert plan.mark(index).charted_lat_lon == (marks[seen_by_mmsi]["lat"], marks[seen_by_mmsi]["lon"])
     assert plan.buoys_lat_lon[index] == pytest.approx(list(moved))
+    # the match is the register's, whatever the selection: once a buoy left out of it takes that AtoN's MMSI, the
+    # buoy of its name is no longer its (GET /buoys/{id} and a mission of that buoy alone agree)
+    claimer = next(i for i in sorted(marks) if i not in (seen_by_mmsi, seen_by_name, virtual))
+    client.patch(f"/buoys/{claimer}", json={"mmsi": MMSI + 2}, headers=TOKEN)
+    assert client.get(f"/buoys/{seen_by_name}").json()["ais_match"] is None
+    alone = {"depot": depot, "from_register": {"ids": [seen_by_name]}}
+    (flown,) = client.post("/plans", json=alone, headers=TOKEN).json()["buoys"]
+    assert (flown["lat"], flown["charted"]) == (by_name["lat"], None)
 
 
 def test_a_register_selection_that_names_nothing_flyable_is_a_422_naming_it(register):

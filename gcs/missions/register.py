@@ -73,7 +73,7 @@ class Register:
         if request.from_register is None:
             return request
         selected = await self._selected(request.from_register)
-        matches, _ = match_atons(selected, [row.model_dump(mode="json") for row in self._ais.atons().atons])
+        matches, _ = await self._matches()  # over the whole register: a buoy left out still claims its MMSI, its name
         given = {b.register_id for b in request.buoys if b.register_id is not None}
         errors += [(("body", "from_register"), f"buoy {s.buoy.id!r} is in `buoys` already") for s in selected
                    if s.buoy.id in given]  # fmt: skip
