@@ -7,6 +7,7 @@
 // alarm is app.js's: the map centred on the buoy, its register popup opened when that overlay is on. Names come from
 // charts and from the air: text nodes only.
 import { byId, h } from "./dom.js";
+import { Poller } from "./poll.js";
 import { when } from "./register.js";
 
 const POLL_MS = 30_000; // alarms follow inspections (minutes) and AtoN reports (every 3 minutes)
@@ -74,36 +75,19 @@ export class AlarmList {
   // fetchAlarms: () => a promise of GET /alarms' answer; onSelect(alarm) on a click on one; onError(error) when a
   // request fails
   constructor(fetchAlarms, onSelect, onError) {
-    this.fetchAlarms = fetchAlarms;
     this.onSelect = onSelect;
-    this.onError = onError;
     this.list = byId("alarm-list");
     this.count = byId("alarm-count");
-    this.timer = null;
-    this.seq = 0; // the latest request's number: a slow answer overtaken by a newer one is dropped
     this.shownText = null; // the lines drawn, so that an unchanged answer redraws nothing
-    document.addEventListener("visibilitychange", () => {
-      if (!document.hidden && this.timer !== null) this.refresh(); // back to the tab: what it missed
-    });
+    this.poller = new Poller(fetchAlarms, (alarms) => this.show(alarms), onError, POLL_MS);
   }
 
   start() {
-    this.refresh();
-    this.timer = setInterval(() => {
-      if (!document.hidden) this.refresh();
-    }, POLL_MS);
+    this.poller.start();
   }
 
-  async refresh() {
-    const seq = ++this.seq;
-    let alarms;
-    try {
-      alarms = await this.fetchAlarms();
-    } catch (error) {
-      if (seq === this.seq) this.onError(error); // the list shown stays
-      return;
-    }
-    if (seq === this.seq) this.show(alarms);
+  refresh() {
+    this.poller.poll();
   }
 
   show(alarms) {

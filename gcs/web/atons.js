@@ -3,6 +3,7 @@
 // (no current position), a virtual AtoN dashed (nothing physical is there), one off position in red (only where
 // the flag counts: off_position_valid). Its tooltip says the same in words. Names come from the air: text nodes.
 import { h, svg } from "./dom.js";
+import { Poller } from "./poll.js";
 
 const L = window.L;
 const POLL_MS = 10_000; // AtoNs report every 3 minutes: a 10 s poll shows a new report soon enough
@@ -57,42 +58,12 @@ function atonTooltip(aton, fetchedAt, staleAfterS) {
 export class AtonLayer {
   // fetchAtons: () => a promise of GET /ais/atons' answer; onError(error) when it fails
   constructor(fetchAtons, onError) {
-    this.fetchAtons = fetchAtons;
-    this.onError = onError;
     this.layer = L.layerGroup();
     this.markers = new Map(); // key (MMSI, name, rank among the same) -> {marker, look}
-    this.timer = null;
-    this.seq = 0; // the latest request's number: a slow answer overtaken by a newer one is dropped
-    this.layer.on("add", () => this.start());
-    this.layer.on("remove", () => this.stop());
-    document.addEventListener("visibilitychange", () => {
-      if (!document.hidden && this.timer !== null) this.refresh(); // back to the tab: what it missed
-    });
-  }
-
-  start() {
-    this.refresh();
-    this.timer = setInterval(() => {
-      if (!document.hidden) this.refresh();
-    }, POLL_MS);
-  }
-
-  stop() {
-    clearInterval(this.timer);
-    this.timer = null;
-  }
-
-  async refresh() {
-    const seq = ++this.seq;
-    let answer;
-    try {
-      answer = await this.fetchAtons();
-    } catch (error) {
-      if (seq === this.seq) this.onError(error);
-      return;
-    }
-    if (seq !== this.seq || this.timer === null) return; // overtaken, or turned off while in flight
-    this.show(answer.atons, answer.stale_after_s, Date.now());
+    const show = (answer) => this.show(answer.atons, answer.stale_after_s, Date.now());
+    this.poller = new Poller(fetchAtons, show, onError, POLL_MS);
+    this.layer.on("add", () => this.poller.start());
+    this.layer.on("remove", () => this.poller.stop());
   }
 
   // Each AtoN with a position: a marker moved and its icon replaced only when its look changed (an open tooltip

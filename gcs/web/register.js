@@ -1,11 +1,12 @@
 // The buoy register (GET /buoys) as a map overlay: a marker per register buoy in its IALA kind's colours
 // (style.css .register-buoy), ringed with a count badge while it has open defects, dimmed while its inspection is
 // overdue; a click opens its record (GET /buoys/{id}) in a popup: kind, light, last inspection, open defects, its
-// AIS AtoN and the latest history. Fetched when the overlay is turned on and every 30 s while it is on. Names,
-// lights and notes come from the chart and from operators: text nodes only. The alarms (alarms.js, through app.js)
-// take a buoy's position from the buoys it holds and open a buoy's popup with openBuoy().
+// AIS AtoN and the latest history. Fetched when the overlay is turned on and every 30 s while it is on and the tab
+// is shown (poll.js). Names, lights and notes come from the chart and from operators: text nodes only. The alarms
+// (alarms.js, through app.js) take a buoy's position from the buoys it holds and open a buoy's popup with openBuoy().
 import { h } from "./dom.js";
 import { ageText } from "./atons.js";
+import { Poller } from "./poll.js";
 
 const L = window.L;
 const POLL_MS = 30_000; // the register changes as missions land and operators act: minutes, not seconds
@@ -102,29 +103,22 @@ export class RegisterLayer {
     this.api = api;
     this.onError = onError;
     this.layer = L.layerGroup();
-    this.timer = null;
     this.shownText = null; // the latest answer drawn, so that an unchanged one redraws nothing (an open popup stays)
     this.shown = new Map(); // register id -> {buoy, marker}, as drawn
-    this.seq = 0; // the latest request's number: a slow answer overtaken by a newer one is dropped
-    this.layer.on("add", () => this.start());
+    this.poller = new Poller(() => api.buoys(), (buoys, turnedOn) => this.draw(buoys, turnedOn), onError, POLL_MS);
+    this.layer.on("add", () => this.poller.start(true));
     this.layer.on("remove", () => this.stop());
   }
 
-  start() {
-    this.refresh(true);
-    this.timer = setInterval(() => this.refresh(false), POLL_MS);
-  }
-
   stop() {
-    clearInterval(this.timer);
-    this.timer = null;
+    this.poller.stop();
     this.layer.clearLayers();
     this.shownText = null;
     this.shown.clear();
   }
 
   isOn() {
-    return this.timer !== null;
+    return this.poller.running;
   }
 
   // The buoy (a BuoyOut) of this register id as drawn, or null (the overlay off, or its answer not in yet).
@@ -142,16 +136,8 @@ export class RegisterLayer {
     return true;
   }
 
-  async refresh(turnedOn) {
-    const seq = ++this.seq;
-    let buoys;
-    try {
-      buoys = await this.api.buoys();
-    } catch (error) {
-      if (seq === this.seq) this.onError(error);
-      return;
-    }
-    if (seq !== this.seq || this.timer === null) return; // overtaken, or turned off while in flight
+  // An answer of GET /buoys: drawn when it changed; turnedOn: the overlay's first, which may move the view
+  draw(buoys, turnedOn) {
     const text = JSON.stringify(buoys);
     if (text !== this.shownText) this.show(buoys);
     this.shownText = text;
