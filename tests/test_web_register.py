@@ -8,6 +8,7 @@ register overlay draws the chart's buoys and a click on one shows its record and
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import re
@@ -21,7 +22,7 @@ from pathlib import Path
 
 import pytest
 from inspected_missions import inspection_result
-from playwright.sync_api import expect, sync_playwright
+from playwright.sync_api import Page, expect, sync_playwright
 from service_process import serving
 from test_web_browser import ARTIFACTS, open_page
 
@@ -170,17 +171,27 @@ def tooltip_of(page, aton: Aton):
     return page.get_by_test_id("aton-tooltip").filter(has_text=f"MMSI {aton.mmsi},")
 
 
-def test_the_page_draws_the_ais_atons_and_the_register_and_shows_a_buoys_record(register_with_ais):
-    scene = register_with_ais
-    atons, target = scene.atons, scene.target
+@contextlib.contextmanager
+def mission_page(scene: Scene) -> Iterator[Page]:
+    """Chromium on the scene's page, which opens on its mission: its two buoys, the view fitted to them. Once the
+    test's steps are done, the page must have thrown no error, broken no Content-Security-Policy rule and run no
+    injected script."""
     errors: list[str] = []
     with sync_playwright() as p:
         browser, page = open_page(p, errors)
         page.on("console", lambda m: errors.append(m.text) if re.search("Content Security|injected", m.text) else None)
         page.goto(scene.url)
-        # the page opens on the mission: its two buoys, the view fitted to them
         expect(page.locator(".buoy-icon")).to_have_count(2, timeout=30_000)
+        yield page
+        assert page.evaluate("window.injected") is None
+        browser.close()
+    assert errors == []
 
+
+def test_the_page_draws_the_ais_atons_and_the_register_and_shows_a_buoys_record(register_with_ais):
+    scene = register_with_ais
+    atons, target = scene.atons, scene.target
+    with mission_page(scene) as page:
         # every AtoN with a position, each in its look; the one heard once turns stale (hollow) at a later poll
         expect(page.get_by_test_id("aton")).to_have_count(len(atons), timeout=30_000)
         expect(aton_marker(page, atons["off"])).to_have_class(re.compile(r"\boff-position\b"))
@@ -233,9 +244,6 @@ def test_the_page_draws_the_ais_atons_and_the_register_and_shows_a_buoys_record(
         expect(history.nth(1)).to_contain_text(re.compile(r"inspected · mission \d+ · defect"))
         expect(history.nth(2)).to_contain_text("registered")
         page.screenshot(path=str(ARTIFACTS / "web_register_buoy.png"))
-        assert page.evaluate("window.injected") is None
-        browser.close()
-    assert errors == []
 
 
 # ----- the register's off-station alarms on the page
@@ -291,13 +299,7 @@ def wait_in_map(page, element, centred: bool) -> None:
 def test_the_page_lists_the_off_station_alarms_and_a_click_shows_the_buoy(register_with_alarms):
     scene = register_with_alarms.scene
     target, off = scene.target, scene.atons["off"]
-    errors: list[str] = []
-    with sync_playwright() as p:
-        browser, page = open_page(p, errors)
-        page.on("console", lambda m: errors.append(m.text) if re.search("Content Security|injected", m.text) else None)
-        page.goto(scene.url)
-        expect(page.locator(".buoy-icon")).to_have_count(2, timeout=30_000)
-
+    with mission_page(scene) as page:
         # both alarms, as text, with the count in the heading
         section = page.get_by_test_id("alarms")
         count = len(register_with_alarms.alarms)  # the target's AtoN may raise one too: reported beside it
@@ -348,6 +350,3 @@ def test_the_page_lists_the_off_station_alarms_and_a_click_shows_the_buoy(regist
         expect(detail.get_by_test_id("register-ais")).to_contain_text("off position")
         wait_in_map(page, page.locator(f"[data-testid=register-buoy][data-id='{ALARM_BUOY_ID}']"), centred=False)
         page.screenshot(path=str(ARTIFACTS / "web_alarms_buoy.png"))
-        assert page.evaluate("window.injected") is None
-        browser.close()
-    assert errors == []
