@@ -24,6 +24,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
+from gcs.domain.aton_table import distance_m
 from gcs.domain.buoy_detection import BuoyDetection, ChartedBuoy
 from gcs.domain.camera_geometry import FrameGeotag
 from gcs.domain.light_reading import read_light
@@ -85,11 +86,8 @@ class BuoyInspection(BaseModel):
 def against_target(result: BuoyInspection, target: Sequence[float]) -> BuoyInspection:
     """The inspection with the position the mission looked for the buoy at, and the observed one's distance from it
     (the station is judged against the chart either way)."""
-    at = LatLon(lat=target[0], lon=target[1])
-    offset = None
-    if result.observed is not None:
-        east, north = LocalFrame(at.lat, at.lon).project(np.array([[result.observed.lat, result.observed.lon]]))[0]
-        offset = round(math.hypot(east, north), 2)
+    at, seen = LatLon(lat=target[0], lon=target[1]), result.observed
+    offset = None if seen is None else round(distance_m((at.lat, at.lon), (seen.lat, seen.lon)), 2)
     return result.model_copy(update={"target": at, "offset_from_target_m": offset})
 
 

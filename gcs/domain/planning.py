@@ -105,6 +105,12 @@ class Plan:
         """Buoy `index`'s charted kind, light and swing radius (all unknown when none were given)."""
         return self.marks[index] if self.marks else BuoyMark()
 
+    def charted_lat_lon(self, index: int) -> tuple[float, float]:
+        """Where the chart has buoy `index`: its mark's charted position when the mission looks for it elsewhere (its
+        latest AIS position), else where the mission looks (buoys_lat_lon)."""
+        lat, lon = self.mark(index).charted_lat_lon or self.buoys_lat_lon[index]
+        return lat, lon
+
     def sortie_orders(self) -> list[list[int]]:
         """Each sortie's buoys in flying order: one sortie (the whole tour) unless the plan splits it."""
         return [list(s) for s in self.sorties] if self.sorties else [list(self.order)]

@@ -88,7 +88,7 @@ def not_inspected(plan: Plan, index: int, reason: str) -> InspectionRecord:
 
 def charted_record(plan: Plan, index: int) -> InspectedBuoy:
     mark = plan.mark(index)
-    lat, lon = mark.charted_lat_lon or plan.buoys_lat_lon[index]
+    lat, lon = plan.charted_lat_lon(index)
     return InspectedBuoy(lat=lat, lon=lon, kind=mark.kind or "unknown", light=mark.light,
                          swing_radius_m=mark.swing_radius_m, region=mark.region)  # fmt: skip
 
@@ -398,7 +398,7 @@ def _charted(plan: Plan, index: int, where_sought: bool = False) -> ChartedBuoy 
     mark = plan.mark(index)
     if mark.kind is None:
         return None
-    lat, lon = plan.buoys_lat_lon[index] if where_sought else (mark.charted_lat_lon or plan.buoys_lat_lon[index])
+    lat, lon = plan.buoys_lat_lon[index] if where_sought else plan.charted_lat_lon(index)
     return ChartedBuoy(lat, lon, mark.kind, mark.light, mark.swing_radius_m, mark.region)
 
 
