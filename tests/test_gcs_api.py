@@ -7,6 +7,7 @@ import asyncio
 import gc
 import json
 import time
+from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
@@ -24,6 +25,7 @@ from planner import plan_tour
 from planner.scenario import reference_scenario
 from uavcore.geodesy import DEFAULT_HOME
 
+REPO = Path(__file__).resolve().parents[1]
 SCENARIO = reference_scenario(1)
 BUOYS = [{"lat": lat, "lon": lon} for lat, lon in SCENARIO.buoys_lat_lon]
 
@@ -291,7 +293,12 @@ def test_import_csv_and_geojson(client):
         "region": None,
     }
     # chart and warnings: an S-57 cell's (tests/test_gcs_chart_import.py)
-    assert csv_body == {"buoys": [{"id": "A", "lat": 38.92, "lon": 121.66} | uncharted], "chart": None, "warnings": []}
+    assert csv_body == {
+        "buoys": [{"id": "A", "lat": 38.92, "lon": 121.66} | uncharted],
+        "depot": None,
+        "chart": None,
+        "warnings": [],
+    }
     charted = {"kind": "port", "light": "Fl(2) R 6s", "swing_radius_m": 8.0}
     faults = {"shows": "dark", "offset_m": [20.0, 0.0]}  # a world file's: not what the chart says, left out
     collection = {
@@ -321,6 +328,30 @@ def test_an_imported_buoy_whose_charted_light_is_not_a_character_is_422_naming_i
     response = client.post("/imports?filename=b.geojson", content=json.dumps(feature))
     assert response.status_code == 422
     assert "buoy 1 (P1): light: " in errors_of(response)[0][1]
+
+
+def test_the_example_geojson_imports_and_plans_as_13_buoys_from_its_depot(client):
+    """examples/reference_buoys.geojson marks its depot with role "depot": imported, it is the answer's depot, not
+    a 14th buoy; posted as a mission's buoys, it is the plan's depot (the request names none)."""
+    text = (REPO / "examples" / "reference_buoys.geojson").read_text()
+    depot = {"lat": 38.921, "lon": 121.663}
+    imported = client.post("/imports?filename=reference_buoys.geojson", content=text).json()
+    assert len(imported["buoys"]) == 13 and imported["depot"] == depot
+    plan = client.post("/plans", json={"buoys": json.loads(text)})
+    assert plan.status_code == 200, plan.text
+    assert len(plan.json()["buoys"]) == 13 and plan.json()["depot"] == depot
+    # that depot is the vehicle's home too: a file's depot elsewhere is where that plan starts
+    moved = json.loads(text)
+    moved["features"][0]["geometry"]["coordinates"] = [121.665, 38.922]
+    assert client.post("/plans", json={"buoys": moved}).json()["depot"] == {"lat": 38.922, "lon": 121.665}
+    assert client.post("/plans", json={"buoys": moved, "depot": depot}).json()["depot"] == depot  # the request's
+    example = client.post("/plans", json=json.loads((REPO / "examples" / "reference_mission.json").read_text()))
+    assert example.json()["depot"] == depot  # the two example files: one mission
+
+    def places(answer):  # the GeoJSON has 8 decimals (1 mm), the mission file all of them
+        return [c for b in sorted(answer.json()["buoys"], key=lambda b: b["id"]) for c in (b["lat"], b["lon"])]
+
+    assert places(example) == pytest.approx(places(plan), abs=1e-7)
 
 
 def test_import_errors_are_422_with_the_reason(client):

@@ -336,12 +336,16 @@ def test_a_cell_may_be_larger_than_other_bodies_up_to_its_own_limit(tmp_path, ce
     with make_client(tmp_path, max_chart_bytes=1 << 20) as c:
         answer = c.post("/imports?filename=x.000", content=cell_bytes)
         assert answer.status_code == 413
-        assert answer.json() == {"detail": f"the request body is larger than {1 << 20} bytes"}
+        assert answer.json() == {
+            "detail": [
+                {"type": "too_large", "loc": ["body"], "msg": f"the request body is larger than {1 << 20} bytes"}
+            ]
+        }
     with make_client(tmp_path, max_body_bytes=4096) as c:
         assert c.post("/imports?filename=x.000", content=cell_bytes).status_code == 200  # 3.5 MB: under 5 MiB
         csv = b"lat,lon\n" + b"38.9,-76.4\n" * 500
         assert c.post("/imports?filename=b.csv", content=csv).json() == {
-            "detail": "the request body is larger than 4096 bytes"
+            "detail": [{"type": "too_large", "loc": ["body"], "msg": "the request body is larger than 4096 bytes"}]
         }
 
 

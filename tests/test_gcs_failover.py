@@ -69,7 +69,8 @@ def test_the_standby_refuses_to_fly_and_takes_over_the_mission_when_the_owner_is
     ):
         refused = standby.client.post(path, json=body)
         assert refused.status_code == 503, (path, refused.text)
-        assert "stand-by" in refused.json()["detail"] and "'gcs-a'" in refused.json()["detail"]
+        (problem,) = refused.json()["detail"]
+        assert problem["type"] == "unavailable" and "stand-by" in problem["msg"] and "'gcs-a'" in problem["msg"]
         assert int(refused.headers["Retry-After"]) >= 1
     assert standby.get("/missions") == []  # reads work
     with connect(str(standby.client.base_url.copy_with(scheme="ws", path="/ws"))) as live:

@@ -56,7 +56,10 @@ def test_the_service_holds_a_link_per_vehicle_and_lists_the_fleet(tmp_path, vehi
         assert one["sysid"] == 2 and one["connected"] and one["autopilot"] == "PX4"
         assert client.get("/vehicle").json()["sysid"] == 1  # the single-vehicle view is the first
         missing = client.get("/vehicles/9")
-        assert missing.status_code == 404 and "9" in missing.json()["detail"]
+        assert missing.status_code == 404
+        assert missing.json()["detail"] == [
+            {"type": "not_found", "loc": ["path", "sysid"], "msg": "no vehicle with system id 9"}
+        ]
         assert client.get("/vehicles/0").status_code == 422  # not a system id
 
 
@@ -209,6 +212,16 @@ def test_a_fleet_mission_shares_the_buoys_flies_each_share_at_its_layer_and_comp
         bad = client.post("/missions", json={"vehicles": [1, 7], "buoys": buoys, "battery": {"reserve_pct": 30}})
         assert bad.status_code == 422
         assert {tuple(e["loc"]) for e in bad.json()["detail"]} == {("body", "battery"), ("body", "vehicles", 1)}
+        # the preview (POST /plans): the same sharing, nothing stored
+        preview = client.post("/plans", json={"vehicles": "fleet", "buoys": buoys, "layer_gap_m": 4.0})
+        assert preview.status_code == 200, preview.text
+        shares = preview.json()["fleet"]["shares"]
+        assert sorted(b for share in shares for b in share["buoys"]) == list(range(9))
+        assert all(share["altitude_m"] == 5.0 + 4.0 * (share["sysid"] - 1) for share in shares)
+        for share in shares:  # each from its own home, and back
+            home = pytest.approx(list(homes[share["sysid"]][:2]), abs=1e-6)
+            assert share["route"][0] == home and share["route"][-1] == home
+        assert client.get("/missions").json() == []
         created = client.post("/missions", json={"vehicles": "fleet", "buoys": buoys, "layer_gap_m": 4.0})
         assert created.status_code == 201, created.text
         fleet_id = created.json()["id"]

@@ -4,7 +4,9 @@ progress from its parts', and how it ends."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
+from pathlib import Path
 
 import pytest
 from stored_missions import FLIGHT, PLAN
@@ -16,6 +18,8 @@ from gcs.missions.fleet_missions import Separation, fleet_ending, fleet_vehicles
 from gcs.missions.validation import RequestInvalidError
 from gcs.settings import Limits
 from gcs.storage import MissionRecord
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 def test_each_minimum_is_taken_on_its_own_over_every_pair_and_instant():
@@ -86,3 +90,14 @@ def test_a_fleet_request_names_known_vehicles_once_and_keeps_its_layers_within_t
         ("body", "vehicles", 2),
         ("body", "layer_gap_m"),
     ]
+
+
+@pytest.mark.parametrize("example", ["reference_fleet_mission.json", "reference_buoys.geojson"])
+def test_the_example_files_make_a_fleet_request_the_fleet_takes(example):
+    """The fleet example (the reference buoys, `vehicles: fleet`, no depot) and the example GeoJSON as a fleet's
+    buoys (its depot feature is not the fleet's: the vehicles fly from their homes) are fleet requests it flies."""
+    document = json.loads((REPO / "examples" / example).read_text())
+    body = document if "vehicles" in document else {"buoys": document, "vehicles": "fleet"}
+    request = MissionRequest.model_validate(body)
+    assert (len(request.buoys), request.depot) == (13, None)
+    assert fleet_vehicles(request, [1, 2, 3], Limits()) == [1, 2, 3]

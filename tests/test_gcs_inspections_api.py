@@ -133,7 +133,7 @@ def test_deleting_a_mission_takes_its_frames_and_records_and_a_flying_one_is_ref
     storage.set_status(second, "flying")
     storage.close()
     refused = client.delete(f"/missions/{fleet}")
-    assert refused.status_code == 409 and f"mission {second} is flying" in refused.json()["detail"]
+    assert refused.status_code == 409 and f"mission {second} is flying" in refused.json()["detail"][0]["msg"]
     assert client.get(f"/missions/{fleet}/inspections").status_code == 200
 
 

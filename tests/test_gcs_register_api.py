@@ -245,5 +245,6 @@ def test_bad_input_is_a_422_naming_the_field_and_an_unknown_id_a_404(register):
     closing = {"state": "closed", "note": "x"}
     assert client.get("/buoys/NOPE").status_code == 404
     missing = client.patch(f"/buoys/{buoy}/defects/999", json=closing, headers=TOKEN)
-    assert (missing.status_code, missing.json()) == (404, {"detail": f"buoy '{buoy}' has no defect 999"})
+    problem = {"type": "not_found", "loc": ["path", "defect_id"], "msg": f"buoy '{buoy}' has no defect 999"}
+    assert (missing.status_code, missing.json()) == (404, {"detail": [problem]})
     assert client.patch("/buoys/NOPE/defects/1", json=closing, headers=TOKEN).status_code == 404

@@ -248,7 +248,9 @@ def test_a_body_over_the_limit_is_413_whether_announced_or_streamed(tmp_path):
         assert len(big) > 4096
         announced = c.post("/plans", content=big, headers={"Content-Type": "application/json"})
         assert announced.status_code == 413
-        assert announced.json() == {"detail": "the request body is larger than 4096 bytes"}
+        assert announced.json() == {
+            "detail": [{"type": "too_large", "loc": ["body"], "msg": "the request body is larger than 4096 bytes"}]
+        }
         assert_locked_down(announced)
         streamed = c.post(
             "/plans",

@@ -55,7 +55,8 @@ ARGS = [
     "--disable-sync",
     "--no-first-run",
 ]
-ARTIFACTS = Path(__file__).resolve().parent.parent / "test-artifacts"
+REPO = Path(__file__).resolve().parent.parent
+ARTIFACTS = REPO / "test-artifacts"
 HOSTILE = "<img src=x onerror=window.injected=1>"
 STATUS_PROBE = """async () => {
     const { MissionStatus } = await import("/web/status.js");
@@ -203,6 +204,18 @@ def test_place_plan_and_fly_in_the_browser(stack):
         page.locator("#history-rows button", has_text="show").click()
         expect(page.locator(".buoy-icon.visited")).to_have_count(4)
         expect(page.locator(".buoy-icon")).to_have_count(4)
+
+        # the project's example file: 13 buoys and its depot (the feature whose role is depot), planned as such
+        page.get_by_role("button", name="Clear").click()
+        page.locator("#import").set_input_files(str(REPO / "examples" / "reference_buoys.geojson"))
+        expect(page.locator("#message")).to_contain_text("imported 13 buoys and the depot")
+        expect(page.locator(".buoy-icon")).to_have_count(13)
+        with page.expect_response(lambda r: r.url.endswith("/plans")) as answer:
+            page.get_by_role("button", name="Plan").click()
+        plan = answer.value.json()
+        assert answer.value.status == 200 and len(plan["buoys"]) == 13
+        assert plan["depot"] == {"lat": 38.921, "lon": 121.663}
+        expect(summary).to_contain_text("% shorter")
         browser.close()
     assert errors == []
 

@@ -5,37 +5,27 @@ from __future__ import annotations
 import asyncio
 import gc
 import logging
-import math
 import time
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
 import xstatic.pkg.leaflet as leaflet
-from fastapi import FastAPI, Request
-from fastapi.exception_handlers import http_exception_handler
-from fastapi.exceptions import RequestValidationError
+from fastapi import FastAPI
 from fastapi.middleware.cors import CORSMiddleware
-from fastapi.responses import FileResponse, JSONResponse
+from fastapi.responses import FileResponse
 from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
-from starlette.exceptions import HTTPException as StarletteHTTPException
-from starlette.responses import Response
 
 from gcs.api.body_limit import BodyLimitMiddleware
+from gcs.api.errors import install_error_handlers
 from gcs.api.http_headers import SecurityHeadersMiddleware
 from gcs.api.routes import ais, buoy_files, buoys, inspections, live, missions, plans, vehicle
-from gcs.domain.buoy_files import BuoyFileError
-from gcs.missions.lifecycle import MissionConflictError
-from gcs.missions.ownership import NotOwnerError
-from gcs.missions.register import BuoyNotFoundError
-from gcs.missions.service import FrameNotFoundError, MissionNotFoundError, MissionService, VehicleNotFoundError
-from gcs.missions.validation import RequestInvalidError
+from gcs.missions.service import MissionService
 from gcs.settings import Settings
 from gcs.storage import open_storage
 from gcs.storage.off_loop import AsyncStorage
 from gcs.vehicle.connection import TransportHub
 from gcs.vehicle.link import LinkManager
-from planner.errors import PlannerError
 from planner.warmup import warm_up
 from uavcore.mavlink import parse_signing_key
 
@@ -51,66 +41,6 @@ async def warm_up_planner() -> float:
     started = time.perf_counter()
     await asyncio.to_thread(warm_up)
     return time.perf_counter() - started
-
-
-def _unprocessable(errors: list[tuple[tuple, str]], types: list[str] | None = None) -> JSONResponse:
-    """422 in the shape FastAPI gives its own validation errors: {"detail": [{type, loc, msg}]}."""
-    types = types or ["value_error"] * len(errors)
-    detail = [{"type": kind, "loc": list(loc), "msg": msg} for (loc, msg), kind in zip(errors, types, strict=True)]
-    return JSONResponse({"detail": detail}, status_code=422)
-
-
-def _install_error_handlers(app: FastAPI) -> None:
-    @app.exception_handler(RequestValidationError)
-    async def invalid_body(_: Request, error: RequestValidationError) -> JSONResponse:
-        # FastAPI's default echoes the input, which cannot be encoded when it is NaN or Infinity: a 500.
-        return _unprocessable(
-            [(tuple(e["loc"]), e["msg"]) for e in error.errors()], [e["type"] for e in error.errors()]
-        )
-
-    @app.exception_handler(StarletteHTTPException)
-    async def http_error(request: Request, error: StarletteHTTPException) -> Response:
-        if error.status_code == 400:  # FastAPI's answer to a body it cannot decode (not UTF-8): bad input too
-            return _unprocessable([(("body",), "the body is not JSON in UTF-8")], ["json_invalid"])
-        return await http_exception_handler(request, error)
-
-    @app.exception_handler(RequestInvalidError)
-    async def request_invalid(_: Request, error: RequestInvalidError) -> JSONResponse:
-        return _unprocessable(error.errors)
-
-    @app.exception_handler(PlannerError)
-    async def planner_error(_: Request, error: PlannerError) -> JSONResponse:
-        return _unprocessable([(("body", "buoys"), str(error))])
-
-    @app.exception_handler(BuoyFileError)
-    async def buoy_file_error(_: Request, error: BuoyFileError) -> JSONResponse:
-        return _unprocessable([(("body",), str(error))])
-
-    @app.exception_handler(MissionNotFoundError)
-    async def not_found(_: Request, error: MissionNotFoundError) -> JSONResponse:
-        return JSONResponse({"detail": f"no mission {error.args[0]}"}, status_code=404)
-
-    @app.exception_handler(FrameNotFoundError)
-    async def no_frame(_: Request, error: FrameNotFoundError) -> JSONResponse:
-        return JSONResponse({"detail": error.args[0]}, status_code=404)
-
-    @app.exception_handler(BuoyNotFoundError)
-    async def no_buoy(_: Request, error: BuoyNotFoundError) -> JSONResponse:
-        return JSONResponse({"detail": error.args[0]}, status_code=404)
-
-    @app.exception_handler(VehicleNotFoundError)
-    async def no_vehicle(_: Request, error: VehicleNotFoundError) -> JSONResponse:
-        return JSONResponse({"detail": f"no vehicle with system id {error.args[0]}"}, status_code=404)
-
-    @app.exception_handler(MissionConflictError)
-    async def conflict(_: Request, error: MissionConflictError) -> JSONResponse:
-        return JSONResponse({"detail": str(error)}, status_code=409)
-
-    @app.exception_handler(NotOwnerError)
-    async def standby(request: Request, error: NotOwnerError) -> JSONResponse:
-        # a client may retry here (this instance takes over when the owner dies) or go to the owner
-        retry_s = max(1, math.ceil(request.app.state.settings.lease_poll_s))
-        return JSONResponse({"detail": str(error)}, status_code=503, headers={"Retry-After": str(retry_s)})
 
 
 def _operation_id(route: APIRoute) -> str:
@@ -185,7 +115,7 @@ def create_app(settings: Settings | None = None, *, freeze_startup_heap: bool = 
     )
     app.state.settings = settings
     _install_middleware(app, settings)
-    _install_error_handlers(app)
+    install_error_handlers(app)
     for module in (plans, missions, inspections, buoy_files, buoys, vehicle, ais, live):
         app.include_router(module.router)
 

@@ -9,10 +9,11 @@ A path may have a limit of its own (POST /imports takes S-57 cells, larger than 
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from gcs.api.errors import error_bytes
 
 
 class BodyTooLargeError(Exception):
@@ -63,7 +64,7 @@ def too_large_detail(limit: int) -> str:
 
 
 async def refuse_too_large(send: Send, limit: int) -> None:
-    detail = json.dumps({"detail": too_large_detail(limit)}).encode()
+    detail = error_bytes(413, ("body",), too_large_detail(limit))
     headers = [(b"content-type", b"application/json"), (b"content-length", str(len(detail)).encode())]
     # Connection: close: the rest of a body that was not read must not be taken for the next request
     headers.append((b"connection", b"close"))

@@ -16,10 +16,11 @@ import binascii
 import secrets
 from urllib.parse import urlsplit
 
-from fastapi import HTTPException, Request, status
+from fastapi import Request
 from starlette.datastructures import Headers
 from starlette.websockets import WebSocket
 
+from gcs.api.errors import ApiError
 from gcs.api.routes.deps import SettingsDep
 from gcs.settings import Settings
 
@@ -53,9 +54,8 @@ def require_token(request: Request, settings: SettingsDep) -> None:
     """FastAPI dependency: `Authorization: Bearer <token>` (or `X-API-Token: <token>`) must match."""
     expected = settings.token
     if expected and not _matches(_header_token(request.headers), expected):
-        raise HTTPException(
-            status.HTTP_401_UNAUTHORIZED, "missing or wrong API token", headers={"WWW-Authenticate": "Bearer"}
-        )
+        loc = ("header", "Authorization")
+        raise ApiError(401, loc, "missing or wrong API token", headers={"WWW-Authenticate": "Bearer"})
 
 
 def _same_origin(origin: str, headers: Headers) -> bool:

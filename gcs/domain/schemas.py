@@ -163,7 +163,8 @@ class PlanRequest(Strict):
         default_factory=list,
         max_length=MAX_BUOYS,
         description="a list of {id?, lat, lon} or a GeoJSON FeatureCollection of Points (at least one, unless "
-        "`from_register` selects some)",
+        "`from_register` selects some); a feature with the property role 'depot' is the depot when `depot` is not "
+        "given (a fleet's is not used: its vehicles fly from their homes)",
     )
     from_register: RegisterSelectionIn | None = Field(
         default=None,
@@ -198,31 +199,6 @@ class PlanRequest(Strict):
     vehicle: int | None = Field(
         default=None, ge=1, le=255, description="the fleet's vehicle to fly (its system id); default: the first"
     )
-
-    @field_validator("battery", mode="after")
-    @classmethod
-    def _battery_shorthand(cls, value: Any) -> Any:
-        return BatteryIn() if value == "vehicle" else value
-
-    @field_validator("buoys", mode="before")
-    @classmethod
-    def _accept_geojson(cls, value: Any) -> Any:
-        # A FeatureCollection becomes the same list of {id, lat, lon} a client could have sent.
-        if isinstance(value, dict):
-            try:
-                return [b.as_dict() for b in buoys_from_geojson(value)]
-            except BuoyFileError as error:
-                raise ValueError(str(error)) from None
-        return value
-
-
-class MissionRequest(PlanRequest):
-    start: bool = Field(default=True, description="upload, arm and fly now")
-    override: bool = Field(
-        default=False,
-        description="fly even when the pre-flight check finds the vehicle's charge short of what the tour needs "
-        "(the override is recorded with the mission)",
-    )
     vehicles: list[Annotated[int, Field(ge=1, le=255)]] | Literal["fleet"] | None = Field(
         default=None,
         max_length=64,
@@ -234,6 +210,47 @@ class MissionRequest(PlanRequest):
         ge=1.0,
         le=50.0,
         description="a fleet mission's altitude layers: the k-th vehicle flies at altitude_m + k x layer_gap_m",
+    )
+
+    @field_validator("battery", mode="after")
+    @classmethod
+    def _battery_shorthand(cls, value: Any) -> Any:
+        return BatteryIn() if value == "vehicle" else value
+
+    @model_validator(mode="before")
+    @classmethod
+    def _accept_geojson(cls, data: Any) -> Any:
+        # A FeatureCollection becomes the same list of {id, lat, lon, ...} a client could have sent; its depot
+        # feature (role "depot") is the request's depot when the request names none and is not a fleet's (whose
+        # vehicles fly from their homes).
+        if not isinstance(data, dict) or not isinstance(data.get("buoys"), dict):
+            return data
+        try:
+            file = buoys_from_geojson(data["buoys"])
+        except BuoyFileError:
+            return data  # _geojson_refused names the field
+        data = data | {"buoys": [b.as_dict() for b in file.buoys]}
+        if file.depot is not None and data.get("depot") is None and data.get("vehicles") is None:
+            data["depot"] = {"lat": file.depot[0], "lon": file.depot[1]}
+        return data
+
+    @field_validator("buoys", mode="before")
+    @classmethod
+    def _geojson_refused(cls, value: Any) -> Any:
+        if isinstance(value, dict):  # a FeatureCollection _accept_geojson could not read: say why, at `buoys`
+            try:
+                buoys_from_geojson(value)
+            except BuoyFileError as error:
+                raise ValueError(str(error)) from None
+        return value
+
+
+class MissionRequest(PlanRequest):
+    start: bool = Field(default=True, description="upload, arm and fly now")
+    override: bool = Field(
+        default=False,
+        description="fly even when the pre-flight check finds the vehicle's charge short of what the tour needs "
+        "(the override is recorded with the mission)",
     )
 
 
@@ -298,6 +315,9 @@ class PlanOut(BaseModel):
     )
     sorties: list[SortieOut] = Field(description="one for a single tour; none for a fleet mission (fleet.shares)")
     energy: EnergyOut | None = Field(description="the battery and budget (null: no energy planning)")
+    fleet: FleetPlanOut | None = Field(
+        default=None, description="a fleet plan (`vehicles` given): the vehicles' shares (null: one vehicle)"
+    )
 
 
 class BuoyResult(BaseModel):
@@ -372,16 +392,30 @@ class Progress(BaseModel):
     )
 
 
-class FleetShareOut(BaseModel):
-    """One vehicle's share of a fleet mission: its buoys, as planned, and its part mission as flown."""
+class PlannedShareOut(BaseModel):
+    """One vehicle's share of a fleet mission as planned."""
 
     sysid: int
-    mission_id: int = Field(description="the part mission it flies (GET /missions/{id} for its telemetry, report)")
     buoys: list[int] = Field(description="input indices of its buoys in flying order")
     altitude_m: float
     predicted_time_s: float
     length_m: float
     route: list[list[float]] = Field(description="[lat, lon] from its home through its buoys back home")
+
+
+class FleetPlanOut(BaseModel):
+    """A fleet plan: the buoys shared among the vehicles (POST /plans with `vehicles`: nothing stored or flown)."""
+
+    makespan_s: float = Field(description="predicted: when the last vehicle is home")
+    total_time_s: float
+    layer_gap_m: float
+    shares: list[PlannedShareOut] = Field(description="the vehicles given buoys, in layer order")
+
+
+class FleetShareOut(PlannedShareOut):
+    """One vehicle's share of a fleet mission: its buoys, as planned, and its part mission as flown."""
+
+    mission_id: int = Field(description="the part mission it flies (GET /missions/{id} for its telemetry, report)")
     status: MissionStatus
     visited_buoys: list[int] = Field(description="input indices of its buoys inspected so far")
     lost: str | None = Field(default=None, description="why this vehicle dropped out of the fleet mission, if it did")
@@ -398,11 +432,8 @@ class SeparationOut(BaseModel):
     min_distance_m: float | None
 
 
-class FleetOut(BaseModel):
-    makespan_s: float = Field(description="predicted: when the last vehicle is home")
-    total_time_s: float
-    layer_gap_m: float
-    shares: list[FleetShareOut]
+class FleetOut(FleetPlanOut):
+    shares: list[FleetShareOut]  # type: ignore[assignment]  # the planned shares, each with its part mission
     inspected_by: dict[str, int] = Field(description="buoy id -> the system id of the vehicle that inspected it")
     separation: SeparationOut
 
@@ -625,6 +656,9 @@ class ChartOut(BaseModel):
 
 class ImportOut(BaseModel):
     buoys: list[BuoyIn] = Field(description="the buoys, as POST /missions takes them")
+    depot: LatLon | None = Field(
+        default=None, description="the file's depot: its point whose role is depot (GeoJSON property, CSV column)"
+    )
     chart: ChartOut | None = Field(default=None, description="an S-57 cell's own description of them")
     warnings: list[str] = Field(default_factory=list, description="what the import could not map, each named")
 

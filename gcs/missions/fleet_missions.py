@@ -20,7 +20,7 @@ import numpy as np
 
 from gcs.domain.planning import Plan, sorties_plan
 from gcs.domain.records import MissionProgress, MissionResults, ShareProgress
-from gcs.domain.schemas import MissionRequest, SeparationOut
+from gcs.domain.schemas import PlanRequest, SeparationOut
 from gcs.domain.status import TERMINAL, MissionStatus
 from gcs.missions.fleet_planning import reshare
 from gcs.missions.lifecycle import MissionConflictError
@@ -143,7 +143,7 @@ def fleet_ending(fleet: MissionRecord, parts: list[MissionRecord]) -> tuple[Miss
     return (MissionStatus.ABORTED if aborted else MissionStatus.FAILED), reason
 
 
-def fleet_vehicles(request: MissionRequest, known: list[int], limits: Limits) -> list[int]:
+def fleet_vehicles(request: PlanRequest, known: list[int], limits: Limits) -> list[int]:
     """The system ids a fleet mission request flies (in layer order), or RequestInvalidError naming each field
     that cannot be flown as a fleet."""
     errors: list[tuple[tuple[str | int, ...], str]] = []

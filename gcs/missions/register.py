@@ -46,7 +46,11 @@ Request = TypeVar("Request", bound=PlanRequest)
 
 
 class BuoyNotFoundError(KeyError):
-    """No register buoy with this id (or it has no such defect): the message says which."""
+    """No register buoy with this id (or it has no such defect): the message says which, `field` names the id."""
+
+    def __init__(self, message: str, field: str = "buoy_id") -> None:
+        super().__init__(message)
+        self.field = field
 
 
 class Register:
@@ -152,7 +156,7 @@ class Register:
         defect = await self._storage.set_defect_state(buoy_id, defect_id, state, note)
         if defect is None:
             await self._stored(buoy_id)  # an unknown buoy is named as such
-            raise BuoyNotFoundError(f"buoy {buoy_id!r} has no defect {defect_id}")
+            raise BuoyNotFoundError(f"buoy {buoy_id!r} has no defect {defect_id}", field="defect_id")
         return defect_out(defect)
 
     async def alarms(self) -> list[AlarmOut]:

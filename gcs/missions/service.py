@@ -89,6 +89,10 @@ def _flight(request: PlanRequest, **changes: Any) -> FlightParams:
     return replace(flight, **changes)
 
 
+# a fleet mission's part as stored: its flight (at its layer), its plan (its share), its vehicle's system id
+FleetPart = tuple[FlightParams, Plan, int]
+
+
 class MissionNotFoundError(KeyError):
     pass
 
@@ -193,7 +197,11 @@ class MissionService:
     async def plan(self, request: PlanRequest) -> tuple[Plan, FlightParams]:
         """Validate and plan for the vehicle the request names (default: the first) against the request's
         geofence, else the one the vehicle holds (read now), and with battery options against the vehicle's pack
-        (read now). Raises RequestInvalidError or InputError."""
+        (read now); a fleet request (`vehicles`) shares the buoys among its vehicles (`Plan.fleet`). Raises
+        RequestInvalidError or InputError."""
+        if request.vehicles is not None:
+            plan, flight, _ = await self._plan_fleet(request)
+            return plan, flight
         vehicle = self._vehicle(request.vehicle)
         request = await self.register.resolve(request)
         fence = fence_from_request(request.geofence) if request.geofence else await vehicle.fence()
@@ -251,13 +259,29 @@ class MissionService:
     async def _create_fleet_mission(self, request: MissionRequest) -> int:
         """Share the buoys among the vehicles named (gcs.missions.fleet_planning), store the fleet mission and a part
         mission per vehicle given buoys, in one transaction; with start=true, fly every part."""
-        known = [v.system_id for v in self._vehicles if v.system_id is not None]
-        sysids = fleet_vehicles(request, known, self.settings.limits)
-        vehicles = [self._vehicle(sysid) for sysid in sysids]
         if request.start:
-            for vehicle in vehicles:
-                vehicle.flights.ensure_vehicle_free()
-        homes = {sysid: vehicle.depot() for sysid, vehicle in zip(sysids, vehicles, strict=True)}
+            for sysid in self._fleet_sysids(request):
+                self._vehicle(sysid).flights.ensure_vehicle_free()
+        overview, flight, parts = await self._plan_fleet(request)
+        overridden = [(replace(part, override=request.override), plan, sysid) for part, plan, sysid in parts]
+        fleet_id, _ = await self._storage.create_fleet_mission(replace(flight, override=request.override), overview,
+                                                               overridden)  # fmt: skip
+        fleet = await self.get(fleet_id)
+        # its shares' part missions, as the answer names them (the coordinator keeps this progress from here)
+        await self._storage.set_progress(fleet_id, shares_progress(fleet, await self._storage.fleet_parts(fleet_id)))
+        if request.start:
+            await self._launch_fleet(fleet)
+        return fleet_id
+
+    def _fleet_sysids(self, request: PlanRequest) -> list[int]:
+        known = [v.system_id for v in self._vehicles if v.system_id is not None]
+        return fleet_vehicles(request, known, self.settings.limits)
+
+    async def _plan_fleet(self, request: PlanRequest) -> tuple[Plan, FlightParams, list[FleetPart]]:
+        """A fleet request's plan: the overview (its `fleet` section has the shares), the flight, and each share's
+        part (its flight at its layer, its plan, its vehicle's system id)."""
+        sysids = self._fleet_sysids(request)
+        homes = {sysid: self._vehicle(sysid).depot() for sysid in sysids}
         first_home = homes[sysids[0]]
         request = await self.register.resolve(request)
         validate_request(request, first_home, self.settings.limits)
@@ -267,7 +291,7 @@ class MissionService:
             plan_fleet_mission, homes, buoys, ids, request.altitude_m, request.layer_gap_m, request.speed_m_s,
             request.dwell_s, options.seed, options.time_limit_s,
         )  # fmt: skip
-        flight = _flight(request, override=request.override)
+        flight = _flight(request)
         marks = _marks(request, self.settings.iala_region)
         overview = sorties_plan(first_home, buoys, ids, [[b for s in planned.shares for b in s.buoys]], METHOD,
                                 planned.elapsed_s)  # fmt: skip
@@ -279,13 +303,7 @@ class MissionService:
              share.sysid)
             for share in planned.shares
         ]  # fmt: skip
-        fleet_id, _ = await self._storage.create_fleet_mission(flight, overview, parts)
-        fleet = await self.get(fleet_id)
-        # its shares' part missions, as the answer names them (the coordinator keeps this progress from here)
-        await self._storage.set_progress(fleet_id, shares_progress(fleet, await self._storage.fleet_parts(fleet_id)))
-        if request.start:
-            await self._launch_fleet(fleet)
-        return fleet_id
+        return overview, flight, parts
 
     async def _launch_fleet(self, fleet: MissionRecord) -> None:
         """Fly every part of a planned fleet mission (each vehicle must be free), and follow them."""

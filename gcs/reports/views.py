@@ -12,18 +12,20 @@ from pydantic import TypeAdapter
 
 from gcs.domain.inspection import InspectionRecord
 from gcs.domain.planning import Plan
-from gcs.domain.records import MissionResults, SortieFlown
+from gcs.domain.records import MissionResults, PlannedShare, SortieFlown
 from gcs.domain.schemas import (
     Buoy,
     BuoyResult,
     ChartedBuoyOut,
     EnergyOut,
     FleetOut,
+    FleetPlanOut,
     FleetShareOut,
     InspectionOut,
     LatLon,
     MissionOut,
     MissionSummary,
+    PlannedShareOut,
     PlanOut,
     SeparationOut,
     SortieOut,
@@ -61,6 +63,7 @@ def plan_out(plan: Plan) -> PlanOut:
         route=plan.route_lat_lon(),
         sorties=sorties_out(plan),
         energy=None if plan.energy is None else EnergyOut.model_validate(plan.energy.model_dump(exclude={"sorties"})),
+        fleet=fleet_plan_out(plan),
     )
 
 
@@ -132,14 +135,14 @@ def mission_out(record: MissionRecord) -> MissionOut:
     if "sorties" not in record.progress.model_fields_set:
         progress.sorties = len(plan.sortie_orders())
     planned = dict(plan_out(plan))  # PlanOut's fields as they are (models, not dumped)
-    fleet = fleet_out(record) if record.is_fleet else None
+    # a fleet mission's shares as planned and as flown (FleetOut) in place of the plan's (FleetPlanOut)
+    planned["fleet"] = fleet = fleet_out(record) if record.is_fleet else None
     if fleet:  # flown as its shares (FleetShareOut, each with its route): no tour or sortie of its own
         planned |= {"route": [], "sorties": []}
     else:
         planned["sorties"] = sorties_out(plan, record.progress.sorties_flown)
     return MissionOut(
         **_heading(record),
-        fleet=fleet,
         **planned,
         altitude_m=record.flight.altitude_m,
         speed_m_s=record.flight.speed_m_s,
@@ -149,6 +152,31 @@ def mission_out(record: MissionRecord) -> MissionOut:
         buoy_results=_buoy_results(record),
         tracking=record.results.tracking if record.results else None,
         events=record.events,
+    )
+
+
+def planned_share_out(plan: Plan, share: PlannedShare) -> PlannedShareOut:
+    """A vehicle's share as planned, with its route from its home through its buoys (`plan`: the fleet's)."""
+    return PlannedShareOut(
+        sysid=share.sysid,
+        buoys=share.buoys,
+        altitude_m=share.altitude_m,
+        predicted_time_s=share.predicted_time_s,
+        length_m=share.length_m,
+        route=[share.home, *(plan.buoys_lat_lon[b] for b in share.buoys), share.home],
+    )
+
+
+def fleet_plan_out(plan: Plan) -> FleetPlanOut | None:
+    """A fleet plan's section as POST /plans answers it (null: not a fleet plan)."""
+    fleet = plan.fleet
+    if fleet is None:
+        return None
+    return FleetPlanOut(
+        makespan_s=fleet.makespan_s,
+        total_time_s=fleet.total_time_s,
+        layer_gap_m=fleet.layer_gap_m,
+        shares=[planned_share_out(plan, share) for share in fleet.shares],
     )
 
 
@@ -162,15 +190,9 @@ def fleet_out(record: MissionRecord) -> FleetOut:
     shares = []
     for share in fleet.shares:
         state = flown.get(share.sysid)
-        route = [share.home, *(plan.buoys_lat_lon[b] for b in share.buoys), share.home]
         shares.append(
             FleetShareOut(
-                sysid=share.sysid,
-                buoys=share.buoys,
-                altitude_m=share.altitude_m,
-                predicted_time_s=share.predicted_time_s,
-                length_m=share.length_m,
-                route=route,
+                **planned_share_out(plan, share).model_dump(),
                 mission_id=state.mission_id if state else 0,
                 status=state.status if state else MissionStatus.PLANNED,
                 visited_buoys=state.visited if state else [],

@@ -3,10 +3,12 @@
 
 export class ApiError extends Error {}
 
-// FastAPI answers errors as {detail: "text"} or, for validation, {detail: [{loc, msg}, ...]}.
+// The service answers every error as {detail: [{type, loc, msg}, ...]} (loc: ["body", "buoys", 3], or [] for
+// the request as a whole); anything else (a proxy's page) is shown as it came.
 function errorMessage(response, data, text) {
   const detail = data && data.detail;
-  if (Array.isArray(detail)) return detail.map((e) => `${e.loc.slice(1).join(".")}: ${e.msg}`).join("\n");
+  const where = (e) => (e.loc.length > 1 ? `${e.loc.slice(1).join(".")}: ` : "");
+  if (Array.isArray(detail)) return detail.map((e) => `${where(e)}${e.msg}`).join("\n");
   if (typeof detail === "string") return detail;
   return text || response.statusText;
 }

@@ -53,8 +53,10 @@ function setDepot(depot) {
   invalidatePlan();
 }
 
-function addBuoy(lat, lon, id = null) {
-  const buoy = { id, lat, lon };
+// charted: what a file or chart says of the buoy besides where it is (kind, light, swing radius, region), sent
+// with it so the mission checks the buoy against it
+function addBuoy(lat, lon, id = null, charted = {}) {
+  const buoy = { id, lat, lon, charted };
   map.addBuoy(buoy, clickBuoy);
   state.buoys.push(buoy);
   invalidatePlan();
@@ -108,7 +110,7 @@ function relabelBuoys() {
 function flightRequest() {
   return {
     depot: state.depot,
-    buoys: state.buoys.map((b) => ({ id: b.id, lat: b.lat, lon: b.lon })),
+    buoys: state.buoys.map((b) => ({ ...b.charted, id: b.id, lat: b.lat, lon: b.lon })),
     ...panel.flightSettings(),
   };
 }
@@ -340,10 +342,12 @@ function wireControls() {
       if (!file) return;
       importInput.value = ""; // choosing the same file again imports it again
       const answer = await api.importBuoys(file);
-      answer.buoys.forEach((b) => addBuoy(b.lat, b.lon, b.id));
+      answer.buoys.forEach(({ lat, lon, id, ...charted }) => addBuoy(lat, lon, id, charted));
+      if (answer.depot) setDepot(answer.depot); // the file's point whose role is depot
       map.fitBuoys(state.buoys);
+      const depot = answer.depot ? " and the depot" : "";
       const unmapped = answer.warnings.length ? ` (${answer.warnings.length} chart warnings)` : "";
-      panel.say(`imported ${answer.buoys.length} buoys${unmapped}`, true);
+      panel.say(`imported ${answer.buoys.length} buoys${depot}${unmapped}`, true);
     }),
   );
 

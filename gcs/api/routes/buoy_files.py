@@ -5,10 +5,11 @@ from __future__ import annotations
 import asyncio
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Depends, HTTPException, Query, Request
+from fastapi import APIRouter, Depends, Query, Request
 from pydantic import ValidationError
 
 from gcs.api.body_limit import too_large_detail
+from gcs.api.errors import ApiError
 from gcs.api.routes.deps import SettingsDep
 from gcs.api.routes.responses import WITH_BODY
 from gcs.api.security import require_token
@@ -65,16 +66,18 @@ async def import_buoys(
 ) -> dict[str, Any]:
     """The body is the file itself. An S-57 cell (named .000, or starting with an ISO 8211 leader) may be up to
     max_chart_bytes (5 MiB); another file up to max_body_bytes (1 MiB): 413 beyond. GeoJSON or CSV follows
-    `filename`'s extension or the Content-Type. At most 500 buoys, as a plan takes."""
+    `filename`'s extension or the Content-Type; a point whose role is depot is the answer's `depot`, not a buoy. At
+    most 500 buoys, as a plan takes."""
     body = await request.body()
     if is_cell(body, filename):
         return await _chart_import(body, filename, area, region or settings.iala_region)
     if len(body) > settings.max_body_bytes:
-        raise HTTPException(413, too_large_detail(settings.max_body_bytes))
+        raise ApiError(413, ("body",), too_large_detail(settings.max_body_bytes))
     _refuse_chart_options(area=area, region=region)
-    buoys = buoys_from_file(body, filename, request.headers.get("content-type", ""))
-    _check_count(len(buoys), f"the file has {len(buoys)} buoys")
-    return {"buoys": [_checked(i, b.as_dict()) for i, b in enumerate(buoys)]}
+    file = buoys_from_file(body, filename, request.headers.get("content-type", ""))
+    _check_count(len(file.buoys), f"the file has {len(file.buoys)} buoys")
+    depot = None if file.depot is None else {"lat": file.depot[0], "lon": file.depot[1]}
+    return {"buoys": [_checked(i, b.as_dict()) for i, b in enumerate(file.buoys)], "depot": depot}
 
 
 async def read_chart(body: bytes, filename: str, area: str | None, region: IalaRegion) -> ChartImport:

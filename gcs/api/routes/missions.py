@@ -6,9 +6,10 @@ import asyncio
 import json
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, HTTPException, Path, Query, Response
+from fastapi import APIRouter, Depends, Path, Query, Response
 from fastapi.responses import FileResponse, RedirectResponse, StreamingResponse
 
+from gcs.api.errors import ApiError
 from gcs.api.routes.deps import ServiceDep
 from gcs.api.routes.responses import CONFLICT, MUTATING, NOT_FOUND, WITH_BODY, Responses, RouteOptions
 from gcs.api.security import require_token
@@ -169,8 +170,8 @@ async def get_report_file(mission_id: MissionId, name: str, service: ServiceDep)
     only after the mission changed."""
     await service.get(mission_id)
     if not report.is_report_file(name):
-        raise HTTPException(404, f"no report file {name!r}")
+        raise ApiError(404, ("path", "name"), f"no report file {name!r}")
     index = await service.report_index(mission_id)
     if not (index.parent / name).is_file():  # energy.png: only for a mission planned with energy figures
-        raise HTTPException(404, f"mission {mission_id}'s report has no {name}")
+        raise ApiError(404, ("path", "name"), f"mission {mission_id}'s report has no {name}")
     return FileResponse(index.parent / name, headers={"Cache-Control": "no-cache"})

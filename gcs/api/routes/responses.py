@@ -1,7 +1,7 @@
 """The error answers each route can give, declared once for the OpenAPI document (`responses=` on the routes).
 
-Every error body is `{"detail": text}`, except 422, which lists the problems: `{"detail": [{type, loc, msg}]}`
-(FastAPI declares 422 by itself on every route that takes a parameter or a body).
+Every error body lists its problems as FastAPI's 422 does, `{"detail": [{type, loc, msg}]}` (gcs.api.errors);
+FastAPI declares 422 by itself on every route that takes a parameter or a body.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from typing import Any, TypedDict
 
 from fastapi import params
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 
 # What a route's `responses=` takes (FastAPI's type): status code -> what OpenAPI says of that answer.
 Responses = dict[int | str, dict[str, Any]]
@@ -24,8 +24,14 @@ class RouteOptions(TypedDict, total=False):
     responses: Responses
 
 
+class ProblemOut(BaseModel):
+    type: str = Field(description="a stable code: not_found, conflict, unauthorized, too_large, unavailable, ...")
+    loc: list[str | int] = Field(description="the part of the request it concerns ([]: the request as a whole)")
+    msg: str = Field(description="what went wrong, in plain words")
+
+
 class ErrorOut(BaseModel):
-    detail: str
+    detail: list[ProblemOut]
 
 
 def _error(description: str, **extra: Any) -> dict[str, Any]:
