@@ -9,13 +9,15 @@ import math
 import time
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from importlib.resources import files
 
 import xstatic.pkg.leaflet as leaflet
 from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
 from fastapi.middleware.cors import CORSMiddleware
-from fastapi.responses import FileResponse, JSONResponse
+from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html, get_swagger_ui_oauth2_redirect_html
+from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
 from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
@@ -40,6 +42,15 @@ from planner.warmup import warm_up
 from uavcore.mavlink import parse_signing_key
 
 log = logging.getLogger(__name__)
+
+# The API's documentation pages, served by _install_docs rather than by FastAPI, whose pages load Swagger UI and
+# ReDoc from a CDN and stay blank without a network. The assets come from the fastapi-offline wheel (its static/
+# folder: swagger-ui-bundle.js, swagger-ui.css, redoc.standalone.js, favicon.png), as Leaflet comes from xstatic.
+DOCS_URL = "/docs"
+OAUTH2_REDIRECT_URL = "/docs/oauth2-redirect"  # FastAPI's default page for Swagger UI's OAuth2 flows
+REDOC_URL = "/redoc"
+DOCS_ASSETS_URL = "/static/docs"
+DOCS_ASSETS_DIR = files("fastapi_offline") / "static"
 
 
 async def warm_up_planner() -> float:
@@ -134,8 +145,51 @@ def _install_middleware(app: FastAPI, settings: Settings) -> None:
     imports = max(settings.max_body_bytes, settings.max_chart_bytes)
     cells = {"/imports": imports, "/buoys/imports": imports}
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes, path_limits=cells)
-    docs = frozenset(path for path in (app.docs_url, app.redoc_url, app.swagger_ui_oauth2_redirect_url) if path)
+    # the pages of _install_docs (FastAPI's own are off: app.docs_url and app.redoc_url are None)
+    docs = frozenset({DOCS_URL, OAUTH2_REDIRECT_URL, REDOC_URL})
     app.add_middleware(SecurityHeadersMiddleware, docs_paths=docs)
+
+
+def _install_docs(app: FastAPI) -> None:
+    """/docs (Swagger UI) and /redoc as FastAPI's own pages, with their scripts and styles from DOCS_ASSETS_URL:
+    they work with no network. Out of the OpenAPI document, as FastAPI's are."""
+    openapi_url = app.openapi_url
+    assert openapi_url is not None  # the pages show /openapi.json
+
+    def under_root(request: Request, path: str) -> str:
+        # behind a proxy that strips a prefix (uvicorn --root-path), as FastAPI's pages do
+        return request.scope.get("root_path", "").rstrip("/") + path
+
+    @app.get(DOCS_URL, include_in_schema=False)
+    async def swagger_ui(request: Request) -> HTMLResponse:
+        assets = under_root(request, DOCS_ASSETS_URL)
+        return get_swagger_ui_html(
+            openapi_url=under_root(request, openapi_url),
+            title=f"{app.title} - Swagger UI",
+            swagger_js_url=f"{assets}/swagger-ui-bundle.js",
+            swagger_css_url=f"{assets}/swagger-ui.css",
+            swagger_favicon_url=f"{assets}/favicon.png",
+            oauth2_redirect_url=under_root(request, OAUTH2_REDIRECT_URL),
+            init_oauth=app.swagger_ui_init_oauth,
+            swagger_ui_parameters=app.swagger_ui_parameters,
+        )
+
+    @app.get(OAUTH2_REDIRECT_URL, include_in_schema=False)
+    async def swagger_ui_oauth2_redirect() -> HTMLResponse:
+        return get_swagger_ui_oauth2_redirect_html()
+
+    @app.get(REDOC_URL, include_in_schema=False)
+    async def redoc(request: Request) -> HTMLResponse:
+        assets = under_root(request, DOCS_ASSETS_URL)
+        return get_redoc_html(
+            openapi_url=under_root(request, openapi_url),
+            title=f"{app.title} - ReDoc",
+            redoc_js_url=f"{assets}/redoc.standalone.js",
+            redoc_favicon_url=f"{assets}/favicon.png",
+            with_google_fonts=False,  # ReDoc falls back to the system's fonts
+        )
+
+    app.mount(DOCS_ASSETS_URL, StaticFiles(directory=str(DOCS_ASSETS_DIR)), name="docs-assets")
 
 
 def create_app(settings: Settings | None = None, *, freeze_startup_heap: bool = False) -> FastAPI:
@@ -182,10 +236,13 @@ def create_app(settings: Settings | None = None, *, freeze_startup_heap: bool = 
         version="0.1.0",
         lifespan=lifespan,
         generate_unique_id_function=_operation_id,
+        docs_url=None,  # _install_docs serves both pages from the assets on this machine
+        redoc_url=None,
     )
     app.state.settings = settings
     _install_middleware(app, settings)
     _install_error_handlers(app)
+    _install_docs(app)
     for module in (plans, missions, inspections, buoy_files, buoys, vehicle, ais, live):
         app.include_router(module.router)
 
