@@ -17,6 +17,7 @@ from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
 
 from gcs.api.body_limit import BodyLimitMiddleware
+from gcs.api.docs_pages import DOCS_PATHS, install_docs
 from gcs.api.errors import install_error_handlers
 from gcs.api.http_headers import SecurityHeadersMiddleware
 from gcs.api.routes import ais, buoy_files, buoys, inspections, live, missions, plans, vehicle
@@ -64,8 +65,7 @@ def _install_middleware(app: FastAPI, settings: Settings) -> None:
     imports = max(settings.max_body_bytes, settings.max_chart_bytes)
     cells = {"/imports": imports, "/buoys/imports": imports}
     app.add_middleware(BodyLimitMiddleware, max_bytes=settings.max_body_bytes, path_limits=cells)
-    docs = frozenset(path for path in (app.docs_url, app.redoc_url, app.swagger_ui_oauth2_redirect_url) if path)
-    app.add_middleware(SecurityHeadersMiddleware, docs_paths=docs)
+    app.add_middleware(SecurityHeadersMiddleware, docs_paths=DOCS_PATHS)
 
 
 def create_app(settings: Settings | None = None, *, freeze_startup_heap: bool = False) -> FastAPI:
@@ -112,10 +112,13 @@ def create_app(settings: Settings | None = None, *, freeze_startup_heap: bool = 
         version="0.1.0",
         lifespan=lifespan,
         generate_unique_id_function=_operation_id,
+        docs_url=None,  # gcs.api.docs_pages serves both pages from the assets on this machine
+        redoc_url=None,
     )
     app.state.settings = settings
     _install_middleware(app, settings)
     install_error_handlers(app)
+    install_docs(app)
     for module in (plans, missions, inspections, buoy_files, buoys, vehicle, ais, live):
         app.include_router(module.router)
 

@@ -4,8 +4,9 @@ The policy allows only the service's own scripts: the page (gcs/web) and the rep
 no on* attributes, so a buoy name or a STATUSTEXT that slipped into markup still could not run. Styles are the
 service's files plus the report's one inline <style>, allowed by its hash. Images: the service's, `data:` (Leaflet
 blanks a tile it drops with a data: GIF) and the OpenStreetMap tile server the map page uses when it is online.
-FastAPI's /docs and /redoc load Swagger UI and ReDoc from their CDN with an inline start-up script: those two
-pages (which show no data) get a policy that allows exactly that.
+/docs and /redoc (gcs.api.docs_pages) load Swagger UI and ReDoc from the service itself (/static/docs), nothing from
+another origin, so their policy names none; they (and Swagger UI's OAuth2 redirect page) still need inline script,
+FastAPI's HTML starting Swagger UI with one built per request, and inline style (ReDoc's injected <style>s).
 """
 
 from __future__ import annotations
@@ -19,7 +20,6 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from gcs.reports.drawing import REPORT_STYLE
 
 TILE_SERVER = "https://tile.openstreetmap.org"  # the origin of map.js's OSM_URL
-DOCS_CDN = "https://cdn.jsdelivr.net"  # fastapi.openapi.docs: Swagger UI and ReDoc bundles
 
 
 def _sha256_source(text: str) -> str:
@@ -44,12 +44,12 @@ PAGE_POLICY = _policy(
 DOCS_POLICY = _policy(
     {
         "default-src": "'self'",
-        "script-src": f"'self' 'unsafe-inline' {DOCS_CDN}",
-        "style-src": f"'self' 'unsafe-inline' {DOCS_CDN} https://fonts.googleapis.com",
-        "font-src": "'self' https://fonts.gstatic.com",
-        "img-src": "'self' data: https://fastapi.tiangolo.com https://cdn.redoc.ly",
-        "worker-src": "'self' blob:",
-        "connect-src": "'self'",
+        "script-src": "'self' 'unsafe-inline'",  # their HTML holds no data (Swagger UI shows answers as text)
+        "style-src": "'self' 'unsafe-inline'",
+        "font-src": "'self'",
+        "img-src": "'self' data:",  # swagger-ui.css draws its icons as data: images
+        "worker-src": "'self' blob:",  # ReDoc's search index runs in a worker made from a blob
+        "connect-src": "'self'",  # /openapi.json and Swagger UI's "Try it out"
         **_LOCKED,
     }
 )
