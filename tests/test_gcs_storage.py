@@ -29,14 +29,6 @@ TRACKING = TrackingFigures(
 THREAD_DEADLINE_S = 120.0  # generous: the machine may be loaded; a correct run takes a second or two
 
 
-@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.integration)])
-def database(request: pytest.FixtureRequest, tmp_path: Path) -> str | Path:
-    """Where a test's database is: a SQLite file, or a fresh database on the test PostgreSQL server."""
-    if request.param == "sqlite":
-        return tmp_path / "gcs.sqlite"
-    return request.getfixturevalue("postgres_url")
-
-
 @pytest.fixture
 def open_db(database: str | Path) -> Iterator[Callable[[], Storage]]:
     """Opens the test's database (as many times as a test asks); closes them all at the end."""
