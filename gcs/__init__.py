@@ -7,7 +7,7 @@ from the bottom up:
   mission holds besides its plan: progress, results, the plan's energy and fleet sections, typed), the
   inspection's analysis of camera frames (`camera_geometry`, `paint_segmentation`, `buoy_detection`,
   `light_reading`, `inspection`), `buoy_files` (buoy lists from GeoJSON or CSV), `tracking_metrics` (a flight's
-  tracking figures in numbers)
+  tracking figures in numbers), `listing` (GET /missions' filters and cursors)
 - `storage` (the only package that knows SQL: SQLite or PostgreSQL, `open_storage`; typed records in and out;
   the inspections' frames and records too)
 - `vehicle` the MAVLink side, for any PX4 or ArduPilot: `connection` (udpin/udpout/tcp/serial), `link` (the link

@@ -1,4 +1,5 @@
-"""Fixtures for the integration tests that start the vehicle (tests/sitl_process.py has the helpers)."""
+"""Fixtures for the integration tests that start the vehicle (tests/sitl_process.py has the helpers), and the
+database a storage test runs on, once per backend."""
 
 from __future__ import annotations
 
@@ -151,3 +152,12 @@ def postgres_server() -> Iterator[PostgresServer]:
 def postgres_url(postgres_server: PostgresServer) -> str:
     """A fresh, empty database of this test's own: its postgresql:// URL."""
     return postgres_server.new_database()
+
+
+@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.integration)])
+def database(request: pytest.FixtureRequest, tmp_path: Path) -> str | Path:
+    """Where a test's database is, the test running once on each backend: a SQLite file, or a fresh database on
+    the test PostgreSQL server."""
+    if request.param == "sqlite":
+        return tmp_path / "gcs.sqlite"
+    return request.getfixturevalue("postgres_url")

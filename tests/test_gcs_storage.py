@@ -29,14 +29,6 @@ TRACKING = TrackingFigures(
 THREAD_DEADLINE_S = 120.0  # generous: the machine may be loaded; a correct run takes a second or two
 
 
-@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.integration)])
-def database(request: pytest.FixtureRequest, tmp_path: Path) -> str | Path:
-    """Where a test's database is: a SQLite file, or a fresh database on the test PostgreSQL server."""
-    if request.param == "sqlite":
-        return tmp_path / "gcs.sqlite"
-    return request.getfixturevalue("postgres_url")
-
-
 @pytest.fixture
 def open_db(database: str | Path) -> Iterator[Callable[[], Storage]]:
     """Opens the test's database (as many times as a test asks); closes them all at the end."""
@@ -360,19 +352,24 @@ def test_database_from_a_newer_service_is_refused(open_db):
 
 
 def test_every_write_to_a_mission_raises_its_version_above_all_others(storage):
-    assert storage.latest_version() == 0
+    assert storage.latest_version() == (0, 0)  # (the highest version, how many missions)
     first, second = storage.create_mission(FLIGHT, PLAN), storage.create_mission(FLIGHT, PLAN)
-    assert storage.mission_version(first) < storage.mission_version(second) == storage.latest_version()
-    seen = storage.latest_version()
+    assert storage.mission_version(first) < storage.mission_version(second)
+    assert storage.latest_version() == (storage.mission_version(second), 2)
+    seen = storage.mission_version(second)
     for write in (
         lambda: storage.set_status(first, "uploading"),
         lambda: storage.set_progress(first, MissionProgress(current_seq=2)),
         lambda: storage.set_results(first, MissionResults(buoys=[])),
     ):
         write()
-        assert storage.mission_version(first) == storage.latest_version() > seen
-        seen = storage.latest_version()
+        assert storage.latest_version() == (storage.mission_version(first), 2) and storage.mission_version(first) > seen
+        seen = storage.mission_version(first)
     assert storage.mission_version(999) is None
+    # deleting a mission that is not the latest written leaves the highest version as it was: the count moves
+    before = storage.latest_version()
+    storage.delete_mission(second)
+    assert storage.latest_version() == (before[0], 1) != before
 
 
 # ----- SQLite only

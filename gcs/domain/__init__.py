@@ -1,2 +1,2 @@
 """The ground station's vocabulary, pure: mission status, request and response models, plans, buoy files, tracking
-metrics."""
+metrics, the mission list's filters and cursors."""

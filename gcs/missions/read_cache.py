@@ -17,21 +17,25 @@ from __future__ import annotations
 import asyncio
 import threading
 from collections import OrderedDict
-from collections.abc import Awaitable, Callable, Hashable
+from collections.abc import Awaitable, Callable, Hashable, Sized
 from dataclasses import dataclass
+from typing import Generic, TypeVar
 
 # What a document's validity is checked against: the storage's change counter, or a tuple of such counters
 # (a track also depends on how many samples are stored, which the mission's version does not count).
 Version = int | tuple[int, ...]
+# What is cached: encoded bytes, or a document with what is sent beside them (a page of GET /missions and its next
+# page's cursor, gcs.reports.views.MissionsPage); its len() is its size in bytes, for the byte budget.
+D = TypeVar("D", bound=Sized)
 
 
 @dataclass(frozen=True)
-class CachedDocument:
+class CachedDocument(Generic[D]):
     version: Version
-    body: bytes
+    body: D
 
 
-class VersionedCache:
+class VersionedCache(Generic[D]):
     """Encoded documents by key, each valid while its version is the current one; least recently used entries
     go first beyond `max_entries` or `max_bytes` (a track with a large max_points is megabytes: the byte budget
     bounds the memory whatever keys clients ask for). `lookup` and `store` are thread-safe; `get` runs on the
@@ -39,13 +43,13 @@ class VersionedCache:
 
     def __init__(self, max_entries: int = 256, max_bytes: int = 64 * 2**20) -> None:
         self.max_entries, self.max_bytes = max_entries, max_bytes
-        self._entries: OrderedDict[Hashable, CachedDocument] = OrderedDict()
+        self._entries: OrderedDict[Hashable, CachedDocument[D]] = OrderedDict()
         self._bytes = 0
         self._lock = threading.Lock()
-        self._building: dict[tuple[Hashable, Version], asyncio.Future[bytes]] = {}  # on the event loop only
+        self._building: dict[tuple[Hashable, Version], asyncio.Future[D]] = {}  # on the event loop only
         self.hits = self.misses = 0  # for tests and the benchmark: how often the cache answered
 
-    async def get(self, key: Hashable, version: Version, build: Callable[[], Awaitable[bytes]]) -> bytes:
+    async def get(self, key: Hashable, version: Version, build: Callable[[], Awaitable[D]]) -> D:
         """The document for `key` at `version` (read from storage before this call), built by `build` when the
         cache has none at that version: once, however many requests miss together (after a write moved the
         version, 50 clients polling a flying mission would otherwise each read and encode it again). One slow
@@ -58,7 +62,7 @@ class VersionedCache:
             pending = self._building[(key, version)] = asyncio.ensure_future(self._build(key, version, build))
         return await asyncio.shield(pending)  # a request cancelled leaves the build to the others
 
-    async def _build(self, key: Hashable, version: Version, build: Callable[[], Awaitable[bytes]]) -> bytes:
+    async def _build(self, key: Hashable, version: Version, build: Callable[[], Awaitable[D]]) -> D:
         try:
             body = await build()
             self.store(key, version, body)
@@ -66,7 +70,7 @@ class VersionedCache:
         finally:
             del self._building[(key, version)]
 
-    def lookup(self, key: Hashable, version: Version) -> bytes | None:
+    def lookup(self, key: Hashable, version: Version) -> D | None:
         """The document for `key` if the cache holds it at exactly `version`."""
         with self._lock:
             entry = self._entries.get(key)
@@ -77,7 +81,7 @@ class VersionedCache:
             self.hits += 1
             return entry.body
 
-    def store(self, key: Hashable, version: Version, body: bytes) -> None:
+    def store(self, key: Hashable, version: Version, body: D) -> None:
         # Two builds racing may leave the older one filed last: a lookup needs the exact version, so that only
         # costs one more build, never a stale answer.
         with self._lock:

@@ -27,6 +27,7 @@ import numpy as np
 from gcs.ais.feed import AisFeed
 from gcs.domain.ais import AisSourceOut, AtonsOut
 from gcs.domain.inspection import gather_fleet_inspections
+from gcs.domain.listing import CursorError, MissionFilter, decode_cursor
 from gcs.domain.planning import BuoyMark, FlightParams, Plan, fenced_legs, make_plan, mission_items, sorties_plan
 from gcs.domain.schemas import InspectionOut, MissionRequest, PlanRequest
 from gcs.domain.status import TERMINAL, MissionStatus
@@ -134,7 +135,10 @@ class MissionService:
             lambda part, plan: self._vehicle_of(part).flights.replan(part.id, plan),
         )
         self._ownership = ownership or ownership_for(settings)
-        self.documents = VersionedCache()  # the read routes' encoded documents by version (gcs.missions.read_cache)
+        # the read routes' encoded documents by version (gcs.missions.read_cache); GET /missions' pages apart, so a
+        # client walking through every page of a long history never evicts the mission documents being polled
+        self.documents: VersionedCache[bytes] = VersionedCache()
+        self.mission_pages: VersionedCache[views.MissionsPage] = VersionedCache(max_entries=64, max_bytes=16 * 2**20)
         limits = StreamLimits(rate_lines_s=settings.ais_max_lines_s, burst_lines=2 * settings.ais_max_lines_s)
         self.ais = AisFeed(settings.ais_sources, settings.ais_stale_s, limits)
         self.register = Register(storage, self.ais)  # the buoy register: the /buoys and /alarms routes' methods
@@ -404,10 +408,6 @@ class MissionService:
             raise MissionNotFoundError(mission_id)
         return record
 
-    async def list_missions(self, limit: int) -> list[MissionRecord]:
-        """The latest missions, newest first."""
-        return await self._storage.list_missions(limit)
-
     async def _version(self, mission_id: int) -> int:
         version = await self._storage.mission_version(mission_id)
         if version is None:
@@ -424,13 +424,32 @@ class MissionService:
 
         return await self.documents.get(("mission", mission_id), await self._version(mission_id), build)
 
-    async def missions_json(self, limit: int) -> bytes:
-        """GET /missions: the latest `limit` MissionSummary documents, newest first."""
+    async def missions_page(
+        self, limit: int, where: MissionFilter | None = None, cursor: str | None = None
+    ) -> views.MissionsPage:
+        """GET /missions: the latest `limit` MissionSummary documents that pass `where`, newest first, after the
+        page whose next-page `cursor` this is (None: the first page), with the next page's cursor. Raises
+        RequestInvalidError at query.cursor for a cursor this service did not give, at query.until for an
+        `until` not after `since`.
 
-        async def build() -> bytes:
-            return views.missions_json(await self.list_missions(limit))
+        Every page, filtered or not, is cached under the newest change to any mission (`latest_version`): any
+        write to a mission can change which missions a query lists, and no other write can. The page polled
+        (the plain GET /missions, the map page's history) is so served as bytes, one indexed query a request."""
+        where = where or MissionFilter()
+        try:
+            after = None if cursor is None else decode_cursor(cursor)
+        except CursorError as error:
+            raise RequestInvalidError([(("query", "cursor"), str(error))]) from None
+        if where.empty_window:
+            window = f"as instants, {where.until} is not after {where.since}"
+            raise RequestInvalidError([(("query", "until"), f"until must be after since ({window})")])
 
-        return await self.documents.get(("missions", limit), await self._storage.latest_version(), build)
+        async def build() -> views.MissionsPage:
+            # one mission more than the page: whether another page follows, without counting them
+            return views.missions_page(await self._storage.list_missions(limit + 1, where, after), limit)
+
+        key = ("missions", limit, where, after)
+        return await self.mission_pages.get(key, await self._storage.latest_version(), build)
 
     async def track_json(self, mission_id: int, max_points: int) -> bytes:
         """GET /missions/{id}/track: the flown track cut to `max_points` for display (TrackOut). Samples are

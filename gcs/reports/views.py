@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from pydantic import TypeAdapter
 
 from gcs.domain.inspection import InspectionRecord
+from gcs.domain.listing import PageKey, encode_cursor
 from gcs.domain.planning import Plan
 from gcs.domain.records import MissionResults, PlannedShare, SortieFlown
 from gcs.domain.schemas import (
@@ -252,8 +254,25 @@ def mission_json(record: MissionRecord) -> bytes:
     return mission_out(record).model_dump_json().encode()
 
 
-def missions_json(records: list[MissionRecord]) -> bytes:
-    return MISSION_SUMMARIES.dump_json([mission_summary(r) for r in records])
+@dataclass(frozen=True)
+class MissionsPage:
+    """A page of GET /missions as served: the MissionSummary list encoded, and the cursor of the next page (None:
+    this is the last)."""
+
+    body: bytes
+    next_cursor: str | None
+
+    def __len__(self) -> int:
+        return len(self.body)  # what the read cache counts against its byte budget
+
+
+def missions_page(records: list[MissionRecord], limit: int) -> MissionsPage:
+    """The page of the first `limit` of `records`; `records` holds one more when another page follows (its
+    cursor: the page's last mission's key, gcs.domain.listing)."""
+    shown = records[:limit]
+    last = shown[-1] if len(records) > limit else None
+    body = MISSION_SUMMARIES.dump_json([mission_summary(r) for r in shown])
+    return MissionsPage(body, None if last is None else encode_cursor(PageKey(last.created_at, last.id)))
 
 
 def track_json(

@@ -17,6 +17,7 @@ from datetime import UTC, datetime
 from typing import Any, ClassVar, Protocol
 
 from gcs.domain.inspection import InspectionRecord, StoredFrame
+from gcs.domain.listing import MissionFilter, PageKey, stored_time
 from gcs.domain.planning import FlightParams, Plan
 from gcs.domain.records import MissionProgress, MissionResults
 from gcs.domain.register import (
@@ -105,7 +106,7 @@ class MissionRecord:
 
 
 def _now() -> str:
-    return datetime.now(UTC).isoformat(timespec="milliseconds")
+    return stored_time(datetime.now(UTC))  # one width for every time: GET /missions compares them as text
 
 
 def _json(value: Any) -> str:
@@ -190,6 +191,28 @@ def _buoy_conditions(where: BuoyFilter) -> tuple[list[str], list[Any]]:
         parameters.append(where.inspected_before)
     if where.open_defects is not None:
         conditions.append("unclosed_defects > 0" if where.open_defects else "unclosed_defects = 0")
+    return conditions, parameters
+
+
+def _mission_conditions(where: MissionFilter) -> tuple[list[str], list[Any]]:
+    """GET /missions' filters as SQL conditions on `missions AS m`, and their parameters: missions listed (single
+    and fleet missions, not the parts) that pass."""
+    conditions = ["(m.fleet_id IS NULL OR m.fleet_id = m.id)"]
+    parameters: list[Any] = []
+    if where.statuses:
+        conditions.append(f"m.status IN ({', '.join('?' * len(where.statuses))})")
+        parameters += where.statuses
+    if where.vehicle is not None:
+        # a single mission stored for the vehicle, or a fleet mission one of whose parts was (missions_by_fleet)
+        conditions.append(
+            "(m.vehicle_sysid = ? OR (m.fleet_id = m.id AND EXISTS (SELECT 1 FROM missions AS part"
+            " WHERE part.fleet_id = m.id AND part.id <> m.id AND part.vehicle_sysid = ?)))"
+        )
+        parameters += [where.vehicle, where.vehicle]
+    for column_test, bound in (("m.created_at >= ?", where.since), ("m.created_at < ?", where.until)):
+        if bound is not None:
+            conditions.append(column_test)
+            parameters.append(bound)
     return conditions, parameters
 
 
@@ -392,17 +415,30 @@ class Storage(ABC):
             row = db.execute("SELECT version FROM missions WHERE id = ?", (mission_id,)).fetchone()
         return None if row is None else int(row["version"])
 
-    def latest_version(self) -> int:
-        """The highest change counter of all missions: it grows whenever any mission is created or changes."""
+    def latest_version(self) -> tuple[int, int]:
+        """The highest change counter of all missions and how many there are: the pair moves whenever any mission is
+        created or changes (the counter grows) or is deleted (the count falls; the counter alone does not move when
+        the mission deleted was not the latest written, and a list cached under it would show a mission that is
+        gone)."""
         with self._reading() as db:
-            row = db.execute("SELECT COALESCE(MAX(version), 0) AS version FROM missions").fetchone()
-        return int(row["version"])
+            row = db.execute("SELECT COALESCE(MAX(version), 0) AS version, COUNT(*) AS count FROM missions").fetchone()
+        return int(row["version"]), int(row["count"])
 
-    def list_missions(self, limit: int = 100) -> list[MissionRecord]:
-        """The latest missions, newest first: a fleet mission, not its parts (`fleet_parts`)."""
+    def list_missions(
+        self, limit: int = 100, where: MissionFilter | None = None, after: PageKey | None = None
+    ) -> list[MissionRecord]:
+        """The latest missions that pass `where`, newest first by (created_at, id), the first `limit` of those
+        created before `after` (a page's last mission: gcs.domain.listing): a fleet mission, not its parts
+        (`fleet_parts`). Filtered and paged in SQL along the index on (created_at, id)."""
+        conditions, parameters = _mission_conditions(where or MissionFilter())
+        if after is not None:
+            conditions.append("(m.created_at, m.id) < (?, ?)")  # keyset: where the previous page ended
+            parameters += [after.created_at, after.id]
         with self._reading() as db:
             rows = db.execute(
-                "SELECT * FROM missions WHERE fleet_id IS NULL OR fleet_id = id ORDER BY id DESC LIMIT ?", (limit,)
+                f"SELECT m.* FROM missions AS m WHERE {' AND '.join(conditions)}"
+                " ORDER BY m.created_at DESC, m.id DESC LIMIT ?",
+                (*parameters, limit),
             ).fetchall()
         return [_record(row, []) for row in rows]
 

@@ -176,6 +176,12 @@ def _register_tables(integer: str, key: str, real: str) -> str:
     """
 
 
+# Migration 9: GET /missions lists newest first by (created_at, id) and pages with `(created_at, id) < (?, ?)`:
+# this index gives that order and starts each page where the last one ended, instead of sorting every mission
+# per request (created_at is fixed-width ISO text in UTC, so the text order is the time order).
+_BY_CREATION = "CREATE INDEX missions_by_creation ON missions (created_at, id);"
+
+
 def _sqlite_status_check(db: Any) -> None:
     """Migration 6 in SQLite: the missions table's CHECK lists every MissionStatus. SQLite cannot alter a
     constraint; a CHECK that admits more values changes no stored row, so the table's definition is rewritten in
@@ -223,4 +229,5 @@ MIGRATIONS: list[Migration] = [
         sqlite=_register_tables("INTEGER", "INTEGER PRIMARY KEY AUTOINCREMENT", "REAL"),
         postgresql=_register_tables("BIGINT", "BIGINT GENERATED ALWAYS AS IDENTITY PRIMARY KEY", "DOUBLE PRECISION"),
     ),
+    Migration(sqlite=_BY_CREATION, postgresql=_BY_CREATION),
 ]

@@ -24,6 +24,7 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any, ParamSpec, TypeVar
 
 from gcs.domain.inspection import InspectionRecord, StoredFrame
+from gcs.domain.listing import MissionFilter, PageKey
 from gcs.domain.planning import FlightParams, Plan
 from gcs.domain.records import MissionProgress, MissionResults
 from gcs.domain.register import BuoyEvent, BuoyFilter, Defect, DefectState, RegisterBuoy, StoredBuoy
@@ -128,8 +129,10 @@ class AsyncStorage:
         assert record is not None, f"mission {mission_id} is not stored"
         return record
 
-    async def list_missions(self, limit: int = 100) -> list[MissionRecord]:
-        return await self._run(self._readers, self.blocking.list_missions, limit)
+    async def list_missions(
+        self, limit: int = 100, where: MissionFilter | None = None, after: PageKey | None = None
+    ) -> list[MissionRecord]:
+        return await self._run(self._readers, self.blocking.list_missions, limit, where, after)
 
     async def fleet_parts(self, fleet_id: int) -> list[MissionRecord]:
         return await self._run(self._readers, self.blocking.fleet_parts, fleet_id)
@@ -144,7 +147,7 @@ class AsyncStorage:
         key = ("mission_version", mission_id)
         return await self._read_coalesced(key, functools.partial(self.blocking.mission_version, mission_id))
 
-    async def latest_version(self) -> int:
+    async def latest_version(self) -> tuple[int, int]:
         return await self._read_coalesced("latest_version", self.blocking.latest_version)
 
     async def telemetry(self, mission_id: int, limit: int | None = None) -> list[dict[str, Any]]:

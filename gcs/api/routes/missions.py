@@ -6,16 +6,18 @@ import asyncio
 import json
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Path, Query, Response
+from fastapi import APIRouter, Depends, Path, Query, Request, Response
 from fastapi.responses import FileResponse, RedirectResponse, StreamingResponse
 
 from gcs.api.errors import ApiError
 from gcs.api.routes.deps import ServiceDep
 from gcs.api.routes.responses import CONFLICT, MUTATING, NOT_FOUND, WITH_BODY, Responses, RouteOptions
 from gcs.api.security import require_token
+from gcs.domain.listing import CURSOR_PATTERN, MAX_CURSOR, MissionFilter, TimeBound
 from gcs.domain.schemas import MissionOut, MissionRequest, MissionSummary, TelemetrySample, TrackOut
+from gcs.domain.status import MissionStatus
 from gcs.reports import exports, report
-from gcs.reports.views import mission_out, telemetry_chunks
+from gcs.reports.views import MissionsPage, mission_out, telemetry_chunks
 
 router = APIRouter(tags=["missions"])
 # POST /missions answers with links to what can be asked of the new mission (OpenAPI links: clients and
@@ -69,12 +71,84 @@ def _encoded(body: bytes) -> Response:
     return Response(body, media_type="application/json")
 
 
+LimitQuery = Annotated[int, Query(ge=1, le=1000, description="the most missions in the page")]
+CursorQuery = Annotated[
+    str | None,
+    Query(
+        max_length=MAX_CURSOR,
+        pattern=CURSOR_PATTERN,
+        description='where the previous page ended: its X-Next-Cursor (the Link rel="next" URL carries it)',
+    ),
+]
+StatusQuery = Annotated[
+    list[MissionStatus] | None, Query(description="only missions in one of these statuses (repeat the parameter)")
+]
+VehicleQuery = Annotated[
+    int | None,
+    Query(ge=1, le=255, description="only missions of the vehicle with this system id (a fleet mission: of a part)"),
+]
+SinceQuery = Annotated[
+    TimeBound | None,
+    Query(description="only missions created at or after this date-time (with its offset), or from this date (UTC)"),
+]
+UntilQuery = Annotated[
+    TimeBound | None,
+    Query(description="only missions created before this date-time (with its offset), or through this date (UTC)"),
+]
+_NEXT_PAGE_HEADERS = {
+    "Link": {
+        "description": 'the next page: `<URL>; rel="next"` (RFC 8288), this request\'s URL with the next cursor; '
+        "absent on the last page",
+        "schema": {"type": "string"},
+    },
+    "X-Next-Cursor": {
+        "description": "the next page's `cursor`; absent on the last page",
+        "schema": {"type": "string"},
+    },
+}
+PAGED: Responses = {200: {"description": "a page of missions, newest first", "headers": _NEXT_PAGE_HEADERS}}
+
+
+def _page(request: Request, page: MissionsPage) -> Response:
+    """A page as served, with the next page's URL and cursor when there is one. The Link is relative (RFC 8288
+    resolves it against the request's URL), so it stays right behind a proxy that serves the API elsewhere; it
+    keeps every other query parameter, repeated ones too, and replaces the cursor."""
+    response = _encoded(page.body)
+    if page.next_cursor is not None:
+        query = request.url.include_query_params(cursor=page.next_cursor).query
+        response.headers["Link"] = f'<{request.url.path}?{query}>; rel="next"'
+        response.headers["X-Next-Cursor"] = page.next_cursor
+    return response
+
+
 # The read routes answer from the service's cache of encoded documents: one version query per request (in a
 # storage thread, gcs.storage.off_loop), then the bytes.
-@router.get("/missions", response_model=list[MissionSummary])
-async def list_missions(service: ServiceDep, limit: Annotated[int, Query(ge=1, le=1000)] = 100) -> Response:
-    """The latest missions, newest first; a fleet mission is listed, its part missions are in its `fleet`."""
-    return _encoded(await service.missions_json(limit))
+@router.get("/missions", response_model=list[MissionSummary], responses=PAGED)
+async def list_missions(
+    request: Request,
+    service: ServiceDep,
+    limit: LimitQuery = 100,
+    cursor: CursorQuery = None,
+    status: StatusQuery = None,
+    vehicle: VehicleQuery = None,
+    since: SinceQuery = None,
+    until: UntilQuery = None,
+) -> Response:
+    """The missions, newest first by creation time (`created_at`, then id), a page at a time: the body is the
+    page's list; when more follow, the `Link` header (rel="next") and `X-Next-Cursor` give the next page (the
+    same query with `cursor`). A fleet mission is listed, its part missions are in its `fleet`
+    (GET /missions/{id}).
+
+    Filters combine: `status` (repeatable: any of them; a fleet mission's own status), `vehicle` (the system id
+    a mission was stored for; a fleet mission matches when any of its parts flies that vehicle; missions of a
+    service without a fleet are stored with no vehicle and match no `vehicle`), `since` / `until` on the
+    mission's creation time (`created_at`, to the millisecond): `since` inclusive, `until` exclusive; a date
+    alone is a whole day in UTC (`since` from its 00:00, `until` through its end). 422 naming the field for
+    a status that does not exist, a time that is not ISO 8601 (a date-time needs its offset), an `until` not
+    after `since`, or a cursor this service did not give (a cursor holds only where its page ended: the filters
+    come from the query, so keep them from page to page, as the Link does)."""
+    where = MissionFilter.of(status, vehicle, since, until)
+    return _page(request, await service.missions_page(limit, where, cursor))
 
 
 @router.get("/missions/{mission_id}", response_model=MissionOut, responses=NOT_FOUND)
