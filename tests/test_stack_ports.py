@@ -252,3 +252,34 @@ def test_up_with_the_default_vehicle_port_taken_starts_on_another_and_says_so(tm
     assert f"--port {port}" in (tmp_path / "logs" / "sitl_quad.log").read_text()
     assert f"udpout:127.0.0.1:{port}" in (tmp_path / "logs" / "gcs.log").read_text()  # the service's link
     assert up.text().splitlines()[-1] == "stopped"
+
+
+# `up` without its port check (stack.cli does that; run_up trusts its options): what a port taken between the
+# check and the child's bind looks like
+RUN_UP = """
+import sys
+from pathlib import Path
+from gcs.settings import Settings
+from stack.options import UpOptions
+from stack.up import run_up
+data, vehicle_port, http_port = Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
+settings = Settings(data_dir=data, vehicle_url=f"udpout:127.0.0.1:{vehicle_port}", port=http_port)
+sys.exit(run_up(UpOptions(settings=settings, controller="px4"), say=lambda text: print(text, flush=True)))
+"""
+
+
+@pytest.mark.integration  # the vehicle starts, loads its kernels and fails to bind
+def test_a_vehicle_whose_port_was_taken_after_the_check_fails_with_the_reason_and_the_option_on_screen(tmp_path):
+    port = free_udp_port()
+    with held(socket.SOCK_DGRAM, port):
+        argv = [sys.executable, "-c", RUN_UP, str(tmp_path), str(port), str(free_tcp_port())]
+        result = subprocess.run(argv, cwd=REPO, env=_env(), capture_output=True, text=True, timeout=STACK_S)
+    assert result.returncode == 1, result.stdout + result.stderr
+    screen = result.stdout.splitlines()
+    failed = screen.index(
+        f"buoy-gcs up: sitl_quad exited with code 2 while starting; see {tmp_path}/logs/sitl_quad.log"
+    )
+    assert screen[failed + 1 : failed + 3] == [
+        f"  sitl-quad: error: cannot listen on udp 127.0.0.1:{port}: Address already in use",
+        "  choose another port with --vehicle-port PORT, or leave --vehicle-port out and up picks a free one",
+    ]
