@@ -16,7 +16,6 @@ from typing import TYPE_CHECKING, Any
 from pydantic import ValidationError
 
 from gcs.settings import DB_FILENAME, Settings
-from gcs.storage import StorageError, is_postgres_url, open_storage
 from gcs.vehicle.connection import ConnectionStringError, parse_connection
 
 if TYPE_CHECKING:  # the chart reader (GDAL, shapely) loads only for `chart`
@@ -209,6 +208,8 @@ def _database(option: str | None) -> dict[str, object]:
     """--db's settings: a PostgreSQL URL is `db`; a file is `db_path` and overrides a $BUOY_GCS_DB URL."""
     if option is None:
         return {}
+    from gcs.storage import is_postgres_url  # here, as in check_serve: see there
+
     if is_postgres_url(option):
         return {"db": option}
     return {"db": None, "db_path": Path(option)}
@@ -223,6 +224,10 @@ def settings_error(error: ValidationError) -> str:
 def check_serve(settings: Settings) -> str | None:
     """Why `serve` cannot start with these settings, or None: a bad vehicle connection or port, or a database
     that cannot be opened (opened and migrated now, so a bad --db is a message, not a server traceback)."""
+    # not at the top: the storage loads the domain and the planner (seconds on a busy machine), and `up` answers
+    # before that whether its ports are free (stack.ports)
+    from gcs.storage import StorageError, open_storage
+
     try:
         parse_connection(settings.vehicle_url)
     except ConnectionStringError as error:
@@ -259,6 +264,7 @@ def serve(settings: Settings) -> None:
 def report(args: argparse.Namespace) -> int:
     """`python -m gcs report`: a missing database or an unknown mission is a message and exit 2."""
     from gcs.reports.report import ReportError, cached_report, write_stored_report
+    from gcs.storage import StorageError, open_storage
 
     settings = settings_from_args(args)
     if settings.db is None and not settings.db_path.is_file():

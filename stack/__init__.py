@@ -5,7 +5,8 @@ through the service's REST API.
 - `cli`: `buoy-gcs`, the ground station's command line with `up` added
 - `options`: what `up` is asked to start, and the loops each controller flies with
 - `children`: the children's command lines and environments, in start order
-- `supervisor`: start in order, watch, restart a crashed child, stop cleanly
+- `ports`: the vehicles' UDP and the service's HTTP ports, checked before any child starts (a busy default moved up)
+- `supervisor`: start in order, watch, restart a crashed child, stop cleanly (a failure shows its log's reason)
 - `up`: one or two lives of the stack (`--compare`), the demo flown in each
 - `demo`: the reference scenario in the paper's weather, flown and reported
 - `service_api`: small stdlib HTTP helpers for the service's API

@@ -16,7 +16,7 @@ from gcs.vehicle.connection import parse_connection
 from planner.scenario import Weather
 from stack.options import ATTITUDE_LOOP, CONTROLLERS, UpOptions
 from stack.service_api import http_ok
-from stack.supervisor import ChildSpec, python_module
+from stack.supervisor import ChildSpec, current_run, python_module
 from uavcore.geodesy import LocalFrame
 from uavcore.mavlink import SIGNING_KEY_ENV
 
@@ -97,6 +97,7 @@ def _vehicle_children(options: UpOptions, sysid: int, port: int) -> tuple[ChildS
         python_module("sitl_quad", *vehicle_args),
         ready=lambda: _log_says(vehicle_log, "listening"),
         env=signing,
+        port_option="--vehicle-port",
     )
     if options.controller == "px4":
         return vehicle, []
@@ -129,12 +130,14 @@ def _service(options: UpOptions, vehicles: list[str], extra_ais: Sequence[str] =
     else:
         env[Settings.env_name("db")] = settings.db
     base = options.base_url
-    return ChildSpec("gcs", python_module("gcs", *gcs_args), ready=lambda: http_ok(f"{base}/vehicle"), env=env)
+    return ChildSpec(
+        "gcs", python_module("gcs", *gcs_args), ready=lambda: http_ok(f"{base}/vehicle"), env=env, port_option="--port"
+    )
 
 
 def _log_says(path: Path, marker: str) -> bool:
     """Whether the child's current run (after the supervisor's last "starting" line) printed the marker."""
     try:
-        return marker in path.read_text().rpartition("starting: ")[2]
+        return marker in current_run(path.read_text())
     except OSError:
         return False

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +28,7 @@ from gcs.settings import Settings
 from gcs.vehicle.connection import parse_connection
 from planner.scenario import Weather
 from stack.options import CONTROLLERS, UpOptions
+from stack.ports import BusyPortError, choose, service_port, vehicle_port
 
 # `up` starts its own vehicle on this machine: by default on the port of the default vehicle connection.
 DEFAULT_VEHICLE_PORT = parse_connection(Settings.default("vehicle_url")).port
@@ -74,9 +77,9 @@ def add_up(commands: Any) -> None:
     vehicle = up.add_mutually_exclusive_group()
     vehicle.add_argument(
         "--vehicle-port",
-        type=int,
-        default=DEFAULT_VEHICLE_PORT,
-        help=f"UDP port the simulated vehicle listens on (default {DEFAULT_VEHICLE_PORT})",
+        type=int,  # None: the default, or the next free port above it when that is busy (stack.ports)
+        help=f"UDP port the simulated vehicle listens on (default {DEFAULT_VEHICLE_PORT}, or the next free one "
+        "when it is busy)",
     )
     vehicle.add_argument(
         "--vehicle",
@@ -172,13 +175,12 @@ def requested_weather(args: argparse.Namespace) -> Weather | None:
 
 
 def up(args: argparse.Namespace) -> int:
-    from stack.up import run_up  # not at the top: it loads the planner, which `serve` and `report` do not need
-
     if args.speed is not None and not (math.isfinite(args.speed) and 0 < args.speed <= 1000):
         print("buoy-gcs: --speed must be in (0, 1000]", file=sys.stderr)
         return 2
-    if not 0 < args.vehicle_port < 65536:
-        print(f"buoy-gcs: --vehicle-port {args.vehicle_port} is not a port", file=sys.stderr)
+    first_port = DEFAULT_VEHICLE_PORT if args.vehicle_port is None else args.vehicle_port
+    if not 0 < first_port < 65536:
+        print(f"buoy-gcs: --vehicle-port {first_port} is not a port", file=sys.stderr)
         return 2
     external = args.vehicle_url is not None
     if not 1 <= args.fleet_size <= MAX_VEHICLES:
@@ -187,10 +189,8 @@ def up(args: argparse.Namespace) -> int:
     if external and (args.fleet_size > 1 or args.depots):
         print("buoy-gcs: --vehicles and --depot simulate vehicles; they do not go with --vehicle", file=sys.stderr)
         return 2
-    if args.vehicle_port + args.fleet_size - 1 >= 65536:
-        print(
-            f"buoy-gcs: {args.fleet_size} vehicles from port {args.vehicle_port} run past port 65535", file=sys.stderr
-        )
+    if first_port + args.fleet_size - 1 >= 65536:
+        print(f"buoy-gcs: {args.fleet_size} vehicles from port {first_port} run past port 65535", file=sys.stderr)
         return 2
     if args.compare and not args.demo:
         print("buoy-gcs: --compare compares two demo flights; it needs --demo", file=sys.stderr)
@@ -206,8 +206,13 @@ def up(args: argparse.Namespace) -> int:
         print("buoy-gcs: --demo flies the simulated reference scenario; it does not go with --vehicle", file=sys.stderr)
         return 2
     # without --vehicle the service talks to the vehicle `up` starts, whatever $BUOY_GCS_VEHICLE_URL names
-    vehicle_url = args.vehicle_url if external else f"udpout:127.0.0.1:{args.vehicle_port}"
+    vehicle_url = args.vehicle_url if external else f"udpout:127.0.0.1:{first_port}"
     settings = settings_from_args(args, vehicle_url=vehicle_url)
+    try:  # first: each child finds a busy port only once its kernels have loaded, check_serve loads the storage
+        settings = free_ports(args, settings, say)
+    except BusyPortError as error:
+        print(f"buoy-gcs: {error}", file=sys.stderr)
+        return 2
     if (problem := check_serve(settings)) is not None:
         print(f"buoy-gcs: {problem}", file=sys.stderr)
         return 2
@@ -228,7 +233,31 @@ def up(args: argparse.Namespace) -> int:
         world=args.world,
         world_ais_port=args.world_ais_port,
     )
-    return run_up(options, say=lambda text: print(text, flush=True))
+    # not at the top: it loads the planner and the storage, which `serve` and `report` do not need, and which
+    # would delay the answer on the ports by seconds
+    from stack.up import run_up
+
+    return run_up(options, say=say)
+
+
+def say(text: str) -> None:
+    print(text, flush=True)
+
+
+def free_ports(args: argparse.Namespace, settings: Settings, say: Callable[[str], None]) -> Settings:
+    """The settings on ports that are free now: the service's HTTP port, and the simulated vehicles' first UDP
+    port (their links follow it); a busy default is moved up (said by `say`), a busy port the user gave (by an
+    option, or the environment for --port) raises BusyPortError."""
+    http = service_port(settings.host)
+    given_http = args.port is not None or Settings.env_name("port") in os.environ
+    overrides: dict[str, object] = {"port": choose(http, settings.port, 1, given_http, say)}
+    overrides["vehicle_url"] = settings.vehicle_url
+    if args.vehicle_url is None:
+        vehicles = vehicle_port(args.fleet_size)
+        first = parse_connection(settings.vehicle_url).port
+        first = choose(vehicles, first, args.fleet_size, args.vehicle_port is not None, say)
+        overrides["vehicle_url"] = f"udpout:127.0.0.1:{first}"
+    return settings_from_args(args, **overrides)
 
 
 def main(argv: list[str] | None = None) -> int:
