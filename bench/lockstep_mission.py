@@ -33,8 +33,9 @@ RESULTS = REPO / "bench" / "results" / "lockstep_mission.json"
 CONTROLLERS = ("adrc", "pid")
 TARGET_LOCKSTEP_X = 20.0
 TARGET_DEMO_WALL_S = 60.0
-# what demo_report prints: "lockstep   438.7 s simulated in 26.8 s wall from POST to landed: 16.4x"
-LOCKSTEP_LINE = re.compile(r"lockstep\s+([\d.]+) s simulated in ([\d.]+) s wall from POST to landed")
+# what demo_report prints: "sim speed  438.7 s of vehicle time (arming to landed) in 26.8 s of wall-clock time
+# (POST to landed): 16.4 times real time"
+LOCKSTEP_LINE = re.compile(r"sim speed\s+([\d.]+) s of vehicle time \(arming to landed\) in ([\d.]+) s of wall")
 READY_LINE = "map page:"
 
 

@@ -22,8 +22,9 @@ from the bottom up:
   `lifecycle` (upload, arm, start, watch to the end), the
   fleet (`fleet_vehicle`, `fleet_planning`, `fleet_missions`), `read_cache`, `ownership`, and `service`
   (MissionService: what the routes call)
-- `api` the HTTP face: `app` (create_app), `routes/*` (thin; `routes.deps` gives them the service), `security`,
-  `http_headers`, `body_limit`, `live_feed` (/ws)
+- `api` the HTTP face: `app` (create_app), `routes/*` (thin; `routes.deps` gives them the service), `errors` (every
+  error answer's one shape), `docs_pages` (/docs, /redoc offline), `security`, `http_headers`, `body_limit`,
+  `live_feed` (/ws)
 - `cli` (`python -m gcs serve | report`); the whole stack as supervised children (`buoy-gcs up`) is the `stack`
   package, above this one: the ground station starts no vehicle
 """

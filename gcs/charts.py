@@ -41,6 +41,7 @@ from pyogrio.errors import DataLayerError, DataSourceError
 from pyogrio.raw import read
 from shapely.geometry.base import BaseGeometry
 
+from gcs.domain.chart_basemap import BASEMAP_CLASSES, basemap_feature
 from gcs.domain.charted_marks import (
     MARK_CLASSES,
     CellInfo,
@@ -144,7 +145,14 @@ def _read_contents(path: Path, name: str, layers: set[str], options: dict[str, s
         SystemArea(geometry, _integer(attributes.get("MARSYS")))
         for attributes, geometry in _areas(path, "M_NSYS", layers, options)
     ]
-    return ChartContents(cell, marks, lights, systems, _coverage(path, layers, options), left_out)
+    basemap = [
+        feature
+        for object_class in BASEMAP_CLASSES
+        if object_class in layers
+        for attributes, geometry in _layer(path, object_class, options)
+        if (feature := basemap_feature(object_class, attributes, geometry)) is not None
+    ]
+    return ChartContents(cell, marks, lights, systems, _coverage(path, layers, options), left_out, basemap)
 
 
 def _cell_info(dsid: dict[str, Any], name: str) -> CellInfo:

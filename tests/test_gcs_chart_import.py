@@ -20,6 +20,7 @@ import stack.cli
 from gcs.charts import is_cell, read_cell, read_upload
 from gcs.cli import main
 from gcs.domain.areas import AreaError, parse_area
+from gcs.domain.chart_basemap import feature_collection
 from gcs.domain.charted_marks import (
     CellInfo,
     ChartContents,
@@ -511,3 +512,9 @@ def test_the_world_file_holds_the_marks_with_a_kind_and_a_flashable_light():
         "BOYSPP (D): not in the world file: its light Q(3) Y has no period",
     ]
     assert load_world(world.to_geojson()) == world
+
+
+def test_the_base_map_joins_the_cells_feature_lists_into_one_collection():
+    document = json.loads(feature_collection(["[]", '[{"x": 1}]', "[]", '[{"y": 2}, {"z": 3}]']))
+    assert document == {"type": "FeatureCollection", "features": [{"x": 1}, {"y": 2}, {"z": 3}]}
+    assert json.loads(feature_collection([])) == {"type": "FeatureCollection", "features": []}

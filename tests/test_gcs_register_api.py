@@ -11,6 +11,8 @@ import time
 from pathlib import Path
 
 import pytest
+import shapely
+import shapely.geometry
 from inspected_missions import NOT_INSPECTED_REASON, OFF_STATION, inspection_result
 from test_gcs_api import errors_of, make_client
 
@@ -75,6 +77,27 @@ def test_a_chart_cell_fills_the_register_and_a_second_import_changes_nothing(reg
     assert (again["created"], again["updated"], again["unchanged"]) == ([], [], 316)
     history = client.get("/buoys/0226000268610001").json()["history"]
     assert [e["kind"] for e in history] == ["registered"]
+
+
+def test_the_cells_land_piers_and_depth_contours_are_the_offline_base_map(register, tmp_path):
+    client, _ = register
+    answer = client.get("/basemap.geojson", headers={"Accept-Encoding": "gzip"})
+    assert answer.headers["content-encoding"] == "gzip" and answer.headers["content-type"] == "application/geo+json"
+    features = answer.json()["features"]  # (httpx decompresses it)
+    layers = {f["properties"]["layer"] for f in features}
+    assert layers == {"land", "shoreline_construction", "depth_contour"}
+    land = shapely.union_all(
+        [shapely.geometry.shape(f["geometry"]) for f in features if f["properties"]["layer"] == "land"]
+    )
+    assert land.contains(shapely.Point(-76.49, 38.978))  # Annapolis
+    assert not land.contains(shapely.Point(-76.45, 38.96))  # the harbour's entrance, where its beacons stand
+    depths = {f["properties"]["depth_m"] for f in features if f["properties"]["layer"] == "depth_contour"}
+    assert {1.8, 3.6, 5.4, 9.1} <= depths
+    # imported again: the cell's base map replaced, not doubled; a service with no cell imported has none
+    client.post("/buoys/imports?filename=US4MD81M.000", content=CELL.read_bytes(), headers=TOKEN)
+    assert len(client.get("/basemap.geojson").json()["features"]) == len(features)
+    with make_client(tmp_path / "other") as empty:
+        assert empty.get("/basemap.geojson").json() == {"type": "FeatureCollection", "features": []}
 
 
 def test_the_round_trip_chart_register_mission_inspection_history_defects_and_alarms(inspected):

@@ -125,3 +125,11 @@ def test_the_filters_by_area_kind_inspection_age_and_open_defects(storage):
     assert ids(inspected_before="9999") == ["M", "N", "S"]
     assert ids(open_defects=True) == ["S"] and ids(open_defects=False) == ["M", "N"]
     assert ids(bbox=(-76.5, 38.95, -76.4, 39.05), open_defects=False, kind="port") == ["M", "N"]
+
+
+def test_a_cells_base_map_is_stored_under_its_name_and_a_later_import_replaces_it(storage):
+    assert storage.basemaps() == []
+    storage.store_basemap("US4MD81M", "31", "0", '[{"a": 1}]')
+    storage.store_basemap("AAAAAAAA", "1", None, "[]")
+    storage.store_basemap("US4MD81M", "32", "1", '[{"b": 2}]')  # a new edition of the cell: its features replaced
+    assert storage.basemaps() == ["[]", '[{"b": 2}]']  # by cell name

@@ -100,7 +100,7 @@ def test_callers_asking_together_share_one_read(storage):
         answers = asyncio.gather(*(facade.latest_version() for _ in range(20)))
         await all_queued()  # all twenty asked while the reader was busy: none of their reads has begun
         slow.release.set()
-        assert await answers == [1] * 20
+        assert await answers == [(1, 1)] * 20
         assert counting.calls == 1
         await busy
         await facade.close()

@@ -22,6 +22,7 @@ from stack.demo import (
     OFF_STATION_AT,
     OFF_STATION_RADII,
     ais_summary,
+    duration_text,
     findings_table,
     measure_flight,
     prepare,
@@ -288,3 +289,9 @@ def test_the_demos_ais_line_counts_the_atons_and_names_those_off_position():
     off = aton | {"name": "B7", "off_position": True}
     assert ais_summary([aton, off]) == "2 AtoNs heard (GET /ais/atons, the map's AIS layer); off position: B7"
     assert ais_summary([aton, off | {"stale": True}]).endswith("none reports itself off position")
+
+
+def test_durations_read_as_minutes_and_seconds():
+    assert [duration_text(s) for s in (725.31, 60.0, 41.23, None, float("nan"))] == [
+        "12 min 05.3 s", "1 min 00.0 s", "41.2 s", "unknown", "unknown"
+    ]  # fmt: skip

@@ -161,6 +161,16 @@ def register_with_ais(tmp_path) -> Iterator[Scene]:
             sender.join()
 
 
+# how much of the map's area land paths cover (their boxes clipped to the map's: a rough, sufficient measure)
+LAND_IN_VIEW = """() => {
+  const view = document.querySelector("#map").getBoundingClientRect();
+  const inside = (b) => Math.max(0, Math.min(b.right, view.right) - Math.max(b.left, view.left))
+    * Math.max(0, Math.min(b.bottom, view.bottom) - Math.max(b.top, view.top));
+  const land = [...document.querySelectorAll("path.chart-land")].map((p) => inside(p.getBoundingClientRect()));
+  return land.some((area) => area > 0.01 * view.width * view.height);
+}"""
+
+
 def aton_marker(page, aton: Aton):
     return page.locator(f"[data-testid=aton][data-mmsi='{aton.mmsi}']")
 
@@ -210,6 +220,14 @@ def test_the_page_draws_the_ais_atons_and_the_register_and_shows_a_buoys_record(
         expect(tooltip_of(page, atons["virtual"])).to_contain_text("virtual: nothing physical is at this position")
         expect(tooltip_of(page, atons["off"])).to_contain_text("off position: it reports itself off its station")
         page.screenshot(path=str(ARTIFACTS / "web_atons.png"))
+
+        # the offline chart (no network here: the base layer is the metric grid): the imported cell's land drawn
+        # in view around the harbour, its piers, its depth contours with their depths
+        page.wait_for_function(LAND_IN_VIEW, timeout=30_000)
+        assert page.locator("path.chart-pier").count() > 0 and page.locator("path.chart-depth").count() > 0
+        page.locator(".leaflet-control-layers").hover()
+        expect(page.get_by_label("Chart (offline)")).to_be_checked()
+        page.mouse.move(0, 0)
 
         # the register overlay, turned on in the layer control: the chart's 316 buoys, by kind, overdue dimmed
         page.locator(".leaflet-control-layers").hover()

@@ -41,6 +41,7 @@ from shapely.geometry.base import BaseGeometry
 
 from gcs.domain.areas import bounds_text
 from gcs.domain.buoy_files import BuoyFileError
+from gcs.domain.chart_basemap import BasemapFeature
 from uavcore.buoy_world import DEFAULT_SWING_RADIUS_M, World, WorldBuoy
 from uavcore.light_character import LightCharacterError, from_s57, parse
 
@@ -204,6 +205,7 @@ class ChartContents:
     systems: Sequence[SystemArea] = ()
     coverage: BaseGeometry | None = None  # M_COVR's covered area (CATCOV 1)
     warnings: Sequence[str] = ()  # the reader's own (objects it could not place)
+    basemap: Sequence[BasemapFeature] = ()  # land, coastline, piers, depth contours (gcs.domain.chart_basemap)
 
 
 @dataclass(frozen=True)
@@ -216,6 +218,7 @@ class ChartImport:
     region: Region  # the cell's own (its M_NSYS), else the fallback the caller gave
     region_source: Literal["chart", "default"]
     warnings: tuple[str, ...] = field(default=())
+    basemap: tuple[BasemapFeature, ...] = field(default=())  # the whole cell's, whatever the area
 
 
 # ----- attribute values
@@ -485,7 +488,7 @@ def read_marks(contents: ChartContents, fallback_region: Region = "A", area: Bas
     )
     region, source = cell_region(contents.systems, fallback_region)
     warnings = (*contents.warnings, *_system_warnings(contents.systems), *warn.items)
-    return ChartImport(contents.cell, marks, region, source, warnings)
+    return ChartImport(contents.cell, marks, region, source, warnings, tuple(contents.basemap))
 
 
 def _nothing_in_area(contents: ChartContents, area: BaseGeometry) -> str:

@@ -7,6 +7,7 @@ the record's own transaction (gcs.storage.base.Storage.set_inspection), whoever 
 
 from __future__ import annotations
 
+import asyncio
 from collections.abc import Sequence
 from dataclasses import replace
 from datetime import UTC, datetime, timedelta
@@ -16,6 +17,7 @@ from pydantic import ValidationError
 
 from gcs.ais.feed import AisFeed
 from gcs.domain.aton_table import distance_m
+from gcs.domain.chart_basemap import encoded_features, feature_collection
 from gcs.domain.charted_marks import ChartImport
 from gcs.domain.register import (
     AisMatch,
@@ -59,12 +61,20 @@ class Register:
         self._ais = ais
 
     async def import_chart(self, chart: ChartImport) -> RegisterImportOut:
-        """The cell's marks into the register, upserted by LNAM; ids or names given twice reported, not merged."""
+        """The cell's marks into the register, upserted by LNAM; ids or names given twice reported, not merged. The
+        cell's land, piers and depth contours become the page's offline base map (`basemap`)."""
         source = chart_source(chart)
         buoys, duplicates = without_duplicates([from_mark(mark, source) for mark in chart.marks])
         created, updated, unchanged = await self._storage.upsert_buoys(buoys)
+        features = await asyncio.to_thread(encoded_features, chart.basemap)  # megabytes of JSON: off the loop
+        cell = chart.cell
+        await self._storage.store_basemap(cell.name, cell.edition, cell.update, features)
         return RegisterImportOut(source=source, created=created, updated=updated, unchanged=unchanged,
                                  duplicates=duplicates, warnings=list(chart.warnings))  # fmt: skip
+
+    async def basemap(self) -> bytes:
+        """The base map of every cell imported: one GeoJSON FeatureCollection, encoded."""
+        return feature_collection(await self._storage.basemaps()).encode()
 
     async def resolve(self, request: Request) -> Request:
         """The request with the buoys its `from_register` selection names appended to its own, each where the mission

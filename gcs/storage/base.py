@@ -555,6 +555,23 @@ class Storage(ABC):
             return [InspectionRecord.model_validate_json(row["record"]) for row in rows.fetchall()]
 
     # ----- the buoy register (gcs.domain.register)
+    def store_basemap(self, cell: str, edition: str | None, update: str | None, features: str) -> None:
+        """A chart cell's base map features (a JSON list), replacing what an earlier import of the cell stored."""
+        with self.transaction() as db:
+            db.execute(
+                "INSERT INTO chart_basemaps (cell, edition, update_number, imported_at, features)"
+                " VALUES (?, ?, ?, ?, ?) ON CONFLICT (cell) DO UPDATE SET edition = excluded.edition,"
+                " update_number = excluded.update_number, imported_at = excluded.imported_at,"
+                " features = excluded.features",
+                (cell, edition, update, _now(), features),
+            )
+
+    def basemaps(self) -> list[str]:
+        """Every stored cell's base map features (each a JSON list), by cell name."""
+        with self._reading() as db:
+            rows = db.execute("SELECT features FROM chart_basemaps ORDER BY cell").fetchall()
+        return [str(row["features"]) for row in rows]
+
     def upsert_buoys(self, buoys: Sequence[RegisterBuoy]) -> tuple[list[str], list[str], int]:
         """Register buoys by id, in one transaction: a new one is inserted, a known one whose charted attributes
         changed is updated (its history, MMSI and defects kept, the change an event), an unchanged one takes the new

@@ -180,6 +180,17 @@ def _register_tables(integer: str, key: str, real: str) -> str:
 # this index gives that order and starts each page where the last one ended, instead of sorting every mission
 # per request (created_at is fixed-width ISO text in UTC, so the text order is the time order).
 _BY_CREATION = "CREATE INDEX missions_by_creation ON missions (created_at, id);"
+# Migration 10: the base map from the register's chart cells (gcs.domain.chart_basemap), a cell's features
+# as one JSON list under its name: a newer edition or update replaces them
+_CHART_BASEMAPS = """
+    CREATE TABLE chart_basemaps (
+        cell TEXT PRIMARY KEY,
+        edition TEXT,
+        update_number TEXT,
+        imported_at TEXT NOT NULL,
+        features TEXT NOT NULL
+    );
+"""
 
 
 def _sqlite_status_check(db: Any) -> None:
@@ -230,4 +241,5 @@ MIGRATIONS: list[Migration] = [
         postgresql=_register_tables("BIGINT", "BIGINT GENERATED ALWAYS AS IDENTITY PRIMARY KEY", "DOUBLE PRECISION"),
     ),
     Migration(sqlite=_BY_CREATION, postgresql=_BY_CREATION),
+    Migration(sqlite=_CHART_BASEMAPS, postgresql=_CHART_BASEMAPS),
 ]

@@ -110,6 +110,9 @@ class AsyncStorage:
     async def delete_mission(self, mission_id: int) -> bool:
         return await self._run(self._writer, self.blocking.delete_mission, mission_id)
 
+    async def store_basemap(self, cell: str, edition: str | None, update: str | None, features: str) -> None:
+        await self._run(self._writer, self.blocking.store_basemap, cell, edition, update, features)
+
     async def upsert_buoys(self, buoys: list[RegisterBuoy]) -> tuple[list[str], list[str], int]:
         return await self._run(self._writer, self.blocking.upsert_buoys, buoys)
 
@@ -168,6 +171,9 @@ class AsyncStorage:
 
     async def known_buoys(self, ids: list[str]) -> set[str]:
         return await self._run(self._readers, self.blocking.known_buoys, ids)
+
+    async def basemaps(self) -> list[str]:
+        return await self._run(self._readers, self.blocking.basemaps)
 
     async def buoys(self, where: BuoyFilter | None = None) -> list[StoredBuoy]:
         return await self._run(self._readers, self.blocking.buoys, where)

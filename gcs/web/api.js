@@ -101,6 +101,12 @@ export class GcsApi {
     return this.request("GET", `/missions/${encodeURIComponent(id)}/inspections`);
   }
 
+  // The offline base map (GET /basemap.geojson): a FeatureCollection of the imported cells' land, piers and depth
+  // contours (properties.layer, a contour's depth_m); empty before a cell is imported.
+  basemap() {
+    return this.request("GET", "/basemap.geojson");
+  }
+
   // The AIS feed's AtoNs (GET /ais/atons: AtonsOut): each one's latest report, its age and flags.
   atons() {
     return this.request("GET", "/ais/atons");

@@ -382,6 +382,7 @@ async function start() {
   const vehicle = await showingErrors(() => api.vehicle(), null)();
   const depot = vehicle ? vehicle.depot : FALLBACK_DEPOT;
   map.showBaseLayers(depot);
+  showingErrors(async () => map.showChart(await api.basemap()))(); // megabytes: drawn when it comes
   showOverlays();
   setDepot(depot);
   wireControls();

@@ -1,5 +1,5 @@
-// The Leaflet map: base layers (offline metric grid, OpenStreetMap when reachable) and overlays in one layer
-// control (atons.js and register.js add theirs), the depot, the buoys (with their inspection's verdict as a badge
+// The Leaflet map: base layers (offline metric grid, OpenStreetMap when reachable), the offline chart of the
+// imported cells, and overlays in one layer control (atons.js and register.js add theirs), the depot, the buoys (with their inspection's verdict as a badge
 // once the watched mission has one), the planned route (dashed; one colour per sortie, with a legend, when the plan
 // has several), the flown track and the vehicle. Icons and the legend are built as DOM elements, never HTML.
 import { h, svg } from "./dom.js";
@@ -80,6 +80,30 @@ export class MissionMap {
         osm.addTo(this.map);
       }
     });
+  }
+
+  // The offline chart (GET /basemap.geojson: the land, piers and depth contours of the chart cells the register
+  // imported), an overlay over either base layer, on at first when there is any. Drawn in SVG with a class per
+  // layer (the look in style.css), under the route and the track; a contour's depth is its tooltip.
+  showChart(collection) {
+    if (!collection.features.length) return;
+    const pane = this.map.createPane("chart");
+    pane.style.zIndex = 350; // over the tiles (200), under the overlay pane's route and track (400)
+    const looks = {
+      land: { className: "chart-land", fillColor: "#efe4c0", fillOpacity: 1, color: "#8c7a4b", weight: 1 },
+      shoreline_construction: { className: "chart-pier", color: "#555", weight: 2 },
+      depth_contour: { className: "chart-depth", color: "#6a9fd4", weight: 1, opacity: 0.8 },
+    };
+    const layer = L.geoJSON(collection, {
+      pane: "chart",
+      interactive: true,
+      style: (feature) => looks[feature.properties.layer] || {},
+      onEachFeature: (feature, path) => {
+        const depth = feature.properties.depth_m;
+        if (depth !== undefined) path.bindTooltip(`${depth} m depth contour`, { sticky: true });
+      },
+    });
+    this.addOverlay(layer, "Chart (offline)", true);
   }
 
   // An overlay the operator turns on and off in the layer control (after showBaseLayers); shown: on at first.

@@ -5,6 +5,7 @@ the work."""
 from __future__ import annotations
 
 import asyncio
+import gzip
 import json
 from typing import Annotated
 
@@ -110,6 +111,19 @@ async def get_buoys_geojson(buoys: FilteredBuoys) -> Response:
 @router.get("/buoys.csv", response_class=Response, responses=export("text/csv"))
 async def get_buoys_csv(buoys: FilteredBuoys) -> Response:
     return download_response(exports.buoys_csv(buoys), "text/csv", "buoys.csv")
+
+
+@router.get("/basemap.geojson", response_class=Response, responses=export("application/geo+json"))
+async def get_basemap(request: Request, service: ServiceDep) -> Response:
+    """The offline base map: the land, piers and breakwaters and depth contours of every chart cell the register
+    imported (features with `layer`: land, shoreline_construction, depth_contour; a contour's `depth_m`). Empty
+    before any import. Megabytes for a harbour cell: sent gzip-compressed to a client that takes it."""
+    content = await service.register.basemap()
+    headers = {"Vary": "Accept-Encoding", "Cache-Control": "no-cache"}
+    if "gzip" in request.headers.get("accept-encoding", ""):
+        content = await asyncio.to_thread(gzip.compress, content, 6)
+        headers["Content-Encoding"] = "gzip"
+    return Response(content, media_type="application/geo+json", headers=headers)
 
 
 @router.get("/buoys/{buoy_id}", response_model=BuoyDetailOut, responses=NO_BUOY)
