@@ -263,6 +263,23 @@ def test_the_page_draws_the_ais_atons_and_the_register_and_shows_a_buoys_record(
         expect(history.nth(2)).to_contain_text("registered")
         page.screenshot(path=str(ARTIFACTS / "web_register_buoy.png"))
 
+        # the overlay's filters are GET /buoys': a kind, overdue only, open defects only, each narrowing
+        page.keyboard.press("Escape")  # the popup closes
+        filters = page.get_by_test_id("register-filters")
+        filters.get_by_test_id("register-kind").select_option("port")
+        expect(marks).to_have_count(141)
+        filters.get_by_test_id("register-kind").select_option("")
+        filters.get_by_test_id("register-overdue").check()
+        expect(marks).to_have_count(314)
+        filters.get_by_test_id("register-defects-only").check()
+        expect(marks).to_have_count(0)  # the one buoy with a defect was just inspected: not overdue
+        filters.get_by_test_id("register-overdue").uncheck()
+        expect(marks).to_have_count(1)
+        expect(marks).to_have_attribute("data-id", target["id"])
+        page.locator(".leaflet-control-layers").hover()
+        page.get_by_label("Register buoys").uncheck()
+        expect(filters).to_have_count(0)  # the filters go with the overlay
+
 
 # ----- the register's off-station alarms on the page
 # a register buoy named with markup (a chart's names are free text), its AtoN the one reporting itself off position

@@ -1,7 +1,8 @@
 // The Leaflet map: base layers (offline metric grid, OpenStreetMap when reachable), the offline chart of the
-// imported cells, and overlays in one layer control (atons.js and register.js add theirs), the depot, the buoys (with their inspection's verdict as a badge
-// once the watched mission has one), the planned route (dashed; one colour per sortie, with a legend, when the plan
-// has several), the flown track and the vehicle. Icons and the legend are built as DOM elements, never HTML.
+// imported cells, and overlays in one layer control (atons.js and register.js add theirs), the depot, the buoys
+// (with their inspection's verdict as a badge once the watched mission has one), the planned route (dashed; one
+// colour per sortie, with a legend, when the plan has several), the flown track and the vehicle. Icons and the
+// legend are built as DOM elements, never HTML.
 import { h, svg } from "./dom.js";
 import { metricGridLayer, tilesReachable } from "./grid.js";
 import { hasSortieFigures, legsOf, routeLook, sortieLook, swatch } from "./sorties.js";

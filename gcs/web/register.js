@@ -2,7 +2,8 @@
 // (style.css .register-buoy), ringed with a count badge while it has open defects, dimmed while its inspection is
 // overdue; a click opens its record (GET /buoys/{id}) in a popup: kind, light, last inspection, open defects, its
 // AIS AtoN and the latest history. Fetched when the overlay is turned on and every 30 s while it is on and the tab
-// is shown (poll.js). Names, lights and notes come from the chart and from operators: text nodes only. The alarms
+// is shown (poll.js), with the filters chosen in its control (a kind, overdue, open defects: GET /buoys'). Names,
+// lights and notes come from the chart and from operators: text nodes only. The alarms
 // (alarms.js, through app.js) take a buoy's position from the buoys it holds and open a buoy's popup with openBuoy().
 import { h } from "./dom.js";
 import { ageText } from "./atons.js";
@@ -96,6 +97,44 @@ function buoyDetail(detail) {
   );
 }
 
+// The overlay's filters, GET /buoys' own (the service filters): a kind, overdue only, with open defects only. A
+// control at the map's bottom left while the overlay is on; a change asks for the buoys at once.
+const RegisterFilters = L.Control.extend({
+  options: { position: "bottomleft" },
+  initialize(onChange) {
+    this.onChange = onChange;
+  },
+  onAdd() {
+    const option = (kind) => h("option", { value: kind }, kindText(kind));
+    const kinds = [h("option", { value: "" }, "every kind"), ...[...KINDS].map(option)];
+    this.kind = h("select", { "aria-label": "register kind", "data-testid": "register-kind" }, ...kinds);
+    this.overdue = h("input", { type: "checkbox", "data-testid": "register-overdue" });
+    this.defects = h("input", { type: "checkbox", "data-testid": "register-defects-only" });
+    for (const input of [this.kind, this.overdue, this.defects]) {
+      input.addEventListener("change", () => this.onChange());
+    }
+    const box = h(
+      "div",
+      { class: "register-filters", "data-testid": "register-filters" },
+      h("b", {}, "Register"),
+      this.kind,
+      h("label", {}, this.overdue, ` overdue (${OVERDUE_DAYS} d)`),
+      h("label", {}, this.defects, " open defects"),
+    );
+    L.DomEvent.disableClickPropagation(box); // choosing a filter is no click on the map (which places a buoy)
+    return box;
+  },
+  // GET /buoys' query: what is chosen, the rest left out
+  filters() {
+    if (!this.kind) return {};
+    return {
+      kind: this.kind.value || null,
+      overdue_days: this.overdue.checked ? OVERDUE_DAYS : null,
+      open_defects: this.defects.checked ? true : null,
+    };
+  },
+});
+
 export class RegisterLayer {
   // map: the Leaflet map; api: GcsApi (buoys(), buoy(id)); onError(error) when a request fails
   constructor(map, api, onError) {
@@ -105,13 +144,19 @@ export class RegisterLayer {
     this.layer = L.layerGroup();
     this.shownText = null; // the latest answer drawn, so that an unchanged one redraws nothing (an open popup stays)
     this.shown = new Map(); // register id -> {buoy, marker}, as drawn
-    this.poller = new Poller(() => api.buoys(), (buoys, turnedOn) => this.draw(buoys, turnedOn), onError, POLL_MS);
-    this.layer.on("add", () => this.poller.start(true));
+    this.filterControl = new RegisterFilters(() => this.poller.start(false));
+    const ask = () => api.buoys(this.filterControl.filters());
+    this.poller = new Poller(ask, (buoys, turnedOn) => this.draw(buoys, turnedOn), onError, POLL_MS);
+    this.layer.on("add", () => {
+      this.filterControl.addTo(this.map);
+      this.poller.start(true);
+    });
     this.layer.on("remove", () => this.stop());
   }
 
   stop() {
     this.poller.stop();
+    this.filterControl.remove();
     this.layer.clearLayers();
     this.shownText = null;
     this.shown.clear();
