@@ -29,6 +29,7 @@ class ScriptedVehicle(threading.Thread):
         self.running = True
         self.silent = False  # no heartbeats, no answers
         self.command_results: dict[int, int | None] = {}  # None: never acknowledge
+        self.refusal_texts: dict[int, str] = {}  # a STATUSTEXT sent just after a command's refusal, as PX4 does
         self.commands_seen: list[int] = []
         self.mission_result = mavlink.MAV_MISSION_ACCEPTED
         self.drop_first_request_of: set[int] = set()
@@ -84,6 +85,9 @@ class ScriptedVehicle(threading.Thread):
             result = self.command_results.get(m.command, mavlink.MAV_RESULT_ACCEPTED)
             if result is not None:
                 self.send(self.mav.command_ack_encode(m.command, result))
+            if result != mavlink.MAV_RESULT_ACCEPTED and m.command in self.refusal_texts:
+                text = self.refusal_texts[m.command].encode()
+                self.send(self.mav.statustext_encode(mavlink.MAV_SEVERITY_CRITICAL, text))
         elif kind == "MISSION_COUNT" and not self.ignore_mission:
             if self.mission_result != mavlink.MAV_MISSION_ACCEPTED:
                 self.send(self.mav.mission_ack_encode(255, 190, self.mission_result, 0))

@@ -174,6 +174,16 @@ def test_arm_refused_fails_with_its_reason(tmp_path, vehicle):
     assert len(vehicle.stored) == 4  # takeoff, speed, one buoy, return
 
 
+def test_arm_refused_with_the_vehicles_words_gives_them_as_the_reason(tmp_path, vehicle):
+    """The cause is the STATUSTEXT the vehicle sends with its refusal (after the COMMAND_ACK here), not only the
+    MAV_RESULT."""
+    vehicle.command_results[mavlink.MAV_CMD_COMPONENT_ARM_DISARM] = mavlink.MAV_RESULT_DENIED
+    vehicle.refusal_texts[mavlink.MAV_CMD_COMPONENT_ARM_DISARM] = "Arming denied: battery 0%, below 7%"
+    mission = fly(tmp_path, vehicle)
+    assert mission["status"] == "failed"
+    assert mission["reason"] == "the vehicle refused to arm: Arming denied: battery 0%, below 7% (MAV_RESULT_DENIED)"
+
+
 def test_vehicle_that_never_arms_ends_failed_not_flying_forever(tmp_path, vehicle):
     # it acknowledges arm and start but its heartbeat never shows armed: the disarm grace ends the mission
     mission = fly(tmp_path, vehicle)

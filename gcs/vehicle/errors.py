@@ -15,8 +15,11 @@ class CommandTimeoutError(LinkError):
 
 
 class CommandDeniedError(LinkError):
-    """The vehicle answered a command with something other than ACCEPTED (`result` is the MAV_RESULT)."""
+    """The vehicle answered a command with something other than ACCEPTED (`result` is the MAV_RESULT); `said`: the
+    STATUSTEXTs it sent with its refusal, the real cause in its own words ("Arming denied: battery 0%, below 7%"),
+    which lead the message: the MAV_RESULT alone tells an operator only that it said no."""
 
-    def __init__(self, what: str, result: int) -> None:
-        self.result = result
-        super().__init__(f"the vehicle refused to {what} ({result_name('MAV_RESULT', result)})")
+    def __init__(self, what: str, result: int, said: tuple[str, ...] = ()) -> None:
+        self.result, self.said = result, said
+        because = f": {'; '.join(said)}" if said else ""
+        super().__init__(f"the vehicle refused to {what}{because} ({result_name('MAV_RESULT', result)})")

@@ -65,6 +65,7 @@ COMMAND_TRIES = 6
 REBOOT_BACKSTEP_MS = 1000  # time_boot_ms falling by more than this means the vehicle restarted
 BOOT_INSTANT_TOLERANCE_S = 2.0  # a boot instant (SYSTEM_TIME) moving by more than this is a new boot
 STATUS_TEXTS_KEPT = 10
+REFUSAL_TEXT_WAIT_S = 1.0  # how long a refused command waits for the vehicle's STATUSTEXT giving the cause
 ARM_CONFIRM_S = 3.0
 TAKEOFF_TIMEOUT_S = 60.0
 ON_GROUND = mavlink.MAV_LANDED_STATE_ON_GROUND
@@ -187,6 +188,7 @@ class VehicleStatus:
     home: tuple[float, float, float] | None = None
     estimates: dict[str, Any] = field(default_factory=dict)  # a companion controller's ESO outputs by name
     status_texts: list[str] = field(default_factory=list)  # the vehicle's latest STATUSTEXTs, oldest first
+    status_texts_heard: int = 0  # how many STATUSTEXTs it has sent: which of status_texts came after a moment
 
     @property
     def on_ground(self) -> bool:
@@ -367,9 +369,19 @@ class LinkManager:
         )
 
     async def _command(self, what: str, command: int, params: Iterable[float] = ()) -> None:
+        heard = self.status.status_texts_heard
         result = await self.command_long(command, params)
         if result != mavlink.MAV_RESULT_ACCEPTED:
-            raise CommandDeniedError(what, result)
+            raise await self._refusal(what, result, heard)
+
+    async def _refusal(self, what: str, result: int, heard: int) -> CommandDeniedError:
+        """The refusal with what the vehicle said since `heard` (status_texts_heard before the command). PX4 and
+        ArduPilot send the cause as a STATUSTEXT beside the COMMAND_ACK, either side of it: wait a moment for it."""
+        deadline = time.monotonic() + REFUSAL_TEXT_WAIT_S
+        while self.status.status_texts_heard == heard and time.monotonic() < deadline:
+            await asyncio.sleep(0.05)
+        new = min(self.status.status_texts_heard - heard, len(self.status.status_texts))
+        return CommandDeniedError(what, result, tuple(self.status.status_texts[-new:]) if new else ())
 
     # ----- actions (MAVSDK's Action plugin, per autopilot flavour)
     async def set_mode(self, purpose: str) -> None:
@@ -387,6 +399,7 @@ class LinkManager:
         heartbeat shows the vehicle armed."""
         if self.autopilot.takes_off_before_mission:
             await self.set_mode("guided")  # ArduPilot arms for a mission in GUIDED, then takes off there
+        heard = self.status.status_texts_heard
         result = await self.command_long(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, [1])
         if result == mavlink.MAV_RESULT_TEMPORARILY_REJECTED:
             deadline = time.monotonic() + ARM_CONFIRM_S
@@ -395,7 +408,7 @@ class LinkManager:
             if self.status.armed:
                 return
         if result != mavlink.MAV_RESULT_ACCEPTED:
-            raise CommandDeniedError("arm", result)
+            raise await self._refusal("arm", result, heard)
 
     async def disarm(self) -> None:
         await self._command("disarm", mavlink.MAV_CMD_COMPONENT_ARM_DISARM, [0])
@@ -621,6 +634,7 @@ class LinkManager:
             s.home = (m.latitude * 1e-7, m.longitude * 1e-7, m.altitude / 1000.0)
         elif kind == "STATUSTEXT":
             s.status_texts = [*s.status_texts[1 - STATUS_TEXTS_KEPT :], statustext(m)]
+            s.status_texts_heard += 1
 
     def _rebooted(self) -> None:
         s = self.status
