@@ -7,6 +7,7 @@ No fake vehicle here: the vehicle is the project's SITL process on a free port, 
 import subprocess
 import sys
 import time
+from datetime import UTC, datetime
 
 import pytest
 from fastapi.testclient import TestClient
@@ -60,10 +61,12 @@ def wait_for(client, mission_id, done, timeout_s):
 def test_reference_mission_flies_to_completion_and_survives_a_restart(tmp_path, vehicle):
     port, _ = vehicle
     with TestClient(create_app(settings_for(tmp_path, port))) as client:
+        posted = datetime.now(UTC)
         created = client.post("/missions", json={"buoys": BUOYS, "acceptance_radius_m": 2.0})
         assert created.status_code == 201
         mission_id = created.json()["id"]
         mission = wait_for(client, mission_id, lambda m: m["status"] in TERMINAL, timeout_s=400)
+        ended = datetime.now(UTC)
         assert (mission["status"], mission["reason"]) == ("completed", None)
         assert [e["status"] for e in mission["events"]] == ["planned", "uploading", "uploaded", "flying", "completed"]
         # the plan is the exact optimum of the reference instance
@@ -75,6 +78,12 @@ def test_reference_mission_flies_to_completion_and_survives_a_restart(tmp_path, 
         for result in mission["buoy_results"]:
             assert result["reached"] and result["closest_m"] <= 2.0, result
             assert result["arrival_s"] is not None
+        # and when, by the wall clock (UTC, the service's): in visiting order, within the flight
+        by_visit = sorted(mission["buoy_results"], key=lambda r: r["arrival_s"])
+        heard = [datetime.fromisoformat(r["arrival_at"]) for r in by_visit]
+        assert posted <= heard[0] and heard == sorted(heard) and heard[-1] <= ended
+        events = mission["progress"]["vehicle_events"]
+        assert events and all(posted <= datetime.fromisoformat(e["at"]) <= ended for e in events)
         assert mission["progress"]["visited"] == 13
         tracking = mission["tracking"]
         assert tracking["flight_time_s"] > 0

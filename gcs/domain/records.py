@@ -84,6 +84,9 @@ class MissionProgress(Progress):
     so that a restarted service continues a mission where it was."""
 
     reached_at: dict[int, float] = Field(default_factory=dict, description="buoy index -> vehicle time reached")
+    # buoy index -> when the service heard it reached (unix seconds, its own clock): the operator's time of day,
+    # which the vehicle's boot time is not (and a lockstep vehicle's clock runs faster than the wall's)
+    reached_wall_at: dict[int, float] = Field(default_factory=dict)
     sorties_flown: list[SortieFlown] = Field(default_factory=list)
     consumed_at_start: float | None = None  # the battery's consumed energy when the sortie took off
     shares: list[ShareProgress] = Field(default_factory=list)  # a fleet mission's

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import AwareDatetime, BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from gcs.domain.buoy_files import BuoyFileError, buoys_from_geojson
 from gcs.domain.status import MissionKind, MissionStatus
@@ -326,6 +326,9 @@ class BuoyResult(BaseModel):
     closest_m: float | None
     reached: bool
     arrival_s: float | None = Field(description="vehicle time (time_boot_ms / 1000) when it was reached")
+    arrival_at: AwareDatetime | None = Field(
+        default=None, description="when the service heard it reached, UTC (null: not reached, or not heard live)"
+    )
 
 
 class LegFigures(BaseModel):
@@ -349,6 +352,7 @@ class VehicleEvent(BaseModel):
 
     t_s: float | None
     text: str
+    at: AwareDatetime | None = Field(default=None, description="when the service received it, UTC")
 
 
 class PreflightCheck(BaseModel):

@@ -25,6 +25,8 @@ lifecycle) is the only evidence, so for that sortie an item reached or sequenced
 
 from __future__ import annotations
 
+import time
+from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
@@ -69,6 +71,7 @@ class MissionRecorder:
         self.last_ms: float | None = None
         self.reached_seqs: list[int] = []
         self.reached_at: dict[int, float] = {}  # buoy index -> vehicle time
+        self.reached_wall_at: dict[int, float] = {}  # buoy index -> unix time the service heard it (MissionProgress)
         self.latest: dict[str, Any] | None = None
         self.route = self.plan.route_local()
         self.vehicle_events: list[VehicleEvent] = []  # the vehicle's STATUSTEXTs and mode changes
@@ -88,6 +91,7 @@ class MissionRecorder:
         self.consumed_at_start = progress.consumed_at_start
         self.reached_seqs = list(progress.reached_seqs)
         self.reached_at = dict(progress.reached_at)
+        self.reached_wall_at = dict(progress.reached_wall_at)
         # the current item is not restored: the vehicle flew on unwatched, and its next MISSION_CURRENT says where
         self.vehicle_events = list(progress.vehicle_events)
         self.preflight_checks = list(progress.preflight)
@@ -189,7 +193,7 @@ class MissionRecorder:
         t_ms = self.link.status.time_boot_ms
         self.vehicle_events = [
             *self.vehicle_events,
-            VehicleEvent(t_s=None if t_ms is None else t_ms / 1000.0, text=text),
+            VehicleEvent(t_s=None if t_ms is None else t_ms / 1000.0, text=text, at=datetime.now(UTC)),
         ]
         self.vehicle_events = self.vehicle_events[-VEHICLE_EVENTS_KEPT:]
 
@@ -211,6 +215,8 @@ class MissionRecorder:
             buoy = buoy_of_seq(seq, self.plan, self.layout)
             if buoy is not None and status.time_boot_ms is not None:
                 self.reached_at.setdefault(buoy, status.time_boot_ms / 1000.0)
+            if buoy is not None:
+                self.reached_wall_at.setdefault(buoy, time.time())
             if buoy is not None and self.unwatched:
                 self.visited.add(buoy)
         elif kind == "BATTERY_STATUS" and from_autopilot and message.id == 0:
@@ -267,6 +273,7 @@ class MissionRecorder:
             visited=len(visited),
             buoys=len(self.mission_plan.buoy_ids),
             reached_at=dict(self.reached_at),
+            reached_wall_at=dict(self.reached_wall_at),
             vehicle_events=list(self.vehicle_events),
             sortie=self.sortie,
             sorties=len(self.mission_plan.sortie_orders()),

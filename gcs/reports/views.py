@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
@@ -99,6 +100,16 @@ def sorties_out(plan: Plan, flown: list[SortieFlown] | None = None) -> list[Sort
 
 
 def _buoy_results(record: MissionRecord) -> list[BuoyResult]:
+    """Each buoy's closest approach and arrival, with when the service heard it reached (wall clock)."""
+    heard = record.progress.reached_wall_at
+
+    def at(index: int) -> datetime | None:
+        return datetime.fromtimestamp(heard[index], UTC) if index in heard else None
+
+    return [b.model_copy(update={"arrival_at": at(b.index)}) for b in _buoy_figures(record)]
+
+
+def _buoy_figures(record: MissionRecord) -> list[BuoyResult]:
     if record.results is not None and record.results.buoys is not None:
         return record.results.buoys
     ids = record.plan.buoy_ids
