@@ -279,6 +279,10 @@ def test_offboard_controller_killed_mid_flight_returns_and_the_mission_fails_nam
     assert mission["progress"]["visited"] < 3
     texts = [e["text"] for e in mission["progress"]["vehicle_events"]]
     assert "Failsafe: offboard setpoints lost, AUTO.RTL" in texts
+    failsafe = next(e for e in mission["progress"]["vehicle_events"] if e["text"].startswith("Failsafe"))
+    assert failsafe["severity"] == "error"  # as the vehicle sent it (MAV_SEVERITY_ERROR)
+    mode_change = next(e for e in mission["progress"]["vehicle_events"] if e["text"].startswith("mode "))
+    assert mode_change["severity"] is None  # the service's own line, no STATUSTEXT
     # the return flight was recorded to the ground: nothing after the fault is lost
     samples = stack.api.get(f"/missions/{mission_id}/telemetry").json()
     failsafe_t = next(e["t_s"] for e in mission["progress"]["vehicle_events"] if e["text"].startswith("Failsafe"))

@@ -12,6 +12,7 @@ import http.client
 import json
 import re
 import time
+from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
@@ -28,7 +29,7 @@ from gcs.api.app import create_app
 from gcs.api.security import LIVE_SUBPROTOCOL
 from gcs.cli import build_parser, settings_from_args
 from gcs.domain.records import MissionProgress, MissionResults
-from gcs.domain.schemas import MAX_BUOYS, MAX_FENCE_VERTICES, MAX_FENCE_ZONES, BuoyResult
+from gcs.domain.schemas import MAX_BUOYS, MAX_FENCE_VERTICES, MAX_FENCE_ZONES, BuoyResult, StatusEvent, VehicleEvent
 from gcs.reports.report import report_html
 from gcs.settings import Settings
 from gcs.storage import MissionRecord
@@ -231,14 +232,25 @@ def test_the_report_page_escapes_mission_text():
         reason=HOSTILE,
         flight=FLIGHT,
         plan=PLAN,
-        progress=MissionProgress(),
-        results=MissionResults(
-            buoys=[BuoyResult(index=0, id=HOSTILE, reached=False, closest_m=None, arrival_s=None)],
+        progress=MissionProgress(
+            vehicle_events=[VehicleEvent(t_s=12.5, text=HOSTILE, at=datetime(2026, 11, 27, 23, 50, tzinfo=UTC),
+                                         severity="critical")],
+            reached_wall_at={0: datetime(2026, 11, 27, 23, 51, 2, tzinfo=UTC).timestamp()},
         ),
-    )
+        results=MissionResults(
+            buoys=[BuoyResult(index=0, id=HOSTILE, reached=True, closest_m=1.0, arrival_s=40.0)],
+        ),
+        events=[StatusEvent(at="2026-11-27T23:49:00Z", status="failed", reason=HOSTILE)],
+    )  # fmt: skip
     page = report_html(record, [("status", f"failed ({HOSTILE})"), (HOSTILE, "x")])
     assert HOSTILE not in page and "<img src=x" not in page and "<script" not in page
-    assert page.count(html.escape(HOSTILE)) == 4  # the creation time, the status row, the row name, the buoy
+    # the creation time, the status row, the row name, the buoy, and in the event log the status change's reason
+    # and the vehicle's text (after it in time)
+    assert page.count(html.escape(HOSTILE)) == 6
+    events = page[page.index('data-testid="events"') :]
+    assert events.index("2026-11-27 23:49:00 UTC") < events.index("2026-11-27 23:50:00 UTC")
+    assert "critical" in events and "vehicle time 12.5 s" in events
+    assert "<td>2026-11-27 23:51:02 UTC</td>" in page  # the buoy's arrival, by the wall clock
 
 
 # ----- request limits: 413 and 422, never a 5xx

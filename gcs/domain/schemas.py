@@ -347,12 +347,18 @@ class TrackingFigures(BaseModel):
     flight_time_s: float | None
 
 
+# MAV_SEVERITY's levels in its order (0 emergency ... 7 debug), as words
+SEVERITIES = ("emergency", "alert", "critical", "error", "warning", "notice", "info", "debug")
+Severity = Literal["emergency", "alert", "critical", "error", "warning", "notice", "info", "debug"]
+
+
 class VehicleEvent(BaseModel):
     """A STATUSTEXT of the vehicle, or a mode change ("mode OFFBOARD -> AUTO.RTL"), at the vehicle's time."""
 
     t_s: float | None
     text: str
     at: AwareDatetime | None = Field(default=None, description="when the service received it, UTC")
+    severity: Severity | None = Field(default=None, description="a STATUSTEXT's (MAV_SEVERITY); null: a mode change")
 
 
 class PreflightCheck(BaseModel):

@@ -34,7 +34,7 @@ import numpy as np
 from gcs.domain import tracking_metrics
 from gcs.domain.planning import FIRST_BUOY_SEQ, MissionLayout, Plan, buoy_of_seq
 from gcs.domain.records import MissionProgress, SortieFlown
-from gcs.domain.schemas import TELEMETRY_FROM_STATUS, PreflightCheck, TelemetrySample, VehicleEvent
+from gcs.domain.schemas import SEVERITIES, TELEMETRY_FROM_STATUS, PreflightCheck, TelemetrySample, VehicleEvent
 from gcs.vehicle.link import LinkManager
 from uavcore.mavlink import statustext
 
@@ -189,12 +189,13 @@ class MissionRecorder:
         visited = self.visited_buoys()
         return [self.mission_plan.buoy_ids[b] for b in self.mission_plan.order if b not in visited]
 
-    def _event(self, text: str) -> None:
+    def _event(self, text: str, severity: int | None = None) -> None:
         t_ms = self.link.status.time_boot_ms
-        self.vehicle_events = [
-            *self.vehicle_events,
-            VehicleEvent(t_s=None if t_ms is None else t_ms / 1000.0, text=text, at=datetime.now(UTC)),
-        ]
+        level = SEVERITIES[severity] if severity is not None and 0 <= severity < len(SEVERITIES) else None
+        event = VehicleEvent(
+            t_s=None if t_ms is None else t_ms / 1000.0, text=text, at=datetime.now(UTC), severity=level
+        )
+        self.vehicle_events = [*self.vehicle_events, event]
         self.vehicle_events = self.vehicle_events[-VEHICLE_EVENTS_KEPT:]
 
     def __call__(self, message: Any) -> None:
@@ -202,7 +203,7 @@ class MissionRecorder:
         status = self.link.status
         from_autopilot = message.get_srcComponent() == status.compid
         if kind == "STATUSTEXT" and from_autopilot:
-            self._event(statustext(message))
+            self._event(statustext(message), message.severity)
         elif kind == "HEARTBEAT" and from_autopilot and message.custom_mode != self.custom_mode:
             if self.custom_mode is not None:
                 names = self.link.autopilot.mode_name

@@ -17,6 +17,7 @@ import html
 import json
 import math
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -375,12 +376,14 @@ def report_html(
     portable)."""
     table = "\n".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows)
     buoys = (record.results or MissionResults()).buoys or []
+    arrivals = record.progress.reached_wall_at
     buoy_rows = "\n".join(
         f"<tr><td>{html.escape(b.id)}</td><td>{'yes' if b.reached else 'no'}</td>"
-        f"<td>{_cell(b.closest_m, 2)}</td><td>{_cell(b.arrival_s, 1)}</td></tr>"
+        f"<td>{_cell(b.closest_m, 2)}</td><td>{_cell(b.arrival_s, 1)}</td><td>{_utc(arrivals.get(b.index))}</td></tr>"
         for b in buoys
     )
     images = "\n".join(f'<figure><img src="{name}" alt="{name[:-4]}"></figure>' for name in figures)
+    events = _events_table(record)
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>Mission {record.id} report</title>
 <style>{REPORT_STYLE}</style></head>
@@ -393,15 +396,53 @@ def report_html(
 </table>
 {_sortie_table(record, sorties or [])}
 <h2>Buoys</h2>
-<table><thead><tr><th>buoy</th><th>reached</th><th>closest m</th><th>arrival s</th></tr></thead>
+<table><thead><tr><th>buoy</th><th>reached</th><th>closest m</th><th>arrival s (vehicle time)</th>
+<th>arrived (UTC)</th></tr></thead>
 <tbody>
 {buoy_rows}
 </tbody></table>
 {inspection}
+{events}
 <h2>Flight</h2>
 {images}
 </body></html>
 """
+
+
+def _utc(unix_s: float | None) -> str:
+    """A time of day as the report gives it: "2026-11-27 23:45:02 UTC" ("-": not known)."""
+    if unix_s is None:
+        return "-"
+    return datetime.fromtimestamp(unix_s, UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+
+
+def _events_table(record: MissionRecord) -> str:
+    """The mission's event log: its status changes (with their reasons) and the vehicle's events (STATUSTEXTs by
+    severity, mode changes), in time order (an event without a time first), every text escaped (a vehicle's words
+    are never markup)."""
+    rows = [(_unix(e.at), "mission", "", str(e.status) + (f": {e.reason}" if e.reason else "")) for e in record.events]
+    for e in record.progress.vehicle_events:
+        vehicle_time = f" (vehicle time {e.t_s:.1f} s)" if e.t_s is not None else ""
+        rows.append((e.at.timestamp() if e.at else None, "vehicle", e.severity or "", e.text + vehicle_time))
+    if not rows:
+        return ""
+    rows.sort(key=lambda row: -math.inf if row[0] is None else row[0])
+    cells = "\n".join(
+        "<tr>" + "".join(f"<td>{html.escape(cell)}</td>" for cell in (_utc(at), source, severity, text)) + "</tr>"
+        for at, source, severity, text in rows
+    )
+    return (
+        '<h2>Events</h2>\n<table data-testid="events"><thead><tr><th>time (UTC)</th><th>from</th><th>severity</th>'
+        f"<th>what</th></tr></thead>\n<tbody>\n{cells}\n</tbody></table>"
+    )
+
+
+def _unix(iso: str) -> float | None:
+    """A stored ISO time as unix seconds (None: not a time)."""
+    try:
+        return datetime.fromisoformat(iso).timestamp()
+    except ValueError:
+        return None
 
 
 def _sortie_table(record: MissionRecord, sorties: list[SortieOut]) -> str:
