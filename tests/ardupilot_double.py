@@ -24,7 +24,9 @@ station depends on it. What it copies, and where from (ArduPilot/ardupilot sourc
   unless AUTO_OPTIONS allows it: ModeAuto::allows_arming; RTL and LAND never); NAV_TAKEOFF param7 = altitude
   above home, accepted only when armed, landed and in a mode with a user takeoff (Mode::do_user_takeoff);
   MISSION_START is DENIED when param1 or param2 (first/last item) is not 0, else switches to AUTO and starts the
-  mission (handle_MAV_CMD_MISSION_START); NAV_RETURN_TO_LAUNCH and NAV_LAND switch to RTL and LAND.
+  mission (handle_MAV_CMD_MISSION_START); NAV_RETURN_TO_LAUNCH and NAV_LAND switch to RTL and LAND;
+  DO_SET_MISSION_CURRENT (AP_Mission::set_current_cmd) moves the current item, which a stopped mission resumes
+  from when AUTO is entered again.
 - AUTO (mode_auto.cpp): entering it needs more than the home item (ModeAuto::init); items 1.. fly in order;
   at the end (ModeAuto::exit_mission) a landed vehicle disarms, a flying one switches to LOITER.
   RTL and LAND descend and disarm once landed (ModeLand::gps_run "disarm when the landing detector says we've
@@ -37,7 +39,8 @@ flies home and lands without RTL_LOIT_TIME; no auto-disarm on the ground, no fai
     with ArduCopterDouble(gcs_port, items_out=path) as vehicle: ...
 
 The items an upload delivered are written to `items_out` as JSON (one object of `MissionItem` fields each), and
-`mode_history`, `set_message_interval_refusals` and `data_stream_requests` record what the double was asked.
+`mode_history`, `set_message_interval_refusals`, `data_stream_requests` and `current_requests` record what the
+double was asked.
 """
 
 from __future__ import annotations
@@ -158,6 +161,7 @@ class ArduCopterDouble:
         self.set_message_interval_refusals = 0
         self.data_stream_requests: list[tuple[int, int, int]] = []  # (stream id, rate Hz, start/stop)
         self.requested_speed_m_s: float | None = None
+        self.current_requests: list[int] = []  # DO_SET_MISSION_CURRENT's items, in the vehicle's numbering
         self.stream_rates: dict[int, float] = {}
         self.next_stream_at: dict[int, float] = {}
         self.next_heartbeat_at = 0.0
@@ -319,11 +323,24 @@ class ArduCopterDouble:
             if self.armed and not self.landed:
                 self._start_mission()
             return mavlink.MAV_RESULT_ACCEPTED
+        if command == mavlink.MAV_CMD_DO_SET_MISSION_CURRENT:
+            return self._result(self._set_current(int(p[0])))
         if command == mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             return self._result(self.set_mode(CopterMode.RTL))
         if command == mavlink.MAV_CMD_NAV_LAND:
             return self._result(self.set_mode(CopterMode.LAND))
         return mavlink.MAV_RESULT_UNSUPPORTED  # REQUEST_MESSAGE included: older firmware
+
+    def _set_current(self, seq: int) -> bool:
+        """AP_Mission::set_current_cmd: a running mission flies from `seq` now; a stopped one starts there when AUTO
+        resumes it (MIS_RESTART 0). Home (item 0) and items past the end are refused."""
+        self.current_requests.append(seq)
+        if not 0 < seq < len(self.mission):
+            return False
+        self.current_seq = seq
+        if self.mode == CopterMode.AUTO and self.mission_state == mavlink.MISSION_STATE_ACTIVE:
+            self._begin_item()
+        return True
 
     @staticmethod
     def _result(success: bool) -> int:

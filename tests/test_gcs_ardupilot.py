@@ -24,7 +24,8 @@ from fastapi.testclient import TestClient
 
 from bench.processes import free_udp_port
 from gcs.api.app import create_app
-from gcs.domain.planning import FlightParams, make_plan, mission_items
+from gcs.domain.planning import FIRST_BUOY_SEQ, FlightParams, make_plan, mission_items
+from gcs.missions.lifecycle import LANDED_BY_OPERATOR
 from gcs.settings import Settings
 from gcs.vehicle.autopilots import ArduCopter
 from gcs.vehicle.link import LinkManager
@@ -235,3 +236,40 @@ def test_an_aborted_mission_returns_the_arducopter_home(tmp_path, start_double):
         assert double.landed and not double.armed
         assert (double.north, double.east) == pytest.approx((0.0, 0.0), abs=0.01)
         assert mission["progress"]["visited"] < FEW_BUOYS
+
+
+def test_the_operator_holds_returns_resumes_and_lands_the_arducopter_in_its_own_modes(tmp_path, start_double):
+    """Hold is LOITER, return RTL, land LAND and a resume AUTO from the first buoy not visited
+    (DO_SET_MISSION_CURRENT in ArduPilot's numbering, home being item 0); landed, the mission ends aborted."""
+    with service_with_a_mission(tmp_path, start_double) as (client, double, mission_id):
+        wait_for_mission(client, mission_id, lambda m: m["progress"]["visited"] >= 1, FLIGHT_S)
+
+        def command(what: str, mode: str) -> None:
+            answer = client.post(f"/missions/{mission_id}/{what}")
+            assert answer.status_code == 200, answer.text
+            deadline = time.monotonic() + CONNECT_S
+            while client.get("/vehicle").json()["mode"] != mode:
+                assert time.monotonic() < deadline, f"the double never in {mode}: {double.mode_history}"
+                time.sleep(0.1)
+
+        def resume() -> None:
+            mission = client.get(f"/missions/{mission_id}").json()
+            visited = mission["progress"]["visited_buoys"]
+            position = next(p for p, b in enumerate(mission["order"]) if b not in visited)
+            command("resume", "AUTO")
+            # the buoy's waypoint: the planned item FIRST_BUOY_SEQ + position, one up on board behind home
+            assert double.current_requests[-1] == FIRST_BUOY_SEQ + position + 1, (double.current_requests, position)
+            after = wait_for_mission(client, mission_id, lambda m: m["progress"]["visited_buoys"] != visited, FLIGHT_S)
+            assert set(after["progress"]["visited_buoys"]) == {*visited, mission["order"][position]}
+
+        command("hold", "LOITER")
+        assert double.velocity == (0.0, 0.0, 0.0) and not double.landed
+        resume()
+        command("return", "RTL")
+        resume()
+        command("land", "LAND")
+        mission = wait_for_mission(client, mission_id, lambda m: m["status"] in ("completed", "failed", "aborted"),
+                                   FLIGHT_S)  # fmt: skip
+        assert mission["status"] == "aborted" and mission["reason"].startswith(LANDED_BY_OPERATOR), mission
+        assert double.mode_history == ["STABILIZE", "GUIDED", "AUTO", "LOITER", "AUTO", "RTL", "AUTO", "LAND"]
+        assert double.landed and not double.armed

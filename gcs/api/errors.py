@@ -19,7 +19,7 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from gcs.domain.buoy_files import BuoyFileError
-from gcs.missions.lifecycle import MissionConflictError
+from gcs.missions.lifecycle import MissionConflictError, VehicleCommandError
 from gcs.missions.ownership import NotOwnerError
 from gcs.missions.register import BuoyNotFoundError
 from gcs.missions.service import FrameNotFoundError, MissionNotFoundError, VehicleNotFoundError
@@ -35,6 +35,7 @@ ERROR_TYPES = {
     409: "conflict",
     413: "too_large",
     500: "internal_error",
+    502: "bad_gateway",
     503: "unavailable",
 }
 
@@ -120,6 +121,12 @@ def install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(MissionConflictError)
     async def conflict(_: Request, error: MissionConflictError) -> JSONResponse:
         return error_response(409, [((), str(error))])
+
+    @app.exception_handler(VehicleCommandError)
+    async def vehicle_silent(_: Request, error: VehicleCommandError) -> JSONResponse:
+        # the service is the vehicle's gateway: a vehicle that did not answer is a 502 (one that refused is a
+        # 409, MissionConflictError: its answer says the present state does not allow it)
+        return error_response(502, [((), str(error))])
 
     @app.exception_handler(NotOwnerError)
     async def standby(request: Request, error: NotOwnerError) -> JSONResponse:

@@ -19,6 +19,9 @@ MAX_BUOYS = 500
 MAX_FENCE_ZONES = 50
 MAX_FENCE_VERTICES = 200
 PlannerMethod = Literal["auto", "chnn-ga", "chnn", "exact"]
+# An operator's command in force on a flying mission (gcs.missions.lifecycle): held where it is, returning to the
+# depot (resumable until it lands), or landing where it is. A resume ends the first two; nothing ends a landing.
+OperatorCommand = Literal["hold", "return", "land"]
 
 
 class Strict(BaseModel):
@@ -399,6 +402,11 @@ class Progress(BaseModel):
     camera: str | None = Field(
         default=None,
         description="the camera the buoys are inspected with (null: visited only; the inspections say why)",
+    )
+    command: OperatorCommand | None = Field(
+        default=None,
+        description="the operator's command in force (POST /missions/{id}/hold, /return, /land; null: none, the "
+        "mission flies as planned): which buttons apply, resume after hold or return",
     )
 
 

@@ -14,6 +14,12 @@ flying it (the same waypoints on board, downloaded and compared, and armed): rec
 where they stopped, and the mission ends as it would have. A vehicle that finished it meanwhile (mission
 complete, landed, disarmed) completes it; anything else fails it with reason RESTART_NOT_FLYING.
 
+The operator's commands while a sortie is in the air (`command`, `resume`), each the autopilot's own mode
+(COMMAND_PURPOSES): hold where it is, return to the depot, land where it is; resume (after a hold or a return)
+flies on in the mission mode from the first buoy not visited. The mission stays flying under a command, and its
+flight-time budget counts none of that time (`budget_step`); a return or a landing ends it aborted once the vehicle
+is down and disarmed (`operator_end`). The command in force is the mission's `progress.command`.
+
 Completed means: every buoy visited (gcs.missions.recorder: the vehicle's own positions, after this mission's upload was
 acknowledged), and the vehicle landed at the depot (its last position there) and disarmed (HEARTBEAT base_mode),
 whichever messages showed it: a mission whose MISSION_ITEM_REACHED or MISSION_CURRENT were lost on the radio
@@ -45,11 +51,12 @@ import asyncio
 import contextlib
 import logging
 import time
+from collections.abc import Awaitable, Callable
 from typing import Any
 
 from gcs.domain.planning import FIRST_BUOY_SEQ, FlightParams, Plan, inspection_time_s, mission_items
 from gcs.domain.records import MissionProgress
-from gcs.domain.schemas import PreflightCheck, VehicleEvent
+from gcs.domain.schemas import OperatorCommand, PreflightCheck, VehicleEvent
 from gcs.domain.status import TERMINAL, MissionStatus
 from gcs.missions.energy_planning import ChargeNeed, charge_needed, model_pack
 from gcs.missions.inspector import NO_CAMERA, NOT_ASKED, FrameAnalysis, InspectionLimits, Inspector, not_inspected
@@ -59,6 +66,7 @@ from gcs.settings import Settings
 from gcs.storage import MissionRecord
 from gcs.storage.off_loop import AsyncStorage
 from gcs.vehicle.camera import CameraInfo
+from gcs.vehicle.errors import CommandDeniedError
 from gcs.vehicle.link import CommandTimeoutError, LinkError, LinkManager
 from gcs.vehicle.mission_protocol import MissionTransferError
 from planner.energy import EnergyModel
@@ -78,6 +86,12 @@ BATTERY_REPORT_WAIT_S = 5.0  # wall clock for the vehicle's battery report (BATT
 BATTERY_SETTLE_MS = 1500.0  # vehicle time after a landing before its battery report counts (one report after it)
 CAMERA_WAIT_S = 2.5  # wall clock after the vehicle is heard for its camera's heartbeat (1 Hz) to be heard too
 SWAPPED_CHARGE_WAIT_S = 5.0  # wall clock for the vehicle to report the charge of a pack the operator swapped
+# The operator's commands on a flying mission, each the autopilot's own mode for it (its flavour's purpose,
+# gcs.vehicle.autopilots: PX4 AUTO.LOITER, AUTO.RTL, AUTO.LAND, AUTO.MISSION; ArduPilot Copter LOITER 5, RTL 6,
+# LAND 9, AUTO 3). A resume is back in the mission mode: the offboard controller takes it to OFFBOARD itself.
+COMMAND_PURPOSES: dict[str, str] = {"hold": "hold", "return": "return", "land": "land", "resume": "mission"}
+RETURNED_BY_OPERATOR = "returned at the operator's command"
+LANDED_BY_OPERATOR = "landed where it was at the operator's command"
 
 
 async def vehicle_pack(link: LinkManager) -> PackSpec | None:
@@ -104,6 +118,10 @@ class MissionConflictError(RuntimeError):
     """Another mission is using the vehicle, or the mission is not in a state that allows the request."""
 
 
+class VehicleCommandError(RuntimeError):
+    """The vehicle did not answer an operator's command (it may or may not have acted on it: its mode says)."""
+
+
 class MissionEndError(Exception):
     """Raised inside the lifecycle to finish with a terminal status and a reason."""
 
@@ -117,6 +135,25 @@ def flight_budget_s(plan: Plan, flight: FlightParams, margin_s: float, inspected
     cruise = plan.length_m / flight.speed_m_s
     bursts = inspection_time_s(plan) if inspected else 0.0
     return cruise + len(plan.order) * flight.dwell_s + 2 * flight.altitude_m / CLIMB_RATE_M_S + bursts + margin_s
+
+
+def budget_step(step_s: float, command: OperatorCommand | None) -> float:
+    """How many of `step_s` vehicle seconds the flight-time budget counts under the operator's `command`: held,
+    landing or returning, none (the planned flight is not going on); returning, minus as many, since a return
+    resumed is flown back out as far as it came home."""
+    if command is None:
+        return step_s
+    return -step_s if command == "return" else 0.0
+
+
+def operator_end(recorder: MissionRecorder, command: OperatorCommand) -> MissionEndError:
+    """How a mission ends that the operator returned or landed: aborted, naming the buoys not inspected."""
+    missing = recorder.not_inspected()
+    what = RETURNED_BY_OPERATOR if command == "return" else LANDED_BY_OPERATOR
+    which = f" ({', '.join(missing)})" if missing else ""
+    return MissionEndError(
+        MissionStatus.ABORTED, f"{what}; {len(missing)} buoy{'' if len(missing) == 1 else 's'} not inspected{which}"
+    )
 
 
 def ended_early(recorder: MissionRecorder) -> MissionEndError:
@@ -184,6 +221,7 @@ class FlightLifecycle:
         self._replans: dict[int, Plan] = {}  # new plans for flying missions, uploaded in flight by their monitor
         self._swapped = asyncio.Event()  # the operator confirmed a battery swap (a waiting mission goes on)
         self._inspectors: dict[int, Inspector] = {}  # each flying mission's inspection of its sortie's buoys
+        self._watching: set[int] = set()  # missions whose sortie is in the air, watched: the operator commands it
 
     async def reattach(self, unfinished: list[int]) -> None:
         """At start-up, with the ids of the missions a previous run left unfinished (oldest first)."""
@@ -253,6 +291,68 @@ class FlightLifecycle:
         if task is None or task.done() or self._statuses.get(mission_id) != MissionStatus.FLYING:
             raise MissionConflictError(f"mission {mission_id} is not flying here: it cannot be re-planned in flight")
         self._replans[mission_id] = plan
+
+    # ----- the operator's commands in flight
+    async def command(self, record: MissionRecord, command: OperatorCommand) -> None:
+        """Hold where it is, return to the depot or land where it is: the autopilot's own mode for it
+        (COMMAND_PURPOSES). The mission stays flying; a return or a landing ends it aborted once the vehicle is
+        down and disarmed (the monitor). Raises MissionConflictError (not flying here, or the vehicle refused) or
+        VehicleCommandError (no answer)."""
+        recorder = self._airborne(record, command)
+        await self._tell_vehicle(record.id, command, lambda: self.link.set_mode(COMMAND_PURPOSES[command]))
+        await self._commanded(record.id, recorder, command, command)
+
+    async def resume(self, record: MissionRecord) -> None:
+        """After a hold or a return: fly on in the mission mode from the first buoy not visited (its first item),
+        the items before it skipped. Raises as `command`."""
+        recorder = self._airborne(record, "resume")
+        if recorder.command not in ("hold", "return"):
+            why = "it is landing where it was" if recorder.command == "land" else "it is neither held nor returning"
+            raise MissionConflictError(f"mission {record.id} has nothing to resume: {why}")
+        seq, buoy = recorder.resume_point()
+        # the current item first: the mission mode then flies from it, on PX4 and ArduPilot alike
+        await self._tell_vehicle(record.id, "resume", lambda: self.link.set_current_item(seq))
+        await self._tell_vehicle(record.id, "resume", lambda: self.link.set_mode(COMMAND_PURPOSES["resume"]))
+        where = "on the way home" if buoy is None else f"from buoy {recorder.plan.buoy_ids[buoy]}"
+        await self._commanded(record.id, recorder, None, f"resume {where}")
+
+    def _airborne(self, record: MissionRecord, command: str) -> MissionRecorder:
+        """The recorder of `record`, whose sortie is in the air and watched here; else MissionConflictError."""
+        mission_id = record.id
+        if mission_id in self._abort_requested:
+            raise MissionConflictError(f"mission {mission_id} is being aborted: nothing to {command}")
+        if record.status != MissionStatus.FLYING:
+            raise MissionConflictError(f"mission {mission_id} is {record.status}, not in the air: nothing to {command}")
+        recorder = self._recorders.get(mission_id)
+        s = self.link.status
+        if mission_id not in self._watching or recorder is None or not s.armed or s.on_ground:
+            raise MissionConflictError(
+                f"mission {mission_id}'s vehicle is on the ground (taking off, between sorties or landed): "
+                f"nothing to {command}"
+            )
+        return recorder
+
+    async def _tell_vehicle(self, mission_id: int, command: str, action: Callable[[], Awaitable[None]]) -> None:
+        """Send one command; a refusal is a conflict (the vehicle's state does not allow it, in its own words),
+        silence a VehicleCommandError."""
+        try:
+            await action()
+        except CommandDeniedError as error:
+            raise MissionConflictError(f"{error}: mission {mission_id} goes on as it was") from None
+        except LinkError as error:
+            raise VehicleCommandError(f"the vehicle did not answer the operator's {command}: {error}") from None
+
+    async def _commanded(
+        self, mission_id: int, recorder: MissionRecorder, command: OperatorCommand | None, text: str
+    ) -> None:
+        """The vehicle took the command: it is in force, among the vehicle's events and in the status history,
+        and stored now, so the answer (and /ws) shows it."""
+        recorder.command = command
+        recorder.operator(text)
+        if mission_id not in self._watching:  # the sortie ended while the vehicle was told: its end is on record
+            return
+        await self.storage.set_progress(mission_id, recorder.progress())
+        await self._note(mission_id, f"operator: {text}")
 
     def live_mission(self) -> dict[str, Any] | None:
         """The active mission's status, progress and latest sample, for /ws; None when no mission flies."""
@@ -605,11 +705,28 @@ class FlightLifecycle:
         armed: bool = False,
     ) -> None:
         """Watch the sortie on board until it has landed finished (return) or ends otherwise (MissionEndError).
-        `armed`: the vehicle is known to have been armed for this sortie (a re-attached one)."""
+        `armed`: the vehicle is known to have been armed for this sortie (a re-attached one). While it is watched,
+        the operator may command it (`command`, `resume`)."""
+        self._watching.add(mission_id)
+        try:
+            await self._watch_sortie(mission_id, plan, flight, recorder, incarnation, armed)
+        finally:
+            self._watching.discard(mission_id)
+
+    async def _watch_sortie(
+        self,
+        mission_id: int,
+        plan: Plan,
+        flight: FlightParams,
+        recorder: MissionRecorder,
+        incarnation: int,
+        armed: bool,
+    ) -> None:
         s = self.link.status
         sysid = s.sysid
         budget_s = flight_budget_s(plan, flight, self.settings.mission_timeout_margin_s, recorder.layout.inspected)
-        start_s = (s.time_boot_ms or 0) / 1000.0
+        last_s = (s.time_boot_ms or 0) / 1000.0
+        elapsed = 0.0  # vehicle seconds the budget counts: none held, landing or returning (budget_step)
         disarmed_since: float | None = None
         was_armed = armed  # "finished" counts only after the vehicle flew this sortie (not a stale report)
         aborting = False
@@ -617,6 +734,9 @@ class FlightLifecycle:
         while True:
             await asyncio.sleep(FLUSH_PERIOD_S)
             s = self.link.status  # a new vehicle on the link gets a new status object
+            now_s = (s.time_boot_ms or 0) / 1000.0
+            elapsed += budget_step(max(0.0, now_s - last_s), recorder.command)
+            last_s = now_s
             await self.storage.add_telemetry(mission_id, recorder.take())
             progress = recorder.progress()
             if progress != last_progress:
@@ -624,7 +744,6 @@ class FlightLifecycle:
                 last_progress = progress
             if (replanned := self._replans.pop(mission_id, None)) is not None and not aborting:
                 await self._upload_in_flight(mission_id, replanned, flight, recorder)
-                elapsed = (s.time_boot_ms or 0) / 1000.0 - start_s
                 budget_s = elapsed + flight_budget_s(
                     replanned, flight, self.settings.mission_timeout_margin_s, recorder.layout.inspected
                 )
@@ -637,6 +756,7 @@ class FlightLifecycle:
                 raise MissionEndError(MissionStatus.FAILED, "link lost: no heartbeat from the vehicle")
             if mission_id in self._abort_requested and not aborting:
                 aborting = True
+                recorder.command = None  # the abort's return replaces any command of the operator's
                 await self.link.return_to_launch()
                 await self._transition(
                     mission_id, MissionStatus.ABORTED, "aborted by the operator: returning to the depot"
@@ -648,6 +768,12 @@ class FlightLifecycle:
             if on_ground_disarmed and aborting:
                 recorder.sortie_landed()
                 raise MissionEndError(MissionStatus.ABORTED, "aborted by the operator: returned to the depot")
+            if on_ground_disarmed and finished and was_armed and not recorder.not_inspected():
+                return  # every buoy visited: whatever the operator commanded on the way, completed as planned
+            command = recorder.command
+            if on_ground_disarmed and was_armed and command is not None and command != "hold":
+                recorder.sortie_landed()  # returned or landed at the operator's command: over, with what is left
+                raise operator_end(recorder, command)
             if on_ground_disarmed and finished and was_armed:
                 return
             if not s.armed:
@@ -657,10 +783,9 @@ class FlightLifecycle:
                     raise ended_early(recorder)
             else:
                 disarmed_since = None
-            elapsed = (s.time_boot_ms or 0) / 1000.0 - start_s
             # a vehicle already down and disarmed is not overrunning: the disarm check above ends the mission
             # (a lockstep vehicle with no controller runs free, so the wall-clock grace is many simulated seconds)
-            if elapsed > budget_s and not aborting and s.armed:
+            if elapsed > budget_s and not aborting and s.armed and recorder.command is None:
                 with contextlib.suppress(LinkError):
                     await self.link.return_to_launch()
                 raise MissionEndError(

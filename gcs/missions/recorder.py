@@ -34,7 +34,14 @@ import numpy as np
 from gcs.domain import tracking_metrics
 from gcs.domain.planning import FIRST_BUOY_SEQ, MissionLayout, Plan, buoy_of_seq
 from gcs.domain.records import MissionProgress, SortieFlown
-from gcs.domain.schemas import SEVERITIES, TELEMETRY_FROM_STATUS, PreflightCheck, TelemetrySample, VehicleEvent
+from gcs.domain.schemas import (
+    SEVERITIES,
+    TELEMETRY_FROM_STATUS,
+    OperatorCommand,
+    PreflightCheck,
+    TelemetrySample,
+    VehicleEvent,
+)
 from gcs.vehicle.link import LinkManager
 from uavcore.mavlink import statustext
 
@@ -80,6 +87,7 @@ class MissionRecorder:
         ] = []  # each sortie's pre-flight charge check (gcs.missions.lifecycle)
         self.custom_mode: int | None = None
         self.sample_due = False
+        self.command: OperatorCommand | None = None  # the operator's command in force (gcs.missions.lifecycle)
 
     def restore(self, progress: MissionProgress) -> None:
         """Continue from the progress a previous run of the service stored (re-attaching after a restart)."""
@@ -97,6 +105,7 @@ class MissionRecorder:
         self.preflight_checks = list(progress.preflight)
         self.camera = progress.camera
         self.layout = MissionLayout(len(self.plan.order), progress.capture)
+        self.command = progress.command  # a vehicle held (or returning) before the restart still is
 
     def _on_board(self, sortie: int) -> None:
         self.sortie, self.plan = sortie, self.mission_plan.sortie_plan(sortie)
@@ -188,6 +197,18 @@ class MissionRecorder:
         """The ids of the mission's buoys not visited (so far), in the planned order."""
         visited = self.visited_buoys()
         return [self.mission_plan.buoy_ids[b] for b in self.mission_plan.order if b not in visited]
+
+    def resume_point(self) -> tuple[int, int | None]:
+        """Where a resumed mission flies on from: the first item of the sortie's first buoy (in its visiting order)
+        not visited yet (an inspection's whole group, so its burst is taken again), and that buoy; after the last
+        buoy, the first item of the way home, and None."""
+        order = self.plan.order
+        position = next((p for p, buoy in enumerate(order) if buoy not in self.visited), len(order))
+        return self.layout.group_start(position), order[position] if position < len(order) else None
+
+    def operator(self, command: str) -> None:
+        """An operator's command, among the vehicle's events: stored with the mission and shown in its report."""
+        self._event(f"operator: {command}")
 
     def _event(self, text: str, severity: int | None = None) -> None:
         t_ms = self.link.status.time_boot_ms
@@ -284,6 +305,7 @@ class MissionRecorder:
             preflight=list(self.preflight_checks),
             camera=self.camera,
             capture=self.layout.inspected,
+            command=self.command,
         )
 
     def take(self) -> list[dict[str, Any]]:

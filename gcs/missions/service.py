@@ -1,8 +1,8 @@
 """The mission service: the one object the routes call. A thin facade over the pieces that do the work:
 
 - planning: `plan` validates a request and plans it (gcs.missions.validation, gcs.domain.planning);
-- the flight lifecycle: `launch`, `abort`, the live view (gcs.missions.lifecycle, which records with
-  gcs.missions.recorder);
+- the flight lifecycle: `launch`, `abort`, the operator's `command` (hold, return, land) and `resume`, the live
+  view (gcs.missions.lifecycle, which records with gcs.missions.recorder);
 - queries over what is stored: missions, telemetry, mission files, reports (gcs.storage, gcs.reports.report);
 - ownership of the vehicle link (gcs.missions.ownership): with several instances on one database, only the owner starts
   the link and flies; a stand-by answers reads and refuses the rest (NotOwnerError) until it takes over;
@@ -29,7 +29,7 @@ from gcs.domain.ais import AisSourceOut, AtonsOut
 from gcs.domain.inspection import gather_fleet_inspections
 from gcs.domain.listing import CursorError, MissionFilter, decode_cursor
 from gcs.domain.planning import BuoyMark, FlightParams, Plan, fenced_legs, make_plan, mission_items, sorties_plan
-from gcs.domain.schemas import InspectionOut, MissionRequest, PlanRequest
+from gcs.domain.schemas import InspectionOut, MissionRequest, OperatorCommand, PlanRequest
 from gcs.domain.status import TERMINAL, MissionStatus
 from gcs.missions.energy_planning import battery_plan, energy_plan
 from gcs.missions.fleet_missions import FleetCoordinator, fleet_vehicles, shares_progress
@@ -345,6 +345,31 @@ class MissionService:
                 await self._vehicle_of(part).flights.abort(part)
         if not self._fleets.active(mission_id):  # never launched: its parts ended as they were aborted
             await self._storage.set_status(mission_id, MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF)
+
+    async def command(self, mission_id: int, command: OperatorCommand) -> None:
+        """The operator's hold, return or land on a flying mission (gcs.missions.lifecycle.FlightLifecycle.command).
+        Raises MissionConflictError (not flying, a fleet mission, the vehicle refused) or VehicleCommandError."""
+        record = await self._commandable(mission_id, command)
+        await self._vehicle_of(record).flights.command(record, command)
+
+    async def resume(self, mission_id: int) -> None:
+        """A held or returning mission flies on from its first buoy not visited (FlightLifecycle.resume). Raises as
+        `command`."""
+        record = await self._commandable(mission_id, "resume")
+        await self._vehicle_of(record).flights.resume(record)
+
+    async def _commandable(self, mission_id: int, command: str) -> MissionRecord:
+        """A mission one vehicle flies. A fleet mission's parts fly on their own vehicles, each at its own point of
+        its route, so a command is for one of them, by its part mission id (the 409 names them)."""
+        self._ownership.ensure_owner()
+        record = await self.get(mission_id)
+        if record.is_fleet:
+            parts = ", ".join(str(part.id) for part in await self._storage.fleet_parts(mission_id)) or "none"
+            raise MissionConflictError(
+                f"mission {mission_id} is a fleet mission: a fleet's parts are commanded one by one, by their part "
+                f"mission id (POST /missions/{{part}}/{command}; its parts: {parts})"
+            )
+        return record
 
     async def battery_swapped(self, sysid: int | None, charge_pct: float) -> dict[str, Any]:
         """The operator swapped the pack of a vehicle (None: the first): the vehicle is told (gcs.missions.lifecycle

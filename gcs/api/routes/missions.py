@@ -1,4 +1,5 @@
-"""Missions: create (plan + fly), list, read, telemetry, exports, start, abort."""
+"""Missions: create (plan + fly), list, read, telemetry, exports, start, abort, and the operator's hold, resume,
+return and land in flight."""
 
 from __future__ import annotations
 
@@ -11,7 +12,15 @@ from fastapi.responses import FileResponse, RedirectResponse, StreamingResponse
 
 from gcs.api.errors import ApiError
 from gcs.api.routes.deps import ServiceDep
-from gcs.api.routes.responses import CONFLICT, MUTATING, NOT_FOUND, WITH_BODY, Responses, RouteOptions
+from gcs.api.routes.responses import (
+    CONFLICT,
+    MUTATING,
+    NOT_FOUND,
+    VEHICLE_SILENT,
+    WITH_BODY,
+    Responses,
+    RouteOptions,
+)
 from gcs.api.security import require_token
 from gcs.domain.listing import CURSOR_PATTERN, MAX_CURSOR, MissionFilter, TimeBound
 from gcs.domain.schemas import MissionOut, MissionRequest, MissionSummary, TelemetrySample, TrackOut
@@ -27,6 +36,7 @@ _MISSION_LINKS = {
     for name in (
         *("get_mission", "get_telemetry", "get_qgc_plan", "get_waypoints", "get_track", "get_report"),
         *("get_display_track", "start_mission", "abort_mission"),
+        *("hold_mission", "resume_mission", "return_mission", "land_mission"),
     )
 }
 CREATED: Responses = {201: {"links": _MISSION_LINKS}}
@@ -36,6 +46,8 @@ ACTION: RouteOptions = {
     "dependencies": [Depends(require_token)],
     "responses": MUTATING | NOT_FOUND | CONFLICT,
 }
+# the operator's commands in flight: the same, and the vehicle may not answer (a refusal is a 409 naming it)
+COMMAND: RouteOptions = ACTION | {"responses": MUTATING | NOT_FOUND | CONFLICT | VEHICLE_SILENT}
 
 
 def file_responses(*media_types: str) -> Responses:
@@ -167,6 +179,36 @@ async def start_mission(mission_id: MissionId, service: ServiceDep) -> MissionOu
 async def abort_mission(mission_id: MissionId, service: ServiceDep) -> MissionOut:
     """Return to the depot (NAV_RETURN_TO_LAUNCH); a mission not yet flying simply ends."""
     await service.abort(mission_id)
+    return mission_out(await service.get(mission_id))
+
+
+@router.post("/missions/{mission_id}/hold", **COMMAND)
+async def hold_mission(mission_id: MissionId, service: ServiceDep) -> MissionOut:
+    """Hold where it is (PX4 AUTO.LOITER, ArduPilot LOITER); the mission stays flying, its flight-time budget
+    stopped, until resumed, returned or landed. 409 unless it is in the air (a fleet mission: command its parts)."""
+    await service.command(mission_id, "hold")
+    return mission_out(await service.get(mission_id))
+
+
+@router.post("/missions/{mission_id}/resume", **COMMAND)
+async def resume_mission(mission_id: MissionId, service: ServiceDep) -> MissionOut:
+    """After a hold or a return: fly on in the mission mode from the first buoy not yet visited. 409 otherwise."""
+    await service.resume(mission_id)
+    return mission_out(await service.get(mission_id))
+
+
+@router.post("/missions/{mission_id}/return", **COMMAND)
+async def return_mission(mission_id: MissionId, service: ServiceDep) -> MissionOut:
+    """Return to the depot (PX4 AUTO.RTL, ArduPilot RTL), resumable until landed; landed, the mission ends
+    aborted naming the buoys not inspected (abort, by contrast, ends it at once)."""
+    await service.command(mission_id, "return")
+    return mission_out(await service.get(mission_id))
+
+
+@router.post("/missions/{mission_id}/land", **COMMAND)
+async def land_mission(mission_id: MissionId, service: ServiceDep) -> MissionOut:
+    """Land where it is (PX4 AUTO.LAND, ArduPilot LAND); on the ground and disarmed the mission ends aborted."""
+    await service.command(mission_id, "land")
     return mission_out(await service.get(mission_id))
 
 

@@ -50,6 +50,9 @@ NO_VEHICLE: Responses = {404: _error("no vehicle with this system id")}
 CONFLICT: Responses = {
     409: _error("another mission uses the vehicle, or this mission is not in a state that allows it")
 }
+VEHICLE_SILENT: Responses = {
+    502: _error("the vehicle did not answer the command (it may or may not have acted on it: its mode says)")
+}
 TOO_LARGE: Responses = {413: _error("the request body is larger than the service's max_body_bytes")}
 UNAVAILABLE: Responses = {
     503: _error(
