@@ -35,7 +35,7 @@ $(MAVSDK3_STAMP): $(MAVSDK3_REQS)
 # The main job: vehicle + ADRC offboard controller + service + map page, flying the paper's reference
 # scenario in lockstep, then serving the map page at http://127.0.0.1:8000 until Ctrl-C.
 run: $(STAMP)
-	$(BIN)/python -m stack up --demo
+	$(BIN)/python -m stack up --demo --real-time
 
 test: $(STAMP) $(MAVSDK3_STAMP) chromium postgresql
 	$(BIN)/python -m ruff check .

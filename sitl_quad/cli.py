@@ -115,12 +115,13 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         default=1.0,
         metavar="N",
-        help="run simulated time N times faster than the wall clock (default 1)",
+        help="run simulated time N times faster than the wall clock (default 1; SIM_SPEEDUP > 0 replaces it)",
     )
     pacing.add_argument(
         "--lockstep",
         action="store_true",
-        help="wait at each outer-loop tick for the offboard controller's answer; run freely while none streams",
+        help="wait at each outer-loop tick for the offboard controller's answer; run freely while none streams "
+        "(never faster than SIM_SPEEDUP times real time when that is set)",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of wind, turbulence, disturbance and noise")
     p.add_argument(
@@ -345,7 +346,7 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, lambda *_: server.stop())
     signal.signal(signal.SIGINT, lambda *_: server.stop())
     host, port = link.address
-    pacing = "lockstep" if args.lockstep else f"speed {args.speed:g}x"
+    pacing = _pacing_text(args.lockstep, server.pace())
     print(f"sitl-quad: listening on udp {host}:{port} ({pacing}, seed {args.seed}, home {args.home})", flush=True)
     # Everything loaded so far (numpy, numba's compiled kernels, the vehicle) lives as long as the process: moved
     # out of the collector's sight, a full collection in the 50 Hz loop no longer walks it (a late tick)
@@ -369,6 +370,13 @@ def _ais_out(address: tuple[str, int] | None, world: World | None, virtual: list
     if not station.transmitters:
         raise ValueError("--ais-out: nothing to report: give a --world whose buoys have an mmsi, or --ais-virtual")
     return AisOut(address, station)
+
+
+def _pacing_text(lockstep: bool, pace: float | None) -> str:
+    """How simulated time runs, for the "listening" line: lockstep (capped by SIM_SPEEDUP, if set) or paced."""
+    if not lockstep:
+        return f"speed {pace:g}x"
+    return "lockstep" if pace is None else f"lockstep, at most {pace:g}x (SIM_SPEEDUP)"
 
 
 def _fail(message: str) -> int:

@@ -72,6 +72,14 @@ class ControlConfig:
     attitude_controller: int = AttitudeControllerKind.PID  # MC_ATT_CTRL
 
 
+@dataclass(frozen=True)
+class SimulationConfig:
+    """How the simulation runs, not what it simulates (SIM_SPEEDUP, ArduPilot SITL's name)."""
+
+    # simulated seconds per wall second at most (sitl_quad.server): 0 = as fast as lockstep goes (paced: --speed)
+    speedup: float = 0.0
+
+
 @dataclass
 class VehicleConfig:
     airframe: Airframe = field(default_factory=Airframe.table2)
@@ -84,3 +92,4 @@ class VehicleConfig:
     failsafe: FailsafeConfig = field(default_factory=FailsafeConfig)
     battery: BatteryConfig = field(default_factory=BatteryConfig)
     control: ControlConfig = field(default_factory=ControlConfig)
+    simulation: SimulationConfig = field(default_factory=SimulationConfig)

@@ -2,8 +2,10 @@
 
 Simulated time advances in outer-loop ticks. `--speed N` paces ticks to N times the wall clock;
 `--lockstep` waits after each tick until the offboard controller's SET_ATTITUDE_TARGET answers the state
-just sent (its time_boot_ms), and runs freely while no offboard controller streams. Heartbeats, command
-acknowledgements and mission-transfer timers run on the wall clock whatever the pacing.
+just sent (its time_boot_ms), and runs freely while no offboard controller streams. The SIM_SPEEDUP parameter
+(settable in flight) caps either: N > 0 holds a tick also until its pacing's due time at N times the wall clock
+(lockstep then still waits for the answer, but never runs faster than N; paced, N replaces --speed); 0 lifts the
+cap. Heartbeats, command acknowledgements and mission-transfer timers run on the wall clock whatever the pacing.
 """
 
 from __future__ import annotations
@@ -64,7 +66,10 @@ class VehicleServer:
         self.link = link
         self.lockstep = lockstep
         self.running = True
+        self.speed = speed  # paced mode's pace while SIM_SPEEDUP is 0
         self.pacing = WallPacing(speed, time.monotonic(), vehicle.t)
+        self.paced = not lockstep  # ticks wait for the pacing's due time (lockstep too while SIM_SPEEDUP caps it)
+        self._follow_speedup()
         self._arrived_at = 0.0  # when the message being handled reached the socket (wall clock)
         self._setpoint_arrived_at = 0.0  # when the newest offboard setpoint did
         if not lockstep:  # a setpoint read late belongs to the simulated time it arrived at (sitl_quad.pacing)
@@ -148,8 +153,27 @@ class VehicleServer:
 
     def _param_changed(self, section: str) -> None:
         self.vehicle.apply_config(section)
+        if section == "simulation":
+            self._follow_speedup()
         if self.on_params_changed is not None:
             self.on_params_changed()
+
+    def pace(self) -> float | None:
+        """Simulated seconds per wall second the ticks are held to: SIM_SPEEDUP when set, else --speed when
+        paced; None for lockstep uncapped (as fast as the controller answers)."""
+        speedup = self.params.config.simulation.speedup
+        if speedup > 0:
+            return speedup
+        return None if self.lockstep else self.speed
+
+    def _follow_speedup(self) -> None:
+        """Take up SIM_SPEEDUP's pace from this tick on: re-anchored now, so a change is neither sprinted
+        through (a slower pace measured from an old anchor would owe nothing for a while: a stall) nor owed."""
+        pace = self.pace()
+        self.paced = pace is not None
+        if pace is not None:
+            self.pacing.speed = pace
+        self.pacing.resync(time.monotonic(), self.vehicle.t)
 
     # ----- the loop
     def run(self, duration_s: float | None = None) -> None:
@@ -203,17 +227,21 @@ class VehicleServer:
             self.handle_incoming()
             self.poll_wall_timers()
             now = time.monotonic()
-            if self.lockstep:
-                if not self.offboard.streaming(now) or self.offboard.answered(self.vehicle.time_boot_ms):
-                    return
+            if self.lockstep and not self._answered(now):
                 self.link.wait(MAX_WAIT_SLICE_S)
                 continue
+            if not self.paced:  # lockstep without SIM_SPEEDUP: the answer is all a tick waits for
+                return
             due = self.pacing.due(self.vehicle.t)
             if now >= due:
                 if self.pacing.must_resync(now, self.vehicle.t):  # e.g. the process was suspended: don't sprint
                     self.pacing.resync(now, self.vehicle.t)
                 return
             self.link.wait(min(due - now, MAX_WAIT_SLICE_S))
+
+    def _answered(self, now: float) -> bool:
+        """Lockstep: the offboard controller answered this tick's state, or none streams (the vehicle runs on)."""
+        return not self.offboard.streaming(now) or self.offboard.answered(self.vehicle.time_boot_ms)
 
     def _publish_events(self) -> None:
         vehicle = self.vehicle

@@ -138,4 +138,14 @@ VEHICLE_PARAMETERS: list[ParamSpec] = [
     ParamSpec(
         "COM_ARM_BAT_MIN", "failsafe.arm_battery_min", REAL32, -1.0, 0.9, "no arming below; negative: BAT_CRIT_THR"
     ),
+    # the simulation's pace, changeable in flight (ArduPilot SITL's name): an operator watches a mission at 1 after a
+    # demo flown at full lockstep speed (stack.up --real-time); the same range as --speed
+    ParamSpec(
+        "SIM_SPEEDUP",
+        "simulation.speedup",
+        REAL32,
+        0.0,
+        1000.0,
+        "at most this many times real time; 0: as fast as lockstep goes (paced: --speed)",
+    ),
 ]

@@ -10,6 +10,7 @@ through the service's REST API.
 - `up`: one or two lives of the stack (`--compare`), the demo flown in each
 - `demo`: the reference scenario in the paper's weather, flown and reported
 - `service_api`: small stdlib HTTP helpers for the service's API
+- `sim_speed`: `--real-time` / `--watch-speed N`, the vehicles' SIM_SPEEDUP set over MAVLink once the demo has flown
 
 The ground station never imports this package (lint-imports: layers); this package drives the vehicle and the
 controller as processes, by their command lines.

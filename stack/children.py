@@ -2,7 +2,8 @@
 ground station (gcs serve), as the supervisor's ChildSpecs; the service alone for a real vehicle.
 
 The weather is handed to the vehicle as its SIM_* parameters, every one of them each time (the vehicle keeps its
-parameters in the data directory, so an unnamed one would carry over from the last run). Secrets (the API token,
+parameters in the data directory, so an unnamed one would carry over from the last run); so is SIM_SPEEDUP, 0 (full
+lockstep speed: `up --real-time` sets it once the demo has flown, stack.sim_speed). Secrets (the API token,
 the MAVLink signing key, a database URL) go by the environment, never a command line.
 """
 
@@ -16,6 +17,7 @@ from gcs.vehicle.connection import parse_connection
 from planner.scenario import Weather
 from stack.options import ATTITUDE_LOOP, CONTROLLERS, UpOptions
 from stack.service_api import http_ok
+from stack.sim_speed import speedup_arg
 from stack.supervisor import ChildSpec, current_run, python_module
 from uavcore.geodesy import LocalFrame
 from uavcore.mavlink import SIGNING_KEY_ENV
@@ -78,8 +80,9 @@ def vehicle_home(options: UpOptions, sysid: int) -> tuple[float, float, float] |
 def _vehicle_children(options: UpOptions, sysid: int, port: int) -> tuple[ChildSpec, list[ChildSpec]]:
     """Vehicle `sysid` (sitl_quad, its own port, seed, parameter file and log) and its offboard controller."""
     settings = options.settings
-    suffix = "" if sysid == 1 else f"-{sysid}"  # a lone vehicle keeps the names it always had
-    params = [f"MC_ATT_CTRL={ATTITUDE_LOOP[options.controller]}", *weather_params(options.weather or Weather())]
+    suffix = _suffix(sysid)
+    params = [f"MC_ATT_CTRL={ATTITUDE_LOOP[options.controller]}", speedup_arg(0.0)]
+    params += weather_params(options.weather or Weather())
     vehicle_args = ["--port", str(port), "--sysid", str(sysid), "--seed", str(options.seed + sysid - 1)]
     vehicle_args += ["--params", str(settings.data_dir / f"vehicle{suffix}.params")]
     if (home := vehicle_home(options, sysid)) is not None:
@@ -93,7 +96,7 @@ def _vehicle_children(options: UpOptions, sysid: int, port: int) -> tuple[ChildS
     signing = _signing_env(settings)
     vehicle_log = settings.data_dir / "logs" / f"sitl_quad{suffix}.log"
     vehicle = ChildSpec(
-        f"sitl_quad{suffix}",
+        vehicle_name(sysid),
         python_module("sitl_quad", *vehicle_args),
         ready=lambda: _log_says(vehicle_log, "listening"),
         env=signing,
@@ -103,6 +106,15 @@ def _vehicle_children(options: UpOptions, sysid: int, port: int) -> tuple[ChildS
         return vehicle, []
     connect = ["--connect", f"udpout:127.0.0.1:{port}", "--sysid", str(sysid), "--controller", options.controller]
     return vehicle, [ChildSpec(f"adrc_offboard{suffix}", python_module("adrc_offboard", *connect), env=signing)]
+
+
+def vehicle_name(sysid: int) -> str:
+    """The child name of vehicle `sysid` (its log is data/logs/NAME.log)."""
+    return f"sitl_quad{_suffix(sysid)}"
+
+
+def _suffix(sysid: int) -> str:
+    return "" if sysid == 1 else f"-{sysid}"  # a lone vehicle keeps the names it always had
 
 
 def _signing_env(settings: Settings) -> dict[str, str]:

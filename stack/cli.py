@@ -55,6 +55,24 @@ def add_up(commands: Any) -> None:
         help="vehicle and controller in lockstep: deterministic, faster than real time (default)",
     )
     pacing.add_argument("--speed", type=float, help="pace the vehicle at N times real time instead of lockstep")
+    # Named for what they are for, an operator watching: --speed paces the whole run (the demo too), these only
+    # what is flown after the demo (the vehicles' SIM_SPEEDUP, stack.sim_speed)
+    watch = up.add_mutually_exclusive_group()
+    watch.add_argument(
+        "--real-time",
+        dest="watch_speed",
+        action="store_const",
+        const=1.0,
+        help="once the demo has flown (at once without --demo), the vehicles fly at real time: missions started "
+        "from the map page can be watched (SIM_SPEEDUP 1; the demo itself at full speed)",
+    )
+    watch.add_argument(
+        "--watch-speed",
+        dest="watch_speed",
+        type=float,
+        metavar="N",
+        help="the same at N times real time (SIM_SPEEDUP N, 0 < N <= 1000)",
+    )
     up.add_argument("--seed", type=int, default=0, help="the vehicle's wind, turbulence and noise seed")
     air = up.add_mutually_exclusive_group()
     air.add_argument(
@@ -178,6 +196,9 @@ def up(args: argparse.Namespace) -> int:
     if args.speed is not None and not (math.isfinite(args.speed) and 0 < args.speed <= 1000):
         print("buoy-gcs: --speed must be in (0, 1000]", file=sys.stderr)
         return 2
+    if (problem := watch_problem(args)) is not None:
+        print(f"buoy-gcs: {problem}", file=sys.stderr)
+        return 2
     first_port = DEFAULT_VEHICLE_PORT if args.vehicle_port is None else args.vehicle_port
     if not 0 < first_port < 65536:
         print(f"buoy-gcs: --vehicle-port {first_port} is not a port", file=sys.stderr)
@@ -232,12 +253,27 @@ def up(args: argparse.Namespace) -> int:
         depots=tuple(args.depots or ()),
         world=args.world,
         world_ais_port=args.world_ais_port,
+        watch_speed=args.watch_speed,
     )
     # not at the top: it loads the planner and the storage, which `serve` and `report` do not need, and which
     # would delay the answer on the ports by seconds
     from stack.up import run_up
 
     return run_up(options, say=say)
+
+
+def watch_problem(args: argparse.Namespace) -> str | None:
+    """What is wrong with --real-time / --watch-speed N here, or None."""
+    speed = args.watch_speed
+    if speed is None:
+        return None
+    if not (math.isfinite(speed) and 0 < speed <= 1000):
+        return "--watch-speed must be in (0, 1000]"
+    if args.vehicle_url is not None:
+        return "--real-time and --watch-speed pace simulated vehicles; they do not go with --vehicle"
+    if args.exit_after_demo:
+        return "--real-time and --watch-speed pace the missions flown after the demo; --exit-after-demo flies none"
+    return None
 
 
 def say(text: str) -> None:

@@ -47,6 +47,9 @@ class UpOptions:
     # the simulated world's AIS: the first vehicle's world reports its buoys that have an mmsi (AIS message 21) to
     # the service on this UDP port of 127.0.0.1, which listens there besides its own --ais sources; 0: none
     world_ais_port: int = 10110
+    # the simulated vehicles' SIM_SPEEDUP once the demo has flown, or at once without one (--real-time: 1): the
+    # missions an operator flies from the map page then go at N times real time; None: as fast as they go
+    watch_speed: float | None = None
 
     @property
     def base_url(self) -> str:

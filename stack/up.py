@@ -9,10 +9,13 @@ from pathlib import Path
 
 from gcs.domain.status import MissionStatus
 from gcs.storage import redacted
-from stack.children import children
+from gcs.vehicle.connection import parse_connection
+from stack.children import children, vehicle_name
 from stack.demo import COMPARISON_FIGURE, DemoFlight, DemoPlan, comparison, demo_report, fly_demo, prepare
 from stack.options import LOOPS, UpOptions
-from stack.supervisor import Supervisor, SupervisorError
+from stack.sim_speed import watch_at
+from stack.supervisor import ChildSpec, Supervisor, SupervisorError
+from uavcore.mavlink import parse_signing_key
 
 REPO = Path(__file__).resolve().parent.parent  # the children run from here (the checkout, or site-packages)
 
@@ -65,6 +68,9 @@ def _run_stack(
             say(demo_report(flight, options, demo))
             if not keep_running:
                 return None
+        if options.simulate and options.watch_speed is not None:  # after the demo: it flew at full speed
+            key = parse_signing_key(settings.signing_key) if settings.signing_key else None
+            watch_at(simulated_vehicles(options, supervisor), options.watch_speed, key, say)
         say("running; Ctrl-C stops everything")
         supervisor.run_until_stopped()
         return 0
@@ -76,3 +82,10 @@ def _run_stack(
             if code not in (0, -15, None):
                 say(f"{name} exited with code {code}")
         say("stopped")
+
+
+def simulated_vehicles(options: UpOptions, supervisor: Supervisor) -> list[tuple[ChildSpec, int, int]]:
+    """Each simulated vehicle's (child spec, UDP port, system id): system ids 1..N on ports from vehicle_url's."""
+    first = parse_connection(options.settings.vehicle_url).port
+    specs = {child.spec.name: child.spec for child in supervisor.children}
+    return [(specs[vehicle_name(sysid)], first + sysid - 1, sysid) for sysid in range(1, options.vehicles + 1)]

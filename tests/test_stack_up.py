@@ -1,7 +1,7 @@
 """`buoy-gcs up` (stack): the loops each controller starts, the weather the demo hands the vehicle, its figures.
 
 No process is started here except one `python -m sitl_quad --list-params`, which checks that the vehicle takes
-every parameter `up` gives it.
+every parameter `up` gives it, one vehicle whose pace `up --real-time` sets over MAVLink, and one `up --real-time`.
 """
 
 from __future__ import annotations
@@ -12,7 +12,11 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import connected
+from sitl_process import GroundStation
+from test_stack_ports import STACK_S, Up
 
+from bench.processes import free_tcp_port, free_udp_port_block
 from gcs.settings import Settings
 from planner.scenario import GUST_HOLD_S, Weather, compass_bearing_deg
 from stack.children import children
@@ -28,6 +32,8 @@ from stack.demo import (
     prepare,
 )
 from stack.options import CONTROLLERS, UpOptions
+from stack.sim_speed import watch_at
+from stack.supervisor import ChildSpec
 from uavcore.buoy_world import load_world
 from uavcore.mavlink import SIGNING_KEY_ENV
 
@@ -295,3 +301,77 @@ def test_durations_read_as_minutes_and_seconds():
     assert [duration_text(s) for s in (725.31, 60.0, 41.23, None, float("nan"))] == [
         "12 min 05.3 s", "1 min 00.0 s", "41.2 s", "unknown", "unknown"
     ]  # fmt: skip
+
+
+# ----- --real-time / --watch-speed N: the vehicles' SIM_SPEEDUP once the demo has flown (stack.sim_speed)
+def test_the_watch_options_on_the_command_line(capsys):
+    parser = build_parser()
+    assert parser.parse_args(["up"]).watch_speed is None  # the default: every mission at full lockstep speed
+    assert parser.parse_args(["up", "--real-time"]).watch_speed == 1.0
+    assert parser.parse_args(["up", "--watch-speed", "4"]).watch_speed == 4.0
+    with pytest.raises(SystemExit):
+        parser.parse_args(["up", "--real-time", "--watch-speed", "4"])
+    refused = {
+        ("--watch-speed", "0"): "--watch-speed must be in (0, 1000]",
+        ("--watch-speed", "nan"): "--watch-speed must be in (0, 1000]",
+        ("--real-time", "--vehicle", "udpin://0.0.0.0:14550"): "they do not go with --vehicle",
+        ("--real-time", "--demo", "--exit-after-demo"): "--exit-after-demo flies none",
+    }
+    for args, error in refused.items():
+        assert main(["up", *args]) == 2  # before anything starts
+        assert error in capsys.readouterr().err
+
+
+def test_every_vehicle_starts_at_full_speed_whatever_its_parameter_file_kept(tmp_path):
+    """A parameter file keeps the SIM_SPEEDUP an earlier `up --real-time` set: each start sets it back to 0, so a
+    demo flies at full lockstep speed."""
+    for vehicle in children(_options(tmp_path, vehicles=2))[0:4:2]:
+        assert _vehicle_params(vehicle.argv)["SIM_SPEEDUP"] == 0.0
+
+
+@pytest.mark.integration  # one vehicle, over MAVLink
+def test_watch_at_sets_the_pace_on_the_vehicle_and_in_its_restart_arguments(start_sitl):
+    vehicle = start_sitl(speed=20.0)
+    spec = ChildSpec("sitl_quad", ["python", "-m", "sitl_quad", "--param", "SIM_SPEEDUP=0", "--seed", "0"])
+    said: list[str] = []
+    watch_at([(spec, vehicle.port, 1)], 1.0, None, said.append)
+    assert said == ["missions from now on fly at real time (SIM_SPEEDUP 1)"]
+    assert spec.argv == ["python", "-m", "sitl_quad", "--param", "SIM_SPEEDUP=1", "--seed", "0"]  # a restart keeps it
+    gcs = connected(vehicle)
+    try:
+        assert gcs.read_param("SIM_SPEEDUP").param_value == 1.0
+    finally:
+        gcs.close()
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+@pytest.mark.timeout(STACK_S + 120)
+def test_up_real_time_without_a_demo_sets_every_vehicle_to_real_time_and_says_so(tmp_path):
+    """`up --real-time --vehicles 2` (the vehicles' own loops: no offboard process to start): once the stack runs,
+    both vehicles have SIM_SPEEDUP 1, read back over MAVLink and from the parameter file each saved."""
+    first = free_udp_port_block(2)
+    up = Up(
+        "--real-time", "--vehicles", "2", "--controller", "px4", "--data", str(tmp_path),
+        "--port", str(free_tcp_port()), "--vehicle-port", str(first),
+    )  # fmt: skip
+    try:
+        up.wait_line(r"^missions from now on fly at real time on all 2 vehicles \(SIM_SPEEDUP 1\)$", STACK_S)
+        up.wait_line(r"^running; Ctrl-C stops everything", 60)
+        gcs = GroundStation(first)
+        try:
+            gcs.connect(timeout=60)
+            assert gcs.read_param("SIM_SPEEDUP").param_value == 1.0
+        finally:
+            gcs.close()
+        for name in ("vehicle.params", "vehicle-2.params"):
+            assert _saved_params(tmp_path / name)["SIM_SPEEDUP"] == 1.0
+    finally:
+        code = up.stop()
+    assert code == 0, up.text()
+
+
+def _saved_params(path) -> dict[str, float]:
+    """A vehicle's parameter file (QGC's format: sysid, compid, name, value, type) as {name: value}."""
+    rows = [line.split("\t") for line in path.read_text().splitlines() if not line.startswith("#")]
+    return {row[2]: float(row[3]) for row in rows if len(row) == 5}
