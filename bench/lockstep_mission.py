@@ -33,9 +33,9 @@ RESULTS = REPO / "bench" / "results" / "lockstep_mission.json"
 CONTROLLERS = ("adrc", "pid")
 TARGET_LOCKSTEP_X = 20.0
 TARGET_DEMO_WALL_S = 60.0
-# what demo_report prints: "sim speed  438.7 s of vehicle time (arming to landed) in 26.8 s of wall-clock time
+# what demo_report prints: "sim speed  438.7 s of vehicle time (upload to landed) in 26.8 s of wall-clock time
 # (POST to landed): 16.4 times real time"
-LOCKSTEP_LINE = re.compile(r"sim speed\s+([\d.]+) s of vehicle time \(arming to landed\) in ([\d.]+) s of wall")
+LOCKSTEP_LINE = re.compile(r"sim speed\s+([\d.]+) s of vehicle time \(upload to landed\) in ([\d.]+) s of wall")
 READY_LINE = "map page:"
 
 
@@ -74,7 +74,7 @@ def fly(controller: str, data_dir: Path) -> dict:
     if code != 0:
         raise RuntimeError(f"the {controller} demo failed (exit {code}):\n" + "\n".join(t for _, t in transcript.lines))
     ready_s, _ = transcript.first(READY_LINE)
-    _, line = transcript.first("s wall from POST to landed")
+    _, line = transcript.first("s of wall-clock time (POST to landed)")
     simulated_s, wall_s = (float(x) for x in LOCKSTEP_LINE.search(line).groups())
     return {
         "controller": controller,

@@ -157,7 +157,7 @@ class DemoFlight:
 
     @property
     def simulated_s(self) -> float:
-        """The recorded flight's span in the vehicle's time (from arming to the last sample)."""
+        """The recorded mission's span in the vehicle's time (from its first sample, at the upload, to the last)."""
         return float(self.samples[-1]["t_s"] - self.samples[0]["t_s"]) if len(self.samples) > 1 else math.nan
 
 
@@ -289,10 +289,10 @@ def demo_report(flight: DemoFlight, options: UpOptions, demo: DemoPlan | None = 
             f"(vehicle time {flight.gust_onset_t_s:.1f} s, on leg {flight.gust_leg}); back under {RECOVERED_M:g} m "
             f"for good after {flight.gust.recovery_s:.1f} s"
         )
-    # one span on both clocks: the recorded samples (arming to the last, a little more than the time in the air)
-    # against the wall clock over the same request (POST to landed): how much faster than real time it ran
+    # the mission's span on both clocks: its recorded samples (from the upload, the vehicle on the ground until
+    # armed, to landed: longer than the time in the air) against the wall clock over the request (POST to landed)
     lines.append(
-        f"  sim speed  {flight.simulated_s:.1f} s of vehicle time (arming to landed) in {flight.wall_s:.1f} s of "
+        f"  sim speed  {flight.simulated_s:.1f} s of vehicle time (upload to landed) in {flight.wall_s:.1f} s of "
         f"wall-clock time (POST to landed): {flight.simulated_s / flight.wall_s:.1f} times real time"
     )
     if flight.inspections:

@@ -16,6 +16,7 @@ from conftest import connected
 from sitl_process import GroundStation
 from test_stack_ports import STACK_S, Up
 
+from bench.lockstep_mission import LOCKSTEP_LINE
 from bench.processes import free_tcp_port, free_udp_port_block
 from gcs.settings import Settings
 from planner.scenario import GUST_HOLD_S, Weather, compass_bearing_deg
@@ -26,6 +27,7 @@ from stack.demo import (
     OFF_STATION_AT,
     OFF_STATION_RADII,
     ais_summary,
+    demo_report,
     duration_text,
     findings_table,
     measure_flight,
@@ -375,3 +377,23 @@ def _saved_params(path) -> dict[str, float]:
     """A vehicle's parameter file (QGC's format: sysid, compid, name, value, type) as {name: value}."""
     rows = [line.split("\t") for line in path.read_text().splitlines() if not line.startswith("#")]
     return {row[2]: float(row[3]) for row in rows if len(row) == 5}
+
+
+def test_the_demo_report_says_each_duration_once_and_the_lockstep_bench_reads_its_speed(tmp_path):
+    """The report's flight line (in the air) and speed line (the mission's span on both clocks) say what each
+    measures, and bench.lockstep_mission parses the speed line as printed."""
+    samples = [_sample(100.0 + 0.1 * k, 0.05, -5.0, 3) for k in range(400)]
+    mission = {
+        "id": 1, "status": "completed", "reason": None, "depot": {"lat": 38.921, "lon": 121.663},
+        "buoys": [{"lat": 38.922, "lon": 121.664}], "length_m": 300.0, "method": "exact", "improvement_pct": 0.0,
+        "buoy_results": [{"reached": True, "closest_m": 0.1}], "acceptance_radius_m": 2.0, "order": [0],
+        "tracking": {"flight_time_s": 612.3, "distance_flown_m": 310.0, "planned_length_m": 300.0,
+                     "rms_cross_track_m": 0.03, "max_cross_track_m": 0.1},
+        "progress": {"camera": None},
+    }  # fmt: skip
+    flight = measure_flight("adrc", Weather(), mission, samples, wall_s=2.0)
+    report = demo_report(flight, _options(tmp_path))
+    assert "flight     10 min 12.3 s in the air (vehicle time, take-off to landing)" in report
+    (speed,) = [line for line in report.splitlines() if "s of wall-clock time (POST to landed)" in line]
+    assert [float(x) for x in LOCKSTEP_LINE.search(speed).groups()] == [39.9, 2.0]
+    assert speed.endswith("20.0 times real time")
