@@ -14,12 +14,12 @@ export function say(text, ok = false) {
   byId("message").className = ok ? "ok" : "";
 }
 
-// While a plan or mission request is in flight: Plan and Fly disabled, and "<note> N s" beside them, counting (a
+// While a plan or mission request is in flight: Plan disabled (Fly too, by the control bar), and "<note> N s" beside them, counting (a
 // plan takes up to its time limit; the message line below keeps the last result). Returns what ends it.
 export function showBusy(note) {
   const started = performance.now();
   const indicator = byId("busy");
-  const buttons = [byId("plan"), byId("fly")];
+  const buttons = [byId("plan")]; // Fly is the control bar's: it follows state.busy (controls.js)
   const tick = () => {
     indicator.textContent = `${note} ${Math.floor((performance.now() - started) / 1000)} s`;
   };
@@ -292,8 +292,10 @@ export function showBattery(vehicle) {
     : "";
 }
 
-// vehicle: the live stream's vehicle part (connected, armed, mode)
-export function showVehicleLink(vehicle) {
+// vehicle: the live stream's vehicle part (connected, armed, mode); name: how the page names it ("vehicle 1
+// (ARDUPILOTMEGA QUADROTOR)"), so that the header says which vehicle it speaks of
+export function showVehicleLink(vehicle, name) {
+  byId("vehicle-name").textContent = vehicle.sysid == null ? "" : name;
   const badge = byId("link-status");
   badge.textContent = vehicle.connected ? `vehicle: ${vehicle.armed ? "armed" : "disarmed"}` : "vehicle: disconnected";
   badge.className = vehicle.connected ? "badge" : "badge off";

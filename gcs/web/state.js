@@ -13,6 +13,7 @@ export const state = {
   firstBuoySeq: 2, // the mission item sequence number of the first buoy (after home and takeoff)
   inspections: new Map(), // the watched mission's inspection records (InspectionOut) by buoy input index
   inspectionsSeq: 0, // bumped whenever the records change
+  busy: false, // a plan or mission request in flight (Plan and Fly wait for it)
 };
 
 // The buoys may be edited unless the watched mission is on its way to or on the vehicle.
