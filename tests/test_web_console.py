@@ -13,7 +13,7 @@ import re
 from urllib.parse import urlsplit
 
 import pytest
-from playwright.sync_api import Page, expect, sync_playwright
+from playwright.sync_api import Browser, Page, expect, sync_playwright
 from service_process import serving
 from web_page import ARTIFACTS, TOKEN, open_page
 
@@ -63,9 +63,9 @@ def test_the_control_bar_stays_in_view_and_fly_asks_first(tmp_path):
         browser, page = open_page(p, errors, SMALL)
         page.on(
             "request",
-            lambda r: missions_posted.append(r.url)
-            if r.method == "POST" and urlsplit(r.url).path == "/missions"
-            else None,
+            lambda r: (
+                missions_posted.append(r.url) if r.method == "POST" and urlsplit(r.url).path == "/missions" else None
+            ),
         )
         page.goto(url)
         expect(page.locator("#reserve")).to_be_disabled(timeout=30_000)  # wired (app.js wireControls)
@@ -120,5 +120,157 @@ def test_the_control_bar_stays_in_view_and_fly_asks_first(tmp_path):
         assert_bar_in_view(page)
         page.evaluate("() => window.scrollTo(0, 0)")
         page.screenshot(path=str(ARTIFACTS / "console_1440x900.png"))
+        browser.close()
+    assert errors == []
+
+
+def csv_file(rows: list[tuple[float, float, str]]) -> dict:
+    text = "lat,lon,id\n" + "".join(f"{lat},{lon},{name}\n" for lat, lon, name in rows)
+    return {"name": "buoys.csv", "mimeType": "text/csv", "buffer": text.encode()}
+
+
+def open_console(p, errors: list[str], url: str) -> tuple[Browser, Page]:
+    """The page at 1366x768 on the double's service, the token given (clicked into: the user gesture after which
+    the page may sound), the vehicle heard."""
+    browser, page = open_page(p, errors, SMALL)
+    page.on("console", lambda m: errors.append(m.text) if re.search("Content Security|injected", m.text) else None)
+    page.goto(url)
+    page.locator("#token").click()
+    page.locator("#token").fill(TOKEN)
+    expect(page.get_by_test_id("link-status")).to_contain_text("disarmed", timeout=15_000)
+    expect(page.get_by_test_id("vehicle-name")).to_have_text("vehicle 1 (ARDUPILOTMEGA QUADROTOR)")
+    return browser, page
+
+
+def event(page: Page, text: str):
+    return page.get_by_test_id("event").filter(has_text=text)
+
+
+def test_a_critical_statustext_raises_the_banner_and_the_log_keeps_every_event_as_text(double_and_service):
+    url, double = double_and_service
+    errors: list[str] = []
+    with sync_playwright() as p:
+        browser, page = open_console(p, errors, url)
+        banner = page.get_by_test_id("banner")
+        # a warning: logged with its severity, no banner
+        double.send(mavlink.MAVLink_statustext_message(mavlink.MAV_SEVERITY_WARNING, b"Low battery: 25% remaining"))
+        warning = event(page, "Low battery: 25% remaining")
+        expect(warning).to_have_count(1, timeout=10_000)
+        expect(warning).to_have_attribute("data-severity", "warning")
+        expect(warning.get_by_test_id("event-time")).to_have_text(re.compile(r"^\d\d:\d\d:\d\d$"))
+        expect(banner).to_be_hidden()
+
+        # a critical one, made of markup: the banner in plain words, the MAVLink detail a click away, all as text
+        double.send(mavlink.MAVLink_statustext_message(mavlink.MAV_SEVERITY_CRITICAL, HOSTILE.encode()))
+        expect(banner).to_be_visible(timeout=10_000)
+        expect(page.get_by_test_id("banner-severity")).to_have_text("critical")
+        expect(page.get_by_test_id("banner-text")).to_have_text(f"vehicle 1 reports: {HOSTILE}")
+        detail = page.get_by_test_id("banner-detail")
+        expect(detail).to_be_hidden()
+        page.locator("#banner-details summary").click()
+        expect(detail).to_have_text("STATUSTEXT, MAV_SEVERITY_CRITICAL (2)")
+        critical = event(page, HOSTILE)
+        expect(critical).to_have_count(1)
+        expect(critical).to_have_attribute("data-severity", "critical")
+        expect(critical.get_by_test_id("event-text")).to_have_text(f"vehicle 1 reports: {HOSTILE}")
+        expect(page.get_by_test_id("event").first).to_have_attribute("data-severity", "critical")  # newest first
+        # the beep (WebAudio, after the click into the token field): counted on the sound toggle
+        expect(page.get_by_test_id("sound")).to_have_attribute("data-beeps", "1")
+        assert page.locator("#top img, #event-list img, script:not([src])").count() == 0
+        assert page.evaluate("window.injected") is None
+        page.screenshot(path=str(ARTIFACTS / "console_critical_banner_1366x768.png"))
+
+        # the same words again are a new event (the count of STATUSTEXTs heard rises); Dismiss hides the banner
+        double.send(mavlink.MAVLink_statustext_message(mavlink.MAV_SEVERITY_CRITICAL, HOSTILE.encode()))
+        expect(critical).to_have_count(2, timeout=10_000)
+        expect(page.get_by_test_id("banner-more")).to_have_text("(+1 earlier: see Events)")
+        page.get_by_test_id("banner-dismiss").click()
+        expect(banner).to_be_hidden()
+        # muted: a critical event still shows, without a beep
+        page.get_by_test_id("sound").click()
+        expect(page.get_by_test_id("sound")).to_have_text("Sound off")
+        double.send(mavlink.MAVLink_statustext_message(mavlink.MAV_SEVERITY_EMERGENCY, b"Motor 3 failure"))
+        expect(banner).to_be_visible(timeout=10_000)
+        expect(page.get_by_test_id("banner-severity")).to_have_text("emergency")
+        expect(page.get_by_test_id("sound")).to_have_attribute("data-beeps", "2")
+        page.get_by_test_id("banner-dismiss").click()
+
+        # a mission flown: its status changes and the vehicle's mode changes are in the log
+        lat, lon, _ = DEFAULT_HOME
+        page.locator("#import").set_input_files(csv_file([(lat + 0.0004, lon, "B1"), (lat, lon + 0.0005, "B2")]))
+        expect(page.locator("#buoy-count")).to_have_text("2 buoys")
+        page.get_by_test_id("fly").click()
+        expect(page.get_by_test_id("confirm-text")).to_contain_text("Vehicle 1 (ARDUPILOTMEGA QUADROTOR) arms")
+        page.get_by_test_id("confirm-ok").click()
+        status = page.get_by_test_id("console-status")
+        expect(status).to_have_text(re.compile(r"^Mission \d+: completed, 2 of 2 buoys visited$"), timeout=120_000)
+        expect(event(page, "created and started")).to_have_count(1)
+        expect(event(page, ": flying, ")).not_to_have_count(0)
+        completed = event(page, ": completed, 2 of 2 buoys visited")
+        expect(completed).to_have_count(1)
+        expect(completed).to_have_attribute("data-severity", "notice")
+        expect(completed).to_have_attribute("title", re.compile(r"^status flying → completed"))
+        expect(event(page, "vehicle 1: mode ")).not_to_have_count(0)
+        expect(page.get_by_test_id("fly")).to_be_enabled()  # the mission is over: the buoys may fly again
+        expect(page.get_by_test_id("abort")).to_be_disabled()
+        page.screenshot(path=str(ARTIFACTS / "console_events_1366x768.png"))
+        browser.close()
+    assert errors == []
+
+
+def test_console_flight_commands_hold_resume_return_and_land_in_the_browser(double_and_service):
+    """Needs POST /missions/{id}/hold, /resume, /return and /land (the service's operator commands, each answering
+    the mission with progress.command "hold" | "return" | "land" | null)."""
+    url, _ = double_and_service
+    errors: list[str] = []
+    commands: list[tuple[str, int]] = []
+    with sync_playwright() as p:
+        browser, page = open_console(p, errors, url)
+        page.on(
+            "response",
+            lambda r: (
+                commands.append((urlsplit(r.url).path.rsplit("/", 1)[-1], r.status))
+                if r.request.method == "POST" and re.search(r"/missions/\d+/(hold|resume|return|land)$", r.url)
+                else None
+            ),
+        )
+        # buoys far enough apart (about 700 m) for the double at 40 m/s to be flying between them a while
+        lat, lon, _ = DEFAULT_HOME
+        page.locator("#import").set_input_files(csv_file([(lat + 0.006, lon, "B1"), (lat + 0.006, lon + 0.008, "B2")]))
+        page.get_by_test_id("fly").click()
+        page.get_by_test_id("confirm-ok").click()
+        status = page.get_by_test_id("console-status")
+        expect(status).to_contain_text("flying", timeout=60_000)
+        buttons = {name: page.get_by_test_id(name) for name in ("fly", "hold", "resume", "return", "land", "abort")}
+
+        def enabled(*names: str) -> None:
+            for name, button in buttons.items():
+                (expect(button).to_be_enabled if name in names else expect(button).to_be_disabled)()
+
+        enabled("hold", "return", "land", "abort")
+        dialog = page.get_by_test_id("confirm-dialog")
+        buttons["hold"].click()  # the safe stop: not asked
+        expect(status).to_contain_text("holding position", timeout=15_000)
+        enabled("resume", "return", "land", "abort")
+        buttons["resume"].click()
+        expect(status).to_contain_text("flying, ", timeout=15_000)
+        buttons["return"].click()
+        expect(page.get_by_test_id("confirm-text")).to_contain_text("flies back home and lands there")
+        page.get_by_test_id("confirm-ok").click()
+        expect(status).to_contain_text("returning home", timeout=15_000)
+        enabled("hold", "resume", "land", "abort")
+        buttons["resume"].click()
+        expect(status).to_contain_text("flying, ", timeout=15_000)
+        buttons["land"].click()
+        expect(page.get_by_test_id("confirm-warning")).to_contain_text("over water")
+        page.screenshot(path=str(ARTIFACTS / "console_land_confirm_1366x768.png"))
+        page.keyboard.press("Escape")  # cancelled: nothing sent
+        expect(dialog).to_be_hidden()
+        buttons["land"].click()
+        page.get_by_test_id("confirm-ok").click()
+        expect(status).to_contain_text("landing where it is", timeout=15_000)
+        enabled("abort")
+        assert commands == [("hold", 200), ("resume", 200), ("return", 200), ("resume", 200), ("land", 200)]
+        expect(event(page, "landing where it is")).to_have_count(1)
         browser.close()
     assert errors == []
