@@ -13,10 +13,12 @@ import re
 from urllib.parse import urlsplit
 
 import pytest
-from playwright.sync_api import Browser, Page, expect, sync_playwright
+from playwright.sync_api import Browser, Page, Route, expect, sync_playwright
 from service_process import serving
+from test_web_browser import post_json
 from web_page import ARTIFACTS, TOKEN, open_page
 
+from gcs.storage import open_storage
 from uavcore.geodesy import DEFAULT_HOME
 from uavcore.mavlink import mavlink
 
@@ -263,7 +265,7 @@ def test_console_flight_commands_hold_resume_return_and_land_in_the_browser(doub
         expect(status).to_contain_text("flying, ", timeout=15_000)
         buttons["land"].click()
         expect(page.get_by_test_id("confirm-warning")).to_contain_text("over water")
-        page.screenshot(path=str(ARTIFACTS / "console_land_confirm_1366x768.png"))
+        page.screenshot(path=str(ARTIFACTS / "console_flight_land_confirm_1366x768.png"))
         page.keyboard.press("Escape")  # cancelled: nothing sent
         expect(dialog).to_be_hidden()
         buttons["land"].click()
@@ -273,4 +275,87 @@ def test_console_flight_commands_hold_resume_return_and_land_in_the_browser(doub
         assert commands == [("hold", 200), ("resume", 200), ("return", 200), ("resume", 200), ("land", 200)]
         expect(event(page, "landing where it is")).to_have_count(1)
         browser.close()
+    assert errors == []
+
+
+def test_the_bar_follows_the_operator_command_in_force_as_the_contract_says(tmp_path):
+    """The page's side of the flight commands, before the service has them: Playwright plays the contract (POST
+    /missions/{id}/hold | resume | return | land answering the mission, whose progress.command names the command in
+    force, the GET of the mission saying the same; a refusal in the project's error shape) over a mission stored
+    as flying. The buttons follow the command in force, Return and Land ask first (Land warning of water), a
+    refusal is said in the bar and logged."""
+    with serving(tmp_path / "gcs.sqlite", tmp_path / "service.log") as url:
+        lat, lon, _ = DEFAULT_HOME
+        buoys = [{"id": "B1", "lat": lat + 0.001, "lon": lon}, {"id": "B2", "lat": lat, "lon": lon + 0.001}]
+        mission = post_json(f"{url}/missions", {"buoys": buoys, "start": False})
+        storage = open_storage(tmp_path / "gcs.sqlite")
+        storage.set_status(mission["id"], "flying", None)
+        storage.close()
+        in_force: dict[str, str | None] = {"command": None}
+        posted: list[str] = []
+
+        def contract(route: Route) -> None:
+            path = urlsplit(route.request.url).path
+            match = re.fullmatch(r"/missions/(\d+)(?:/(hold|resume|return|land))?", path)
+            if match is None or (match[2] is None and route.request.method != "GET"):
+                route.continue_()
+                return
+            if match[2] is not None:
+                posted.append(match[2])
+                if match[2] == "land" and posted.count("land") == 1:
+                    refusal = {"detail": [{"type": "conflict", "loc": [], "msg": "the vehicle is not flying"}]}
+                    route.fulfill(status=409, json=refusal)
+                    return
+                in_force["command"] = None if match[2] == "resume" else match[2]
+            answer = route.fetch(url=f"{url}/missions/{match[1]}", method="GET")
+            document = answer.json()
+            document["progress"] = {**(document.get("progress") or {}), "command": in_force["command"]}
+            route.fulfill(response=answer, json=document)
+
+        errors: list[str] = []
+        with sync_playwright() as p:
+            browser, page = open_page(p, errors, SMALL)
+            page.route(re.compile(r"/missions/\d+(/(hold|resume|return|land))?$"), contract)
+            page.goto(url)
+            status = page.get_by_test_id("console-status")
+            expect(status).to_have_text(f"Mission {mission['id']}: flying, 0 of 2 buoys visited", timeout=30_000)
+            names = ("fly", "hold", "resume", "return", "land", "abort")
+            buttons = {name: page.get_by_test_id(name) for name in names}
+
+            def enabled(*wanted: str) -> None:
+                for name, button in buttons.items():
+                    (expect(button).to_be_enabled if name in wanted else expect(button).to_be_disabled)()
+
+            enabled("hold", "return", "land", "abort")
+            buttons["hold"].click()
+            expect(status).to_have_text(f"Mission {mission['id']}: holding position (0 of 2 buoys visited)")
+            enabled("resume", "return", "land", "abort")
+            expect(event(page, "holding position")).to_have_count(1)
+            buttons["resume"].click()
+            expect(status).to_contain_text("flying, 0 of 2")
+            buttons["return"].click()
+            expect(page.get_by_test_id("confirm-text")).to_contain_text("flies back home and lands there")
+            page.get_by_test_id("confirm-cancel").click()
+            assert posted == ["hold", "resume"]
+            buttons["return"].click()
+            page.get_by_test_id("confirm-ok").click()
+            expect(status).to_contain_text("returning home")
+            enabled("hold", "resume", "land", "abort")
+            buttons["land"].click()
+            expect(page.get_by_test_id("confirm-warning")).to_contain_text("over water")
+            page.screenshot(path=str(ARTIFACTS / "console_land_confirm_1366x768.png"))
+            page.get_by_test_id("confirm-ok").click()
+            # refused: said beside the buttons and logged; the command in force stays
+            expect(page.get_by_test_id("console-message")).to_have_text("409: the vehicle is not flying")
+            expect(event(page, "Land refused: 409: the vehicle is not flying")).to_have_attribute(
+                "data-severity", "warning"
+            )
+            expect(status).to_contain_text("returning home")
+            buttons["land"].click()
+            page.get_by_test_id("confirm-ok").click()
+            expect(status).to_contain_text("landing where it is")
+            enabled("abort")
+            assert posted == ["hold", "resume", "return", "land", "land"]
+            page.screenshot(path=str(ARTIFACTS / "console_landing_1366x768.png"))
+            browser.close()
     assert errors == []

@@ -357,7 +357,7 @@ const controls = new ControlBar(
     abort: missionCommand("Abort", (id) => api.abortMission(id)),
   },
   () => ({
-    vehicle: vehicleName(consoleVehicle()).replace(/^v/, "V"),
+    vehicle: vehicleName(consoleVehicle()).replace(/^./, (c) => c.toUpperCase()), // a sentence's first word
     connected: Boolean(consoleVehicle() && consoleVehicle().connected),
     buoyCount: state.buoys.length,
     altitude_m: panel.flightSettings().altitude_m,

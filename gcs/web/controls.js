@@ -62,7 +62,7 @@ export function statusWords(mission, progress) {
 
 // "vehicle 1 (ARDUPILOTMEGA QUADROTOR)": by its MAVLink system id, the autopilot and airframe it announced.
 export function vehicleName(vehicle) {
-  if (!vehicle || vehicle.sysid == null) return "vehicle";
+  if (!vehicle || vehicle.sysid == null) return "the vehicle";
   const kind = [vehicle.autopilot, vehicle.vehicle_type].filter(Boolean).join(" ");
   return kind ? `vehicle ${vehicle.sysid} (${kind})` : `vehicle ${vehicle.sysid}`;
 }
