@@ -213,9 +213,19 @@ def test_a_critical_statustext_raises_the_banner_and_the_log_keeps_every_event_a
         expect(completed).to_have_attribute("data-severity", "notice")
         expect(completed).to_have_attribute("title", re.compile(r"^status flying → completed"))
         expect(event(page, "vehicle 1: mode ")).not_to_have_count(0)
+        # times as the operator reads them: each buoy's arrival on the wall clock (the double tells its clock by
+        # SYSTEM_TIME), the exact vehicle seconds on hover; the history's date; the charts' lines named by style
+        reached = page.get_by_test_id("inspection-reached")
+        expect(reached).to_have_count(2, timeout=10_000)
+        expect(reached.first).to_have_text(re.compile(r"^reached at \d\d:\d\d:\d\d$"))
+        expect(reached.first).to_have_attribute("title", re.compile(r"^vehicle time \d+\.\d s \(since its boot\)$"))
+        expect(page.get_by_test_id("history-date").first).to_have_text(re.compile(r"20\d\d"))
+        expect(page.locator("#chart-alt")).to_contain_text("desired (dashed)")
+        expect(page.locator("#chart-alt")).to_contain_text("actual (solid)")
         expect(page.get_by_test_id("fly")).to_be_enabled()  # the mission is over: the buoys may fly again
         expect(page.get_by_test_id("abort")).to_be_disabled()
         page.screenshot(path=str(ARTIFACTS / "console_events_1366x768.png"))
+        page.screenshot(path=str(ARTIFACTS / "console_flown_full_page.png"), full_page=True)
         browser.close()
     assert errors == []
 

@@ -15,6 +15,7 @@ import { byId } from "./dom.js";
 import { showInspections } from "./findings.js";
 import { closeGallery, refreshGallery, showGallery, wireGallery } from "./gallery.js";
 import { showHistory } from "./history.js";
+import { clockTime, vehicleInstant } from "./times.js";
 import { InspectionFeed } from "./inspections.js";
 import { MissionMap } from "./map.js";
 import * as panel from "./panel.js";
@@ -109,7 +110,16 @@ function relabelBuoys() {
   };
   const camera = state.progress ? state.progress.camera : null;
   const open = (row) => row.record && showGallery(row);
-  showInspections(inspectionRows(markings), `${id} ${state.inspectionsSeq}`, camera, exports, open);
+  const rows = inspectionRows(markings).map((row) => ({ ...row, reached: reachedText(row.arrival_s) }));
+  showInspections(rows, `${id} ${state.inspectionsSeq}`, camera, exports, open);
+}
+
+// A buoy's arrival as the operator reads it: the wall-clock time when it can be told exactly (times.js
+// vehicleInstant), else the vehicle's own seconds, said as such.
+function reachedText(arrival_s) {
+  if (arrival_s == null) return null;
+  const instant = vehicleInstant(arrival_s, state.mission, consoleVehicle());
+  return instant === null ? `at vehicle time ${arrival_s.toFixed(1)} s` : `at ${clockTime(instant)}`;
 }
 
 function flightRequest() {

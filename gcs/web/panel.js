@@ -4,6 +4,7 @@
 import { byId, h } from "./dom.js";
 import { energyErrorPct, hasFlown, hasSortieFigures, routeLook, swatch } from "./sorties.js";
 import { MissionStatus } from "./status.js";
+import { duration } from "./times.js";
 
 export const formatNumber = (value, digits = 1) => (value == null ? "–" : Number(value).toFixed(digits));
 const km = (metres) => (metres / 1000).toFixed(3);
@@ -136,10 +137,17 @@ function figureLines(mission) {
   const t = mission.tracking;
   if (!t) return [];
   const reached = mission.buoy_results.filter((b) => b.reached).length;
+  // plain words first; the technical names and exact figures in the line's title (figureLine)
   return [
-    `RMS cross-track ${formatNumber(t.rms_cross_track_m, 2)} m, max ${formatNumber(t.max_cross_track_m, 2)} m`,
-    `flown ${formatNumber(t.distance_flown_m, 0)} m of ${formatNumber(t.planned_length_m, 0)} m planned, ` +
-      `${formatNumber(t.flight_time_s)} s`,
+    [
+      `off the route ${formatNumber(t.rms_cross_track_m, 2)} m on average, ${formatNumber(t.max_cross_track_m, 2)} m at most`,
+      `RMS cross-track error ${formatNumber(t.rms_cross_track_m, 3)} m, maximum ${formatNumber(t.max_cross_track_m, 3)} m`,
+    ],
+    [
+      `flown ${formatNumber(t.distance_flown_m, 0)} m of ${formatNumber(t.planned_length_m, 0)} m planned, ` +
+        `in ${duration(t.flight_time_s)}`,
+      `flight time ${formatNumber(t.flight_time_s)} s`,
+    ],
     `buoys reached ${reached} / ${mission.buoy_results.length}`,
   ];
 }
@@ -155,7 +163,10 @@ export function showMission(mission) {
   byId("progress").max = Math.max(1, progress.buoys || mission.order.length);
   byId("progress").value = progress.visited || 0;
   byId("sortie-progress").textContent = sortieProgress(mission);
-  const lines = figureLines(mission);
+  // a line is its text, or [text, its technical detail] (shown on hover)
+  const lines = figureLines(mission).map((line) =>
+    Array.isArray(line) ? h("span", { title: line[1] }, line[0]) : line,
+  );
   byId("figures").replaceChildren(...lines.flatMap((line, i) => (i ? [h("br"), line] : [line])));
   showSortieTable(mission);
 }

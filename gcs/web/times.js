@@ -35,3 +35,16 @@ export function duration(seconds) {
   if (m) return `${m} min ${pad(s)} s`;
   return `${s} s`;
 }
+
+// The wall-clock instant (epoch ms) of vehicle time t_s (time_boot_ms / 1000) of a mission, or null when it cannot
+// be told exactly. Exact only while the vehicle is on the boot the mission flew on: its boot instant (SYSTEM_TIME:
+// unix time - boot time, the link's boot_instant_s) is known and no later than the mission's creation (a boot
+// since, or a vehicle that never sent its clock, leaves vehicle times without an origin). The service stores no
+// boot instant with the mission, so a mission flown on an earlier boot keeps its vehicle seconds.
+export function vehicleInstant(t_s, mission, vehicle) {
+  if (t_s == null || !mission || !vehicle || !vehicle.connected || vehicle.boot_instant_s == null) return null;
+  const created = Date.parse(mission.created_at);
+  const boot = vehicle.boot_instant_s * 1000;
+  if (Number.isNaN(created) || boot > created) return null;
+  return boot + t_s * 1000;
+}
