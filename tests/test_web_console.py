@@ -16,7 +16,7 @@ import pytest
 from playwright.sync_api import Browser, Page, Route, expect, sync_playwright
 from service_process import serving
 from test_web_browser import post_json
-from web_page import ARTIFACTS, TOKEN, open_page
+from web_page import ARTIFACTS, TOKEN, fly, open_page
 
 from gcs.storage import open_storage
 from uavcore.geodesy import DEFAULT_HOME
@@ -81,18 +81,18 @@ def test_the_control_bar_stays_in_view_and_fly_asks_first(tmp_path):
         page.evaluate("() => window.scrollTo(0, 0)")
 
         place_buoys(page)
-        fly = page.get_by_test_id("fly")
-        expect(fly).to_be_enabled()
+        fly_button = page.get_by_test_id("fly")
+        expect(fly_button).to_be_enabled()
         dialog = page.get_by_test_id("confirm-dialog")
         # Cancel: nothing launched
-        fly.click()
+        fly_button.click()
         expect(dialog).to_be_visible()
         expect(page.get_by_test_id("confirm-text")).to_contain_text("arms and takes off at once to visit 2 buoys")
         expect(page.get_by_test_id("confirm-cancel")).to_be_focused()  # a stray Enter cancels
         page.get_by_test_id("confirm-cancel").click()
         expect(dialog).to_be_hidden()
         # Escape: nothing launched either
-        fly.click()
+        fly_button.click()
         expect(dialog).to_be_visible()
         page.keyboard.press("Escape")
         expect(dialog).to_be_hidden()
@@ -103,7 +103,7 @@ def test_the_control_bar_stays_in_view_and_fly_asks_first(tmp_path):
         # the panel scrolled away, Fly still in reach; confirmed, it flies
         page.locator("#panel").evaluate("p => { p.scrollTop = p.scrollHeight; }")
         assert_bar_in_view(page)
-        fly.click()
+        fly_button.click()
         expect(dialog).to_be_visible()
         page.screenshot(path=str(ARTIFACTS / "console_fly_confirm_1366x768.png"))
         page.get_by_test_id("confirm-ok").click()
@@ -226,6 +226,25 @@ def test_a_critical_statustext_raises_the_banner_and_the_log_keeps_every_event_a
         expect(page.get_by_test_id("abort")).to_be_disabled()
         page.screenshot(path=str(ARTIFACTS / "console_events_1366x768.png"))
         page.screenshot(path=str(ARTIFACTS / "console_flown_full_page.png"), full_page=True)
+
+        # a refusal to arm, its cause in the vehicle's STATUSTEXT just before (as ArduPilot's PreArm checks say it):
+        # the banner says both in plain words, the MAV_RESULT one click away
+        double._arm = lambda: False  # the double refuses every arming from now on
+        double.send(mavlink.MAVLink_statustext_message(mavlink.MAV_SEVERITY_CRITICAL, b"PreArm: Battery 0% below 7%"))
+        expect(event(page, "PreArm: Battery 0% below 7%")).to_have_count(1, timeout=10_000)
+        page.get_by_test_id("banner-dismiss").click()
+        fly(page)
+        banner_text = page.get_by_test_id("banner-text")
+        expect(banner_text).to_have_text(
+            re.compile(
+                r'^Mission \d+: failed: the vehicle refused to arm\. The vehicle said: "PreArm: Battery 0% below 7%"\.$'
+            ),
+            timeout=60_000,
+        )
+        expect(page.get_by_test_id("banner-detail")).to_contain_text("the vehicle refused to arm (MAV_RESULT_FAILED)")
+        expect(status).to_have_text(re.compile(r"^Mission \d+: failed: the vehicle refused to arm$"))
+        expect(page.get_by_test_id("event").first).to_have_attribute("data-severity", "critical")
+        page.screenshot(path=str(ARTIFACTS / "console_refused_to_arm_1366x768.png"))
         browser.close()
     assert errors == []
 
