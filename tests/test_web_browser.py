@@ -674,14 +674,19 @@ def test_a_mission_waiting_for_a_battery_swap_asks_for_it_and_shows_its_prefligh
             status = page.get_by_test_id("mission-status")
             expect(status).to_have_text(f"#{created['id']}: waiting_for_battery – {waiting}", timeout=30_000)
             expect(status).to_have_class("attention")
+            # the control bar says it plainly; the mission may be aborted, nothing else applies on the ground
+            expect(page.get_by_test_id("console-status")).to_have_text(
+                f"Mission {created['id']}: landed, waiting for a battery swap"
+            )
+            expect(page.get_by_test_id("abort")).to_be_enabled()
+            expect(page.get_by_test_id("hold")).to_be_disabled()
             expect(page.get_by_test_id("preflight")).to_have_text(
                 "pre-flight, sortie 1: needs 71 % (10.2 Wh), the vehicle had 100 %"
             )
-            dialogs: list[str] = []
-            page.on("dialog", lambda dialog: (dialogs.append(dialog.message), dialog.accept()))
-            page.get_by_test_id("battery-swap").click()
+            page.get_by_test_id("battery-swap").click()  # asked in the page's dialog (confirm.js)
+            expect(page.get_by_test_id("confirm-text")).to_contain_text("charged pack")
+            page.get_by_test_id("confirm-ok").click()
             expect(page.locator("#message")).to_contain_text("409: no vehicle is connected")
-            assert dialogs and "charged pack" in dialogs[0], dialogs
             page.screenshot(path=str(ARTIFACTS / "web_waiting_for_battery.png"))
             browser.close()
     assert errors == []

@@ -10,6 +10,7 @@ import { AlarmList } from "./alarms.js";
 import { ApiError, GcsApi } from "./api.js";
 import { AtonLayer } from "./atons.js";
 import { FlightCharts } from "./charts.js";
+import { confirmAction } from "./confirm.js";
 import { ControlBar, statusWords, vehicleName } from "./controls.js";
 import { byId } from "./dom.js";
 import { showInspections } from "./findings.js";
@@ -396,8 +397,14 @@ function wireControls() {
   byId("battery-swap").addEventListener(
     "click",
     showingErrors(async () => {
-      const question = "Is a charged pack in the vehicle? The vehicle is told its battery was replaced.";
-      if (!window.confirm(question)) return;
+      // asked in the page's dialog, as the control bar's actions are (window.confirm is auto-answered or
+      // blocked by kiosk browsers)
+      const question = {
+        title: "Pack swapped?",
+        text: "Is a charged pack in the vehicle? The vehicle is told its battery was replaced.",
+        confirm: "A charged pack is in",
+      };
+      if (!(await confirmAction(question))) return;
       const answer = await api.swapBattery(state.mission?.vehicle_sysid ?? null);
       const waiting = answer.waiting_mission == null ? "" : `; mission ${answer.waiting_mission} goes on`;
       panel.say(`pack swapped (vehicle: ${answer.vehicle})${waiting}`, true);

@@ -307,6 +307,7 @@ export function showBattery(vehicle) {
 // (ARDUPILOTMEGA QUADROTOR)"), so that the header says which vehicle it speaks of
 export function showVehicleLink(vehicle, name) {
   byId("vehicle-name").textContent = vehicle.sysid == null ? "" : name;
+  byId("battery-vehicle").textContent = vehicle.sysid == null ? "" : `of vehicle ${vehicle.sysid}`;
   const badge = byId("link-status");
   badge.textContent = vehicle.connected ? `vehicle: ${vehicle.armed ? "armed" : "disarmed"}` : "vehicle: disconnected";
   badge.className = vehicle.connected ? "badge" : "badge off";
