@@ -30,6 +30,16 @@ BAR = ["console-status", "console-vehicle", "fly", "hold", "resume", "return", "
 HOSTILE = "<img src=x onerror=window.injected=1>"
 
 
+# 600 events into the page's log (its module, as app.js imports it): what it shows of them
+EVENTS_KEPT_PROBE = """async () => {
+    const { EventLog, EVENTS_KEPT } = await import("/web/alerts.js");
+    const log = new EventLog();
+    for (let k = 0; k < 600; k += 1) log.add({ severity: 6, text: `event ${k}` });
+    const items = [...document.querySelectorAll("#event-list [data-testid=event-text]")];
+    return { kept: EVENTS_KEPT, shown: items.length, first: items[0].textContent, last: items.at(-1).textContent };
+}"""
+
+
 def assert_bar_in_view(page: Page) -> None:
     """Every part of the control bar lies wholly inside the viewport as it is now (no scrolling to reach it)."""
     viewport = page.viewport_size
@@ -108,13 +118,16 @@ def test_the_control_bar_stays_in_view_and_fly_asks_first(tmp_path):
         page.screenshot(path=str(ARTIFACTS / "console_fly_confirm_1366x768.png"))
         page.get_by_test_id("confirm-ok").click()
         expect(dialog).to_be_hidden()
-        page.wait_for_function("() => true")
         expect(page.get_by_test_id("console-status")).to_contain_text(re.compile(r"^Mission \d+: "), timeout=30_000)
         assert len(missions_posted) == 1
         events = page.get_by_test_id("event-list")
         expect(events).to_contain_text("created and started")
-        # with no vehicle to fly it, the mission ends: a status change in the log, critical when it failed
-        expect(page.get_by_test_id("console-status")).to_contain_text(re.compile("failed|aborted"), timeout=60_000)
+        # with no vehicle to fly it, the mission fails: a critical status change, in the log and the banner
+        expect(page.get_by_test_id("console-status")).to_contain_text("failed", timeout=60_000)
+        expect(page.get_by_test_id("banner-text")).to_have_text(re.compile(r"^Mission \d+: failed"))
+        failed = page.get_by_test_id("event").filter(has_text="failed")
+        expect(failed).to_have_count(1)
+        expect(failed).to_have_attribute("data-severity", "critical")
         page.screenshot(path=str(ARTIFACTS / "console_1366x768.png"))
         page.set_viewport_size(LARGE)
         assert_bar_in_view(page)
@@ -122,6 +135,11 @@ def test_the_control_bar_stays_in_view_and_fly_asks_first(tmp_path):
         assert_bar_in_view(page)
         page.evaluate("() => window.scrollTo(0, 0)")
         page.screenshot(path=str(ARTIFACTS / "console_1440x900.png"))
+
+        # the log keeps at least the last 200 events, newest first, and drops the oldest beyond what it keeps
+        kept = page.evaluate(EVENTS_KEPT_PROBE)
+        assert kept["shown"] == kept["kept"] >= 200, kept
+        assert kept["first"].endswith("event 599") and kept["last"].endswith(f"event {600 - kept['kept']}"), kept
         browser.close()
     assert errors == []
 
