@@ -263,6 +263,12 @@ def test_a_critical_statustext_raises_the_banner_and_the_log_keeps_every_event_a
         expect(status).to_have_text(re.compile(r"^Mission \d+: failed: the vehicle refused to arm$"))
         expect(page.get_by_test_id("event").first).to_have_attribute("data-severity", "critical")
         page.screenshot(path=str(ARTIFACTS / "console_refused_to_arm_1366x768.png"))
+
+        # the vehicle falls silent: the link lost is critical, and the bar says so
+        double.stop()
+        expect(page.get_by_test_id("banner-text")).to_have_text("Lost contact with vehicle 1", timeout=30_000)
+        expect(event(page, "Lost contact with vehicle 1")).to_have_attribute("data-severity", "critical")
+        expect(page.get_by_test_id("console-vehicle")).to_have_text("vehicle 1: no contact")
         browser.close()
     assert errors == []
 
