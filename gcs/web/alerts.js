@@ -135,7 +135,11 @@ export class EventLog {
   item(event) {
     const name = severityName(event.severity);
     const time = event.at
-      ? h("time", { datetime: event.at.toISOString(), class: "event-time", "data-testid": "event-time" }, clockTime(event.at))
+      ? h(
+          "time",
+          { datetime: event.at.toISOString(), class: "event-time", "data-testid": "event-time" },
+          clockTime(event.at),
+        )
       : h("span", { class: "event-time", "data-testid": "event-time", title: "before the page opened" }, "before");
     const attributes = { class: `event severity-${name}`, "data-testid": "event", "data-severity": name };
     if (event.detail) attributes.title = event.detail;

@@ -16,7 +16,6 @@ import { byId } from "./dom.js";
 import { showInspections } from "./findings.js";
 import { closeGallery, refreshGallery, showGallery, wireGallery } from "./gallery.js";
 import { showHistory } from "./history.js";
-import { clockTime, vehicleInstant } from "./times.js";
 import { InspectionFeed } from "./inspections.js";
 import { MissionMap } from "./map.js";
 import * as panel from "./panel.js";
@@ -24,6 +23,7 @@ import { RegisterLayer } from "./register.js";
 import { sortieLook } from "./sorties.js";
 import { buoyMarkings, buoysEditable, inspectionRows, state } from "./state.js";
 import { defineMissionStatus, isFinished, isUnderway } from "./status.js";
+import { clockTime, vehicleInstant } from "./times.js";
 
 const FALLBACK_DEPOT = { lat: 38.921, lon: 121.663 }; // when the service cannot tell the vehicle's home
 const ALARM_ZOOM = 16; // an alarm's buoy is shown at least this close: a buoy among the register's many

@@ -67,10 +67,15 @@ export function vehicleName(vehicle) {
   return kind ? `vehicle ${vehicle.sysid} (${kind})` : `vehicle ${vehicle.sysid}`;
 }
 
+// "vehicle 1: AUTO, armed, battery 57 %"
 function vehicleWords(vehicle) {
-  if (!vehicle || !vehicle.connected) return vehicle && vehicle.sysid != null ? `vehicle ${vehicle.sysid}: no contact` : "no vehicle";
-  const charge = vehicle.battery_remaining_pct == null ? "no battery report" : `battery ${Math.round(vehicle.battery_remaining_pct)} %`;
-  return `vehicle ${vehicle.sysid}: ${vehicle.mode ?? "mode unknown"}, ${vehicle.armed ? "armed" : "disarmed"}, ${charge}`;
+  if (!vehicle || !vehicle.connected) {
+    return vehicle && vehicle.sysid != null ? `vehicle ${vehicle.sysid}: no contact` : "no vehicle";
+  }
+  const pct = vehicle.battery_remaining_pct;
+  const charge = pct == null ? "no battery report" : `battery ${Math.round(pct)} %`;
+  const armed = vehicle.armed ? "armed" : "disarmed";
+  return `vehicle ${vehicle.sysid}: ${vehicle.mode ?? "mode unknown"}, ${armed}, ${charge}`;
 }
 
 // Which actions apply now. view: {mission, progress, buoyCount, busy (a plan or mission request in flight)}

@@ -1,5 +1,6 @@
-// The history table: one row per stored mission with its date (in the browser's time zone), its figures, its files (track, QGC plan, waypoints),
-// its report and a button that shows it on the map. Rows are built element by element (no HTML strings).
+// The history table: one row per stored mission with its date (in the browser's time zone), its figures, its
+// files (track, QGC plan, waypoints), its report and a button that shows it on the map. Rows are built element
+// by element (no HTML strings).
 import { byId, h } from "./dom.js";
 import { formatNumber } from "./panel.js";
 import { dateTime, duration } from "./times.js";
@@ -35,7 +36,8 @@ function row(api, mission, onShow) {
     formatNumber(t.rms_cross_track_m, 2),
     formatNumber(t.max_cross_track_m, 2),
   ].map((text) => h("td", {}, String(text)));
-  const time = h("td", { title: t.flight_time_s == null ? "" : `${formatNumber(t.flight_time_s)} s` }, duration(t.flight_time_s));
+  const exactTime = t.flight_time_s == null ? "" : `${formatNumber(t.flight_time_s)} s`;
+  const time = h("td", { title: exactTime }, duration(t.flight_time_s));
   return h(
     "tr",
     {},

@@ -15,7 +15,8 @@ export function say(text, ok = false) {
   byId("message").className = ok ? "ok" : "";
 }
 
-// While a plan or mission request is in flight: Plan disabled (Fly too, by the control bar), and "<note> N s" beside them, counting (a
+// While a plan or mission request is in flight: Plan disabled (Fly too, by the control bar), and "<note> N s"
+// beside them, counting (a
 // plan takes up to its time limit; the message line below keeps the last result). Returns what ends it.
 export function showBusy(note) {
   const started = performance.now();
@@ -140,8 +141,10 @@ function figureLines(mission) {
   // plain words first; the technical names and exact figures in the line's title (figureLine)
   return [
     [
-      `off the route ${formatNumber(t.rms_cross_track_m, 2)} m on average, ${formatNumber(t.max_cross_track_m, 2)} m at most`,
-      `RMS cross-track error ${formatNumber(t.rms_cross_track_m, 3)} m, maximum ${formatNumber(t.max_cross_track_m, 3)} m`,
+      `off the route ${formatNumber(t.rms_cross_track_m, 2)} m on average, ` +
+        `${formatNumber(t.max_cross_track_m, 2)} m at most`,
+      `RMS cross-track error ${formatNumber(t.rms_cross_track_m, 3)} m, ` +
+        `maximum ${formatNumber(t.max_cross_track_m, 3)} m`,
     ],
     [
       `flown ${formatNumber(t.distance_flown_m, 0)} m of ${formatNumber(t.planned_length_m, 0)} m planned, ` +

@@ -2,7 +2,12 @@
 // dates where a list spans days. The service stores ISO 8601 instants (created_at, updated_at, status events);
 // vehicle-boot seconds stay in the technical figures (titles, the report).
 
-const CLOCK = new Intl.DateTimeFormat(undefined, { hour: "2-digit", minute: "2-digit", second: "2-digit", hour12: false });
+const CLOCK = new Intl.DateTimeFormat(undefined, {
+  hour: "2-digit",
+  minute: "2-digit",
+  second: "2-digit",
+  hour12: false,
+});
 const DATE_TIME = new Intl.DateTimeFormat(undefined, {
   year: "numeric",
   month: "short",
