@@ -40,6 +40,15 @@ EVENTS_KEPT_PROBE = """async () => {
 }"""
 
 
+# The altitude chart's legend: each line's label, its marker's border style and colour.
+LEGEND_MARKERS = """() => [...document.querySelectorAll("#chart-alt .u-legend .u-series")]
+    .filter((row) => row.querySelector(".u-marker"))
+    .map((row) => {
+        const style = getComputedStyle(row.querySelector(".u-marker"));
+        return [row.querySelector(".u-label").textContent, style.borderTopStyle, style.borderTopColor];
+    })"""
+
+
 def assert_bar_in_view(page: Page) -> None:
     """Every part of the control bar lies wholly inside the viewport as it is now (no scrolling to reach it)."""
     viewport = page.viewport_size
@@ -238,8 +247,9 @@ def test_a_critical_statustext_raises_the_banner_and_the_log_keeps_every_event_a
         expect(reached.first).to_have_text(re.compile(r"^reached at \d\d:\d\d:\d\d$"))
         expect(reached.first).to_have_attribute("title", re.compile(r"^vehicle time \d+\.\d s \(since its boot\)$"))
         expect(page.get_by_test_id("history-date").first).to_have_text(re.compile(r"20\d\d"))
-        expect(page.locator("#chart-alt")).to_contain_text("desired (dashed)")
-        expect(page.locator("#chart-alt")).to_contain_text("actual (solid)")
+        markers = {label: (style, colour) for label, style, colour in page.evaluate(LEGEND_MARKERS)}
+        assert markers["actual (solid)"][0] == "solid" and markers["desired (dashed)"][0] == "dashed", markers
+        assert markers["actual (solid)"][1] != markers["desired (dashed)"][1], markers
         expect(page.get_by_test_id("fly")).to_be_enabled()  # the mission is over: the buoys may fly again
         expect(page.get_by_test_id("abort")).to_be_disabled()
         page.screenshot(path=str(ARTIFACTS / "console_events_1366x768.png"))
@@ -261,7 +271,11 @@ def test_a_critical_statustext_raises_the_banner_and_the_log_keeps_every_event_a
         )
         expect(page.get_by_test_id("banner-detail")).to_contain_text("the vehicle refused to arm (MAV_RESULT_FAILED)")
         expect(status).to_have_text(re.compile(r"^Mission \d+: failed: the vehicle refused to arm$"))
-        expect(page.get_by_test_id("event").first).to_have_attribute("data-severity", "critical")
+        refusal = event(page, "failed: the vehicle refused to arm.")
+        expect(refusal).to_have_attribute("data-severity", "critical")
+        expect(refusal).to_have_attribute(
+            "title", re.compile(r"reason: the vehicle refused to arm \(MAV_RESULT_FAILED\)$")
+        )
         page.screenshot(path=str(ARTIFACTS / "console_refused_to_arm_1366x768.png"))
 
         # the vehicle falls silent: the link lost is critical, and the bar says so

@@ -21,7 +21,8 @@ function makeChart(uPlot, element, series, yUnit) {
       { label: yUnit, labelSize: 18, size: 48 },
     ],
     series: [{ label: "t (s)" }, ...series],
-    legend: { live: false },
+    // the legend's marker drawn in its line's style: a dashed box for the dashed line
+    legend: { live: false, markers: { dash: (u, i) => (u.series[i].dash ? "dashed" : "solid") } },
   };
   const data = [[], ...series.map(() => [])];
   const plot = new uPlot(opts, data, element);
