@@ -338,7 +338,8 @@ def test_console_flight_commands_hold_resume_return_and_land_in_the_browser(doub
         buttons["land"].click()
         page.get_by_test_id("confirm-ok").click()
         expect(status).to_contain_text("landing where it is", timeout=15_000)
-        enabled("abort")
+        for name in ("hold", "resume", "return", "land"):  # (Abort too, once the vehicle is down: not waited for)
+            expect(buttons[name]).to_be_disabled()
         assert commands == [("hold", 200), ("resume", 200), ("return", 200), ("resume", 200), ("land", 200)]
         expect(event(page, "landing where it is")).to_have_count(1)
         browser.close()
