@@ -1,17 +1,25 @@
 """Fixtures for the integration tests that start the vehicle (tests/sitl_process.py has the helpers), and the
-database a storage test runs on, once per backend."""
+database a storage test runs on, once per backend, and the ArduCopter double behind the service that the browser
+tests of the map page share."""
 
 from __future__ import annotations
 
 import json
+import socket
+import subprocess
+import sys
 from collections import defaultdict
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from ardupilot_double import ArduCopterDouble
 from longest_first import RECORDED_FROM_S, LongestFirstScheduling
 from postgres_server import PostgresServer, postgres_bindir
 from sitl_process import GroundStation, SitlProcess
+from web_page import TOKEN, wait_until_connected
+
+from bench.processes import free_port, stop_process
 
 # The fixtures below that start a real process: the vehicle (`python -m sitl_quad`) or a PostgreSQL server.
 # `make test-fast` leaves the integration tier out, so a test using one must carry that marker.
@@ -161,3 +169,20 @@ def database(request: pytest.FixtureRequest, tmp_path: Path) -> str | Path:
     if request.param == "sqlite":
         return tmp_path / "gcs.sqlite"
     return request.getfixturevalue("postgres_url")
+
+
+@pytest.fixture
+def double_and_service(tmp_path):
+    """`python -m gcs serve --token ...` listening (udpin) for the ArduCopter double; yields (url, double)."""
+    udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
+    logs = open(tmp_path / "service.log", "w")  # noqa: SIM115 - closed below
+    argv = [sys.executable, "-m", "gcs", "serve", "--vehicle", f"udpin://127.0.0.1:{udp}", "--port", str(http)]
+    argv += ["--db", str(tmp_path / "gcs.sqlite"), "--token", TOKEN, "--vehicle-wait", "60"]
+    gcs = subprocess.Popen(argv, stdout=logs, stderr=subprocess.STDOUT)
+    double = ArduCopterDouble(udp).start()
+    url = f"http://127.0.0.1:{http}"
+    wait_until_connected(url, tmp_path / "service.log")
+    yield url, double
+    double.stop()
+    stop_process(gcs)
+    logs.close()

@@ -24,13 +24,13 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 import pytest
-from ardupilot_double import ArduCopterDouble
 from PIL import Image
-from playwright.sync_api import Browser, Page, Playwright, expect, sync_playwright
+from playwright.sync_api import Page, expect, sync_playwright
 from playwright.sync_api import TimeoutError as PlaywrightTimeoutError
 from service_process import serving
 from sitl_process import SitlProcess
 from stored_missions import SORTIES_FLOWN
+from web_page import ARGS, ARTIFACTS, CHROMIUM, REPO, TOKEN, fly, open_page, wait_until_connected
 
 from bench.long_mission import store_long_mission
 from bench.processes import free_port, stop_process
@@ -45,18 +45,6 @@ from uavcore.mavlink import mavlink
 
 pytestmark = [pytest.mark.browser, pytest.mark.integration, pytest.mark.slow]
 
-CHROMIUM = "/usr/bin/chromium"
-ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
-REPO = Path(__file__).resolve().parent.parent
-ARTIFACTS = REPO / "test-artifacts"
 HOSTILE = "<img src=x onerror=window.injected=1>"
 STATUS_PROBE = """async () => {
     const { MissionStatus } = await import("/web/status.js");
@@ -69,22 +57,6 @@ STATUS_PROBE = """async () => {
 def csv_file(text: str) -> dict:
     """A file for <input type=file> (Playwright's set_input_files payload)."""
     return {"name": "buoys.csv", "mimeType": "text/csv", "buffer": text.encode()}
-
-
-def wait_until_connected(url: str, log: Path) -> None:
-    """Until the service at url has heard its vehicle (a 120 s backstop for a loaded machine, then the log says
-    why not)."""
-    deadline = time.monotonic() + 120
-    while True:
-        try:
-            with urllib.request.urlopen(f"{url}/vehicle", timeout=1) as answer:
-                if json.load(answer)["connected"]:
-                    return
-        except OSError:
-            pass
-        if time.monotonic() > deadline:
-            raise AssertionError("the service or the vehicle did not come up: " + log.read_text())
-        time.sleep(0.2)
 
 
 BATTERY_PERCENT = 60  # the simulated vehicle's charge at start
@@ -136,15 +108,6 @@ def stack(tmp_path):
     logs.close()
 
 
-def open_page(p: Playwright, errors: list[str]) -> tuple[Browser, Page]:
-    """Headless Chromium with one desktop-sized page; the page's uncaught errors go to `errors`."""
-    ARTIFACTS.mkdir(exist_ok=True)
-    browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-    page = browser.new_page(viewport={"width": 1280, "height": 800})
-    page.on("pageerror", lambda error: errors.append(str(error)))
-    return browser, page
-
-
 def test_place_plan_and_fly_in_the_browser(stack):
     errors: list[str] = []
     with sync_playwright() as p:
@@ -171,7 +134,7 @@ def test_place_plan_and_fly_in_the_browser(stack):
         expect(page.locator(".leaflet-overlay-pane path[stroke-dasharray]")).to_have_count(1)
         page.screenshot(path=str(ARTIFACTS / "web_planned.png"))
 
-        page.get_by_role("button", name="Fly").click()
+        fly(page)  # the control bar's Fly, confirmed
         status = page.get_by_test_id("mission-status")
         expect(status).to_contain_text("flying", timeout=30_000)
         expect(page.locator(".vehicle-icon")).to_have_count(1)
@@ -239,24 +202,6 @@ def check_battery_gauge(page: Page, url: str) -> None:
 # Each would set window.injected (or log "injected") if the page ever let it become markup and run it.
 IMG_TEXT = "<img src=x onerror=window.injected=1>"
 SCRIPT_TEXT = "<script>window.injected=2;console.log('injected')</script>"
-TOKEN = "page-token-0123456789"
-
-
-@pytest.fixture
-def double_and_service(tmp_path):
-    """`python -m gcs serve --token ...` listening (udpin) for the ArduCopter double; yields (url, double)."""
-    udp, http = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_STREAM)
-    logs = open(tmp_path / "service.log", "w")  # noqa: SIM115 - closed below
-    argv = [sys.executable, "-m", "gcs", "serve", "--vehicle", f"udpin://127.0.0.1:{udp}", "--port", str(http)]
-    argv += ["--db", str(tmp_path / "gcs.sqlite"), "--token", TOKEN, "--vehicle-wait", "60"]
-    gcs = subprocess.Popen(argv, stdout=logs, stderr=subprocess.STDOUT)
-    double = ArduCopterDouble(udp).start()
-    url = f"http://127.0.0.1:{http}"
-    wait_until_connected(url, tmp_path / "service.log")
-    yield url, double
-    double.stop()
-    stop_process(gcs)
-    logs.close()
 
 
 def hostile_inspection(db: Path, mission_id: int) -> None:
@@ -313,7 +258,7 @@ def test_text_from_the_vehicle_and_from_files_shows_literally_and_never_runs(dou
         markers = page.locator(".leaflet-marker-pane")
         expect(markers.get_by_title(IMG_TEXT, exact=True)).to_have_count(1)
         expect(markers.get_by_title(SCRIPT_TEXT, exact=True)).to_have_count(1)
-        page.get_by_role("button", name="Fly").click()
+        fly(page)  # the control bar's Fly, confirmed
         expect(page.get_by_test_id("mission-status")).to_contain_text("completed", timeout=120_000)
         assert page.locator("#panel img, .leaflet-marker-pane img, #panel script").count() == 0
         assert page.evaluate("window.injected") is None
@@ -670,7 +615,7 @@ def test_plan_and_fly_wait_for_the_answer_and_a_superseded_plan_answer_changes_n
         browser, page = open_page(p, errors)
         page.route("**/plans", lambda route: held.append(route) if not held else route.continue_())
         page.goto(url)
-        plan, fly = page.get_by_role("button", name="Plan"), page.get_by_role("button", name="Fly")
+        plan, fly_button = page.get_by_role("button", name="Plan"), page.get_by_test_id("fly")
         # the controls are wired (app.js wireControls disables the battery fields first, then takes map clicks)
         expect(page.locator("#reserve")).to_be_disabled(timeout=30_000)
         box = page.locator("#map").bounding_box()
@@ -683,14 +628,14 @@ def test_plan_and_fly_wait_for_the_answer_and_a_superseded_plan_answer_changes_n
         busy = page.get_by_test_id("busy")
         expect(busy).to_contain_text("planning…")
         expect(plan).to_be_disabled()
-        expect(fly).to_be_disabled()
+        expect(fly_button).to_be_disabled()
         page.wait_for_function("() => document.querySelector('#busy').textContent.includes(' 1 s')")  # counting
         page.mouse.click(centre_x + 40, centre_y - 140)  # a fifth buoy while the plan of four is in flight
         expect(page.locator("#buoy-count")).to_have_text("5 buoys")
         assert len(held) == 1
         held[0].continue_()  # the late answer, for the four buoys
         expect(plan).to_be_enabled(timeout=30_000)
-        expect(fly).to_be_enabled()
+        expect(fly_button).to_be_enabled()
         expect(busy).to_be_hidden()
         summary = page.get_by_test_id("plan-summary")
         expect(summary).to_have_text("")
@@ -729,14 +674,19 @@ def test_a_mission_waiting_for_a_battery_swap_asks_for_it_and_shows_its_prefligh
             status = page.get_by_test_id("mission-status")
             expect(status).to_have_text(f"#{created['id']}: waiting_for_battery – {waiting}", timeout=30_000)
             expect(status).to_have_class("attention")
+            # the control bar says it plainly; the mission may be aborted, nothing else applies on the ground
+            expect(page.get_by_test_id("console-status")).to_have_text(
+                f"Mission {created['id']}: landed, waiting for a battery swap"
+            )
+            expect(page.get_by_test_id("abort")).to_be_enabled()
+            expect(page.get_by_test_id("hold")).to_be_disabled()
             expect(page.get_by_test_id("preflight")).to_have_text(
                 "pre-flight, sortie 1: needs 71 % (10.2 Wh), the vehicle had 100 %"
             )
-            dialogs: list[str] = []
-            page.on("dialog", lambda dialog: (dialogs.append(dialog.message), dialog.accept()))
-            page.get_by_test_id("battery-swap").click()
+            page.get_by_test_id("battery-swap").click()  # asked in the page's dialog (confirm.js)
+            expect(page.get_by_test_id("confirm-text")).to_contain_text("charged pack")
+            page.get_by_test_id("confirm-ok").click()
             expect(page.locator("#message")).to_contain_text("409: no vehicle is connected")
-            assert dialogs and "charged pack" in dialogs[0], dialogs
             page.screenshot(path=str(ARTIFACTS / "web_waiting_for_battery.png"))
             browser.close()
     assert errors == []

@@ -18,6 +18,7 @@ from gcs.settings import Settings
 WEB = Settings().web_dir
 SCRIPTS = sorted(WEB.glob("*.js"))  # the page's own modules; vendor/ holds third-party code
 MODULES = {"app.js", "api.js", "state.js", "status.js", "map.js", "charts.js", "panel.js", "history.js", "verdicts.js",
+           "controls.js", "confirm.js", "alerts.js", "times.js",
            "inspections.js", "findings.js", "gallery.js", "atons.js", "register.js", "alarms.js",
            "poll.js"}  # fmt: skip
 MARKUP_FROM_STRINGS = re.compile(r"innerHTML|outerHTML|insertAdjacentHTML|document\.write|createContextualFragment")

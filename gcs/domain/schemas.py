@@ -519,6 +519,8 @@ class VehicleOut(VehicleMotion):
     home: HomeOut | None
     estimates: dict[str, Any] = Field(description="a companion controller's ESO outputs, by name")
     status_texts: list[str] = Field(description="the vehicle's latest STATUSTEXTs, oldest first")
+    status_severities: list[int] = Field(description="each one's MAV_SEVERITY (0 emergency .. 7 debug)")
+    status_texts_heard: int = Field(description="STATUSTEXTs heard in all: a repeated text still counts anew")
     role: Literal["owner", "standby"] = Field(description="whether this instance owns the link (else a stand-by)")
 
 

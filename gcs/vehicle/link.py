@@ -188,7 +188,11 @@ class VehicleStatus:
     home: tuple[float, float, float] | None = None
     estimates: dict[str, Any] = field(default_factory=dict)  # a companion controller's ESO outputs by name
     status_texts: list[str] = field(default_factory=list)  # the vehicle's latest STATUSTEXTs, oldest first
-    status_texts_heard: int = 0  # how many STATUSTEXTs it has sent: which of status_texts came after a moment
+    # each one's MAV_SEVERITY (parallel to status_texts): the page alerts on CRITICAL or worse
+    status_severities: list[int] = field(default_factory=list)
+    # every STATUSTEXT heard: which of status_texts came after a moment (a refused command's cause), and for a
+    # client, a new text told from a repeated one by this count rising
+    status_texts_heard: int = 0
 
     @property
     def on_ground(self) -> bool:
@@ -634,6 +638,7 @@ class LinkManager:
             s.home = (m.latitude * 1e-7, m.longitude * 1e-7, m.altitude / 1000.0)
         elif kind == "STATUSTEXT":
             s.status_texts = [*s.status_texts[1 - STATUS_TEXTS_KEPT :], statustext(m)]
+            s.status_severities = [*s.status_severities[1 - STATUS_TEXTS_KEPT :], int(m.severity)]
             s.status_texts_heard += 1
 
     def _rebooted(self) -> None:

@@ -75,6 +75,26 @@ export class GcsApi {
     return this.request("POST", `/missions/${encodeURIComponent(id)}/abort`);
   }
 
+  // The operator's commands to a mission in flight, each answering the mission (MissionOut), whose
+  // progress.command then names the command in force ("hold", "return", "land"; null once resumed). Hold: stop
+  // and hold position; resume: go on with the route after a hold or a return; return: fly home and land there;
+  // land: land where the vehicle is.
+  holdMission(id) {
+    return this.request("POST", `/missions/${encodeURIComponent(id)}/hold`);
+  }
+
+  resumeMission(id) {
+    return this.request("POST", `/missions/${encodeURIComponent(id)}/resume`);
+  }
+
+  returnMission(id) {
+    return this.request("POST", `/missions/${encodeURIComponent(id)}/return`);
+  }
+
+  landMission(id) {
+    return this.request("POST", `/missions/${encodeURIComponent(id)}/land`);
+  }
+
   missions(limit = 50) {
     return this.request("GET", `/missions?limit=${limit}`);
   }
@@ -149,13 +169,22 @@ export class GcsApi {
   }
 
   // Calls onMessage with every decoded /ws message; reconnects a second after the stream closes (with the
-  // token as typed by then: a service with a token refuses the stream until the token is given).
-  openLiveStream(onMessage) {
+  // token as typed by then: a service with a token refuses the stream until the token is given). onState(open):
+  // true at the first message of each connection, false when one that had delivered a message closes.
+  openLiveStream(onMessage, onState = () => {}) {
     const connect = () => {
       const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/ws`;
       const ws = new WebSocket(url, this.liveProtocols());
-      ws.onmessage = (event) => onMessage(JSON.parse(event.data));
-      ws.onclose = () => setTimeout(connect, 1000);
+      let delivered = false;
+      ws.onmessage = (event) => {
+        if (!delivered) onState(true);
+        delivered = true;
+        onMessage(JSON.parse(event.data));
+      };
+      ws.onclose = () => {
+        if (delivered) onState(false);
+        setTimeout(connect, 1000);
+      };
     };
     connect();
   }

@@ -2,12 +2,16 @@
 // module wires the parts: api.js (the service), state.js (what is shown), map.js (Leaflet), charts.js (uPlot),
 // panel.js and history.js (the text around the map), inspections.js (the records fetched), findings.js (the
 // inspection list), gallery.js (a buoy's frames), the map's overlays atons.js (the AIS AtoNs) and register.js
-// (the buoy register), and alarms.js (the register's off-station alarms, in the panel). Leaflet and uPlot are served
-// locally (no CDN), so it works offline.
+// (the buoy register), alarms.js (the register's off-station alarms, in the panel), controls.js (the control bar:
+// mission status, vehicle, Fly and the commands in flight, each confirmed in confirm.js's dialog) and alerts.js (the
+// event log, the banner and the beep). Leaflet and uPlot are served locally (no CDN), so it works offline.
+import { EventLog, Severity, Watch } from "./alerts.js";
 import { AlarmList } from "./alarms.js";
 import { ApiError, GcsApi } from "./api.js";
 import { AtonLayer } from "./atons.js";
 import { FlightCharts } from "./charts.js";
+import { confirmAction } from "./confirm.js";
+import { ControlBar, statusWords, vehicleName } from "./controls.js";
 import { byId } from "./dom.js";
 import { showInspections } from "./findings.js";
 import { closeGallery, refreshGallery, showGallery, wireGallery } from "./gallery.js";
@@ -19,6 +23,7 @@ import { RegisterLayer } from "./register.js";
 import { sortieLook } from "./sorties.js";
 import { buoyMarkings, buoysEditable, inspectionRows, state } from "./state.js";
 import { defineMissionStatus, isFinished, isUnderway } from "./status.js";
+import { clockTime, vehicleInstant } from "./times.js";
 
 const FALLBACK_DEPOT = { lat: 38.921, lon: 121.663 }; // when the service cannot tell the vehicle's home
 const ALARM_ZOOM = 16; // an alarm's buoy is shown at least this close: a buoy among the register's many
@@ -26,6 +31,8 @@ const ALARM_ZOOM = 16; // an alarm's buoy is shown at least this close: a buoy a
 const api = new GcsApi(panel.token);
 const map = new MissionMap("map");
 const charts = new FlightCharts(window.uPlot);
+const events = new EventLog();
+const watch = new Watch(events);
 
 // Run an action, showing a failed request in the message line. Anything else is a bug: shown and rethrown.
 function showingErrors(action, fallback = undefined) {
@@ -104,7 +111,16 @@ function relabelBuoys() {
   };
   const camera = state.progress ? state.progress.camera : null;
   const open = (row) => row.record && showGallery(row);
-  showInspections(inspectionRows(markings), `${id} ${state.inspectionsSeq}`, camera, exports, open);
+  const rows = inspectionRows(markings).map((row) => ({ ...row, reached: reachedText(row.arrival_s) }));
+  showInspections(rows, `${id} ${state.inspectionsSeq}`, camera, exports, open);
+}
+
+// A buoy's arrival as the operator reads it: the wall-clock time when it can be told exactly (times.js
+// vehicleInstant), else the vehicle's own seconds, said as such.
+function reachedText(arrival_s) {
+  if (arrival_s == null) return null;
+  const instant = vehicleInstant(arrival_s, state.mission, consoleVehicle());
+  return instant === null ? `at vehicle time ${arrival_s.toFixed(1)} s` : `at ${clockTime(instant)}`;
 }
 
 function flightRequest() {
@@ -138,6 +154,8 @@ function supersedeRequests() {
 async function latestAnswer(note, call) {
   const seq = ++requestSeq;
   const done = panel.showBusy(note);
+  state.busy = true;
+  updateConsole();
   try {
     const answer = await call();
     return seq === requestSeq ? answer : null;
@@ -146,6 +164,8 @@ async function latestAnswer(note, call) {
     return null;
   } finally {
     done();
+    state.busy = false;
+    updateConsole();
   }
 }
 
@@ -201,6 +221,28 @@ function showMission(mission) {
   state.progress = mission.progress;
   panel.showMission(mission);
   relabelBuoys();
+  updateConsole();
+}
+
+// ----- the control bar and the alerts: the watched mission's status in plain words, its vehicle, the buttons
+// that apply; a change of the mission's status (or of the operator command in force) goes to the event log
+let liveVehicles = { first: null, bySysid: new Map() }; // the latest /ws vehicles
+
+// The vehicle the watched mission flies on (a fleet's by its system id), else the service's first vehicle.
+function consoleVehicle() {
+  const sysid = state.mission ? state.mission.vehicle_sysid : null;
+  return (sysid != null && liveVehicles.bySysid.get(sysid)) || liveVehicles.first;
+}
+
+// The status and the operator command in force are the mission document's (the poll's, or an action's answer):
+// one source, so that the buttons and the log never flip between it and the stream; the counts are the stream's
+// (fresher).
+function updateConsole() {
+  const command = (state.mission && state.mission.progress && state.mission.progress.command) || null;
+  const progress = state.progress ? { ...state.progress, command } : { command };
+  const view = { mission: state.mission, progress, buoyCount: state.buoys.length, busy: state.busy };
+  controls.show(view, consoleVehicle());
+  if (state.mission) watch.missionShown(state.mission, command, statusWords(state.mission, progress));
 }
 
 const pollMission = showingErrors(async () => {
@@ -217,14 +259,18 @@ const pollMission = showingErrors(async () => {
 // latest sample. The stream is the one live path: nothing is polled for the vehicles' positions.
 function onLiveMessage(message) {
   const vehicle = message.vehicle;
-  panel.showVehicleLink(vehicle);
+  panel.showVehicleLink(vehicle, vehicleName(vehicle));
   panel.showBattery(vehicle);
+  liveVehicles = { first: vehicle, bySysid: new Map(message.vehicles.map((v) => [v.sysid, v])) };
+  // each vehicle's link, mode and STATUSTEXTs to the event log (a fleet's every one; else the one)
+  const watched = message.vehicles.length > 1 ? message.vehicles : [vehicle];
+  watched.forEach((v) => watch.vehicle(v, v.sysid == null ? "the vehicle" : `vehicle ${v.sysid}`));
   if (message.vehicles.length > 1) showFleet(message.vehicles);
   else if (vehicle.connected && vehicle.lat != null) {
     map.showVehicle(vehicle.lat, vehicle.lon, ((vehicle.yaw ?? 0) * 180) / Math.PI);
   }
   const mission = message.mission;
-  if (!mission || mission.id !== state.missionId) return;
+  if (!mission || mission.id !== state.missionId) return updateConsole();
   state.firstBuoySeq = mission.first_buoy_seq;
   if (mission.progress) {
     state.progress = mission.progress;
@@ -236,6 +282,7 @@ function onLiveMessage(message) {
     map.extendTrack(mission.sample.lat, mission.sample.lon);
     charts.add(mission.sample);
   }
+  updateConsole();
 }
 
 // A fleet (more than one vehicle): every vehicle on the map, in its share's colour while a fleet mission is shown.
@@ -269,6 +316,65 @@ const displayMission = showingErrors(async (id) => {
   charts.redraw();
 });
 
+// ----- the control bar's actions (controls.js asks first where an action is consequential)
+// A failed request: said beside the buttons (the panel's message line may be scrolled away) and logged; anything
+// else is a bug, shown and rethrown.
+function commanding(name, action) {
+  return async () => {
+    try {
+      await action();
+    } catch (error) {
+      controls.say(error.message);
+      panel.say(error.message);
+      events.add({ severity: Severity.warning, text: `${name} refused: ${error.message}` });
+      if (!(error instanceof ApiError)) throw error;
+    }
+  };
+}
+
+// A command to the watched mission in flight: its answer (the mission) shown at once.
+const missionCommand = (name, call) =>
+  commanding(name, async () => {
+    if (!state.missionId) return controls.say("No mission shown.");
+    showMission(await call(state.missionId));
+    controls.say(`${name}: sent`, true);
+  });
+
+const flyMission = commanding("Fly", async () => {
+  if (!state.buoys.length) return controls.say("Place at least one buoy first.");
+  panel.say("");
+  const request = { ...flightRequest(), override: byId("override").checked };
+  let created = null;
+  const mission = await latestAnswer("planning…", async () => (created = await api.createMission(request)));
+  refreshHistory();
+  if (created) events.add({ severity: Severity.notice, text: `Mission ${created.id} created and started` });
+  if (mission === null) {
+    // superseded: the page shows what the operator chose since; the mission flies all the same, so say so
+    if (created) panel.say(`mission ${created.id} created and started: "show" it in the history`, true);
+    return;
+  }
+  startWatching(mission);
+  panel.say(`mission ${mission.id} created`, true);
+  controls.say(`mission ${mission.id} created`, true);
+});
+
+const controls = new ControlBar(
+  {
+    fly: flyMission,
+    hold: missionCommand("Hold", (id) => api.holdMission(id)),
+    resume: missionCommand("Resume", (id) => api.resumeMission(id)),
+    return: missionCommand("Return", (id) => api.returnMission(id)),
+    land: missionCommand("Land", (id) => api.landMission(id)),
+    abort: missionCommand("Abort", (id) => api.abortMission(id)),
+  },
+  () => ({
+    vehicle: vehicleName(consoleVehicle()).replace(/^./, (c) => c.toUpperCase()), // a sentence's first word
+    connected: Boolean(consoleVehicle() && consoleVehicle().connected),
+    buoyCount: state.buoys.length,
+    altitude_m: panel.flightSettings().altitude_m,
+  }),
+);
+
 // ----- controls
 function wireControls() {
   panel.wireBatteryOptions();
@@ -288,42 +394,21 @@ function wireControls() {
     }),
   );
 
-  byId("fly").addEventListener(
-    "click",
-    showingErrors(async () => {
-      if (!state.buoys.length) return panel.say("Place at least one buoy first.");
-      panel.say("");
-      const request = { ...flightRequest(), override: byId("override").checked };
-      let created = null;
-      const mission = await latestAnswer("planning…", async () => (created = await api.createMission(request)));
-      refreshHistory();
-      if (mission === null) {
-        // superseded: the page shows what the operator chose since; the mission flies all the same, so say so
-        if (created) panel.say(`mission ${created.id} created and started: "show" it in the history`, true);
-        return;
-      }
-      startWatching(mission);
-      panel.say(`mission ${mission.id} created`, true);
-    }),
-  );
-
   byId("battery-swap").addEventListener(
     "click",
     showingErrors(async () => {
-      const question = "Is a charged pack in the vehicle? The vehicle is told its battery was replaced.";
-      if (!window.confirm(question)) return;
+      // asked in the page's dialog, as the control bar's actions are (window.confirm is auto-answered or
+      // blocked by kiosk browsers)
+      const question = {
+        title: "Pack swapped?",
+        text: "Is a charged pack in the vehicle? The vehicle is told its battery was replaced.",
+        confirm: "A charged pack is in",
+      };
+      if (!(await confirmAction(question))) return;
       const answer = await api.swapBattery(state.mission?.vehicle_sysid ?? null);
       const waiting = answer.waiting_mission == null ? "" : `; mission ${answer.waiting_mission} goes on`;
       panel.say(`pack swapped (vehicle: ${answer.vehicle})${waiting}`, true);
       pollMission();
-    }),
-  );
-
-  byId("abort").addEventListener(
-    "click",
-    showingErrors(async () => {
-      if (!state.missionId) return panel.say("No mission to abort.");
-      showMission(await api.abortMission(state.missionId));
     }),
   );
 
@@ -387,11 +472,13 @@ async function start() {
   setDepot(depot);
   wireControls();
   alarms.start();
-  api.openLiveStream(onLiveMessage); // the vehicles, a fleet's every one, as they move
+  // the vehicles, a fleet's every one, as they move; the stream's loss is an event (what is shown goes stale)
+  api.openLiveStream(onLiveMessage, (open) => watch.serviceStream(open));
   setInterval(pollMission, 1000);
   setInterval(() => {
     charts.redraw();
     relabelBuoys();
+    updateConsole(); // the buoys placed decide whether Fly applies
   }, 250);
   const missions = await refreshHistory();
   // the newest mission when it is under way (a fleet mission: its parts fly on the vehicles), else the one the

@@ -1,35 +1,42 @@
-// Time-series charts (uPlot) of the live flight: cross-track error, altitude and yaw, actual vs desired
-// (the desired, dashed, is drawn last so it stays visible where the vehicle tracks it closely).
+// Time-series charts (uPlot) of the live flight: how far off the route the vehicle is (cross-track error),
+// altitude and yaw, actual against desired. The two lines of a chart differ in colour, in lightness and in style,
+// so that neither colour vision nor a grey print is needed to tell them apart: actual solid dark blue, desired
+// dashed orange (drawn last, so it stays visible where the vehicle tracks it closely); the legend names the style
+// too. Both axes carry their units. Time is the vehicle's clock in seconds since its boot, as the samples carry it.
 const MAX_POINTS = 5000;
+const HEIGHT = 170;
 
-function makeChart(uPlot, element, series) {
+const ACTUAL = { label: "actual (solid)", stroke: "#0b3c6b", width: 2 };
+const DESIRED = { label: "desired (dashed)", stroke: "#d55e00", dash: [7, 4], width: 2 };
+
+// yUnit: the y axis's label ("m", "°")
+function makeChart(uPlot, element, series, yUnit) {
   const width = () => Math.max(200, element.clientWidth || element.parentElement.clientWidth - 8);
   const opts = {
     width: width(),
-    height: 160,
+    height: HEIGHT,
     scales: { x: { time: false } },
-    axes: [{ label: "t (s, vehicle)" }, {}],
-    series: [{ label: "t" }, ...series],
-    legend: { live: false },
+    axes: [
+      { label: "vehicle clock (s since boot)", labelSize: 18 },
+      { label: yUnit, labelSize: 18, size: 48 },
+    ],
+    series: [{ label: "t (s)" }, ...series],
+    // the legend's marker drawn in its line's style: a dashed box for the dashed line
+    legend: { live: false, markers: { dash: (u, i) => (u.series[i].dash ? "dashed" : "solid") } },
   };
   const data = [[], ...series.map(() => [])];
   const plot = new uPlot(opts, data, element);
-  new ResizeObserver(() => plot.setSize({ width: width(), height: 160 })).observe(element.parentElement);
+  new ResizeObserver(() => plot.setSize({ width: width(), height: HEIGHT })).observe(element.parentElement);
   return { plot, data };
 }
 
 export class FlightCharts {
   constructor(uPlot) {
+    const chart = (id, series, unit) => makeChart(uPlot, document.getElementById(id), series, unit);
     this.charts = {
-      xte: makeChart(uPlot, document.getElementById("chart-xte"), [{ label: "cross-track", stroke: "#b23b3b" }]),
-      alt: makeChart(uPlot, document.getElementById("chart-alt"), [
-        { label: "actual", stroke: "#2f8f4f", width: 2 },
-        { label: "desired", stroke: "#1f6fb2", dash: [5, 4], width: 1.5 },
-      ]),
-      yaw: makeChart(uPlot, document.getElementById("chart-yaw"), [
-        { label: "actual", stroke: "#2f8f4f", width: 2 },
-        { label: "desired", stroke: "#1f6fb2", dash: [5, 4], width: 1.5 },
-      ]),
+      xte: chart("chart-xte", [{ label: "off the route", stroke: "#a11d1d", width: 2 }], "m off the route"),
+      alt: chart("chart-alt", [ACTUAL, DESIRED], "m above home"),
+      yaw: chart("chart-yaw", [ACTUAL, DESIRED], "° from north"),
     };
     this.lastT = null;
     this.dirty = false;

@@ -7,11 +7,12 @@ import { findingText, recordLines, VERDICT_ORDER, verdictBadge, verdictLook } fr
 
 let shownKey = null; // what the section shows, so that an unchanged one is not rebuilt (and keeps its focus)
 
-// rows: state.inspectionRows() ([{index, id, label, verdict, record}]; none: the section hides); key: changes
-// whenever the rows' records do; camera: progress.camera (null: none reported); exports: {csv, geojson} URLs;
-// onOpen(row) when a row is clicked.
+// rows: state.inspectionRows() ([{index, id, label, verdict, record, arrival_s}]; none: the section hides) with
+// reached: when the buoy was reached as the operator reads it (null: not reached); key: changes whenever the rows'
+// records do; camera: progress.camera (null: none reported); exports: {csv, geojson} URLs; onOpen(row) when a row
+// is clicked.
 export function showInspections(rows, key, camera, exports, onOpen) {
-  const fullKey = JSON.stringify([key, camera, exports, rows.map((r) => [r.index, r.label, r.verdict])]);
+  const fullKey = JSON.stringify([key, camera, exports, rows.map((r) => [r.index, r.label, r.verdict, r.reached])]);
   if (fullKey === shownKey) return;
   shownKey = fullKey;
   byId("inspection-section").hidden = rows.length === 0;
@@ -46,6 +47,10 @@ function listRow(row, onOpen) {
   const details = row.record
     ? [...row.record.findings.map(findingText), ...recordLines(row.record)].map((line) => h("li", {}, line))
     : [];
+  if (row.reached) {
+    const title = `vehicle time ${row.arrival_s.toFixed(1)} s (since its boot)`;
+    details.unshift(h("li", { title, "data-testid": "inspection-reached" }, `reached ${row.reached}`));
+  }
   const attributes = { class: "inspection-row", "data-testid": "inspection-row", "data-verdict": row.verdict };
   return h("li", attributes, title, h("ul", { class: "findings" }, ...details));
 }

@@ -4,6 +4,7 @@
 import { byId, h } from "./dom.js";
 import { energyErrorPct, hasFlown, hasSortieFigures, routeLook, swatch } from "./sorties.js";
 import { MissionStatus } from "./status.js";
+import { duration } from "./times.js";
 
 export const formatNumber = (value, digits = 1) => (value == null ? "–" : Number(value).toFixed(digits));
 const km = (metres) => (metres / 1000).toFixed(3);
@@ -14,12 +15,13 @@ export function say(text, ok = false) {
   byId("message").className = ok ? "ok" : "";
 }
 
-// While a plan or mission request is in flight: Plan and Fly disabled, and "<note> N s" beside them, counting (a
+// While a plan or mission request is in flight: Plan disabled (Fly too, by the control bar), and "<note> N s"
+// beside them, counting (a
 // plan takes up to its time limit; the message line below keeps the last result). Returns what ends it.
 export function showBusy(note) {
   const started = performance.now();
   const indicator = byId("busy");
-  const buttons = [byId("plan"), byId("fly")];
+  const buttons = [byId("plan")]; // Fly is the control bar's: it follows state.busy (controls.js)
   const tick = () => {
     indicator.textContent = `${note} ${Math.floor((performance.now() - started) / 1000)} s`;
   };
@@ -136,10 +138,19 @@ function figureLines(mission) {
   const t = mission.tracking;
   if (!t) return [];
   const reached = mission.buoy_results.filter((b) => b.reached).length;
+  // plain words first; the technical names and exact figures in the line's title (figureLine)
   return [
-    `RMS cross-track ${formatNumber(t.rms_cross_track_m, 2)} m, max ${formatNumber(t.max_cross_track_m, 2)} m`,
-    `flown ${formatNumber(t.distance_flown_m, 0)} m of ${formatNumber(t.planned_length_m, 0)} m planned, ` +
-      `${formatNumber(t.flight_time_s)} s`,
+    [
+      `off the route ${formatNumber(t.rms_cross_track_m, 2)} m on average, ` +
+        `${formatNumber(t.max_cross_track_m, 2)} m at most`,
+      `RMS cross-track error ${formatNumber(t.rms_cross_track_m, 3)} m, ` +
+        `maximum ${formatNumber(t.max_cross_track_m, 3)} m`,
+    ],
+    [
+      `flown ${formatNumber(t.distance_flown_m, 0)} m of ${formatNumber(t.planned_length_m, 0)} m planned, ` +
+        `in ${duration(t.flight_time_s)}`,
+      `flight time ${formatNumber(t.flight_time_s)} s`,
+    ],
     `buoys reached ${reached} / ${mission.buoy_results.length}`,
   ];
 }
@@ -155,7 +166,10 @@ export function showMission(mission) {
   byId("progress").max = Math.max(1, progress.buoys || mission.order.length);
   byId("progress").value = progress.visited || 0;
   byId("sortie-progress").textContent = sortieProgress(mission);
-  const lines = figureLines(mission);
+  // a line is its text, or [text, its technical detail] (shown on hover)
+  const lines = figureLines(mission).map((line) =>
+    Array.isArray(line) ? h("span", { title: line[1] }, line[0]) : line,
+  );
   byId("figures").replaceChildren(...lines.flatMap((line, i) => (i ? [h("br"), line] : [line])));
   showSortieTable(mission);
 }
@@ -292,8 +306,11 @@ export function showBattery(vehicle) {
     : "";
 }
 
-// vehicle: the live stream's vehicle part (connected, armed, mode)
-export function showVehicleLink(vehicle) {
+// vehicle: the live stream's vehicle part (connected, armed, mode); name: how the page names it ("vehicle 1
+// (ARDUPILOTMEGA QUADROTOR)"), so that the header says which vehicle it speaks of
+export function showVehicleLink(vehicle, name) {
+  byId("vehicle-name").textContent = vehicle.sysid == null ? "" : name;
+  byId("battery-vehicle").textContent = vehicle.sysid == null ? "" : `of vehicle ${vehicle.sysid}`;
   const badge = byId("link-status");
   badge.textContent = vehicle.connected ? `vehicle: ${vehicle.armed ? "armed" : "disarmed"}` : "vehicle: disconnected";
   badge.className = vehicle.connected ? "badge" : "badge off";

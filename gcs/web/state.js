@@ -13,6 +13,7 @@ export const state = {
   firstBuoySeq: 2, // the mission item sequence number of the first buoy (after home and takeoff)
   inspections: new Map(), // the watched mission's inspection records (InspectionOut) by buoy input index
   inspectionsSeq: 0, // bumped whenever the records change
+  busy: false, // a plan or mission request in flight (Plan and Fly wait for it)
 };
 
 // The buoys may be edited unless the watched mission is on its way to or on the vehicle.
@@ -73,8 +74,11 @@ export function buoyMarkings() {
 }
 
 // The buoys with a verdict to show, as the inspection list and the gallery take them, in visiting order:
-// [{index, id, label, verdict, record}] (record null while pending).
+// [{index, id, label, verdict, record, arrival_s}] (record null while pending; arrival_s: the vehicle time it was
+// reached, null while not).
 export function inspectionRows(markings = buoyMarkings()) {
+  const results = (state.mission && state.mission.buoy_results) || [];
+  const arrivals = new Map(results.map((b) => [b.index, b.arrival_s]));
   return state.buoys
     .map((buoy, index) => ({
       index,
@@ -82,6 +86,7 @@ export function inspectionRows(markings = buoyMarkings()) {
       label: markings[index].label,
       verdict: markings[index].verdict,
       record: state.inspections.get(index) ?? null,
+      arrival_s: arrivals.get(index) ?? null,
     }))
     .filter((row) => row.verdict != null)
     .sort((a, b) => a.label - b.label);
