@@ -600,6 +600,37 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
             expect(rows.nth(k).locator("td").nth(2)).to_have_text(str(len(share["buoys"])))  # all inspected
         ARTIFACTS.mkdir(exist_ok=True)
         page.screenshot(path=str(ARTIFACTS / "fleet-mission.png"))
+
+        # each vehicle named with its link and battery, and the choice of what Plan and Fly use: the fleet
+        # (previewed by POST /plans, no depot: each flies from its home) or one of them
+        vehicle_rows = page.get_by_test_id("vehicle-row")
+        expect(vehicle_rows).to_have_count(3)
+        for sysid in (1, 2, 3):
+            expect(vehicle_rows.nth(sysid - 1)).to_contain_text(
+                re.compile(rf"^vehicle {sysid}\b.*: .* · battery \d+ %$")
+            )
+        page.get_by_role("button", name="Clear").click()
+        page.locator("#import").set_input_files(
+            csv_file("lat,lon,id\n" + "".join(f"{b['lat']},{b['lon']},{b['id']}\n" for b in buoys))
+        )
+        expect(page.locator(".buoy-icon")).to_have_count(len(buoys))
+        choice = page.get_by_test_id("vehicle-choice")
+        choice.select_option("fleet")
+        with page.expect_response(lambda r: r.url.endswith("/plans")) as answer:
+            page.get_by_role("button", name="Plan").click()
+        sent = answer.value.request.post_data_json
+        assert sent["vehicles"] == "fleet" and "depot" not in sent and "vehicle" not in sent
+        preview = answer.value.json()["fleet"]
+        expect(page.get_by_test_id("plan-summary")).to_contain_text(f"{len(preview['shares'])} vehicles (")
+        expect(legend).to_have_count(len(preview["shares"]))
+        expect(routes).to_have_count(len(preview["shares"]))  # each share's route, from its vehicle's home
+        page.screenshot(path=str(ARTIFACTS / "fleet-preview.png"))
+        choice.select_option("2")
+        expect(page.get_by_test_id("plan-summary")).to_be_empty()  # the fleet's plan is not this choice's
+        with page.expect_response(lambda r: r.url.endswith("/plans")) as answer:
+            page.get_by_role("button", name="Plan").click()
+        sent = answer.value.request.post_data_json
+        assert sent["vehicle"] == 2 and "vehicles" not in sent and answer.value.ok
         browser.close()
     assert errors == []
     assert polled == []  # one live path: the positions came from /ws alone

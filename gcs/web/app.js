@@ -24,6 +24,7 @@ import { sortieLook } from "./sorties.js";
 import { buoyMarkings, buoysEditable, inspectionRows, state } from "./state.js";
 import { defineMissionStatus, isFinished, isUnderway } from "./status.js";
 import { clockTime, vehicleInstant } from "./times.js";
+import { VehicleChoice } from "./vehicles.js";
 
 const FALLBACK_DEPOT = { lat: 38.921, lon: 121.663 }; // when the service cannot tell the vehicle's home
 const ALARM_ZOOM = 16; // an alarm's buoy is shown at least this close: a buoy among the register's many
@@ -111,23 +112,31 @@ function relabelBuoys() {
   };
   const camera = state.progress ? state.progress.camera : null;
   const open = (row) => row.record && showGallery(row);
-  const rows = inspectionRows(markings).map((row) => ({ ...row, reached: reachedText(row.arrival_s) }));
+  const rows = inspectionRows(markings).map((row) => ({ ...row, reached: reachedText(row) }));
   showInspections(rows, `${id} ${state.inspectionsSeq}`, camera, exports, open);
 }
 
-// A buoy's arrival as the operator reads it: the wall-clock time when it can be told exactly (times.js
-// vehicleInstant), else the vehicle's own seconds, said as such.
-function reachedText(arrival_s) {
+// A buoy's arrival as the operator reads it: when the service heard it (arrival_at), else the wall-clock time
+// when it can be told exactly (times.js vehicleInstant: a mission stored before arrival_at was), else the vehicle's
+// own seconds, said as such.
+function reachedText({ arrival_s, arrival_at }) {
+  if (arrival_at) return `at ${clockTime(Date.parse(arrival_at))}`;
   if (arrival_s == null) return null;
   const instant = vehicleInstant(arrival_s, state.mission, consoleVehicle());
   return instant === null ? `at vehicle time ${arrival_s.toFixed(1)} s` : `at ${clockTime(instant)}`;
 }
 
+// The vehicles, and which one Plan and Fly use (or the fleet); invalidatePlan: a plan was made for another choice
+const vehicleChoice = new VehicleChoice(byId("vehicles-section"), byId("vehicle-list"), byId("vehicle-choice"), () =>
+  invalidatePlan(),
+);
+
 function flightRequest() {
   return {
-    depot: state.depot,
+    ...(vehicleChoice.isFleet() ? {} : { depot: state.depot }), // a fleet flies from its vehicles' homes
     buoys: state.buoys.map((b) => ({ ...b.charted, id: b.id, lat: b.lat, lon: b.lon })),
     ...panel.flightSettings(),
+    ...vehicleChoice.request(),
   };
 }
 
@@ -262,6 +271,7 @@ function onLiveMessage(message) {
   panel.showVehicleLink(vehicle, vehicleName(vehicle));
   panel.showBattery(vehicle);
   liveVehicles = { first: vehicle, bySysid: new Map(message.vehicles.map((v) => [v.sysid, v])) };
+  vehicleChoice.show(message.vehicles);
   // each vehicle's link, mode and STATUSTEXTs to the event log (a fleet's every one; else the one)
   const watched = message.vehicles.length > 1 ? message.vehicles : [vehicle];
   watched.forEach((v) => watch.vehicle(v, v.sysid == null ? "the vehicle" : `vehicle ${v.sysid}`));

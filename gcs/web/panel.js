@@ -99,7 +99,17 @@ export function showPlanSummary(plan) {
     `input order ${km(plan.input_order_length_m)} km: `,
     h("b", {}, `${plan.improvement_pct.toFixed(1)} % shorter`),
     ...energySummary(plan),
+    ...fleetSummary(plan),
   );
+}
+
+// A fleet's plan (POST /plans with vehicles): how the buoys are shared and when the last vehicle is home.
+function fleetSummary(plan) {
+  const fleet = plan.fleet;
+  if (!fleet) return [];
+  const shares = fleet.shares.map((s) => `vehicle ${s.sysid}: ${s.buoys.length}`).join(", ");
+  const home = `all home in about ${duration(fleet.makespan_s)}`;
+  return [h("br"), h("b", {}, `${fleet.shares.length} vehicles`), ` (${shares} buoys); ${home}`];
 }
 
 // With energy planning: how many sorties, their predicted total and the battery they were planned for.

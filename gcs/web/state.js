@@ -74,11 +74,11 @@ export function buoyMarkings() {
 }
 
 // The buoys with a verdict to show, as the inspection list and the gallery take them, in visiting order:
-// [{index, id, label, verdict, record, arrival_s}] (record null while pending; arrival_s: the vehicle time it was
-// reached, null while not).
+// [{index, id, label, verdict, record, arrival_s, arrival_at}] (record null while pending; arrival_s: the vehicle
+// time it was reached, arrival_at: when the service heard it (ISO, UTC); null while not).
 export function inspectionRows(markings = buoyMarkings()) {
   const results = (state.mission && state.mission.buoy_results) || [];
-  const arrivals = new Map(results.map((b) => [b.index, b.arrival_s]));
+  const arrivals = new Map(results.map((b) => [b.index, b]));
   return state.buoys
     .map((buoy, index) => ({
       index,
@@ -86,7 +86,8 @@ export function inspectionRows(markings = buoyMarkings()) {
       label: markings[index].label,
       verdict: markings[index].verdict,
       record: state.inspections.get(index) ?? null,
-      arrival_s: arrivals.get(index) ?? null,
+      arrival_s: arrivals.get(index)?.arrival_s ?? null,
+      arrival_at: arrivals.get(index)?.arrival_at ?? null,
     }))
     .filter((row) => row.verdict != null)
     .sort((a, b) => a.label - b.label);
