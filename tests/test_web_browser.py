@@ -554,7 +554,8 @@ def test_a_fleet_mission_shows_every_vehicle_its_route_and_the_fleets_summary(fl
         browser, page = open_page(p, errors)
         page.on("console", lambda m: errors.append(m.text) if "Content Security" in m.text else None)
         polled: list[str] = []  # the page's requests for vehicle state: the live stream carries it
-        page.on("request", lambda r: polled.append(r.url) if "/vehicles" in r.url else None)
+        vehicle_state = re.compile(r"^/vehicles(/|$)")  # GET /vehicles[/N], not the page's vehicles.js module
+        page.on("request", lambda r: polled.append(r.url) if vehicle_state.match(urlsplit(r.url).path) else None)
         page.goto(url)
         # every vehicle on the map, titled by its system id, and no other vehicle marker
         for sysid in (1, 2, 3):
