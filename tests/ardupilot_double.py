@@ -140,6 +140,7 @@ class ArduCopterDouble:
         # vehicle state
         self.mode = CopterMode.STABILIZE
         self.armed = False
+        self.silent = False  # True: it sends nothing (heard again once False)
         self.north = self.east = self.alt = 0.0
         self.velocity = (0.0, 0.0, 0.0)  # north, east, up m/s
         self.yaw = 0.0
@@ -204,6 +205,8 @@ class ArduCopterDouble:
                 self._handle(message)
 
     def send(self, message: Any) -> None:
+        if self.silent:  # a vehicle out of radio range: nothing reaches the ground station
+            return
         with contextlib.suppress(OSError):  # the ground station is not listening (yet): dropped, as on a radio
             self.socket.sendto(self.encoder.pack(message), self.gcs_address)
 

@@ -278,11 +278,16 @@ def test_a_critical_statustext_raises_the_banner_and_the_log_keeps_every_event_a
         )
         page.screenshot(path=str(ARTIFACTS / "console_refused_to_arm_1366x768.png"))
 
-        # the vehicle falls silent: the link lost is critical, and the bar says so
-        double.stop()
+        # the vehicle falls silent: the link lost is critical, and the bar says so; heard again, the banner goes
+        # by itself and the log keeps both
+        double.silent = True
         expect(page.get_by_test_id("banner-text")).to_have_text("Lost contact with vehicle 1", timeout=30_000)
         expect(event(page, "Lost contact with vehicle 1")).to_have_attribute("data-severity", "critical")
         expect(page.get_by_test_id("console-vehicle")).to_have_text("vehicle 1: no contact")
+        double.silent = False
+        expect(event(page, "Contact with vehicle 1 back")).to_have_count(1, timeout=30_000)
+        expect(page.get_by_test_id("banner")).to_be_hidden()
+        expect(event(page, "Lost contact with vehicle 1")).to_have_count(1)
         browser.close()
     assert errors == []
 

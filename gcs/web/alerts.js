@@ -5,7 +5,8 @@
 //   EVENTS_KEPT are kept.
 // - The banner across the top (#banner, in the sticky top block): a critical event (a STATUSTEXT of severity
 //   CRITICAL or worse, a mission failed, the link lost) in plain words, its MAVLink detail one click away in a
-//   <details>; it stays until dismissed, and a newer critical event replaces it (the count of others is shown).
+//   <details>; it stays until dismissed, and a newer critical event replaces it (the count of others is shown); a
+//   "Lost contact" banner goes by itself when contact is back.
 // - A beep (WebAudio, no audio file) for each critical event, once the page has had a user gesture (browsers start
 //   audio only after one), unless muted with the bar's sound toggle.
 // Text from the vehicle or the service goes in as text only (textContent, h()).
@@ -83,6 +84,7 @@ class Banner {
 
   show(event) {
     this.others = this.element.hidden ? 0 : this.others + 1;
+    this.current = event;
     byId("banner-severity").textContent = severityName(event.severity);
     byId("banner-text").textContent = event.text;
     byId("banner-detail").textContent = event.detail || "no further detail";
@@ -94,6 +96,12 @@ class Banner {
   dismiss() {
     this.element.hidden = true;
     this.others = 0;
+    this.current = null;
+  }
+
+  // What `event` warned of is over (contact is back): its banner goes, unless a later alert has taken its place.
+  withdraw(event) {
+    if (event && this.current === event && !this.element.hidden) this.dismiss();
   }
 }
 
@@ -167,6 +175,7 @@ export class Watch {
   constructor(log) {
     this.log = log;
     this.vehicles = new Map(); // sysid (or "first") -> {connected, mode, heard}
+    this.lost = new Map(); // sysid (or "first") -> its "Lost contact" event, until contact is back
     this.mission = null; // {id, status, command} of the watched mission last seen
     this.serviceLost = false;
   }
@@ -185,9 +194,12 @@ export class Watch {
     }
     if (seen.connected && !vehicle.connected) {
       const age = vehicle.heartbeat_age_s == null ? "" : ` (no HEARTBEAT for ${vehicle.heartbeat_age_s.toFixed(1)} s)`;
-      this.log.add({ severity: CRITICAL, text: `Lost contact with ${label}`, detail: `link lost${age}` });
+      const lost = this.log.add({ severity: CRITICAL, text: `Lost contact with ${label}`, detail: `link lost${age}` });
+      this.lost.set(key, lost);
     } else if (!seen.connected && vehicle.connected) {
       this.log.add({ severity: Severity.notice, text: `Contact with ${label} back`, detail: "HEARTBEAT heard again" });
+      this.log.banner.withdraw(this.lost.get(key)); // the log keeps both
+      this.lost.delete(key);
     }
     if (vehicle.connected && seen.mode && now.mode && seen.mode !== now.mode) {
       this.log.add({ severity: Severity.info, text: `${label}: mode ${seen.mode} → ${now.mode}` });
