@@ -4,7 +4,8 @@ most N times the wall clock, and 0 lets it run as fast as it did before.
 
 The rate is measured from the vehicle's time_boot_ms against time.monotonic() over a few wall seconds. The cap only
 ever slows the vehicle, so the bounds hold on a loaded machine: at most a little over N (a vehicle that was behind
-when the interval began may catch up by up to sitl_quad.pacing.RESYNC_BEHIND_S), and more than a low bound.
+when the interval began may catch up by up to sitl_quad.pacing.RESYNC_BEHIND_S), and more than a low bound; the cap
+is set below real time so that even a loaded machine's uncapped lockstep is well above it.
 """
 
 from __future__ import annotations
@@ -18,13 +19,17 @@ from conftest import connected
 from sitl_process import GroundStation, start_lockstep_pair
 
 from bench.processes import free_udp_port, stop_reading_output
+from sitl_quad.pacing import RESYNC_BEHIND_S
 from uavcore.mavlink import mavlink
 
 pytestmark = [pytest.mark.integration, pytest.mark.timeout(300)]
 
 REAL32 = mavlink.MAV_PARAM_TYPE_REAL32
-CAP = 2.0
-CAPPED_S = 6.0  # wall seconds measured at the cap: long enough that a 0.5 s catch-up stays under 2.2x
+# Below real time, so that the cap is what limits the pace even on a loaded machine, where lockstep uncapped may
+# run at only 1-2x real time (beside two CPU burners: 1.4x): a cap above that would not be seen, and the uncapped
+# rate could come out below it. Any machine this runs on does better than 1x uncapped.
+CAP = 0.25
+CAPPED_S = 6.0  # wall seconds measured at the cap: a catch-up of RESYNC_BEHIND_S is then at most 0.08x more
 FREE_S = 3.0
 STARTED_S = 60.0  # a backstop for a loaded machine's start-up (numba's kernels load in each process)
 
@@ -90,5 +95,5 @@ def test_sim_speedup_caps_the_pace_while_it_runs_and_0_lifts_the_cap(tmp_path, s
         refused = gcs.set_param("SIM_SPEEDUP", -1.0, REAL32)  # out of range: answered with the value kept
         assert refused is not None and refused.param_value == 0.0
     print(f"{pacing}: {capped:.2f}x with SIM_SPEEDUP {CAP:g}, {free:.2f}x with 0")
-    assert 0.5 < capped <= 1.1 * CAP
-    assert free >= 0.9 * capped  # never slower than the cap; uncapped, as fast as it goes (paced: --speed 20)
+    assert 0.5 * CAP < capped <= 1.1 * CAP + RESYNC_BEHIND_S / CAPPED_S
+    assert free >= 2.0 * capped  # the cap lifted: lockstep as fast as it goes (paced: --speed 20), far over 0.25x
