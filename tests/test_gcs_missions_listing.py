@@ -22,7 +22,7 @@ from test_gcs_api import BUOYS, errors_of, make_client
 from gcs.domain.listing import CursorError, MissionFilter, PageKey, decode_cursor, encode_cursor
 from gcs.domain.status import MissionStatus
 from gcs.storage import Storage, open_storage
-from gcs.storage.base import NEXT_VERSION
+from gcs.storage.base import next_version
 
 T0 = datetime(2026, 3, 1, 12, 0, tzinfo=UTC)
 
@@ -46,8 +46,8 @@ def created(storage: Storage, mission_id: int, at: datetime) -> int:
     """Give a stored mission this creation time, moving the change counter as every mission write does."""
     with storage.transaction() as db:
         db.execute(
-            f"UPDATE missions SET created_at = ?, version = {NEXT_VERSION} WHERE id = ?",
-            (at.astimezone(UTC).isoformat(timespec="milliseconds"), mission_id),
+            "UPDATE missions SET created_at = ?, version = ? WHERE id = ?",
+            (at.astimezone(UTC).isoformat(timespec="milliseconds"), next_version(db), mission_id),
         )
     return mission_id
 
@@ -225,6 +225,12 @@ def test_every_page_follows_the_writes_and_the_plain_list_is_served_from_the_cac
     before = ids(client.get("/missions"))
     other.delete_mission(history["old_failed"])
     assert ids(client.get("/missions")) == [i for i in before if i != history["old_failed"]]
+    # the latest written deleted and another mission stored: the list shows the new one, never the deleted one
+    # (a counter derived from the missions gave the new one the deleted one's number, the cached list's key)
+    before = ids(client.get("/missions"))
+    other.delete_mission(history["tie_b"])
+    newer = mission(other, T0 + timedelta(days=10))
+    assert ids(client.get("/missions")) == [newer] + [i for i in before if i != history["tie_b"]]
 
 
 # ----- through the API as clients create missions

@@ -34,10 +34,15 @@ from gcs.domain.schemas import StatusEvent
 from gcs.domain.status import UNFINISHED, MissionKind, MissionStatus
 from gcs.storage.migrations import MIGRATIONS, TRACK_COLUMNS
 
-# The next version, taken inside the write's transaction, after the dialect's `_serialise_versions`: writers take
-# it one at a time and commit in that order, so a reader that saw latest_version() == N never later sees a
-# mission appear with a version <= N.
-NEXT_VERSION = "(SELECT COALESCE(MAX(version), 0) + 1 FROM missions)"
+
+def next_version(db: Connection) -> int:
+    """The next change counter, taken inside a mission write's transaction after the dialect's
+    `_serialise_versions`: writers take it one at a time and commit in that order, so a reader that saw
+    latest_version() == N never later sees a mission appear with a version <= N. The counter has a table of its
+    own (migration 11) rather than being the missions' highest version: a delete moves it too, and a number is
+    never given twice (the highest, derived, fell back when the latest mission was deleted, and the next write
+    took its number again: a list cached under it was served with the deleted mission in it)."""
+    return int(db.execute("UPDATE mission_changes SET version = version + 1 RETURNING version").fetchone()["version"])
 
 
 class StorageError(RuntimeError):
@@ -328,12 +333,12 @@ class Storage(ABC):
         vehicle_sysid: int | None,
         fleet_id: int | None,
     ) -> int:
-        now = _now()
+        now, version = _now(), next_version(db)
         mission_id = int(
             db.execute(
-                f"INSERT INTO missions (created_at, updated_at, status, flight, plan, vehicle_sysid, fleet_id,"
-                f" version) VALUES (?, ?, ?, ?, ?, ?, ?, {NEXT_VERSION}) RETURNING id",
-                (now, now, status, _json(asdict(flight)), _json(plan.to_dict()), vehicle_sysid, fleet_id),
+                "INSERT INTO missions (created_at, updated_at, status, flight, plan, vehicle_sysid, fleet_id,"
+                " version) VALUES (?, ?, ?, ?, ?, ?, ?, ?) RETURNING id",
+                (now, now, status, _json(asdict(flight)), _json(plan.to_dict()), vehicle_sysid, fleet_id, version),
             ).fetchone()["id"]
         )
         db.execute("INSERT INTO mission_events (mission_id, at, status) VALUES (?, ?, ?)", (mission_id, now, status))
@@ -343,8 +348,8 @@ class Storage(ABC):
         now = _now()
         with self._mission_write() as db:
             cursor = db.execute(
-                f"UPDATE missions SET status = ?, reason = ?, updated_at = ?, version = {NEXT_VERSION} WHERE id = ?",
-                (status, reason, now, mission_id),
+                "UPDATE missions SET status = ?, reason = ?, updated_at = ?, version = ? WHERE id = ?",
+                (status, reason, now, next_version(db), mission_id),
             )
             if cursor.rowcount != 1:
                 raise KeyError(f"no mission {mission_id}")
@@ -366,8 +371,8 @@ class Storage(ABC):
     def _set_document(self, mission_id: int, column: str, document: dict[str, Any]) -> None:
         with self._mission_write() as db:
             db.execute(
-                f"UPDATE missions SET {column} = ?, updated_at = ?, version = {NEXT_VERSION} WHERE id = ?",
-                (_json(document), _now(), mission_id),
+                f"UPDATE missions SET {column} = ?, updated_at = ?, version = ? WHERE id = ?",
+                (_json(document), _now(), next_version(db), mission_id),
             )
 
     def unfinished_missions(self, vehicle_sysid: int | None = None) -> list[int]:
@@ -415,14 +420,10 @@ class Storage(ABC):
             row = db.execute("SELECT version FROM missions WHERE id = ?", (mission_id,)).fetchone()
         return None if row is None else int(row["version"])
 
-    def latest_version(self) -> tuple[int, int]:
-        """The highest change counter of all missions and how many there are: the pair moves whenever any mission is
-        created or changes (the counter grows) or is deleted (the count falls; the counter alone does not move when
-        the mission deleted was not the latest written, and a list cached under it would show a mission that is
-        gone)."""
+    def latest_version(self) -> int:
+        """The change counter (`next_version`): it grows whenever any mission is created, changes or is deleted."""
         with self._reading() as db:
-            row = db.execute("SELECT COALESCE(MAX(version), 0) AS version, COUNT(*) AS count FROM missions").fetchone()
-        return int(row["version"]), int(row["count"])
+            return int(db.execute("SELECT version FROM mission_changes").fetchone()["version"])
 
     def list_missions(
         self, limit: int = 100, where: MissionFilter | None = None, after: PageKey | None = None
@@ -544,7 +545,7 @@ class Storage(ABC):
                 (mission_id, record.buoy, document),
             )
             db.execute(
-                f"UPDATE missions SET updated_at = ?, version = {NEXT_VERSION} WHERE id = ?", (_now(), mission_id)
+                "UPDATE missions SET updated_at = ?, version = ? WHERE id = ?", (_now(), next_version(db), mission_id)
             )
             self._add_to_register(db, mission_id, record)
 
@@ -736,4 +737,6 @@ class Storage(ABC):
             for table in ("frames", "inspections", "telemetry", "mission_events"):
                 db.executemany(f"DELETE FROM {table} WHERE mission_id = ?", [(i,) for i in ids])
             db.executemany("DELETE FROM missions WHERE id = ?", [(i,) for i in ids])
+            if ids:
+                next_version(db)  # the list changed: what was cached under the counter is stale
         return bool(ids)

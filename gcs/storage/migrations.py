@@ -191,6 +191,12 @@ _CHART_BASEMAPS = """
         features TEXT NOT NULL
     );
 """
+# Migration 11: the change counter in a table of its own (gcs.storage.base.next_version), from the highest version
+# stored: derived from the missions, it fell back when the latest mission was deleted and gave its number again
+_MISSION_CHANGES = """
+    CREATE TABLE mission_changes (id INTEGER PRIMARY KEY CHECK (id = 1), version BIGINT NOT NULL);
+    INSERT INTO mission_changes (id, version) SELECT 1, COALESCE(MAX(version), 0) FROM missions;
+"""
 
 
 def _sqlite_status_check(db: Any) -> None:
@@ -242,4 +248,5 @@ MIGRATIONS: list[Migration] = [
     ),
     Migration(sqlite=_BY_CREATION, postgresql=_BY_CREATION),
     Migration(sqlite=_CHART_BASEMAPS, postgresql=_CHART_BASEMAPS),
+    Migration(sqlite=_MISSION_CHANGES, postgresql=_MISSION_CHANGES),
 ]

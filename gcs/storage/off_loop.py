@@ -150,7 +150,7 @@ class AsyncStorage:
         key = ("mission_version", mission_id)
         return await self._read_coalesced(key, functools.partial(self.blocking.mission_version, mission_id))
 
-    async def latest_version(self) -> tuple[int, int]:
+    async def latest_version(self) -> int:
         return await self._read_coalesced("latest_version", self.blocking.latest_version)
 
     async def telemetry(self, mission_id: int, limit: int | None = None) -> list[dict[str, Any]]:
