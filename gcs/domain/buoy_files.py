@@ -48,6 +48,10 @@ class BuoyFile:
     buoys: list[ImportedBuoy]
     depot: tuple[float, float] | None = None  # (lat, lon) of the point whose role is depot, if one is
 
+    def depot_as_dict(self) -> dict[str, float] | None:
+        """The depot as a request or an answer gives it, {lat, lon} (None: the file has none)."""
+        return None if self.depot is None else {"lat": self.depot[0], "lon": self.depot[1]}
+
 
 ROLES = ("buoy", "depot")
 

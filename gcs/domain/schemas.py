@@ -234,7 +234,7 @@ class PlanRequest(Strict):
             return data  # _geojson_refused names the field
         data = data | {"buoys": [b.as_dict() for b in file.buoys]}
         if file.depot is not None and data.get("depot") is None and data.get("vehicles") is None:
-            data["depot"] = {"lat": file.depot[0], "lon": file.depot[1]}
+            data["depot"] = file.depot_as_dict()
         return data
 
     @field_validator("buoys", mode="before")

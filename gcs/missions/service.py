@@ -204,7 +204,7 @@ class MissionService:
         (read now); a fleet request (`vehicles`) shares the buoys among its vehicles (`Plan.fleet`). Raises
         RequestInvalidError or InputError."""
         if request.vehicles is not None:
-            plan, flight, _ = await self._plan_fleet(request)
+            plan, flight, _ = await self._plan_fleet(request, self._fleet_sysids(request))
             return plan, flight
         vehicle = self._vehicle(request.vehicle)
         request = await self.register.resolve(request)
@@ -263,13 +263,12 @@ class MissionService:
     async def _create_fleet_mission(self, request: MissionRequest) -> int:
         """Share the buoys among the vehicles named (gcs.missions.fleet_planning), store the fleet mission and a part
         mission per vehicle given buoys, in one transaction; with start=true, fly every part."""
+        sysids = self._fleet_sysids(request)
         if request.start:
-            for sysid in self._fleet_sysids(request):
+            for sysid in sysids:
                 self._vehicle(sysid).flights.ensure_vehicle_free()
-        overview, flight, parts = await self._plan_fleet(request)
-        overridden = [(replace(part, override=request.override), plan, sysid) for part, plan, sysid in parts]
-        fleet_id, _ = await self._storage.create_fleet_mission(replace(flight, override=request.override), overview,
-                                                               overridden)  # fmt: skip
+        overview, flight, parts = await self._plan_fleet(request, sysids, override=request.override)
+        fleet_id, _ = await self._storage.create_fleet_mission(flight, overview, parts)
         fleet = await self.get(fleet_id)
         # its shares' part missions, as the answer names them (the coordinator keeps this progress from here)
         await self._storage.set_progress(fleet_id, shares_progress(fleet, await self._storage.fleet_parts(fleet_id)))
@@ -281,10 +280,12 @@ class MissionService:
         known = [v.system_id for v in self._vehicles if v.system_id is not None]
         return fleet_vehicles(request, known, self.settings.limits)
 
-    async def _plan_fleet(self, request: PlanRequest) -> tuple[Plan, FlightParams, list[FleetPart]]:
-        """A fleet request's plan: the overview (its `fleet` section has the shares), the flight, and each share's
-        part (its flight at its layer, its plan, its vehicle's system id)."""
-        sysids = self._fleet_sysids(request)
+    async def _plan_fleet(
+        self, request: PlanRequest, sysids: list[int], override: bool = False
+    ) -> tuple[Plan, FlightParams, list[FleetPart]]:
+        """A fleet request's plan on the vehicles `sysids` (`_fleet_sysids`): the overview (its `fleet` section has
+        the shares), the flight (`override`: a mission's, recorded), and each share's part (its flight at its
+        layer, its plan, its vehicle's system id)."""
         homes = {sysid: self._vehicle(sysid).depot() for sysid in sysids}
         first_home = homes[sysids[0]]
         request = await self.register.resolve(request)
@@ -295,7 +296,7 @@ class MissionService:
             plan_fleet_mission, homes, buoys, ids, request.altitude_m, request.layer_gap_m, request.speed_m_s,
             request.dwell_s, options.seed, options.time_limit_s,
         )  # fmt: skip
-        flight = _flight(request)
+        flight = _flight(request, override=override)
         marks = _marks(request, self.settings.iala_region)
         overview = sorties_plan(first_home, buoys, ids, [[b for s in planned.shares for b in s.buoys]], METHOD,
                                 planned.elapsed_s)  # fmt: skip

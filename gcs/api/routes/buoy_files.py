@@ -76,8 +76,7 @@ async def import_buoys(
     _refuse_chart_options(area=area, region=region)
     file = buoys_from_file(body, filename, request.headers.get("content-type", ""))
     _check_count(len(file.buoys), f"the file has {len(file.buoys)} buoys")
-    depot = None if file.depot is None else {"lat": file.depot[0], "lon": file.depot[1]}
-    return {"buoys": [_checked(i, b.as_dict()) for i, b in enumerate(file.buoys)], "depot": depot}
+    return {"buoys": [_checked(i, b.as_dict()) for i, b in enumerate(file.buoys)], "depot": file.depot_as_dict()}
 
 
 async def read_chart(body: bytes, filename: str, area: str | None, region: IalaRegion) -> ChartImport:
