@@ -16,7 +16,7 @@ import time
 from collections.abc import Callable
 
 from stack.supervisor import ChildSpec, SupervisorError
-from uavcore.mavlink import AUTOPILOT_COMPID, GCS_SYSID, Encoder, mavlink, new_parser, parse_datagram
+from uavcore.mavlink import AUTOPILOT_COMPID, GCS_SYSID, Encoder, mavlink, new_parser, param_id, parse_datagram
 
 PARAM = "SIM_SPEEDUP"
 # A component of its own beside the service's 255/190: each signing stream (system, component) has its own
@@ -65,14 +65,9 @@ def _answer(sock: socket.socket, parser, sysid: int, wait_s: float) -> float | N
             time.sleep(min(0.1, remaining))
             continue
         for msg in parse_datagram(parser, data):
-            if msg.get_type() == "PARAM_VALUE" and msg.get_srcSystem() == sysid and _name(msg) == PARAM:
+            if msg.get_type() == "PARAM_VALUE" and msg.get_srcSystem() == sysid and param_id(msg) == PARAM:
                 return float(msg.param_value)
     return None
-
-
-def _name(msg) -> str:
-    name = msg.param_id
-    return (name.decode("ascii", "replace") if isinstance(name, bytes) else name).rstrip("\x00")
 
 
 def watch_at(

@@ -182,6 +182,15 @@ def result_name(enum: str, value: int) -> str:
     return entry.name if entry is not None else f"{enum} {value}"
 
 
+def param_id(message: Any) -> str:
+    """A parameter message's param_id as text (PARAM_VALUE, PARAM_SET, PARAM_REQUEST_READ: pymavlink gives str or
+    bytes, NUL-padded)."""
+    name = message.param_id
+    if isinstance(name, bytes):
+        name = name.decode("ascii", errors="replace")
+    return name.rstrip("\x00")
+
+
 def statustext(message: Any) -> str:
     """A STATUSTEXT's text (pymavlink gives str or bytes, NUL-padded)."""
     text = message.text

@@ -17,11 +17,11 @@ import asyncio
 import math
 import struct
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from gcs.vehicle.autopilots import PARAM_ENCODE_BYTEWISE
 from gcs.vehicle.errors import LinkError
-from uavcore.mavlink import mavlink
+from uavcore.mavlink import mavlink, param_id
 
 if TYPE_CHECKING:
     from gcs.vehicle.link import LinkManager
@@ -63,14 +63,6 @@ def decode_param_value(raw: float, param_type: int, encoding: int) -> float:
     return float(round(raw)) if math.isfinite(raw) else float(raw)
 
 
-def param_name(message: Any) -> str:
-    """PARAM_VALUE.param_id as text (pymavlink gives str or bytes, NUL-padded)."""
-    name = message.param_id
-    if isinstance(name, bytes):
-        name = name.decode("ascii", errors="replace")
-    return name.rstrip("\x00")
-
-
 async def read_parameters(link: LinkManager, names: Sequence[str], timeout_s: float = 3.0) -> dict[str, float]:
     """{name: value} for each of `names`, read from the vehicle the link talks to. `timeout_s` (wall clock) is
     shared by PARAM_TRIES tries; raises ParameterError naming the parameters still unanswered after the last."""
@@ -94,7 +86,7 @@ async def read_parameters(link: LinkManager, names: Sequence[str], timeout_s: fl
                         message = await inbox.get()
                 except TimeoutError:
                     break
-                name = param_name(message)  # PARAM_VALUE has no target: another station's answer serves too
+                name = param_id(message)  # PARAM_VALUE has no target: another station's answer serves too
                 if name in wanted:
                     values[name] = decode_param_value(
                         message.param_value, message.param_type, link.autopilot.param_encoding

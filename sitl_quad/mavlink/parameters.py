@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 
 from sitl_quad.params import ParameterError, ParameterTable, decode_value, encode_value
-from uavcore.mavlink import mavlink
+from uavcore.mavlink import mavlink, param_id
 
 log = logging.getLogger(__name__)
 LIST_BURST = 25  # PARAM_VALUEs sent per loop pass while streaming the list: gentle on slow links
@@ -46,14 +46,14 @@ class Parameters:
                 index = msg.param_index
                 self.table.spec(index)
             else:
-                index = self.table.index(_name(msg.param_id))
+                index = self.table.index(param_id(msg))
         except ParameterError as exc:
             log.info("PARAM_REQUEST_READ: %s", exc)
             return  # PX4 stays silent for an unknown parameter; the client times out
         self.send(self.value_message(index), peer)
 
     def param_set(self, peer, msg) -> None:
-        name = _name(msg.param_id)
+        name = param_id(msg)
         try:
             spec = self.table.spec(name)
         except ParameterError as exc:
@@ -66,9 +66,3 @@ class Parameters:
         except ParameterError as exc:
             log.info("PARAM_SET refused: %s", exc)  # answered below with the unchanged value
         self.send(self.value_message(self.table.index(name)))  # to everyone: all GCSs learn the change
-
-
-def _name(param_id) -> str:
-    if isinstance(param_id, bytes):
-        param_id = param_id.decode("ascii", errors="replace")
-    return param_id.rstrip("\x00")
