@@ -35,23 +35,22 @@ const charts = new FlightCharts(window.uPlot);
 const events = new EventLog();
 const watch = new Watch(events);
 
-// Run an action, showing a failed request in the message line. Anything else is a bug: shown and rethrown.
+// A failed request: shown in the message line. Anything else is a bug: shown and rethrown.
+function showRequestError(error) {
+  panel.say(error.message);
+  if (!(error instanceof ApiError)) throw error;
+}
+
+// Run an action, showing a failed request (showRequestError); the answer, or `fallback` when it failed.
 function showingErrors(action, fallback = undefined) {
   return async (...args) => {
     try {
       return await action(...args);
     } catch (error) {
-      panel.say(error.message);
-      if (!(error instanceof ApiError)) throw error;
+      showRequestError(error);
       return fallback;
     }
   };
-}
-
-// A failed request of a part that runs on its own (a feed, an overlay's poll): shown; anything else is a bug.
-function showRequestError(error) {
-  panel.say(error.message);
-  if (!(error instanceof ApiError)) throw error;
 }
 
 // ----- placing
@@ -327,19 +326,18 @@ const displayMission = showingErrors(async (id) => {
 });
 
 // ----- the control bar's actions (controls.js asks first where an action is consequential)
-// A failed request: said beside the buttons (the panel's message line may be scrolled away) and logged; anything
-// else is a bug, shown and rethrown.
+// A failed request: said beside the buttons (the panel's message line may be scrolled away) and logged, then as
+// showingErrors says it (a bug rethrown).
 function commanding(name, action) {
-  return async () => {
+  return showingErrors(async () => {
     try {
       await action();
     } catch (error) {
       controls.say(error.message);
-      panel.say(error.message);
       events.add({ severity: Severity.warning, text: `${name} refused: ${error.message}` });
-      if (!(error instanceof ApiError)) throw error;
+      throw error;
     }
-  };
+  });
 }
 
 // A command to the watched mission in flight: its answer (the mission) shown at once.

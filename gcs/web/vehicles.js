@@ -6,7 +6,7 @@
 import { vehicleName } from "./controls.js";
 import { h } from "./dom.js";
 
-export const FLEET = "fleet";
+const FLEET = "fleet";
 
 function batteryText(vehicle) {
   const pct = vehicle.battery_remaining_pct;
