@@ -84,16 +84,20 @@ def read_cell(path: Path, region: Region = "A", area: BaseGeometry | None = None
     return read_marks(_contents(path, head, path.name, updates=True), region, area)
 
 
-def read_upload(data: bytes, filename: str = "", region: Region = "A", area: BaseGeometry | None = None) -> ChartImport:
-    """read_cell for an uploaded cell (the base cell alone: an upload carries no update files)."""
+def read_upload(
+    data: bytes, filename: str = "", region: Region = "A", area: BaseGeometry | None = None, basemap: bool = False
+) -> ChartImport:
+    """read_cell for an uploaded cell (the base cell alone: an upload carries no update files); `basemap`: also its
+    land, piers and depth contours (ChartImport.basemap: the register keeps them; about a second more for a
+    harbour cell, which an import of its marks alone does not pay)."""
     name = Path(filename).name or "the upload"
     with tempfile.TemporaryDirectory(prefix="buoy-gcs-chart-") as folder:
         path = Path(folder) / f"cell{CELL_SUFFIX}"  # a name of ours: the upload's could be anything
         path.write_bytes(data)
-        return read_marks(_contents(path, data[:LEADER_BYTES], name, updates=False), region, area)
+        return read_marks(_contents(path, data[:LEADER_BYTES], name, updates=False, basemap=basemap), region, area)
 
 
-def _contents(path: Path, head: bytes, name: str, updates: bool) -> ChartContents:
+def _contents(path: Path, head: bytes, name: str, updates: bool, basemap: bool = False) -> ChartContents:
     if not _has_iso8211_leader(head):
         raise ChartError(f"{name}: not an S-57 cell: it does not start with an ISO 8211 record leader")
     options = {"UPDATES": "APPLY" if updates else "IGNORE", "LNAM_REFS": "ON"}  # LNAM_REFS: a mark's lights
@@ -103,7 +107,7 @@ def _contents(path: Path, head: bytes, name: str, updates: bool) -> ChartContent
             layers = {str(row[0]) for row in pyogrio.list_layers(path)}
             if "DSID" not in layers:
                 raise ChartError(f"{name}: an ISO 8211 file but not an S-57 cell (it has no data set record, DSID)")
-            contents = _read_contents(path, name, layers, options)
+            contents = _read_contents(path, name, layers, options, basemap)
     except (DataSourceError, DataLayerError, shapely.errors.ShapelyError) as error:  # GDAL's, or a geometry's
         raise ChartError(f"{name}: not a readable S-57 cell: {_gdal_message(error)}") from None
     return replace(contents, warnings=(*gdal_warnings, *contents.warnings))
@@ -130,7 +134,9 @@ def _gdal_message(error: Exception | Warning | str) -> str:
     return lines[0][:GDAL_MESSAGE_CHARS]
 
 
-def _read_contents(path: Path, name: str, layers: set[str], options: dict[str, str]) -> ChartContents:
+def _read_contents(
+    path: Path, name: str, layers: set[str], options: dict[str, str], basemap: bool = False
+) -> ChartContents:
     dsid = _layer(path, "DSID", options)  # one record, no geometry
     cell = _cell_info(dsid[0][0] if dsid else {}, name)
     left_out: list[str] = []
@@ -145,14 +151,14 @@ def _read_contents(path: Path, name: str, layers: set[str], options: dict[str, s
         SystemArea(geometry, _integer(attributes.get("MARSYS")))
         for attributes, geometry in _areas(path, "M_NSYS", layers, options)
     ]
-    basemap = [
+    base_map = [
         feature
-        for object_class in BASEMAP_CLASSES
+        for object_class in (BASEMAP_CLASSES if basemap else ())
         if object_class in layers
         for attributes, geometry in _layer(path, object_class, options)
         if (feature := basemap_feature(object_class, attributes, geometry)) is not None
     ]
-    return ChartContents(cell, marks, lights, systems, _coverage(path, layers, options), left_out, basemap)
+    return ChartContents(cell, marks, lights, systems, _coverage(path, layers, options), left_out, base_map)
 
 
 def _cell_info(dsid: dict[str, Any], name: str) -> CellInfo:

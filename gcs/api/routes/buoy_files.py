@@ -79,15 +79,18 @@ async def import_buoys(
     return {"buoys": [_checked(i, b.as_dict()) for i, b in enumerate(file.buoys)], "depot": file.depot_as_dict()}
 
 
-async def read_chart(body: bytes, filename: str, area: str | None, region: IalaRegion) -> ChartImport:
-    """An uploaded cell's marks (in `area`, a query parameter), a bad area the query's 422. GDAL reads in a worker
-    thread (about half a second for a 3.5 MB cell): the event loop keeps serving the vehicle link meanwhile."""
+async def read_chart(
+    body: bytes, filename: str, area: str | None, region: IalaRegion, basemap: bool = False
+) -> ChartImport:
+    """An uploaded cell's marks (in `area`, a query parameter), a bad area the query's 422; `basemap`: also its land,
+    piers and depth contours (gcs.charts.read_upload). GDAL reads in a worker thread (about half a second for a 3.5 MB
+    cell): the event loop keeps serving the vehicle link meanwhile."""
     try:
         shape = None if area is None else parse_area(area)
     except AreaError as error:
         raise RequestInvalidError([(("query", "area"), str(error))]) from None
     try:
-        return await asyncio.to_thread(read_upload, body, filename, region, shape)
+        return await asyncio.to_thread(read_upload, body, filename, region, shape, basemap)
     except NothingInAreaError as error:
         raise RequestInvalidError([(("query", "area"), str(error))]) from None
 

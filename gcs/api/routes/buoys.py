@@ -69,7 +69,7 @@ async def import_register(
     body = await request.body()
     if not is_cell(body, filename):
         raise BuoyFileError("the register imports S-57 cells (.000): the body is not one")
-    chart = await read_chart(body, filename, area, region or settings.iala_region)
+    chart = await read_chart(body, filename, area, region or settings.iala_region, basemap=True)
     return await service.register.import_chart(chart)
 
 
