@@ -278,6 +278,22 @@ def test_a_critical_statustext_raises_the_banner_and_the_log_keeps_every_event_a
         )
         page.screenshot(path=str(ARTIFACTS / "console_refused_to_arm_1366x768.png"))
 
+        # the cause sent with the refusal (as PX4 does, beside its COMMAND_ACK): the service's reason carries it,
+        # and the banner says it once
+        def refuse_saying_why() -> bool:
+            double.send(
+                mavlink.MAVLink_statustext_message(mavlink.MAV_SEVERITY_CRITICAL, b"PreArm: Battery 0% below 7%")
+            )
+            return False
+
+        double._arm = refuse_saying_why
+        page.get_by_test_id("banner-dismiss").click()
+        fly(page)
+        expect(banner_text).to_have_text(
+            re.compile(r"^Mission \d+: failed: the vehicle refused to arm: PreArm: Battery 0% below 7%\.$"),
+            timeout=60_000,
+        )
+
         # the vehicle falls silent: the link lost is critical, and the bar says so; heard again, the banner goes
         # by itself and the log keeps both
         double.silent = True

@@ -225,8 +225,8 @@ export class Watch {
   }
 
   // The watched mission as shown (GET /missions/{id} or the live stream): a change of status or of operator
-  // command is an event; a failure is critical, with the vehicle's own latest warning as its likely cause (a
-  // refusal's MAV_RESULT does not carry it). words: the status in plain words (controls.js statusWords).
+  // command is an event; a failure is critical, with the vehicle's own latest warning as its likely cause when the
+  // reason does not already say it (a refusal's MAV_RESULT does not carry it). words: the status in plain words (controls.js statusWords).
   missionShown(mission, command, words) {
     const before = this.mission;
     this.mission = { id: mission.id, status: mission.status, command };
@@ -235,8 +235,10 @@ export class Watch {
     const detail = `status ${before.status} → ${mission.status}, operator command ${command ?? "none"}` +
       (mission.reason ? `; reason: ${mission.reason}` : "");
     if (mission.status === MissionStatus.failed) {
-      const warnings = this.log.recentVehicleWarnings();
-      const cause = warnings.length ? ` The vehicle said: "${warnings[0].rawText}".` : "";
+      // the reason may carry it already (the service puts what the vehicle said with its refusal in it)
+      const [latest] = this.log.recentVehicleWarnings();
+      const unsaid = latest && !(mission.reason || "").includes(latest.rawText);
+      const cause = unsaid ? ` The vehicle said: "${latest.rawText}".` : "";
       this.log.add({ severity: CRITICAL, text: `${words}.${cause}`, detail });
       return;
     }
