@@ -75,13 +75,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def make_controller(kind: str, rate_hz: float):
-    """The outer loop for the default airframe (paper Table 2)."""
-    from adrc_offboard.outer_loop import AdrcOuterLoop, PidOuterLoop
+    """The outer loop for the default airframe (paper Table 2), its gains from the family's shipped design
+    (adrc_offboard/gains/design.json) and its limits from the airframe's envelope (adrc_offboard.design)."""
+    from adrc_offboard.design import outer_loop_for
     from uavcore.airframe import Airframe
 
-    airframe = Airframe.table2()
-    cls = AdrcOuterLoop if kind == "adrc" else PidOuterLoop
-    return cls(mass=airframe.mass, g=airframe.g, max_thrust_n=airframe.max_thrust_n, rate_hz=rate_hz)
+    return outer_loop_for(kind, Airframe.table2(), rate_hz=rate_hz)
 
 
 def warm_up(controller, rate_hz: float) -> None:

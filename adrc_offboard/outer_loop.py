@@ -24,7 +24,7 @@ setpoint's yaw rate (the navigator's turns) goes with it as the target's body-ra
 yaw_rate in the target's body axes (PX4's yaw-rate feed-forward; `acceleration_to_attitude`), so the attitude
 loop turns with the reference instead of chasing it.
 
-`matched_gains()` tunes both to the same closed-loop bandwidth for the comparison.
+`matched_gains()` gives both the same closed-loop bandwidth (the shipped gains come from adrc_offboard.design).
 """
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ from uavcore.rotation import acceleration_to_attitude
 from uavcore.state import AttitudeTarget, TrajectorySetpoint, VehicleState
 
 AXES = ("x", "y", "z")
+MIN_PATH_SPEED = 0.5  # m/s: below it the reference has no direction worth keeping to (hovering, turning on the spot)
 
 
 @dataclass(frozen=True)
@@ -65,11 +66,29 @@ class AccelerationLimits:
         except TypeError as exc:
             raise AdrcParameterError(f"bad acceleration limits {data}: {exc}") from exc
 
-    def apply(self, ax: float, ay: float, az: float) -> tuple[float, float, float]:
+    def apply(
+        self, ax: float, ay: float, az: float, along: tuple[float, float] | None = None
+    ) -> tuple[float, float, float]:
+        """The demand limited. Over the horizontal limit, with `along` (the path's horizontal direction, a unit
+        vector) the cross-track part is kept first and the along-track part gets what is left: the vehicle stays on
+        its path and falls behind along it, then catches up, instead of being pushed off it by a demand scaled
+        as a whole. Without `along` the horizontal demand is scaled down as a whole."""
         horizontal = math.hypot(ax, ay)
         if horizontal > self.max_horizontal:
-            scale = self.max_horizontal / horizontal
-            ax, ay = ax * scale, ay * scale
+            if along is None:
+                scale = self.max_horizontal / horizontal
+                ax, ay = ax * scale, ay * scale
+            else:
+                ux, uy = along
+                a_along = ax * ux + ay * uy
+                cx, cy = ax - a_along * ux, ay - a_along * uy  # cross-track part
+                cross = math.hypot(cx, cy)
+                if cross >= self.max_horizontal:
+                    ax, ay = cx * self.max_horizontal / cross, cy * self.max_horizontal / cross
+                else:
+                    room = math.sqrt(self.max_horizontal**2 - cross * cross)
+                    a_along = max(-room, min(room, a_along))
+                    ax, ay = cx + a_along * ux, cy + a_along * uy
         return ax, ay, min(self.max_down, max(-self.max_up, az))
 
 
@@ -172,7 +191,10 @@ class _ThrustVectorOutput:
         """The attitude target for the demanded acceleration, facing the setpoint's yaw and turning at its yaw rate
         (body-rate feed-forward)."""
         self.demanded = demanded
-        limited = self.limits.apply(*demanded)
+        vx, vy = float(setpoint.velocity[0]), float(setpoint.velocity[1])
+        speed = math.hypot(vx, vy)
+        along = (vx / speed, vy / speed) if speed > MIN_PATH_SPEED else None
+        limited = self.limits.apply(*demanded, along=along)
         target = acceleration_to_attitude(
             limited, setpoint.yaw, self.mass, self.g, self.max_thrust_n, self.max_tilt_rad, setpoint.yaw_rate
         )

@@ -13,10 +13,13 @@ adrc_offboard's kernels: after one, delete sitl_quad/__pycache__/*.nbi.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 from numba import njit
 
 from adrc_offboard.adrc_attitude import AdrcAttitudeController, adrc_attitude_torque
+from adrc_offboard.design import Design, adrc_attitude_gains, load_design
 from sitl_quad.config import AttitudeControllerKind, VehicleConfig
 from sitl_quad.inner_loop import fly_attitude_step, measure
 from sitl_quad.rigid_body import STATE_SIZE
@@ -73,11 +76,18 @@ class CompiledAdrcAttitudeLoop(AdrcAttitudeController):
     inner_loop = staticmethod(adrc_inner_loop)
 
 
-def adrc_attitude_loop(config: VehicleConfig, rate_hz: float) -> AttitudeController:
-    """The paper's ADRC attitude loop for the configured airframe, its observers modelling the motor lag."""
-    return CompiledAdrcAttitudeLoop.for_airframe(config.airframe, rate_hz=rate_hz)
+def adrc_attitude_loop(config: VehicleConfig, rate_hz: float, design: Design | None = None) -> AttitudeController:
+    """The paper's ADRC attitude loop for the configured airframe, its gains from the ADRC family's design
+    (adrc_offboard.design: the shipped design.json unless another is given), its observers modelling the motor lag."""
+    design = design if design is not None else load_design("adrc")
+    gains = adrc_attitude_gains(config.airframe, design)
+    return CompiledAdrcAttitudeLoop.for_airframe(config.airframe, gains=gains, rate_hz=rate_hz)
 
 
-def attitude_loops() -> dict[AttitudeControllerKind, AttitudeLoopFactory]:
-    """Every attitude loop MC_ATT_CTRL can select."""
-    return {AttitudeControllerKind.PID: builtin_pid_loop, AttitudeControllerKind.ADRC: adrc_attitude_loop}
+def attitude_loops(adrc_design: Design | None = None) -> dict[AttitudeControllerKind, AttitudeLoopFactory]:
+    """Every attitude loop MC_ATT_CTRL can select; `adrc_design` replaces the shipped ADRC design (the benchmarks
+    fly each family's inner loop at its own design: "adrc_paper" has one of its own)."""
+    return {
+        AttitudeControllerKind.PID: builtin_pid_loop,
+        AttitudeControllerKind.ADRC: partial(adrc_attitude_loop, design=adrc_design),
+    }

@@ -77,6 +77,9 @@ VEHICLE_PARAMETERS: list[ParamSpec] = [
             "mc_yawrate_p",
             "mc_yawrate_i",
             "mc_yawrate_d",
+            "mc_rr_int_lim",
+            "mc_pr_int_lim",
+            "mc_yr_int_lim",
         )
     ],
     # built-in position controller (PX4 names)

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
+from adrc_offboard.design import load_design, pid_attitude_gains
 from gcs.settings import Settings
 from gcs.vehicle.connection import parse_connection
 from planner.scenario import Weather
@@ -19,6 +20,7 @@ from stack.options import ATTITUDE_LOOP, CONTROLLERS, UpOptions
 from stack.service_api import http_ok
 from stack.sim_speed import speedup_arg
 from stack.supervisor import ChildSpec, current_run, python_module
+from uavcore.airframe import Airframe
 from uavcore.geodesy import LocalFrame
 from uavcore.mavlink import SIGNING_KEY_ENV
 
@@ -82,6 +84,8 @@ def _vehicle_children(options: UpOptions, sysid: int, port: int) -> tuple[ChildS
     settings = options.settings
     suffix = _suffix(sysid)
     params = [f"MC_ATT_CTRL={ATTITUDE_LOOP[options.controller]}", speedup_arg(0.0)]
+    if options.controller == "pid":  # the PID family's designed attitude gains; "px4" keeps PX4's defaults
+        params += [f"{name.upper()}={value:.6g}" for name, value in designed_pid_attitude().items()]
     params += weather_params(options.weather or Weather())
     vehicle_args = ["--port", str(port), "--sysid", str(sysid), "--seed", str(options.seed + sysid - 1)]
     vehicle_args += ["--params", str(settings.data_dir / f"vehicle{suffix}.params")]
@@ -153,3 +157,9 @@ def _log_says(path: Path, marker: str) -> bool:
         return marker in current_run(path.read_text())
     except OSError:
         return False
+
+
+def designed_pid_attitude() -> dict[str, float]:
+    """The vehicle's attitude PID gains (PX4 names, lower case) at the PID family's shipped design for the
+    simulated airframe (paper Table 2), as adrc_offboard.design derives them."""
+    return pid_attitude_gains(Airframe.table2(), load_design("pid"))

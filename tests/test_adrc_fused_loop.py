@@ -24,6 +24,7 @@ from test_sitl_vehicle import HOME, short_mission
 
 from adrc_offboard.adrc import AdrcChannel
 from adrc_offboard.adrc_attitude import AdrcAttitudeController, attitude_errors
+from adrc_offboard.design import adrc_attitude_gains, load_design
 from sitl_quad.attitude_loops import CompiledAdrcAttitudeLoop, adrc_inner_loop, attitude_loops
 from sitl_quad.config import AttitudeControllerKind, ControlConfig, VehicleConfig
 from sitl_quad.flight_loop import CompiledAttitudeLoop
@@ -84,7 +85,8 @@ def _vehicle(attitude_loops_given) -> Vehicle:
 
 def test_vehicle_flies_the_same_with_the_compiled_adrc_loop_and_step_by_step():
     def python_adrc(config: VehicleConfig, rate_hz: float) -> AdrcAttitudeController:
-        return AdrcAttitudeController.for_airframe(config.airframe, rate_hz=rate_hz)  # no run_steps: stepped
+        gains = adrc_attitude_gains(config.airframe, load_design("adrc"))  # the vehicle's, as attitude_loops has them
+        return AdrcAttitudeController.for_airframe(config.airframe, gains=gains, rate_hz=rate_hz)  # stepped
 
     fused = _vehicle(attitude_loops())
     stepped = _vehicle({AttitudeControllerKind.ADRC: python_adrc})

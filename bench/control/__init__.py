@@ -1,14 +1,13 @@
-"""ADRC against PID on the paper's buoy-inspection mission: a paired Monte Carlo over seeds, flown in lockstep.
+"""The controller families on the paper's buoy-inspection mission: a paired Monte Carlo over seeds, flown in lockstep.
 
     .venv/bin/python -m bench.control                 # 30 seeds, 2 workers: table + bench/results/control.json
     .venv/bin/python -m bench.control --seeds 5 --paper-seeds 0 --no-figures --out /tmp/control.json  # a quick look
-    .venv/bin/python -m bench.control --tunings shared      # the shared bandwidth only (as before the own best)
 
-Three controllers fly the same mission in the same air, seed by seed (a paired design), and the benchmark
-reports tracking, gust rejection, ESO accuracy, control effort and mixer saturation with confidence intervals
-and paired tests. The ADRC and the PID fly at two operating points (--tunings shared,own): the bandwidth tuned
-for both, and each one's own best tuning (rows "adrc", "pid" and "adrc@own", "pid@own"); a summary table and
-control.json's "headline" give one line per controller and operating point.
+The controllers (flight.CONTROLLERS: the cascade ADRC, the paper-literal ADRC, the PID cascade, and PX4's defaults)
+fly the same mission in the same air, seed by seed (a paired design), each family at its shipped design
+(adrc_offboard/gains/design.json, chosen by `python -m bench.tune` with the same optimiser and flight budget for
+every family), and the benchmark reports tracking, gust rejection, ESO accuracy, control effort and mixer saturation
+with confidence intervals and paired tests against the ADRC; control.json's "headline" gives one line per controller.
 The modules, in reading order:
 - `scenario`: the mission, the wind, the gust timing, the turbulence and D terms; the hover mission of the
   step experiment;

@@ -1,55 +1,70 @@
-"""The three controllers and how one flight is flown and recorded, in the in-process lockstep harness.
+"""The controller families and how one flight is flown and recorded, in the in-process lockstep harness.
 
-Controllers:
-- "adrc": ADRC outer loop (adrc_offboard.outer_loop.AdrcOuterLoop) + ADRC inner loop (MC_ATT_CTRL = 1,
-  gains/attitude_adrc.json): the paper's cascade dual ADRC.
-- "pid": PID outer loop (PidOuterLoop) + the vehicle's PID attitude loop (MC_ATT_CTRL = 0).
-  Both outer loops fly gains bench/tune_control.py found (results/control_tuning.json, rebuilt by
-  outer_loop.matched_gains), at two operating points (__main__'s --tunings): one shared bandwidth with each
-  controller's free parameter tuned with the same budget, and each controller's own best tuning;
-  --shipped-gains flies adrc_offboard/gains/outer_*.json instead.
-- "px4": the vehicle's built-in PX4-default PID cascade, no offboard controller ("PX4 defaults").
+Controllers (each family's gains for both loops follow from its design numbers and the airframe,
+adrc_offboard.design; the shipped designs are adrc_offboard/gains/design.json, tuned by `python -m bench.tune`):
+- "adrc": ADRC outer loop (adrc_offboard.outer_loop.AdrcOuterLoop) + ADRC inner loop (MC_ATT_CTRL = 1): the
+  paper's cascade dual ADRC, in this project's form (no outer TD: the navigator's smooth reference and its
+  derivatives are the TD's outputs; the measured velocity as the rate);
+- "adrc_paper": the paper's literal cascade: the same loops with the TD in the outer loop and e2 from the ESO's z2;
+- "pid": PID outer loop (PidOuterLoop) + the vehicle's PX4-style PID attitude loop (MC_ATT_CTRL = 0) at the PID
+  family's design;
+- "px4": the vehicle's built-in PX4-default PID cascade, no offboard controller ("PX4 defaults", untuned).
 
 `fly` flies the scenario's mission and records every outer-loop tick (`FlightRecorder`); `step_response`
-hovers at 5 m in still air (sensor noise and D terms on) and then steps the reference 5 m east.
+hovers at 5 m in still air (sensor noise and D terms on) and then steps the reference 5 m east. Both take a
+`design` to fly instead of the shipped one (the tuning's trials).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
-from adrc_offboard.outer_loop import AdrcOuterGains, AdrcOuterLoop, PidOuterGains, PidOuterLoop
+from adrc_offboard.design import Design, load_design, outer_loop_for, pid_attitude_gains
+from adrc_offboard.outer_loop import AdrcOuterLoop
 from bench.control.metrics import flight_metrics, step_metrics
 from bench.control.scenario import OUTER_RATE_HZ, STEP_HOVER_S, STEP_M, STEP_WINDOW_S, Scenario, hover_mission
 from sitl_quad.attitude_loops import attitude_loops
-from sitl_quad.config import VehicleConfig
+from sitl_quad.attitude_pid import PidAttitudeGains
+from sitl_quad.config import AttitudeControllerKind, VehicleConfig
 from sitl_quad.lockstep_harness import HarnessError, LockstepHarness
 from sitl_quad.vehicle import TickRecord, Vehicle
 from sitl_quad.wind import WindConfig
+from uavcore.control import OuterLoopController
 from uavcore.mission import MissionItem
 from uavcore.rotation import heading
 from uavcore.state import TrajectorySetpoint, VehicleState
 
-CONTROLLERS = ("adrc", "pid", "px4")
+CONTROLLERS = ("adrc", "adrc_paper", "pid", "px4")
+TUNED = ("adrc", "adrc_paper", "pid")  # the families with a design (px4 flies the vehicle's defaults)
 LABELS = {
     "adrc": "ADRC outer + ADRC inner (cascade dual ADRC)",
-    "pid": "PID outer + PID inner, same bandwidth",
+    "adrc_paper": "ADRC as in the paper (outer TD, ESO z2) + ADRC inner",
+    "pid": "PID outer + PID inner",
     "px4": "PX4 defaults (built-in PID cascade)",
 }
+INNER_LOOP = {"adrc": AttitudeControllerKind.ADRC, "adrc_paper": AttitudeControllerKind.ADRC}  # others: PID
 
 
-def make_controller(
-    kind: str, config: VehicleConfig, adrc_gains: AdrcOuterGains | None = None, pid_gains: PidOuterGains | None = None
-) -> AdrcOuterLoop | PidOuterLoop | None:
-    """The offboard outer loop of controller `kind` (None for "px4": the vehicle flies its own cascade)."""
-    af = config.airframe
-    if kind == "adrc":
-        return AdrcOuterLoop(af.mass, af.g, af.max_thrust_n, gains=adrc_gains, rate_hz=OUTER_RATE_HZ)
+def make_controller(kind: str, config: VehicleConfig, design: Design | None = None) -> OuterLoopController | None:
+    """The offboard outer loop of controller `kind` for the configured airframe at `design` (the shipped one by
+    default); None for "px4": the vehicle flies its own cascade."""
+    if kind == "px4":
+        return None
+    return outer_loop_for(kind, config.airframe, design, rate_hz=OUTER_RATE_HZ)
+
+
+def configure_vehicle(kind: str, config: VehicleConfig, design: Design | None = None) -> VehicleConfig:
+    """`config` with the inner loop of family `kind` selected (MC_ATT_CTRL) and, for the PID family, its designed
+    attitude gains (the "px4" row keeps the vehicle's PX4 defaults)."""
+    inner = INNER_LOOP.get(kind, AttitudeControllerKind.PID)
+    config = replace(config, control=replace(config.control, attitude_controller=inner))
     if kind == "pid":
-        return PidOuterLoop(af.mass, af.g, af.max_thrust_n, gains=pid_gains, rate_hz=OUTER_RATE_HZ)
-    return None
+        design = design if design is not None else load_design("pid")
+        config = replace(config, attitude_pid=PidAttitudeGains(**pid_attitude_gains(config.airframe, design)))
+    return config
 
 
 class FlightRecorder:
@@ -129,16 +144,13 @@ class FlightRecorder:
 
 
 def _lockstep(
-    kind: str,
-    config: VehicleConfig,
-    scenario: Scenario,
-    seed: int,
-    adrc_gains: AdrcOuterGains | None,
-    pid_gains: PidOuterGains | None,
+    kind: str, config: VehicleConfig, scenario: Scenario, seed: int, design: Design | None
 ) -> LockstepHarness:
-    vehicle = Vehicle(config, scenario.home, seed=seed, outer_rate_hz=OUTER_RATE_HZ, attitude_loops=attitude_loops())
-    controller = make_controller(kind, config, adrc_gains, pid_gains)
-    return LockstepHarness(vehicle, controller, outer_rate_hz=OUTER_RATE_HZ)
+    config = configure_vehicle(kind, config, design)
+    adrc_design = design if kind in INNER_LOOP else None
+    loops = attitude_loops(adrc_design=adrc_design)
+    vehicle = Vehicle(config, scenario.home, seed=seed, outer_rate_hz=OUTER_RATE_HZ, attitude_loops=loops)
+    return LockstepHarness(vehicle, make_controller(kind, config, design), outer_rate_hz=OUTER_RATE_HZ)
 
 
 def fly(
@@ -146,12 +158,14 @@ def fly(
     seed: int,
     scenario: Scenario,
     paper_disturbance: bool = False,
-    adrc_gains: AdrcOuterGains | None = None,
-    pid_gains: PidOuterGains | None = None,
+    design: Design | None = None,
     items: list[MissionItem] | None = None,
+    config: VehicleConfig | None = None,
 ) -> tuple[dict, dict[str, np.ndarray]]:
-    """One mission (the scenario's, or `items`); returns (metrics, per-tick series)."""
-    harness = _lockstep(kind, scenario.config(kind, paper_disturbance), scenario, seed, adrc_gains, pid_gains)
+    """One mission (the scenario's, or `items`) at `design` (the family's shipped one by default), in the scenario's
+    air or on `config`; returns (metrics, per-tick series)."""
+    config = config if config is not None else scenario.config(paper_disturbance)
+    harness = _lockstep(kind, config, scenario, seed, design)
     recorder = FlightRecorder(harness)
     completed = True
     try:
@@ -187,13 +201,12 @@ def step_response(
     kind: str,
     seed: int,
     scenario: Scenario,
-    adrc_gains: AdrcOuterGains | None = None,
-    pid_gains: PidOuterGains | None = None,
+    design: Design | None = None,
 ) -> tuple[dict, np.ndarray]:
     """Hover at 5 m in still air, then a 5 m step east; returns metrics and [t, east] after the step."""
-    config = scenario.config(kind)
+    config = scenario.config()
     config.wind = WindConfig()
-    harness = _lockstep(kind, config, scenario, seed, adrc_gains, pid_gains)
+    harness = _lockstep(kind, config, scenario, seed, design)
     vehicle = harness.vehicle
     harness.upload_mission(hover_mission(scenario.home))
     harness.arm()

@@ -31,7 +31,7 @@ then a STEP_M lateral (east) position step (see flight.step_response).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -44,7 +44,7 @@ from planner.scenario import (
     paper_weather,
     reference_scenario,
 )
-from sitl_quad.config import AttitudeControllerKind, ControlConfig, VehicleConfig
+from sitl_quad.config import VehicleConfig
 from sitl_quad.disturbances import DisturbanceConfig
 from sitl_quad.navigator import Navigator, NavigatorConfig
 from sitl_quad.wind import WindConfig
@@ -74,11 +74,10 @@ class Scenario:
     disturbance: DisturbanceConfig = field(default_factory=DisturbanceConfig)
     gust_leg_fraction: float = math.nan  # how far along the longest leg the navigator's reference was at the onset
 
-    def config(self, kind: str, paper_disturbance: bool = False) -> VehicleConfig:
-        """The vehicle for controller `kind`: ADRC inner loop for "adrc", the PID attitude loop otherwise."""
-        inner = AttitudeControllerKind.ADRC if kind == "adrc" else AttitudeControllerKind.PID
+    def config(self, paper_disturbance: bool = False) -> VehicleConfig:
+        """The vehicle in this scenario's air (each controller's inner loop: flight.configure_vehicle)."""
         disturbance = DisturbanceConfig.paper() if paper_disturbance else self.disturbance
-        return VehicleConfig(wind=self.wind, disturbance=disturbance, control=ControlConfig(attitude_controller=inner))
+        return VehicleConfig(wind=self.wind, disturbance=disturbance)
 
 
 def wind_config(weather: Weather) -> WindConfig:
@@ -178,3 +177,47 @@ def hover_mission(home: tuple[float, float, float]) -> list[MissionItem]:
             z=ALTITUDE_M,
         ),
     ]
+
+
+SHORT_LEGS = 2
+
+
+def short_scenario(base: Scenario) -> Scenario:
+    """The longest leg and the next, translated to start at home; gust halfway along the first."""
+    waypoints = np.asarray(base.waypoints_ne)
+    legs = np.diff(waypoints, axis=0)[base.longest_leg - 1 : base.longest_leg - 1 + SHORT_LEGS]
+    points = np.vstack([[0.0, 0.0], np.cumsum(legs, axis=0)])
+    frame = LocalFrame(*base.home)
+    takeoff, speed = base.items[0], base.items[1]
+    items = [takeoff, speed]
+    for north, east in points[1:]:
+        lat, lon, _ = frame.from_ned(float(north), float(east), 0.0)
+        items.append(
+            MissionItem(
+                seq=len(items),
+                frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
+                command=MavCmd.NAV_WAYPOINT,
+                param1=base.items[FIRST_BUOY_SEQ].param1,
+                param2=base.items[FIRST_BUOY_SEQ].param2,
+                param3=0.0,
+                x=round(float(lat) * 1e7),
+                y=round(float(lon) * 1e7),
+                z=takeoff.z,
+            )
+        )
+    last = items[-1]
+    items.append(
+        MissionItem(
+            seq=len(items), frame=MavFrame.GLOBAL_RELATIVE_ALT_INT, command=MavCmd.NAV_LAND, x=last.x, y=last.y, z=0.0
+        )
+    )
+    start, duration = MissionTimeline().legs(points[:, ::-1])[0]  # points are [north, east]
+    gust = round(start + 0.5 * duration, 1)
+    return replace(
+        base,
+        items=items,
+        waypoints_ne=points.tolist(),
+        longest_leg=1,
+        gust_start_s=gust,
+        wind=replace(base.wind, gust_start_s=gust),
+    )

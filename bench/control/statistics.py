@@ -1,7 +1,7 @@
 """Statistics over the seeds: mean and 95 % confidence interval per controller, paired tests between them.
 
 A seed fixes the air (wind, turbulence, D terms, sensor noise), and every controller flies every seed, so the
-comparison is paired: the per-seed differences ADRC - PID and ADRC - PX4 defaults (at each operating point)
+comparison is paired: the per-seed differences between the ADRC and each other controller
 are tested with the paired t-test and with the Wilcoxon signed-rank test, which does not assume the
 differences are normal (a few gusty seeds make tracking errors skewed).
 """
