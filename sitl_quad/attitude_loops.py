@@ -1,4 +1,4 @@
-"""The attitude loops a vehicle can fly, by MC_ATT_CTRL: its own PX4-style PID and the paper's ADRC.
+"""The attitude loops a vehicle can fly, by MC_ATT_CTRL: its own PX4-style PID, the ADRC and the geometric law.
 
 Whoever builds a `Vehicle` (the vehicle process, the lockstep harness's users, benchmarks, tests) injects
 these factories, as RotorPy injects controllers into its environment, so the vehicle module itself imports
@@ -9,6 +9,10 @@ The ADRC loop flies each outer tick in one compiled call, as the PID does (sitl_
 orders the same kernels FlightLoop.fly() calls step by step (measure, the ADRC's `adrc_attitude_torque`, mix and
 physics), and `CompiledAdrcAttitudeLoop` hands it to the flight loop. numba's cache does not see edits to
 adrc_offboard's kernels: after one, delete sitl_quad/__pycache__/*.nbi.
+
+The geometric loop (MC_ATT_CTRL = 2, sitl_quad.attitude_geometric: Lee, Leok and McClamroch 2010's eq. 16) is the
+attitude half of adrc_offboard.geometric's controller; its bandwidths come from the same gains file
+(adrc_offboard/gains/geometric.json), so the vehicle's inner loop and the offboard outer loop are tuned in one place.
 """
 
 from __future__ import annotations
@@ -17,6 +21,8 @@ import numpy as np
 from numba import njit
 
 from adrc_offboard.adrc_attitude import AdrcAttitudeController, adrc_attitude_torque
+from adrc_offboard.geometric import GeometricGains
+from sitl_quad.attitude_geometric import GeometricAttitudeController
 from sitl_quad.config import AttitudeControllerKind, VehicleConfig
 from sitl_quad.inner_loop import fly_attitude_step, measure
 from sitl_quad.rigid_body import STATE_SIZE
@@ -78,6 +84,19 @@ def adrc_attitude_loop(config: VehicleConfig, rate_hz: float) -> AttitudeControl
     return CompiledAdrcAttitudeLoop.for_airframe(config.airframe, rate_hz=rate_hz)
 
 
+def geometric_attitude_loop(config: VehicleConfig, rate_hz: float) -> AttitudeController:
+    """Lee's geometric attitude loop for the configured airframe, at the bandwidths of gains/geometric.json (the
+    law has no state: rate_hz does not enter it)."""
+    gains = GeometricGains.load()
+    return GeometricAttitudeController.for_airframe(
+        config.airframe, gains.omega_roll_pitch, gains.omega_yaw, gains.zeta
+    )
+
+
 def attitude_loops() -> dict[AttitudeControllerKind, AttitudeLoopFactory]:
     """Every attitude loop MC_ATT_CTRL can select."""
-    return {AttitudeControllerKind.PID: builtin_pid_loop, AttitudeControllerKind.ADRC: adrc_attitude_loop}
+    return {
+        AttitudeControllerKind.PID: builtin_pid_loop,
+        AttitudeControllerKind.ADRC: adrc_attitude_loop,
+        AttitudeControllerKind.GEOMETRIC: geometric_attitude_loop,
+    }
