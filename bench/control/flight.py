@@ -9,6 +9,10 @@ Controllers:
   controller's free parameter tuned with the same budget, and each controller's own best tuning;
   --shipped-gains flies adrc_offboard/gains/outer_*.json instead.
 - "px4": the vehicle's built-in PX4-default PID cascade, no offboard controller ("PX4 defaults").
+- "geometric": Lee, Leok and McClamroch's geometric tracking controller on SE(3) (2010), the reference most
+  quadrotor simulators ship: adrc_offboard.geometric.GeometricOuterLoop + the vehicle's geometric attitude loop
+  (MC_ATT_CTRL = 2), both from adrc_offboard/gains/geometric.json (position gains at the shared bandwidth,
+  attitude at the ADRC attitude loop's bandwidth). Untuned by bench/tune_control.py: it flies its gains file.
 
 `fly` flies the scenario's mission and records every outer-loop tick (`FlightRecorder`); `step_response`
 hovers at 5 m in still air (sensor noise and D terms on) and then steps the reference 5 m east.
@@ -20,6 +24,7 @@ import math
 
 import numpy as np
 
+from adrc_offboard.geometric import GeometricOuterLoop
 from adrc_offboard.outer_loop import AdrcOuterGains, AdrcOuterLoop, PidOuterGains, PidOuterLoop
 from bench.control.metrics import flight_metrics, step_metrics
 from bench.control.scenario import OUTER_RATE_HZ, STEP_HOVER_S, STEP_M, STEP_WINDOW_S, Scenario, hover_mission
@@ -32,23 +37,26 @@ from uavcore.mission import MissionItem
 from uavcore.rotation import heading
 from uavcore.state import TrajectorySetpoint, VehicleState
 
-CONTROLLERS = ("adrc", "pid", "px4")
+CONTROLLERS = ("adrc", "pid", "px4", "geometric")
 LABELS = {
     "adrc": "ADRC outer + ADRC inner (cascade dual ADRC)",
     "pid": "PID outer + PID inner, same bandwidth",
     "px4": "PX4 defaults (built-in PID cascade)",
+    "geometric": "Geometric SE(3) (Lee 2010), same attitude bandwidth",
 }
 
 
 def make_controller(
     kind: str, config: VehicleConfig, adrc_gains: AdrcOuterGains | None = None, pid_gains: PidOuterGains | None = None
-) -> AdrcOuterLoop | PidOuterLoop | None:
+) -> AdrcOuterLoop | PidOuterLoop | GeometricOuterLoop | None:
     """The offboard outer loop of controller `kind` (None for "px4": the vehicle flies its own cascade)."""
     af = config.airframe
     if kind == "adrc":
         return AdrcOuterLoop(af.mass, af.g, af.max_thrust_n, gains=adrc_gains, rate_hz=OUTER_RATE_HZ)
     if kind == "pid":
         return PidOuterLoop(af.mass, af.g, af.max_thrust_n, gains=pid_gains, rate_hz=OUTER_RATE_HZ)
+    if kind == "geometric":
+        return GeometricOuterLoop(af.mass, af.g, af.max_thrust_n, rate_hz=OUTER_RATE_HZ)
     return None
 
 

@@ -75,8 +75,11 @@ class Scenario:
     gust_leg_fraction: float = math.nan  # how far along the longest leg the navigator's reference was at the onset
 
     def config(self, kind: str, paper_disturbance: bool = False) -> VehicleConfig:
-        """The vehicle for controller `kind`: ADRC inner loop for "adrc", the PID attitude loop otherwise."""
-        inner = AttitudeControllerKind.ADRC if kind == "adrc" else AttitudeControllerKind.PID
+        """The vehicle for controller `kind`: ADRC inner loop for "adrc", the geometric one for "geometric", the PID
+        attitude loop otherwise."""
+        inner = {"adrc": AttitudeControllerKind.ADRC, "geometric": AttitudeControllerKind.GEOMETRIC}.get(
+            kind, AttitudeControllerKind.PID
+        )
         disturbance = DisturbanceConfig.paper() if paper_disturbance else self.disturbance
         return VehicleConfig(wind=self.wind, disturbance=disturbance, control=ControlConfig(attitude_controller=inner))
 
