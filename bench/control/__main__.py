@@ -7,9 +7,10 @@ Operating points (--tunings, from bench/tune_control.py's control_tuning.json): 
 PID at the one bandwidth tuned for both (its "chosen"), "own" flies each at its own best tuning (its
 "own_best"). The results' rows ("controllers") are "adrc", "pid" at the shared bandwidth (the keys earlier
 results had), "adrc@own", "pid@own" at the own best, and "px4", whose built-in cascade has no tuning and flies
-once. A controller whose own best is the shared tuning is not flown twice: its "@own" row repeats the shared
-flights (operating_points.<name>.same_flights_as says so). The paper's variance-15 seeds fly the first
-operating point only.
+once, as does "geometric" (Lee 2010's SE(3) controller, adrc_offboard/gains/geometric.json). A controller whose
+own best is the shared tuning is not flown twice: its "@own" row repeats the shared flights
+(operating_points.<name>.same_flights_as says so). The paper's variance-15 seeds fly the first operating point
+only.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from dataclasses import asdict, dataclass
 from multiprocessing import Pool
 from pathlib import Path
 
+from adrc_offboard.geometric import GeometricGains
 from adrc_offboard.outer_loop import AdrcOuterGains, PidOuterGains, matched_gains
 from bench.control import REPO, RESULTS
 from bench.control import metrics as metrics_module
@@ -264,7 +266,9 @@ def main(argv: list[str] | None = None) -> int:
     for row, same in same_flights_as.items():
         per_seed[row], steps[row] = per_seed[same], steps[same]
     elapsed = time.perf_counter() - started
-    pairs = tuple((point.row("adrc"), point.row(other)) for point in points for other in ("pid", "px4"))
+    # each point's ADRC against the other rows (px4 and geometric are untuned: one row each, for every point)
+    pairs = tuple((point.row("adrc"), point.row(other)) for point in points for other in ("pid", "px4", "geometric"))
+    first_pairs = tuple(pair for pair in pairs if pair[0] == first.row("adrc"))
     summary = summarise(per_seed, METRICS, pairs)
     step_summary = summarise(steps, STEP_METRICS, pairs)
     completed = {row: sum(bool(r["completed"]) for r in results) for row, results in per_seed.items()}
@@ -284,12 +288,14 @@ def main(argv: list[str] | None = None) -> int:
         row: point.described[kind]["omega_c_horizontal"] if point.name != "shipped" and kind in TUNED else None
         for row, (kind, point) in rows.items()
     }
+    if "geometric" in rows:  # its gains file's kx = omega_c^2
+        bandwidths["geometric"] = math.sqrt(GeometricGains.load().kx_horizontal)
     headlines = {"mission": headline(summary, completed, args.seeds, bandwidths)}
     print_headline(f"Summary, reference mission ({args.seeds} seeds; means)", headlines["mission"])
     paper_summary = paper_completed = None
     if args.paper_seeds:
         paper_completed = {row: sum(bool(r["completed"]) for r in results) for row, results in paper.items()}
-        paper_summary = summarise(paper, METRICS, pairs[:2])
+        paper_summary = summarise(paper, METRICS, first_pairs)
         headlines["paper_disturbance"] = headline(paper_summary, paper_completed, args.paper_seeds, bandwidths)
         print_headline(
             f"Summary, paper's variance-15 disturbance ({args.paper_seeds} seeds, {_point_title(first)}; means "
@@ -344,6 +350,7 @@ def main(argv: list[str] | None = None) -> int:
             "outer": "per operating point: operating_points.<name>.outer_gains",
             "adrc_inner": "adrc_offboard/gains/attitude_adrc.json",
             "pid_inner": "the vehicle's PidAttitudeGains (PX4 defaults)",
+            "geometric": "adrc_offboard/gains/geometric.json (outer loop and the vehicle's geometric attitude loop)",
         },
         "seeds": args.seeds,
         "headline": headlines,
