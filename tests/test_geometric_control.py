@@ -159,3 +159,40 @@ def test_the_short_mission_flies_with_the_geometric_controller():
     # about 1 m/s^2 here) leaves an offset d / kx = 1 / 4 m, and the gust (4 m/s more) a peak of 0.73 m. The bound
     # is the measured value plus the seed-to-seed spread, not more: a sign or gain mistake is caught.
     assert metrics["rms_error_m"] < 0.45
+
+
+def test_the_vehicle_flies_the_same_with_the_compiled_geometric_loop_and_step_by_step():
+    """The compiled inner loop (geometric_inner_loop, one numba call per tick) flies bit for bit what stepping
+    GeometricAttitudeController.update from Python flies, on a climb in wind and turbulence."""
+    from test_adrc_fused_loop import DISTURBANCE, WIND
+    from test_sitl_vehicle import HOME, short_mission
+
+    class Stepped:  # the same law with no inner_loop: the flight loop steps update() from Python
+        def __init__(self, config: VehicleConfig, rate_hz: float) -> None:
+            self.law = GeometricAttitudeController.for_airframe(config.airframe)
+
+        def reset(self) -> None:
+            self.law.reset()
+
+        def update(self, target: AttitudeTarget, state: VehicleState, dt: float) -> np.ndarray:
+            return self.law.update(target, state, dt)
+
+    def vehicle(loops) -> Vehicle:
+        kind = AttitudeControllerKind.GEOMETRIC
+        config = VehicleConfig(wind=WIND, disturbance=DISTURBANCE, control=ControlConfig(attitude_controller=kind))
+        flying = Vehicle(config, home=HOME, seed=5, attitude_loops=loops)
+        flying.set_mission(short_mission())
+        return flying
+
+    fused = vehicle(attitude_loops())
+    stepped = vehicle({AttitudeControllerKind.GEOMETRIC: Stepped})
+    assert isinstance(fused.attitude, CompiledAttitudeLoop) and not isinstance(stepped.attitude, CompiledAttitudeLoop)
+    for tick in range(300):  # 6 s: disarmed, spool-up at idle, then the climb under the built-in position loop
+        if tick == 10:
+            for flying in (fused, stepped):
+                assert flying.arm() == 0 and flying.start_mission() == 0
+        a, b = fused.tick(), stepped.tick()
+        for name in ("position", "velocity", "quaternion", "angular_velocity", "rotor_speeds"):
+            np.testing.assert_array_equal(getattr(a.truth, name), getattr(b.truth, name))
+    assert -fused.sim.state.position[2] > 2.0  # it did fly
+    assert (fused.mixer.calls, fused.mixer.saturated_steps) == (stepped.mixer.calls, stepped.mixer.saturated_steps)
