@@ -33,6 +33,7 @@ from typing import Any
 
 from adrc_offboard.adrc import AdrcParameterError
 from adrc_offboard.adrc_attitude import AdrcAttitudeGains
+from adrc_offboard.geometric import GeometricGains, GeometricOuterLoop
 from adrc_offboard.outer_loop import (
     AccelerationLimits,
     AdrcOuterGains,
@@ -229,20 +230,19 @@ def pid_attitude_gains(airframe: Airframe, design: Design) -> dict[str, float]:
     return out
 
 
-def geometric_gains(airframe: Airframe, design: Design) -> dict[str, Any]:
-    """Lee et al.'s gains: position kx = w^2, kv = 2 w per unit mass (critically damped at the position bandwidth),
-    attitude kR = J w_a^2, kOmega = 2 zeta J w_a per axis (N m per rad, N m per rad/s)."""
+def geometric_gains(airframe: Airframe, design: Design) -> GeometricGains:
+    """Lee et al.'s gains: position kx = w^2, kv = 2 w per unit mass (critically damped at the position bandwidth);
+    the attitude loop's bandwidths and damping, from which the vehicle's kR = J w^2, kOmega = 2 zeta J w."""
     w = design.bandwidths(airframe)
-    inertia = (airframe.ixx, airframe.iyy, airframe.izz)
-    attitude = (w["attitude"], w["attitude"], w["yaw"])
-    return {
-        "kx_horizontal": w["horizontal"] ** 2,
-        "kv_horizontal": 2.0 * w["horizontal"],
-        "kx_vertical": w["vertical"] ** 2,
-        "kv_vertical": 2.0 * w["vertical"],
-        "k_r": [i * a * a for i, a in zip(inertia, attitude, strict=True)],
-        "k_omega": [2.0 * design.attitude_damping * i * a for i, a in zip(inertia, attitude, strict=True)],
-    }
+    return GeometricGains(
+        kx_horizontal=w["horizontal"] ** 2,
+        kv_horizontal=2.0 * w["horizontal"],
+        kx_vertical=w["vertical"] ** 2,
+        kv_vertical=2.0 * w["vertical"],
+        omega_roll_pitch=w["attitude"],
+        omega_yaw=w["yaw"],
+        zeta=design.attitude_damping,
+    )
 
 
 def describe(airframe: Airframe, design: Design) -> dict[str, Any]:
@@ -255,7 +255,7 @@ def describe(airframe: Airframe, design: Design) -> dict[str, Any]:
 
 def outer_loop_for(
     family: str, airframe: Airframe, design: Design | None = None, rate_hz: float = OUTER_RATE_HZ
-) -> AdrcOuterLoop | PidOuterLoop:
+) -> AdrcOuterLoop | PidOuterLoop | GeometricOuterLoop:
     """The position loop of `family` for `airframe` at its design (the shipped one by default), with the envelope's
     acceleration and tilt limits: what the offboard process and the benchmarks fly."""
     design = design if design is not None else load_design(family)
@@ -274,7 +274,10 @@ def outer_loop_for(
         return AdrcOuterLoop(gains=adrc_outer_gains(airframe, design), **common)
     if family == "pid":
         return PidOuterLoop(gains=pid_outer_gains(airframe, design), **common)
-    raise AdrcParameterError(f"no position loop for family {family!r} here")
+    # Lee's law as published: its own safety tilt cap (GeometricGains.max_tilt_deg), no acceleration limits
+    return GeometricOuterLoop(
+        airframe.mass, airframe.g, airframe.max_thrust_n, geometric_gains(airframe, design), rate_hz
+    )
 
 
 def gains_files(airframe: Airframe, designs: dict[str, Design]) -> dict[str, dict[str, Any]]:
@@ -285,6 +288,7 @@ def gains_files(airframe: Airframe, designs: dict[str, Design]) -> dict[str, dic
     limits = acceleration_limits(airframe)
     pid = pid_outer_gains(airframe, designs["pid"])
     attitude = adrc_attitude_gains(airframe, designs["adrc"])
+    geometric = geometric_gains(airframe, designs["geometric"])
     return {
         "outer_adrc.json": {
             "comment": "Outer-loop ADRC at 50 Hz, b0 = 1 (control = acceleration, m/s^2), designer's form: omega_c, "
@@ -313,5 +317,22 @@ def gains_files(airframe: Airframe, designs: dict[str, Design]) -> dict[str, dic
             "roll": attitude.roll,
             "pitch": attitude.pitch,
             "yaw": attitude.yaw,
+        },
+        "geometric.json": {
+            "comment": "Geometric tracking controller on SE(3) (Lee, Leok, McClamroch 2010; adrc_offboard/geometric.py)"
+            ". "
+            "Position gains per unit mass: kx in 1/s^2, kv in 1/s (the paper's k_x, k_v are m times these), the "
+            "critically damped pair at the design's position bandwidth; no integral action (the paper has none). "
+            "attitude: the vehicle's geometric inner loop (MC_ATT_CTRL = 2) has k_R = J w^2, k_Omega = 2 zeta J w, "
+            "w in rad/s. max_tilt_deg: a safety cap on the commanded tilt (the paper has none but thrust "
+            "saturation)." + source,
+            "horizontal": {"kx": geometric.kx_horizontal, "kv": geometric.kv_horizontal},
+            "vertical": {"kx": geometric.kx_vertical, "kv": geometric.kv_vertical},
+            "attitude": {
+                "omega_roll_pitch": geometric.omega_roll_pitch,
+                "omega_yaw": geometric.omega_yaw,
+                "zeta": geometric.zeta,
+            },
+            "max_tilt_deg": geometric.max_tilt_deg,
         },
     }

@@ -50,7 +50,7 @@ from bench.control.flight import fly
 from bench.control.scenario import build_scenario, short_scenario
 from uavcore.airframe import Airframe
 
-FAMILIES = ("adrc", "adrc_paper", "pid")
+FAMILIES = ("adrc", "adrc_paper", "pid", "geometric")
 MAX_ERROR_M = 10.0
 MAX_SATURATED = 0.15
 MAX_THRUST_STEP = 0.05

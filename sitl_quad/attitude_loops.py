@@ -1,4 +1,4 @@
-"""The attitude loops a vehicle can fly, by MC_ATT_CTRL: its own PX4-style PID and the paper's ADRC.
+"""The attitude loops a vehicle can fly, by MC_ATT_CTRL: its own PX4-style PID, the ADRC and the geometric law.
 
 Whoever builds a `Vehicle` (the vehicle process, the lockstep harness's users, benchmarks, tests) injects
 these factories, as RotorPy injects controllers into its environment, so the vehicle module itself imports
@@ -9,6 +9,11 @@ The ADRC loop flies each outer tick in one compiled call, as the PID does (sitl_
 orders the same kernels FlightLoop.fly() calls step by step (measure, the ADRC's `adrc_attitude_torque`, mix and
 physics), and `CompiledAdrcAttitudeLoop` hands it to the flight loop. numba's cache does not see edits to
 adrc_offboard's kernels: after one, delete sitl_quad/__pycache__/*.nbi.
+
+The geometric loop (MC_ATT_CTRL = 2, sitl_quad.attitude_geometric: Lee, Leok and McClamroch 2010's eq. 16) is the
+attitude half of adrc_offboard.geometric's controller. Every loop's gains come from its family's design
+(adrc_offboard.design, gains/design.json), so a vehicle's inner loop and its offboard outer loop are tuned in one
+place, and for whatever airframe the vehicle has.
 """
 
 from __future__ import annotations
@@ -19,7 +24,8 @@ import numpy as np
 from numba import njit
 
 from adrc_offboard.adrc_attitude import AdrcAttitudeController, adrc_attitude_torque
-from adrc_offboard.design import Design, adrc_attitude_gains, load_design
+from adrc_offboard.design import Design, adrc_attitude_gains, geometric_gains, load_design
+from sitl_quad.attitude_geometric import GeometricAttitudeController
 from sitl_quad.config import AttitudeControllerKind, VehicleConfig
 from sitl_quad.inner_loop import fly_attitude_step, measure
 from sitl_quad.rigid_body import STATE_SIZE
@@ -84,10 +90,23 @@ def adrc_attitude_loop(config: VehicleConfig, rate_hz: float, design: Design | N
     return CompiledAdrcAttitudeLoop.for_airframe(config.airframe, gains=gains, rate_hz=rate_hz)
 
 
-def attitude_loops(adrc_design: Design | None = None) -> dict[AttitudeControllerKind, AttitudeLoopFactory]:
-    """Every attitude loop MC_ATT_CTRL can select; `adrc_design` replaces the shipped ADRC design (the benchmarks
+def geometric_attitude_loop(config: VehicleConfig, rate_hz: float, design: Design | None = None) -> AttitudeController:
+    """Lee's geometric attitude loop for the configured airframe at the geometric family's design (the shipped
+    design.json unless another is given; the law has no state: rate_hz does not enter it)."""
+    design = design if design is not None else load_design("geometric")
+    gains = geometric_gains(config.airframe, design)
+    return GeometricAttitudeController.for_airframe(
+        config.airframe, gains.omega_roll_pitch, gains.omega_yaw, gains.zeta
+    )
+
+
+def attitude_loops(
+    adrc_design: Design | None = None, geometric_design: Design | None = None
+) -> dict[AttitudeControllerKind, AttitudeLoopFactory]:
+    """Every attitude loop MC_ATT_CTRL can select; a design replaces the shipped one of its family (the benchmarks
     fly each family's inner loop at its own design: "adrc_paper" has one of its own)."""
     return {
         AttitudeControllerKind.PID: builtin_pid_loop,
         AttitudeControllerKind.ADRC: partial(adrc_attitude_loop, design=adrc_design),
+        AttitudeControllerKind.GEOMETRIC: partial(geometric_attitude_loop, design=geometric_design),
     }

@@ -52,6 +52,7 @@ class AttitudeControllerKind(IntEnum):
 
     PID = 0
     ADRC = 1
+    GEOMETRIC = 2  # Lee, Leok and McClamroch 2010's geometric law on SO(3) (sitl_quad.attitude_geometric)
 
 
 @dataclass(frozen=True)

@@ -118,7 +118,9 @@ VEHICLE_PARAMETERS: list[ParamSpec] = [
         5,
         "geofence breach action: 0 none, 1 warning, 2 hold, 3 return, 5 land (4 terminate: not simulated)",
     ),
-    ParamSpec("MC_ATT_CTRL", "control.attitude_controller", INT32, 0, 1, "attitude loop: 0 PID, 1 ADRC"),
+    ParamSpec(
+        "MC_ATT_CTRL", "control.attitude_controller", INT32, 0, 2, "attitude loop: 0 PID, 1 ADRC, 2 geometric SE(3)"
+    ),
     # battery (sitl_quad.battery) and its failsafe, PX4's names and ranges
     ParamSpec("BAT1_N_CELLS", "battery.cells", INT32, 1, 14, "cells in series"),
     ParamSpec("BAT1_CAPACITY", "battery.capacity_mah", REAL32, 50.0, 100000.0, "pack capacity, mAh"),

@@ -19,12 +19,14 @@ from adrc_offboard.design import (
     adrc_attitude_gains,
     adrc_outer_gains,
     gains_files,
+    geometric_gains,
     load_design,
     load_designs,
     outer_loop_for,
     pid_attitude_gains,
     pid_outer_gains,
 )
+from adrc_offboard.geometric import GeometricGains
 from adrc_offboard.outer_loop import AccelerationLimits, AdrcOuterGains, PidOuterGains
 from sitl_quad.attitude_loops import attitude_loops
 from sitl_quad.config import AttitudeControllerKind, VehicleConfig
@@ -103,6 +105,7 @@ def test_the_gains_files_are_what_the_shipped_design_gives_on_table2() -> None:
     assert PidOuterGains.load() == pid_outer_gains(TABLE2, designs["pid"])
     assert AccelerationLimits.load() == acceleration_limits(TABLE2)
     assert AdrcAttitudeGains.load() == adrc_attitude_gains(TABLE2, designs["adrc"])
+    assert GeometricGains.load() == geometric_gains(TABLE2, designs["geometric"])
     for name, data in gains_files(TABLE2, designs).items():  # byte for byte what --regenerate writes
         assert json.loads((REPO / "adrc_offboard" / "gains" / name).read_text()) == json.loads(json.dumps(data))
 

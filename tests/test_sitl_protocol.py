@@ -126,7 +126,7 @@ def test_param_set_within_limits_answers_the_new_value(gcs):
     [
         ("SIM_MASS", 1e6, REAL32),  # above its maximum
         ("SIM_MASS", math.nan, REAL32),
-        ("MC_ATT_CTRL", int_bytewise(7), INT32),  # 0 PID, 1 ADRC: nothing else
+        ("MC_ATT_CTRL", int_bytewise(7), INT32),  # 0 PID, 1 ADRC, 2 geometric: nothing else
     ],
 )
 def test_param_set_refused_answers_the_old_value(gcs, name, raw, param_type):

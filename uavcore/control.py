@@ -1,9 +1,11 @@
 """The controller contracts: what the vehicle and the offboard process expect of a controller they are given.
 
-- `AttitudeController`, the inner loop (250 Hz): the vehicle's PID (sitl_quad.attitude_pid) or the paper's ADRC
-  (adrc_offboard.adrc_attitude), injected into `sitl_quad.vehicle.Vehicle` by MC_ATT_CTRL.
+- `AttitudeController`, the inner loop (250 Hz): the vehicle's PID (sitl_quad.attitude_pid), the paper's ADRC
+  (adrc_offboard.adrc_attitude) or Lee's geometric law (sitl_quad.attitude_geometric), injected into
+  `sitl_quad.vehicle.Vehicle` by MC_ATT_CTRL.
 - `OuterLoopController`, the position loop (50 Hz): ADRC (TD + ESO + NLSEF, eq. 9-13) or the PID baseline
-  (adrc_offboard.outer_loop), run by the offboard process or the in-process lockstep harness.
+  (adrc_offboard.outer_loop), or the geometric SE(3) baseline (adrc_offboard.geometric), run by the offboard
+  process or the in-process lockstep harness.
 Plain arrays and the `uavcore.state` types in, an attitude target or body torques out; no I/O.
 """
 

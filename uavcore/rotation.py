@@ -146,6 +146,12 @@ def acceleration_to_attitude(
     return AttitudeTarget(quaternion=quaternion, thrust=thrust, body_rates=body_rates)
 
 
+def quat_from_matrix(matrix) -> np.ndarray:
+    """3x3 rotation matrix (columns = body axes in the world) -> unit quaternion (w >= 0)."""
+    m = np.asarray(matrix, dtype=float)
+    return _quat_from_matrix(*(float(v) for v in m.reshape(9)))
+
+
 def _quat_from_matrix(
     m00: float, m01: float, m02: float, m10: float, m11: float, m12: float, m20: float, m21: float, m22: float
 ) -> np.ndarray:

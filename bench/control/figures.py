@@ -22,7 +22,7 @@ def draw_figures(scenario: Scenario, series: dict[str, dict], steps: dict[str, n
     matplotlib.use("Agg")  # files only, no display
     import matplotlib.pyplot as plt
 
-    colours = {"adrc": "tab:green", "pid": "tab:red", "px4": "tab:purple"}
+    colours = {"adrc": "tab:green", "pid": "tab:red", "px4": "tab:purple", "geometric": "tab:orange"}
     paths = []
     t_gust = scenario.wind.gust_start_s
 

@@ -8,6 +8,9 @@ adrc_offboard.design; the shipped designs are adrc_offboard/gains/design.json, t
 - "adrc_paper": the paper's literal cascade: the same loops with the TD in the outer loop and e2 from the ESO's z2;
 - "pid": PID outer loop (PidOuterLoop) + the vehicle's PX4-style PID attitude loop (MC_ATT_CTRL = 0) at the PID
   family's design;
+- "geometric": Lee, Leok and McClamroch's geometric tracking controller on SE(3) (2010), the reference most
+  quadrotor simulators ship: adrc_offboard.geometric.GeometricOuterLoop + the vehicle's geometric attitude loop
+  (MC_ATT_CTRL = 2), at the geometric family's design (no integral action: Lee's law has none);
 - "px4": the vehicle's built-in PX4-default PID cascade, no offboard controller ("PX4 defaults", untuned).
 
 `fly` flies the scenario's mission and records every outer-loop tick (`FlightRecorder`); `step_response`
@@ -37,15 +40,20 @@ from uavcore.mission import MissionItem
 from uavcore.rotation import heading
 from uavcore.state import TrajectorySetpoint, VehicleState
 
-CONTROLLERS = ("adrc", "adrc_paper", "pid", "px4")
-TUNED = ("adrc", "adrc_paper", "pid")  # the families with a design (px4 flies the vehicle's defaults)
+CONTROLLERS = ("adrc", "adrc_paper", "pid", "geometric", "px4")
+TUNED = ("adrc", "adrc_paper", "pid", "geometric")  # the families with a design (px4 flies the vehicle's defaults)
 LABELS = {
     "adrc": "ADRC outer + ADRC inner (cascade dual ADRC)",
     "adrc_paper": "ADRC as in the paper (outer TD, ESO z2) + ADRC inner",
     "pid": "PID outer + PID inner",
     "px4": "PX4 defaults (built-in PID cascade)",
+    "geometric": "Geometric SE(3) (Lee 2010), same attitude bandwidth",
 }
-INNER_LOOP = {"adrc": AttitudeControllerKind.ADRC, "adrc_paper": AttitudeControllerKind.ADRC}  # others: PID
+INNER_LOOP = {  # MC_ATT_CTRL per family; others: the PID
+    "adrc": AttitudeControllerKind.ADRC,
+    "adrc_paper": AttitudeControllerKind.ADRC,
+    "geometric": AttitudeControllerKind.GEOMETRIC,
+}
 
 
 def make_controller(kind: str, config: VehicleConfig, design: Design | None = None) -> OuterLoopController | None:
@@ -147,8 +155,8 @@ def _lockstep(
     kind: str, config: VehicleConfig, scenario: Scenario, seed: int, design: Design | None
 ) -> LockstepHarness:
     config = configure_vehicle(kind, config, design)
-    adrc_design = design if kind in INNER_LOOP else None
-    loops = attitude_loops(adrc_design=adrc_design)
+    adrc_design = design if kind in ("adrc", "adrc_paper") else None
+    loops = attitude_loops(adrc_design=adrc_design, geometric_design=design if kind == "geometric" else None)
     vehicle = Vehicle(config, scenario.home, seed=seed, outer_rate_hz=OUTER_RATE_HZ, attitude_loops=loops)
     return LockstepHarness(vehicle, make_controller(kind, config, design), outer_rate_hz=OUTER_RATE_HZ)
 
