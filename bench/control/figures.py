@@ -1,6 +1,8 @@
-"""The paper's figures drawn from seed 0 of each controller: tracking around the gust (Fig. 6), the ESO's
-estimates against the truth (Fig. 7), the flown tracks over the planned route (Fig. 10), yaw at the turns
-(Fig. 11), and the step responses."""
+"""The paper's figures drawn from seed 0 of each controller: tracking around the gust (Fig. 6: altitude, yaw,
+pitch, roll), the six ESOs' estimates against the truth (Fig. 7: outer x, y, z, inner roll, pitch, yaw), the flown
+tracks over the planned route (Fig. 10), yaw at the turns (Fig. 11), and the step responses; Fig. 9 (route and
+the CHNN-GA per iteration) is drawn by bench/paper_figures.py with Fig. 6 and 7 (`tracking_figure`,
+`eso_figure`, `route_figure`)."""
 
 from __future__ import annotations
 
@@ -29,62 +31,17 @@ def draw_figures(scenario: Scenario, series: dict[str, dict], steps: dict[str, n
     def since_takeoff(s):
         return s["t"][1:] - s["t"][0]
 
-    # Figure 6: x, y, z, yaw around the gust
-    fig, axes = plt.subplots(4, 1, figsize=(9, 10), sharex=True)
-    for kind, s in series.items():
-        t = since_takeoff(s)
-        w = (t >= t_gust - 2) & (t <= t_gust + 8)
-        for ax, (name, ref, scale) in zip(
-            axes,
-            (("x", "x_ref", 1), ("y", "y_ref", 1), ("z", "z_ref", -1), ("yaw", "yaw_ref", 180 / math.pi)),
-            strict=True,
-        ):
-            if name in ("x", "y"):  # at 10 m/s the positions are straight lines: show the error instead
-                ax.plot(t[w], (s[name][:-1] - s[ref][1:])[w], color=colours[kind], label=LABELS[kind])
-                continue
-            ax.plot(t[w], s[name][:-1][w] * scale, color=colours[kind], label=LABELS[kind])
-            if kind == "adrc":
-                ax.plot(t[w], s[ref][1:][w] * scale, "b:", label="reference")
-    for ax, label in zip(
-        axes, ("north error x - x_ref (m)", "east error y - y_ref (m)", "altitude (m)", "yaw (deg)"), strict=True
-    ):
-        ax.set_ylabel(label)
-        ax.axvspan(t_gust, t_gust + scenario.wind.gust_rise_time_s, color="0.9")
-    axes[0].legend(fontsize=7)
-    axes[-1].set_xlabel(f"time since takeoff (s); gust onset {t_gust:g} s (shaded: rise)")
-    fig.suptitle("Tracking around the gust (seed 0; paper Fig. 6)")
-    paths.append(_save(fig, out_dir / "control_gust_tracking.png"))
-
-    # Figure 7: ESO outputs (ADRC) in the gust window against the true disturbance
+    # Figure 6: altitude, yaw, pitch, roll (and the horizontal error) around the gust; Figure 7: the ADRC's six
+    # extended state observers (outer x, y, z; inner roll, pitch, yaw) against the truth
+    gust = (t_gust, t_gust + scenario.wind.gust_rise_time_s)
+    paths.append(
+        tracking_figure(
+            series, gust, out_dir / "control_gust_tracking.png", "Tracking around the gust (seed 0; paper Fig. 6)"
+        )
+    )
     if "adrc" in series:
-        s = series["adrc"]
-        # tick k ends at t[k] = t[0] + k dt on a clock that starts dt before t[0] (the mission start);
-        # z at tick k is the ESO's estimate for t_k, the start of tick k (see eso_errors)
-        t = s["t"] - s["t"][0]
-        w = (t >= t_gust - 2) & (t <= t_gust + 8)
-        fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
-        ext_t = s["t"] - s["t"][0] + 1.0 / OUTER_RATE_HZ  # reported at the end of its tick
-        we = (ext_t >= t_gust - 2) & (ext_t <= t_gust + 8)
-        for col, axis in enumerate(("x", "y")):
-            # z at tick k describes t_k = the truth recorded at the end of tick k-1
-            truth_pos = np.concatenate([[np.nan], s[axis][:-1]])
-            truth_vel = np.concatenate([[np.nan], s[f"v{axis}"][:-1]])
-            axes[0, col].plot(t[w], (s[f"z1_{axis}"] - truth_pos)[w], label="z1 - true position")
-            axes[1, col].plot(t[w], truth_vel[w], "k:", label="true velocity")
-            axes[1, col].plot(t[w], s[f"z2_{axis}"][w], "g", label="z2 (velocity estimate)")
-            axes[2, col].plot(ext_t[we], s[f"ext_{axis}"][we], color="0.6", label="true external acceleration")
-            axes[2, col].plot(t[w], s[f"z3_{axis}"][w], "r", label="z3 (total disturbance estimate)")
-            axes[0, col].set_title(f"{'north' if axis == 'x' else 'east'} channel")
-            for ax in axes[:, col]:
-                ax.axvspan(t_gust, t_gust + scenario.wind.gust_rise_time_s, color="0.9")
-                ax.legend(fontsize=7)
-        axes[0, 0].set_ylabel("m")
-        axes[1, 0].set_ylabel("m/s")
-        axes[2, 0].set_ylabel("m/s^2")
-        for ax in axes[-1]:
-            ax.set_xlabel("time since takeoff (s)")
-        fig.suptitle("ADRC extended state observer around the gust (seed 0; paper Fig. 7)")
-        paths.append(_save(fig, out_dir / "control_eso.png"))
+        title = "ADRC extended state observers around the gust (seed 0; paper Fig. 7)"
+        paths.append(eso_figure(series["adrc"], gust, out_dir / "control_eso.png", title))
 
     # Figure 10: flown tracks over the planned route, with a zoom on a turn
     waypoints = np.asarray([*scenario.waypoints_ne, [0.0, 0.0]])
@@ -187,19 +144,25 @@ def tracking_figure(
     fig, axes = plt.subplots(5, 1, figsize=(10, 12), sharex=True)
     reference_drawn = False
     for kind, s in series.items():
-        t = mission_time(s)
+        # as metrics.flight_metrics: the truth at the start of tick k (the end of tick k - 1) against the
+        # reference computed for that instant (row k); the attitude target of row k acts during tick k
+        t = mission_time(s)[:-1]
         w = (t >= onset[0] - before_s) & (t <= onset[0] + after_s)
         colour, name = COLOURS.get(kind, "k"), SHORT.get(kind, kind)
         if not reference_drawn:  # the navigator's reference, the same for every controller
-            axes[0].plot(t[w], -s["z_ref"][w], "b:", lw=1.5, label="input reference")
-            axes[1].plot(t[w], np.degrees(np.unwrap(s["yaw_ref"])[w]), "b:", lw=1.5, label="input reference")
+            axes[0].plot(t[w], -s["z_ref"][1:][w], "b:", lw=1.5, label="input reference")
+            axes[1].plot(t[w], np.degrees(np.unwrap(s["yaw_ref"])[1:][w]), "b:", lw=1.5, label="input reference")
             reference_drawn = True
-        axes[0].plot(t[w], -s["z"][w], color=colour, label=f"{name} output")
-        axes[1].plot(t[w], np.degrees(np.unwrap(s["att_yaw"])[w]), color=colour, label=f"{name} output")
+        axes[0].plot(t[w], -s["z"][:-1][w], color=colour, label=f"{name} output")
+        # yaw near the reference: the reference unwrapped plus the output's error to it taken the short way
+        yaw_ref = np.unwrap(s["yaw_ref"])[1:]
+        yaw = yaw_ref + (s["att_yaw"][:-1] - yaw_ref + math.pi) % (2 * math.pi) - math.pi
+        axes[1].plot(t[w], np.degrees(yaw[w]), color=colour, label=f"{name} output")
         for ax, axis in ((axes[2], "pitch"), (axes[3], "roll")):
-            ax.plot(t[w], np.degrees(s[f"att_ref_{axis}"][w]), color=colour, ls="--", lw=1, label=f"{name} reference")
-            ax.plot(t[w], np.degrees(s[f"att_{axis}"][w]), color=colour, label=f"{name} output")
-        error = np.hypot(s["x"] - s["x_ref"], s["y"] - s["y_ref"])
+            target = np.degrees(s[f"att_ref_{axis}"][1:][w])
+            ax.plot(t[w], target, color=colour, ls="--", lw=1, label=f"{name} reference")
+            ax.plot(t[w], np.degrees(s[f"att_{axis}"][:-1][w]), color=colour, label=f"{name} output")
+        error = np.hypot(s["x"][:-1] - s["x_ref"][1:], s["y"][:-1] - s["y_ref"][1:])
         axes[4].plot(t[w], error[w], color=colour, label=name)
     labels = ("altitude (m)", "yaw angle (deg)", "pitch angle (deg)", "roll angle (deg)", "horizontal error (m)")
     for i, (ax, label) in enumerate(zip(axes, labels, strict=True)):
