@@ -166,6 +166,13 @@ def main(argv: list[str] | None = None) -> int:
         f"{PAPER_VARIANCE_ONSET_S:g} s, on the first leg)",
     )
     p.add_argument("--duration-s", type=float, default=900.0, help="cut each flight this long after the start")
+    p.add_argument(
+        "--window-s",
+        type=float,
+        nargs=2,
+        metavar=("BEFORE", "AFTER"),
+        help="Fig. 6 and 7's window around the onset (default 2 8; with --disturbance paper 1 4)",
+    )
     p.add_argument("--ga-time-s", type=float, default=2.0, help="the CHNN-GA's time limit")
     p.add_argument("--out-dir", type=Path, default=RESULTS)
     args = p.parse_args(argv)
@@ -183,6 +190,7 @@ def main(argv: list[str] | None = None) -> int:
         wind = dataclasses.replace(scenario.wind, gust_start_s=args.onset_s)
         scenario = dataclasses.replace(scenario, wind=wind, gust_start_s=args.onset_s)
     onset = disturbance_window(scenario, args.disturbance)
+    before_s, after_s = args.window_s or ((1.0, 4.0) if args.disturbance == "paper" else (2.0, 8.0))
     gains = {"adrc": AdrcOuterGains.load(), "pid": PidOuterGains.load()}
     series, flights = {}, {}
     for kind in CONTROLLERS:
@@ -220,6 +228,8 @@ def main(argv: list[str] | None = None) -> int:
             onset,
             args.out_dir / "paper_fig6.png",
             f"Fig. 6: tracking per channel around {what} (seed {args.seed})",
+            before_s,
+            after_s,
         ),
         eso_figure(
             series["adrc"],
@@ -227,6 +237,8 @@ def main(argv: list[str] | None = None) -> int:
             args.out_dir / "paper_fig7.png",
             f"Fig. 7: the cascade ADRC's six ESOs around {what} (seed {args.seed}); "
             "inner ESOs sampled at the 50 Hz outer tick (they run at 250 Hz)",
+            before_s,
+            after_s,
         ),
         route_figure(
             scenario,
@@ -257,7 +269,8 @@ def main(argv: list[str] | None = None) -> int:
             ),
         },
         "duration_s": args.duration_s,
-        "after_onset": window_numbers(series, onset),
+        "window_s": [before_s, after_s],
+        "after_onset": window_numbers(series, onset, after_s),
         "planner": {k: v for k, v in plan.items() if k != "history"} | {"history": _jsonable(plan["history"])},
         "figures": figures,
         "wall_s": time.perf_counter() - started,
