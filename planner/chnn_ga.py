@@ -143,7 +143,8 @@ def _initial_population(
         info["energy"] = run.energy[:, 0].tolist()
         valid = [k for k in range(size) if tours[k] is not None]
         if valid:
-            info["chnn_best_length"] = min(tour_length(tours[k], dist) for k in valid)
+            info["chnn_lengths"] = [float(tour_length(tours[k], dist)) for k in valid]  # as decoded, before repair
+            info["chnn_best_length"] = min(info["chnn_lengths"])
     population = [t if t is not None else rng.permutation(n).astype(np.int64) for t in tours]
     return population, info, activations
 
@@ -242,11 +243,13 @@ class _Population:
         return False
 
     def summary(self, generation: int, run: _Run) -> dict:
-        """The history entry's common part: best and mean length after this generation, time so far."""
+        """The history entry's common part: best and mean length after this generation, every individual's
+        (all feasible tours), time so far."""
         return {
             "generation": generation,
             "best_length": self.best_length,
             "mean_length": float(self.lengths.mean()),
+            "lengths": self.lengths.tolist(),
             "elapsed_s": run.elapsed_s(),
             "cpu_s": time.process_time() - run.cpu_started,
         }
@@ -305,6 +308,7 @@ def _next_generation(population: _Population, run: _Run) -> dict:
     kinds = _choose_operators(len(population.tours), run)
     chnn_children, energy = _chnn_mutations(population, kinds, run)
     accepted = {"chnn": 0, "crossover": 0, "ils": 0}
+    child_lengths: list[float] = []  # every valid child's length after repair, accepted or not
     for k, kind in enumerate(kinds):
         if run.out_of_time():
             break  # anytime: the rest of this generation keeps its parents
@@ -317,12 +321,14 @@ def _next_generation(population: _Population, run: _Run) -> dict:
             child, length = _crossover_child(k, population, run)
         else:
             child, length = _ils_child(k, population, run)
+        child_lengths.append(float(length))
         if population.accept(k, child, length):
             accepted[kind] += 1
     return {
         "chnn_children": len(chnn_children),
         "chnn_valid": sum(child is not None for child in chnn_children.values()),
         "accepted": accepted,
+        "child_lengths": child_lengths,
         "energy": energy,
     }
 

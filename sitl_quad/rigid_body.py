@@ -47,8 +47,12 @@ from uavcore.airframe import (
 
 STATE_SIZE = 17
 POS, VEL, QUAT, RATES, ROTORS = slice(0, 3), slice(3, 6), slice(6, 10), slice(10, 13), slice(13, 17)
-# last-step disturbance report written by advance(): wind NED, D_xyz, D_angular, external acceleration NED
-INFO_SIZE = 12
+# last-step disturbance report written by advance(): wind NED [0:3], D_xyz [3:6], D_angular [6:9], external
+# acceleration NED [9:12] (drag + D_xyz), and at the step's end the body's angular acceleration split in two:
+# external [12:15] (eq. 1's gyroscopic coupling + D_angular, rad/s^2 about the body axes) and the rotors' [15:18]
+# (the torque the spinning rotors deliver / inertia): the attitude loop's true disturbance is their sum minus
+# what its model says the command does (see bench/control/flight.py's FlightRecorder)
+INFO_SIZE = 18
 
 
 @njit(cache=True)
@@ -208,4 +212,13 @@ def advance(
     info[9] = dx + applied[0]
     info[10] = dy + applied[1]
     info[11] = dz + applied[2]
+    _, tau_x, tau_y, tau_z = rotor_wrench(state[13:17], params)
+    p, qr, r = state[10], state[11], state[12]
+    ixx, iyy, izz = params[P_IXX], params[P_IYY], params[P_IZZ]
+    info[12] = qr * r * (iyy - izz) / ixx + applied[3]
+    info[13] = r * p * (izz - ixx) / iyy + applied[4]
+    info[14] = p * qr * (ixx - iyy) / izz + applied[5]
+    info[15] = tau_x / ixx
+    info[16] = tau_y / iyy
+    info[17] = tau_z / izz
     return on_ground

@@ -38,7 +38,10 @@ class Simulator:
     ``last_disturbance`` reports what acted on the body during the last step (the truth an observer should
     estimate): ``wind_ned`` (m/s), ``d_accel_ned`` (D_x, D_y, D_z, m/s^2), ``d_angular`` (D_phi, D_theta,
     D_psi, rad/s^2) and ``external_accel_ned``: drag + D terms, i.e. the acceleration not explained by rotor
-    thrust and gravity (ground reaction excluded), evaluated at the end of the last step.
+    thrust and gravity (ground reaction excluded), evaluated at the end of the last step; likewise for the
+    rotation (rad/s^2 about the body axes, at the end of the last step): ``external_angular_accel``, eq. 1's
+    gyroscopic coupling + D_angular, and ``rotor_angular_accel``, the rotors' delivered torque / inertia (their sum
+    is the body's angular acceleration).
     """
 
     def __init__(
@@ -321,4 +324,6 @@ class Simulator:
             "d_accel_ned": info[3:6].copy(),
             "d_angular": info[6:9].copy(),
             "external_accel_ned": info[9:12].copy(),
+            "external_angular_accel": info[12:15].copy(),
+            "rotor_angular_accel": info[15:18].copy(),
         }

@@ -14,7 +14,8 @@ The modules, in reading order:
 - `flight`: the three controllers, one recorded lockstep flight (`fly`) and the lateral step (`step_response`);
 - `metrics`: what is measured on a flight's per-tick series;
 - `statistics`: mean and 95 % CI per controller, paired t-test and Wilcoxon signed-rank test across seeds;
-- `figures`: the paper's Figures 6, 7, 10 and 11 (and the step responses) drawn from seed 0;
+- `figures`: the paper's Figures 6 (altitude, yaw, pitch, roll), 7 (all six ESOs), 10 and 11 (and the step
+  responses) drawn from seed 0, and Fig. 9 for bench/paper_figures.py;
 - `__main__`: the command line, the worker pool, the table and control.json.
 """
 

@@ -13,9 +13,10 @@ adrc_offboard.design; the shipped designs are adrc_offboard/gains/design.json, t
   (MC_ATT_CTRL = 2), at the geometric family's design (no integral action: Lee's law has none);
 - "px4": the vehicle's built-in PX4-default PID cascade, no offboard controller ("PX4 defaults", untuned).
 
-`fly` flies the scenario's mission and records every outer-loop tick (`FlightRecorder`); `step_response`
-hovers at 5 m in still air (sensor noise and D terms on) and then steps the reference 5 m east. Both take a
-`design` to fly instead of the shipped one (the tuning's trials).
+`fly` flies the scenario's mission and records every outer-loop tick (`FlightRecorder`: with the outer ESO's
+states and, for the ADRC inner loop, its three attitude ESOs'); `step_response` hovers at 5 m in still air (sensor
+noise and D terms on) and then steps the reference 5 m east. Both take a `design` to fly instead of the shipped one
+(the tuning's trials).
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from adrc_offboard.adrc import P_B0, S_Z1, S_Z2, S_Z3
+from adrc_offboard.adrc_attitude import AXES, L_ACTUATOR, L_THETA, AdrcAttitudeController
 from adrc_offboard.design import Design, load_design, outer_loop_for, pid_attitude_gains
 from adrc_offboard.outer_loop import AdrcOuterLoop
 from bench.control.metrics import flight_metrics, step_metrics
@@ -37,7 +40,7 @@ from sitl_quad.vehicle import TickRecord, Vehicle
 from sitl_quad.wind import WindConfig
 from uavcore.control import OuterLoopController
 from uavcore.mission import MissionItem
-from uavcore.rotation import heading
+from uavcore.rotation import euler_from_quat, heading
 from uavcore.state import TrajectorySetpoint, VehicleState
 
 CONTROLLERS = ("adrc", "adrc_paper", "pid", "geometric", "px4")
@@ -75,8 +78,37 @@ def configure_vehicle(kind: str, config: VehicleConfig, design: Design | None = 
     return config
 
 
+# the inner (attitude) loop's columns, per axis of adrc_attitude.AXES (roll, pitch, yaw), in rad, rad/s, rad/s^2:
+INNER_COLUMNS = tuple(
+    f"{name}_{axis}"
+    for axis in AXES
+    for name in (
+        "att",  # the true Euler angle (ZYX; near level att_yaw equals the "yaw" column, the body x axis' heading)
+        "att_ref",  # the attitude target's Euler angle (what the outer loop asked for)
+        "rate",  # the true body rate p, q, r
+        "iz1",  # the inner ADRC's ESO z1: estimate of its channel's angle (theta_i, below)
+        "iz2",  # ... z2: estimate of the body rate
+        "iz3",  # ... z3: estimate of the total disturbance f_i in theta_i'' = f_i + b0_i u_i (rad/s^2)
+        "itheta",  # the channel's measured output theta_i: the body rate integrated (a bookkeeping angle)
+        "iext",  # the true external angular acceleration: eq. 1's gyroscopic coupling + D_angular (any controller)
+        "if",  # the true total disturbance z3 estimates: body angular acceleration - b0_i u_i (see below)
+    )
+)
+
+
 class FlightRecorder:
-    """Per-tick series of one flight (called by the harness after each vehicle tick, before the exchange)."""
+    """Per-tick series of one flight (called by the harness after each vehicle tick, before the exchange).
+
+    The outer loop's ESO columns (z1_x .. z3_z) are its states after its last update, which answered the
+    previous tick. The inner ADRC's (iz1_roll .. if_yaw, INNER_COLUMNS) are sampled here, at the outer tick
+    (50 Hz), from the attitude loop that runs at 250 Hz: the state after the last of the tick's five attitude
+    steps; NaN when the vehicle flies its PID attitude loop. The true inner disturbance if_i is defined against
+    the ESO's own model theta_i'' = f_i + b0_i u_i: f_i = (body angular acceleration) - b0_i u_i with the body's
+    angular acceleration from the simulator at the end of the tick (external_angular_accel +
+    rotor_angular_accel: gyroscopic coupling, D_angular and the torque the rotors deliver, per inertia) and u_i
+    the torque the ESO believes the rotors deliver (its first-order actuator model's output). So if_i holds the
+    D terms, the couplings and the model's error (the real motor lag, mixer saturation); iext_i the first two.
+    """
 
     COLUMNS = (
         "t",
@@ -112,6 +144,7 @@ class FlightRecorder:
         "vx",
         "vy",
         "vz",
+        *INNER_COLUMNS,
     )
 
     def __init__(self, harness: LockstepHarness) -> None:
@@ -127,6 +160,7 @@ class FlightRecorder:
         self._saturated = vehicle.saturated_ticks
         controller = self.harness.controller
         eso = controller.telemetry() if isinstance(controller, AdrcOuterLoop) else {}
+        inner = self._inner(record, vehicle.loop.attitude)
         self.rows.append(
             [
                 record.t,
@@ -143,8 +177,32 @@ class FlightRecorder:
                 float(record.source == "offboard"),
                 *(eso.get(f"{name}_{axis}", math.nan) for name in ("z1", "z2", "z3") for axis in "xyz"),
                 *truth.velocity,
+                *inner,
             ]
         )
+
+    @staticmethod
+    def _inner(record: TickRecord, attitude: object) -> list[float]:
+        """INNER_COLUMNS' values for this tick (the class docstring)."""
+        truth = record.truth
+        true_angles = euler_from_quat(truth.quaternion)
+        target_angles = euler_from_quat(record.target.quaternion)
+        nan3 = np.full(3, math.nan)
+        external = np.asarray(record.disturbance.get("external_angular_accel", nan3), dtype=float)
+        rotors = np.asarray(record.disturbance.get("rotor_angular_accel", nan3), dtype=float)
+        adrc = isinstance(attitude, AdrcAttitudeController)
+        values = []
+        for i in range(3):
+            if adrc:
+                state = attitude.channel_states[i]
+                b0 = attitude.channel_params[i][P_B0]
+                u = attitude.loop_state[L_ACTUATOR + i]
+                eso = [state[S_Z1], state[S_Z2], state[S_Z3], attitude.loop_state[L_THETA + i]]
+                true_f = external[i] + rotors[i] - b0 * u
+            else:
+                eso, true_f = [math.nan] * 4, math.nan
+            values += [true_angles[i], target_angles[i], truth.angular_velocity[i], *eso, external[i], true_f]
+        return [float(v) for v in values]
 
     def series(self) -> dict[str, np.ndarray]:
         data = np.asarray(self.rows, dtype=float)
@@ -169,15 +227,17 @@ def fly(
     design: Design | None = None,
     items: list[MissionItem] | None = None,
     config: VehicleConfig | None = None,
+    timeout_s: float = 900.0,
 ) -> tuple[dict, dict[str, np.ndarray]]:
     """One mission (the scenario's, or `items`) at `design` (the family's shipped one by default), in the scenario's
-    air or on `config`; returns (metrics, per-tick series)."""
+    air or on `config`; returns (metrics, per-tick series). A flight still going timeout_s (simulated) after the
+    mission start is cut there and counts as not completed."""
     config = config if config is not None else scenario.config(paper_disturbance)
     harness = _lockstep(kind, config, scenario, seed, design)
     recorder = FlightRecorder(harness)
     completed = True
     try:
-        harness.fly_mission(items or scenario.items, idle_ticks=60, on_tick=recorder)
+        harness.fly_mission(items or scenario.items, idle_ticks=60, timeout_s=timeout_s, on_tick=recorder)
     except HarnessError:
         completed = False
     completed = completed and harness.vehicle.navigator.mission_state == "complete"
