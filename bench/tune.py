@@ -14,7 +14,8 @@ Method:
    noise), flown in the in-process lockstep harness, each flight a task on Ray (bench.campaign).
 3. The optimiser: Optuna's TPE (multivariate, seeded), the same number of trials for every family (--trials), each
    trial flown on the same training seeds (--train-seeds); trials are asked in batches (--batch) with the
-   constant liar so parallel trials spread out.
+   constant liar so parallel trials spread out. Each family's first trial is its shipped design (a warm start, the
+   same for every family: the tuning can only keep or beat what shipped), then 11 random trials, then TPE.
 4. Constraints, the same for all: the flight completes on every seed, its largest error stays under
    MAX_ERROR_M (no divergence), the mixer clips in at most MAX_SATURATED of the tracking ticks, the thrust command's
    tick-to-tick RMS change stays under MAX_THRUST_STEP (no chatter). A trial that breaks one scores PENALTY plus its
@@ -159,6 +160,9 @@ class FamilyStudy:
         self.study = optuna.create_study(
             study_name=family, storage=storage, direction="minimize", sampler=sampler, load_if_exists=True
         )
+        self.start = load_designs()[family].values  # the shipped design: every family's first trial
+        if not self.study.trials:
+            self.study.enqueue_trial(self.start)
 
     def ask(self) -> Any:
         trial = self.study.ask()
@@ -231,7 +235,7 @@ def summarise_study(study: FamilyStudy) -> dict[str, Any]:
     ]
     admissible = [r for r in rows if r.get("admissible")]
     best = min(admissible, key=lambda r: r["value"]) if admissible else None
-    return {"trials": rows, "admissible": len(admissible), "best": best}
+    return {"start": study.start, "trials": rows, "admissible": len(admissible), "best": best}
 
 
 def holdout(args: argparse.Namespace, chosen: dict[str, dict[str, float]]) -> dict[str, Any]:

@@ -7,6 +7,7 @@ import json
 import optuna
 import pytest
 
+from adrc_offboard.design import load_design
 from bench.campaign import load_store
 from bench.tune import MAX_SATURATED, PENALTY, SPACE, FamilyStudy, bound_check, main, score
 
@@ -78,3 +79,5 @@ def test_a_tiny_campaign_on_ray_is_resumed_after_an_interruption(tmp_path) -> No
     assert added == len(set(store) - set(first))
     result = json.loads(out.read_text())
     assert result["trials_per_family"] == 2 and len(result["families"]["pid"]["trials"]) == 2
+    first = result["families"]["pid"]["trials"][0]
+    assert first["params"] == pytest.approx(load_design("pid").values)  # the warm start: the shipped design
