@@ -74,8 +74,9 @@ class CompiledAdrcAttitudeLoop(AdrcAttitudeController):
 
 
 def adrc_attitude_loop(config: VehicleConfig, rate_hz: float) -> AttitudeController:
-    """The paper's ADRC attitude loop for the configured airframe, its observers modelling the motor lag."""
-    return CompiledAdrcAttitudeLoop.for_airframe(config.airframe, rate_hz=rate_hz)
+    """The paper's ADRC attitude loop for the airframe the controllers are designed for (config.controller_airframe:
+    the true one unless a design airframe is set), its observers modelling the motor lag."""
+    return CompiledAdrcAttitudeLoop.for_airframe(config.controller_airframe, rate_hz=rate_hz)
 
 
 def attitude_loops() -> dict[AttitudeControllerKind, AttitudeLoopFactory]:

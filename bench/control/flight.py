@@ -43,8 +43,9 @@ LABELS = {
 def make_controller(
     kind: str, config: VehicleConfig, adrc_gains: AdrcOuterGains | None = None, pid_gains: PidOuterGains | None = None
 ) -> AdrcOuterLoop | PidOuterLoop | None:
-    """The offboard outer loop of controller `kind` (None for "px4": the vehicle flies its own cascade)."""
-    af = config.airframe
+    """The offboard outer loop of controller `kind` (None for "px4": the vehicle flies its own cascade), designed
+    for config.controller_airframe (the true airframe unless the config names a design airframe)."""
+    af = config.controller_airframe
     if kind == "adrc":
         return AdrcOuterLoop(af.mass, af.g, af.max_thrust_n, gains=adrc_gains, rate_hz=OUTER_RATE_HZ)
     if kind == "pid":
