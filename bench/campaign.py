@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import re
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -103,6 +104,19 @@ def _jsonable(value: Any) -> Any:
     return str(value)
 
 
+def _importable(fn: Callable[..., dict]) -> Callable[..., dict]:
+    """fn as its module's attribute: a function of a module run as `python -m pkg.mod` lives in `__main__`,
+    which Ray's workers cannot import; the same function imported as pkg.mod pickles by reference."""
+    if getattr(fn, "__module__", None) != "__main__":
+        return fn
+    spec = getattr(sys.modules["__main__"], "__spec__", None)
+    if spec is None:  # a script run by path: cloudpickle sends the function by value
+        return fn
+    import importlib
+
+    return getattr(importlib.import_module(spec.name), fn.__name__)
+
+
 def _call(fn: Callable[..., dict], kwargs: dict) -> dict:
     try:
         result = fn(**kwargs)
@@ -149,7 +163,7 @@ def run_tasks(
 
             start_ray(address, num_cpus)
             remote = ray.remote(num_cpus=1)(_call)
-            fn_ref = ray.put(fn)
+            fn_ref = ray.put(_importable(fn))
             pending = {remote.remote(fn_ref, kwargs): key for key, kwargs in todo}
             while pending:
                 ready, _ = ray.wait(list(pending), num_returns=1)
@@ -158,7 +172,8 @@ def run_tasks(
                     try:
                         results[key] = ray.get(ref)
                     except Exception as exc:
-                        results[key] = {"error": f"{type(exc).__name__}: {exc}"}
+                        message = re.sub(r"\x1b\[[0-9;]*m", "", str(exc))
+                        results[key] = {"error": f"{type(exc).__name__}: {message}"}
                     out.append(key, results[key])
                     bar.update(1)
     finally:
