@@ -21,7 +21,7 @@ import time
 from functools import cache
 from pathlib import Path
 
-from bench.campaign import run_tasks
+from bench.campaign import run_tasks, start_ray
 from bench.control import RESULTS
 
 
@@ -53,7 +53,7 @@ def tasks(n: int) -> list[tuple[str, dict]]:
 def _serial_in_fresh_process(n: int) -> float:
     """Wall seconds of the serial run, in a new interpreter (cold, like a Ray worker)."""
     code = (
-        "import time, sys; t = time.perf_counter(); from bench.campaign import run_tasks; "
+        "import time, sys; t = time.perf_counter(); from bench.campaign import run_tasks, start_ray; "
         "from bench.campaign_speedup import short_flight, tasks; "
         f"run_tasks(short_flight, tasks({n}), workers='serial', progress=False); "
         "print(time.perf_counter() - t)"
@@ -73,6 +73,8 @@ def main(argv: list[str] | None = None) -> int:
     serial_s = _serial_in_fresh_process(args.flights)
     load_between = os.getloadavg()
     started = time.perf_counter()
+    start_ray(args.address, args.cpus)  # timed apart: the cluster's start (or connection) is paid once per campaign
+    ray_start_s = time.perf_counter() - started
     results = run_tasks(
         short_flight, tasks(args.flights), workers="ray", address=args.address, num_cpus=args.cpus, desc="ray flights"
     )
@@ -88,6 +90,8 @@ def main(argv: list[str] | None = None) -> int:
         "flights": n,
         "wall_s_serial": serial_s,
         "wall_s_ray": ray_s,
+        "ray_start_s": ray_start_s,
+        "speed_up_excluding_ray_start": serial_s / (ray_s - ray_start_s),
         "speed_up": serial_s / ray_s,
         "flights_per_min_serial": 60.0 * n / serial_s,
         "flights_per_min_ray": 60.0 * n / ray_s,
@@ -102,7 +106,8 @@ def main(argv: list[str] | None = None) -> int:
         f"{row['flights_per_min_serial']:>15.1f}{row['flights_per_min_ray']:>12.1f}"
     )
     print(
-        f"Ray: {cluster_cpus:g} CPUs, {row['worker_processes']} worker processes, "
+        f"Ray: {cluster_cpus:g} CPUs, started in {ray_start_s:.1f} s (speed-up without it "
+        f"{row['speed_up_excluding_ray_start']:.2f}), {row['worker_processes']} worker processes, "
         f"{row['flights_per_core_min_ray']:.1f} flights per core-minute; load average "
         f"{load_before[0]:.2f} before, {load_after[0]:.2f} after; errors: {len(errors)}"
     )
