@@ -67,9 +67,11 @@ def fly_condition(condition: str, kind: str, seed: int) -> dict:
     harness = LockstepHarness(vehicle, make_controller(kind, config), outer_rate_hz=OUTER_RATE_HZ)
     recorder = FlightRecorder(harness)
     winds: list[np.ndarray] = []
+    texts: list[str] = []  # the vehicle's STATUSTEXTs: why a flight that did not complete ended
 
     def on_tick(record: TickRecord) -> None:
         recorder(record)
+        texts.extend(e.text for e in harness.last_events if e.kind == "text" and e.text)
         if -record.truth.position[2] > AIRBORNE_M:
             winds.append(record.disturbance["wind_ned"])
 
@@ -78,7 +80,12 @@ def fly_condition(condition: str, kind: str, seed: int) -> dict:
         harness.fly_mission(scenario.items, idle_ticks=60, on_tick=on_tick)
     except (HarnessError, ModelParameterError) as exc:
         completed, failure = False, f"{type(exc).__name__}: {exc}"[:200]
-    completed = completed and vehicle.navigator.mission_state == "complete"
+    state = vehicle.navigator.mission_state
+    if completed and state != "complete":  # ended without the harness's error: say how (a crash, a failsafe)
+        failure = f"mission {state}, vehicle {'armed' if vehicle.armed else 'disarmed'}" + (
+            f": {texts[-1]}" if texts else ""
+        )
+    completed = completed and state == "complete"
     metrics = flight_metrics(recorder.series(), scenario, len(scenario.items)) if recorder.rows else {}
     out: dict = {k: _finite_or_none(metrics.get(k, math.nan)) for k in KEPT}
     max_error = metrics.get("max_error_m", math.nan)
@@ -89,6 +96,7 @@ def fly_condition(condition: str, kind: str, seed: int) -> dict:
         completed=completed,
         success=bool(completed and math.isfinite(max_error) and max_error < SUCCESS_MAX_ERROR_M),
         failure=failure,
+        mission_state=state,
         wall_s=time.perf_counter() - started,
     )
     out.update({k: _finite_or_none(v) for k, v in wind_stats(np.asarray(winds).reshape(-1, 3)).items()})
