@@ -130,7 +130,7 @@ def test_a_tiny_campaign_writes_the_json_fields(tmp_path: Path) -> None:
     assert entry["group"] == "sensors" and set(entry["per_controller"]) == {"adrc", "px4"}
     for stats in entry["per_controller"].values():
         assert stats["n"] == 1 and stats["success_rate"] == 1.0
-        for metric in ("rms_error_m", "max_error_m", "gust_peak_m", "along_track_lag_rms_m", "wind_std_m_s"):
+        for metric in ("rms_error_m", "max_error_m", "gust_peak_m", "along_track_lag_mean_m", "wind_std_m_s"):
             assert stats[metric]["mean"] is not None
     assert "px4" in entry["paired_vs_adrc"]
     flights = [json.loads(line)["result"] for line in (tmp_path / "flights.jsonl").read_text().splitlines()]

@@ -6,9 +6,10 @@ vehicle above 1 m:
 - rms_error_m / max_error_m: 3-D position error, truth vs reference;
 - cross_track_rms_m / cross_track_max_m: horizontal distance to the planned leg (straight segment between
   consecutive waypoints, takeoff point first) while flying to each buoy;
-- along_track_lag_rms_m / along_track_lag_max_m: along-track lag, the reference's position minus the vehicle's
-  (horizontal), projected on the direction of the leg being flown (positive = the vehicle behind its reference),
-  over the same ticks as cross-track: RMS, and the largest (signed) value;
+- along_track_lag_rms_m / along_track_lag_max_m / along_track_lag_mean_m: along-track lag, the reference's position
+  minus the vehicle's (horizontal), projected on the direction of the leg being flown (positive = the vehicle
+  behind its reference, negative = ahead of it), over the same ticks as cross-track: RMS, the largest (signed)
+  value, and the mean (signed: RMS alone does not tell behind from ahead);
 - gust_peak_m: largest 3-D error within 10 s of the gust onset; gust_recovery_s: time from the onset until
   the error is back under 0.2 m for good within that window (10 s = not recovered):
   gcs.domain.tracking_metrics.gust_effect,
@@ -122,6 +123,7 @@ def flight_metrics(s: dict[str, np.ndarray], scenario: Scenario, n_items: int) -
     along_track = np.concatenate(lag) if lag else np.zeros(0)
     out["along_track_lag_rms_m"] = _rms(along_track)
     out["along_track_lag_max_m"] = _max(along_track)
+    out["along_track_lag_mean_m"] = float(along_track.mean()) if along_track.size else math.nan
     # the gust
     t_gust = scenario.wind.gust_start_s
     window = (t_since_takeoff >= t_gust) & (t_since_takeoff <= t_gust + GUST_WINDOW_S)

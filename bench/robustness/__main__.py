@@ -45,7 +45,7 @@ STATS_METRICS = (
     "wind_peak_m_s",
     "wind_vector_spread_m_s",
 )
-TESTED = ("rms_error_m", "max_error_m", "gust_peak_m", "along_track_lag_rms_m")
+TESTED = ("rms_error_m", "max_error_m", "gust_peak_m", "along_track_lag_rms_m", "along_track_lag_mean_m")
 REFERENCE = "adrc"
 
 
@@ -115,7 +115,7 @@ def _fmt(stat: dict, digits: int = 3) -> str:
 def print_table(results: dict, controllers: list[str]) -> None:
     head = (
         f"{'condition':28}{'ctrl':6}{'n':>3}{'succ':>6}{'rms m':>8}{'95% CI':>16}{'max m':>8}{'gust m':>8}"
-        f"{'lag m':>7}{'sat':>6}{'wind m/s mean/std/peak/spread':>31}{'p(rms) vs adrc t/W':>20}"
+        f"{'lag m':>7}{'mean':>7}{'sat':>6}{'wind m/s mean/std/peak/spread':>31}{'p(rms) vs adrc t/W':>20}"
     )
     print(head)
     for name, entry in results.items():
@@ -133,7 +133,8 @@ def print_table(results: dict, controllers: list[str]) -> None:
             p = f"{test['paired_t_p']:.3f}/{test['wilcoxon_p']:.3f}" if test else ""
             print(
                 f"{name:28}{kind:6}{s['n']:>3}{succ:>6}{_fmt(rms):>8}{ci:>16}{_fmt(s['max_error_m']):>8}"
-                f"{_fmt(s['gust_peak_m']):>8}{_fmt(s['along_track_lag_rms_m']):>7}{_fmt(s['saturated_fraction'], 2):>6}"
+                f"{_fmt(s['gust_peak_m']):>8}{_fmt(s['along_track_lag_rms_m']):>7}{_fmt(s['along_track_lag_mean_m']):>7}"
+                f"{_fmt(s['saturated_fraction'], 2):>6}"
                 f"{wind:>31}{p:>20}"
             )
 

@@ -28,6 +28,7 @@ KEPT = (
     "cross_track_max_m",
     "along_track_lag_rms_m",
     "along_track_lag_max_m",
+    "along_track_lag_mean_m",
     "gust_peak_m",
     "gust_recovery_s",
     "altitude_rms_m",
