@@ -83,21 +83,21 @@ class CompiledAdrcAttitudeLoop(AdrcAttitudeController):
 
 
 def adrc_attitude_loop(config: VehicleConfig, rate_hz: float, design: Design | None = None) -> AttitudeController:
-    """The paper's ADRC attitude loop for the configured airframe, its gains from the ADRC family's design
-    (adrc_offboard.design: the shipped design.json unless another is given), its observers modelling the motor lag."""
+    """The paper's ADRC attitude loop for the airframe the controllers are designed for (config.controller_airframe:
+    the true one unless a design airframe is set), its gains from the ADRC family's design (adrc_offboard.design: the
+    shipped design.json unless another is given), its observers modelling the motor lag."""
     design = design if design is not None else load_design("adrc")
-    gains = adrc_attitude_gains(config.airframe, design)
-    return CompiledAdrcAttitudeLoop.for_airframe(config.airframe, gains=gains, rate_hz=rate_hz)
+    airframe = config.controller_airframe
+    return CompiledAdrcAttitudeLoop.for_airframe(airframe, gains=adrc_attitude_gains(airframe, design), rate_hz=rate_hz)
 
 
 def geometric_attitude_loop(config: VehicleConfig, rate_hz: float, design: Design | None = None) -> AttitudeController:
-    """Lee's geometric attitude loop for the configured airframe at the geometric family's design (the shipped
-    design.json unless another is given; the law has no state: rate_hz does not enter it)."""
+    """Lee's geometric attitude loop for the airframe the controllers are designed for, at the geometric family's
+    design (the shipped design.json unless another is given; the law has no state: rate_hz does not enter it)."""
     design = design if design is not None else load_design("geometric")
-    gains = geometric_gains(config.airframe, design)
-    return GeometricAttitudeController.for_airframe(
-        config.airframe, gains.omega_roll_pitch, gains.omega_yaw, gains.zeta
-    )
+    airframe = config.controller_airframe
+    gains = geometric_gains(airframe, design)
+    return GeometricAttitudeController.for_airframe(airframe, gains.omega_roll_pitch, gains.omega_yaw, gains.zeta)
 
 
 def attitude_loops(

@@ -83,6 +83,11 @@ class SimulationConfig:
 
 @dataclass
 class VehicleConfig:
+    """`airframe` is the vehicle's true airframe: the physics flies it. `design_airframe` is the one its controllers
+    are designed for (the mixer, the built-in position loop, the normalised-thrust scale, the ADRC attitude loop's
+    b0 and motor lag, and bench.control.flight.make_controller's outer loops); None (the default) = the true one.
+    A robustness study (bench/robustness.py) perturbs `airframe` and keeps the nominal one here."""
+
     airframe: Airframe = field(default_factory=Airframe.table2)
     wind: WindConfig = field(default_factory=WindConfig)
     disturbance: DisturbanceConfig = field(default_factory=DisturbanceConfig)
@@ -94,3 +99,9 @@ class VehicleConfig:
     battery: BatteryConfig = field(default_factory=BatteryConfig)
     control: ControlConfig = field(default_factory=ControlConfig)
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
+    design_airframe: Airframe | None = None
+
+    @property
+    def controller_airframe(self) -> Airframe:
+        """The airframe the controllers are designed for: design_airframe, or the true one when it is None."""
+        return self.design_airframe if self.design_airframe is not None else self.airframe

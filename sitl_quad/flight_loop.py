@@ -82,7 +82,7 @@ class FlightLoop:
         self.attitude_dt = self.outer_dt / self.attitude_steps
         self.physics_steps = max(1, round(self.attitude_dt * PHYSICS_RATE_HZ))
         self.sim = self._make_simulator()
-        self.mixer = Mixer(config.airframe)
+        self.mixer = Mixer(config.controller_airframe)  # the autopilot's mixer knows the design model
         self.attitude = self._make_attitude_controller()
         self.position = self._make_position_controller()
 
@@ -108,7 +108,7 @@ class FlightLoop:
         return factory(self.config, 1.0 / self.attitude_dt)
 
     def _make_position_controller(self) -> PidPositionController:
-        return PidPositionController(self.config.airframe, self.config.position_pid)
+        return PidPositionController(self.config.controller_airframe, self.config.position_pid)
 
     def apply_config(self, changed: str) -> None:
         """Rebuild the parts that depend on config section `changed`."""
@@ -120,7 +120,7 @@ class FlightLoop:
                 sensor_noise=self.config.sensor_noise,
             )
         if changed == "airframe":
-            self.mixer = Mixer(self.config.airframe)
+            self.mixer = Mixer(self.config.controller_airframe)
         if changed in ("airframe", "attitude_pid", "control"):
             self.attitude = self._make_attitude_controller()
         if changed in ("airframe", "position_pid"):
@@ -154,7 +154,7 @@ class FlightLoop:
     def fly(self, target: AttitudeTarget, source: str) -> bool:
         """One outer period of attitude loop and physics toward `target`; whether the mixer saturated."""
         saturated = False
-        thrust_n = target.thrust * self.config.airframe.max_thrust_n
+        thrust_n = target.thrust * self.config.controller_airframe.max_thrust_n
         # a compiled loop flies the steps of the Python loop below in one call ("idle": the law runs, its torque
         # is not applied)
         steps = (thrust_n, self.attitude_steps, self.physics_steps, self.attitude_dt, source != "idle")

@@ -65,7 +65,7 @@ def fly_attitude_step(
     is on the ground after the step); with a non-finite input nothing is commanded or stepped (and the second
     value means nothing)."""
     state, omega_cmd, params, wind_params, turbulence, turbulence_noise = physics[:6]
-    disturbance, disturbance_samples, steps_per_sample, step_index, dt, info = physics[6:]
+    disturbance, disturbance_samples, steps_per_sample, step_index, dt, info, mixer_params = physics[6:]
     if not apply_torque:
         torque[:] = 0.0
     if not (
@@ -73,8 +73,9 @@ def fly_attitude_step(
     ):
         return False, False
     omega = np.empty(4)
-    saturated[k] = mix(thrust_n, torque[0], torque[1], torque[2], params, omega)
-    lo, hi = params[P_OMEGA_MIN], params[P_OMEGA_MAX]
+    # the autopilot's mixer works with the airframe it was designed for (mixer_params), the body flies the true one
+    saturated[k] = mix(thrust_n, torque[0], torque[1], torque[2], mixer_params, omega)
+    lo, hi = mixer_params[P_OMEGA_MIN], mixer_params[P_OMEGA_MAX]
     for i in range(4):
         omega_cmd[i] = min(max(omega[i], lo), hi)
     first = step_index + k * physics_steps

@@ -5,6 +5,12 @@ random rotation (body-frame rotation vector, std per axis) applied to the true q
 Defaults are a good GNSS/vision-aided estimate (2 cm, 5 cm/s, 0.3 deg, 0.01 rad/s); ``SensorNoise.none()``
 reports the truth.
 
+Measurement delay (`delay_s`, default 0): the state estimate the outer loops see (the vehicle's estimate at
+each outer tick: the built-in position loop, the navigator, the offboard controller's telemetry) is the
+measurement taken delay_s earlier, rounded to whole outer-loop ticks (`MeasurementDelay`); the attitude loop's
+own attitude and gyro measurements at 250 Hz are not delayed. Until delay_s has passed, the first measurement
+is repeated.
+
 The noise is applied by the kernel ``add_sensor_noise`` on the simulator's flat state layout
 (sitl_quad.rigid_body), so the vehicle's compiled inner loop measures with the same code; the unit normals
 come from one seeded stream, 12 per measurement in order, however they are drawn.
@@ -14,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +42,7 @@ class SensorNoise:
     velocity_std_m_s: float = 0.05
     attitude_std_rad: float = 0.005
     gyro_std_rad_s: float = 0.01
+    delay_s: float = 0.0  # the outer loops' estimate lags the truth by this, in whole outer ticks
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -113,3 +121,24 @@ class Sensors:
             angular_velocity=measured[10:13],
             rotor_speeds=measured[13:17],
         )
+
+
+class MeasurementDelay:
+    """A FIFO of `ticks` outer-loop measurements: `push(now)` returns the one taken `ticks` ticks earlier (the
+    oldest one held until that many have been pushed); ticks 0 returns `now`."""
+
+    def __init__(self, ticks: int) -> None:
+        if ticks < 0:
+            raise ModelParameterError(f"measurement delay must be >= 0 ticks, got {ticks}")
+        self.ticks = ticks
+        self._held: deque[VehicleState] = deque(maxlen=ticks + 1)
+
+    @classmethod
+    def for_config(cls, config: SensorNoise, outer_dt: float) -> MeasurementDelay:
+        return cls(round(config.delay_s / outer_dt))
+
+    def push(self, measured: VehicleState) -> VehicleState:
+        if self.ticks == 0:
+            return measured
+        self._held.append(measured)
+        return self._held[0]

@@ -258,6 +258,7 @@ class Simulator:
             int(first),
             self.dt,
             self._info,
+            mixer.params,
         )
         saturated = np.zeros(attitude_steps, dtype=np.bool_)
         completed, on_ground = inner_loop(

@@ -64,6 +64,7 @@ from sitl_quad.offboard_setpoints import OffboardTracker, PositionTarget, RatesT
 from sitl_quad.orbit import orbit_from_command
 from sitl_quad.position_control import PidPositionController
 from sitl_quad.rotors import Mixer
+from sitl_quad.sensors import MeasurementDelay
 from sitl_quad.simulator import Simulator
 from sitl_quad.vehicle_types import CommandResult, TickRecord, VehicleEvent
 from uavcore.control import AttitudeController
@@ -106,6 +107,7 @@ class Vehicle:
         self.frame = LocalFrame(*home)
         self.seed = seed
         self.loop = FlightLoop(config, seed, outer_rate_hz, attitude_loops)
+        self.measurement_delay = MeasurementDelay.for_config(config.sensor_noise, self.loop.outer_dt)
         self.navigator = Navigator(self.frame, config.navigator)
         self.mission: list[MissionItem] = []
         self.arming = ArmingState()
@@ -179,6 +181,8 @@ class Vehicle:
     def apply_config(self, changed: str) -> None:
         """Rebuild what depends on a config section after a parameter change."""
         self.loop.apply_config(changed)
+        if changed == "sensor_noise":
+            self.measurement_delay = MeasurementDelay.for_config(self.config.sensor_noise, self.outer_dt)
         if changed == "navigator":
             self.navigator.config = self.config.navigator
         if changed == "battery":  # the same pack, its charge kept, seen with the new parameters
@@ -578,7 +582,7 @@ class Vehicle:
         The estimate and the reference are taken at the start of the tick and are what the tick's state
         messages carry, so the offboard controller sees them consistent (same instant), one tick old.
         """
-        self.estimate = est = self.sim.measure()
+        self.estimate = est = self.measurement_delay.push(self.sim.measure())
         self._start_pending_takeoff()
         kind = self.offboard.kind if self.mode == FlightMode.OFFBOARD and self.offboard_fresh() else None
         if self.armed and kind in (SetpointKind.TRAJECTORY, SetpointKind.RATES):

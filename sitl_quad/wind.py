@@ -1,4 +1,5 @@
-"""Wind: a constant mean wind, a 1-cosine discrete gust and Dryden turbulence (MIL-F-8785C, low altitude).
+"""Wind: a constant mean wind, a 1-cosine discrete gust, Dryden turbulence (MIL-F-8785C, low altitude) and,
+optionally, a slowly wandering mean wind.
 
 All velocities are NED m/s of the air mass. Directions are meteorological: the direction the wind comes
 FROM, degrees clockwise from north (a 270 deg wind blows toward the east).
@@ -15,6 +16,17 @@ Each filter is integrated exactly over the step (state transition and noise cova
 process over dt), with its state kept in units where the stationary covariance is fixed. So the output's
 standard deviation is the configured intensity at any step size and the state does not jump when the
 airspeed or altitude changes; the initial state is drawn from the stationary distribution.
+
+Wandering mean wind (`wander_std_m_s` > 0; off by default): the mean wind vector drifts. Its north and east
+components each get an independent first-order Gauss-Markov (Ornstein-Uhlenbeck) deviation
+    dx = -x / T dt + sqrt(2 / T) sigma dW,  T = wander_time_constant_s, sigma = wander_std_m_s,
+started from its stationary distribution (so the spread is sigma from the first second) and sampled exactly
+every WANDER_SAMPLE_S on the disturbance clock over wander_horizon_s (held after that), linearly
+interpolated in between: over a window much longer than T each component's standard deviation is sigma and
+its autocorrelation exp(-lag / T). The path is drawn once per WindModel from its own seed stream (a child of the
+wind's seed that leaves the turbulence's draws untouched), so it is deterministic per seed and a flight without
+wander keeps exactly the numbers it had before the option existed. The turbulence's axes stay aligned with the
+configured mean direction.
 """
 
 from __future__ import annotations
@@ -36,6 +48,10 @@ TURBULENCE_NOISE_PER_STEP = 5  # unit normals per step: u 1, v 2, w 2
 W_MEAN_N, W_MEAN_E, W_GUST_AMPLITUDE, W_GUST_RISE, W_GUST_START, W_GUST_HOLD = 0, 1, 2, 3, 4, 5
 W_GUST_DIR_N, W_GUST_DIR_E, W_W20, W_TURB_DIR_N, W_TURB_DIR_E = 6, 7, 8, 9, 10
 N_WIND_PARAMS = 11
+# With a wandering mean wind the array goes on: [N_WIND_PARAMS] = sample interval, then north, east per sample.
+W_WANDER_DT = N_WIND_PARAMS
+WANDER_SAMPLE_S = 0.5
+WANDER_SEED_KEY = 0x57A0  # the wander's seed stream: the wind's seed sequence with this appended to its spawn key
 
 
 @dataclass(frozen=True)
@@ -50,6 +66,9 @@ class WindConfig:
     gust_hold_s: float = math.inf  # time at full amplitude before a mirrored fall; inf = stays (MIL-F-8785C)
     gust_direction_from_deg: float = 0.0
     turbulence_w20_m_s: float = 0.0  # Dryden intensity set by the wind speed at 20 ft; 0 = no turbulence
+    wander_std_m_s: float = 0.0  # wandering mean wind: std of each horizontal component's drift; 0 = none
+    wander_time_constant_s: float = 30.0  # its correlation time T
+    wander_horizon_s: float = 3600.0  # the drift is drawn over this much disturbance-clock time, then held
 
     def __post_init__(self) -> None:
         for name in (
@@ -70,6 +89,27 @@ class WindConfig:
             raise ModelParameterError(f"gust_rise_time_s must be positive, got {self.gust_rise_time_s}")
         if not self.gust_hold_s >= 0:
             raise ModelParameterError(f"gust_hold_s must be >= 0 (inf to hold), got {self.gust_hold_s}")
+        for name in ("wander_std_m_s", "wander_time_constant_s", "wander_horizon_s"):
+            value = getattr(self, name)
+            if not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
+                raise ModelParameterError(f"wind parameter {name} must be finite and >= 0, got {value!r}")
+        if self.wander_std_m_s > 0 and (self.wander_time_constant_s <= 0 or self.wander_horizon_s <= 0):
+            raise ModelParameterError("a wandering wind needs wander_time_constant_s > 0 and wander_horizon_s > 0")
+
+    def wander_path(self, rng: np.random.Generator) -> np.ndarray:
+        """(n, 2) north, east deviations of the mean wind every WANDER_SAMPLE_S from t = 0 (empty without
+        wander): the exact discrete Ornstein-Uhlenbeck process, first sample from its stationary law."""
+        if self.wander_std_m_s == 0:
+            return np.zeros((0, 2))
+        n = math.ceil(self.wander_horizon_s / WANDER_SAMPLE_S) + 1
+        phi = math.exp(-WANDER_SAMPLE_S / self.wander_time_constant_s)
+        innovation = self.wander_std_m_s * math.sqrt(1.0 - phi * phi)
+        normals = rng.standard_normal((n, 2))
+        path = np.empty((n, 2))
+        path[0] = self.wander_std_m_s * normals[0]
+        for k in range(1, n):
+            path[k] = phi * path[k - 1] + innovation * normals[k]
+        return path
 
     def as_array(self) -> np.ndarray:
         params = np.zeros(N_WIND_PARAMS)
@@ -168,6 +208,15 @@ def mean_and_gust(params: np.ndarray, t: float, out: np.ndarray) -> None:
     out[0] = params[W_MEAN_N] + gust * params[W_GUST_DIR_N]
     out[1] = params[W_MEAN_E] + gust * params[W_GUST_DIR_E]
     out[2] = 0.0
+    samples = (params.shape[0] - W_WANDER_DT - 1) // 2
+    if samples > 0:  # a wandering mean wind: its path, linearly interpolated
+        x = max(t, 0.0) / params[W_WANDER_DT]
+        k = min(int(x), samples - 1)
+        frac = min(x - k, 1.0) if k < samples - 1 else 0.0
+        base = W_WANDER_DT + 1 + 2 * k
+        nxt = base + 2 if k < samples - 1 else base
+        out[0] += (1.0 - frac) * params[base] + frac * params[nxt]
+        out[1] += (1.0 - frac) * params[base + 1] + frac * params[nxt + 1]
 
 
 @njit(cache=True)
@@ -231,13 +280,28 @@ def initial_turbulence_state(rng: np.random.Generator) -> np.ndarray:
     return state
 
 
+def wander_rng(rng: np.random.Generator) -> np.random.Generator:
+    """The wandering wind's own stream: derived from the wind generator's seed sequence without drawing from it."""
+    seq = rng.bit_generator.seed_seq
+    if not isinstance(seq, np.random.SeedSequence):
+        raise ModelParameterError("a wandering wind needs a wind generator made from a seed (SeedSequence)")
+    return np.random.default_rng(
+        np.random.SeedSequence(entropy=seq.entropy, spawn_key=(*seq.spawn_key, WANDER_SEED_KEY))
+    )
+
+
 class WindModel:
     """Stateful wind source. ``velocity`` advances the turbulence from the previous call's time to t."""
 
     def __init__(self, config: WindConfig | None = None, seed: int | np.random.Generator = 0) -> None:
         self.config = config or WindConfig()
-        self.params = self.config.as_array()
         self.rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        self.params = self.config.as_array()
+        if self.config.wander_std_m_s > 0:
+            self.wander = self.config.wander_path(wander_rng(self.rng))
+            self.params = np.concatenate([self.params, [WANDER_SAMPLE_S], self.wander.ravel()])
+        else:
+            self.wander = np.zeros((0, 2))
         self.turbulent = self.config.turbulence_w20_m_s > 0
         self.turbulence = initial_turbulence_state(self.rng) if self.turbulent else np.zeros(5)
         self._t: float | None = None

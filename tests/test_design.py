@@ -77,7 +77,10 @@ def test_a_smaller_airframe_gets_its_own_gains_by_the_same_rules() -> None:
     heavy = TABLE2.replace(mass=1.5 * TABLE2.mass)  # thrust-to-weight 1.49: less room to tilt or climb
     assert envelope(heavy).max_horizontal_acc < 0.75 * envelope(TABLE2).max_horizontal_acc
     assert acceleration_limits(heavy).max_up < 0.5 * acceleration_limits(TABLE2).max_up
-    with pytest.raises(ModelParameterError, match=r"thrust-to-weight of at least 1\.31"):
+    loaded = envelope(TABLE2.replace(mass=1.9 * TABLE2.mass))  # 1.18: the reserve shrinks, it flies gently
+    assert loaded.usable_thrust_n == pytest.approx(1.1 * 1.9 * TABLE2.mass * TABLE2.g)
+    assert math.degrees(loaded.max_tilt_rad) == pytest.approx(math.degrees(math.acos(1 / 1.1)))
+    with pytest.raises(ModelParameterError, match=r"thrust-to-weight of at least 1\.16"):
         envelope(TABLE2.replace(mass=2 * TABLE2.mass))  # 1.12: it hovers, but cannot be controlled with margin
 
 

@@ -6,7 +6,10 @@ the airframe (thrust-to-weight, arm, lift and drag coefficients, rotor-speed ran
 policy choices named:
 
 - `THRUST_RESERVE` (20 % of the full thrust) is kept for attitude control: the collective never asks for more than
-  the rest, so a tilt or climb at the limit still leaves the mixer room for the torques that hold the attitude.
+  the rest, so a tilt or climb at the limit still leaves the mixer room for the torques that hold the attitude. On
+  a heavily loaded airframe that would leave less than 10 % above its weight, the reserve shrinks (to 5 % at
+  least): it flies gently (small tilt, slow climb) rather than not at all; below a thrust-to-weight of 1.16 it is
+  refused, naming the figure.
 - Tilt: the largest tilt at which the usable thrust still carries the weight, cos(tilt) = m g / T_usable, capped at
   `MAX_TILT_POLICY_RAD` (45 deg, PX4's MPC_TILTMAX_AIR default). Horizontal acceleration: g tan(tilt), what that
   tilt gives at constant altitude.
@@ -31,6 +34,8 @@ from dataclasses import dataclass
 from uavcore.airframe import Airframe, ModelParameterError
 
 THRUST_RESERVE = 0.2
+MIN_THRUST_RESERVE = 0.05
+MIN_MANOEUVRE_MARGIN = 0.1
 MAX_TILT_POLICY_RAD = math.radians(45.0)
 MAX_UP_POLICY_G = 1.0
 MAX_DOWN_POLICY = 3.0
@@ -72,12 +77,16 @@ def hover_torque_authority(airframe: Airframe) -> tuple[float, float, float]:
 def envelope(airframe: Airframe) -> Envelope:
     """The envelope of `airframe` (module docstring)."""
     weight = airframe.mass * airframe.g
-    usable = (1.0 - THRUST_RESERVE) * airframe.max_thrust_n
-    if usable <= 1.05 * weight:
+    # the reserve shrinks (to MIN_THRUST_RESERVE) on an airframe that would otherwise keep less than
+    # MIN_MANOEUVRE_MARGIN above its weight: a heavily loaded vehicle flies gently rather than not at all
+    usable = max((1.0 - THRUST_RESERVE) * airframe.max_thrust_n, (1.0 + MIN_MANOEUVRE_MARGIN) * weight)
+    usable = min(usable, (1.0 - MIN_THRUST_RESERVE) * airframe.max_thrust_n)
+    if usable < (1.0 + MIN_MANOEUVRE_MARGIN) * weight:
+        needed = (1.0 + MIN_MANOEUVRE_MARGIN) / (1.0 - MIN_THRUST_RESERVE)
         raise ModelParameterError(
             f"the airframe's thrust ({airframe.max_thrust_n:.3g} N, thrust-to-weight {airframe.thrust_to_weight:.2f}) "
-            f"leaves no room to manoeuvre once {THRUST_RESERVE:.0%} is kept for attitude control: it needs a "
-            f"thrust-to-weight of at least {1.05 / (1 - THRUST_RESERVE):.2f}"
+            f"leaves no room to manoeuvre once {MIN_THRUST_RESERVE:.0%} is kept for attitude control: it needs a "
+            f"thrust-to-weight of at least {needed:.2f}"
         )
     tilt = min(math.acos(weight / usable), MAX_TILT_POLICY_RAD)
     up = max(0.0, min(usable / airframe.mass - airframe.g, MAX_UP_POLICY_G * airframe.g))

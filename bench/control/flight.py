@@ -60,11 +60,12 @@ INNER_LOOP = {  # MC_ATT_CTRL per family; others: the PID
 
 
 def make_controller(kind: str, config: VehicleConfig, design: Design | None = None) -> OuterLoopController | None:
-    """The offboard outer loop of controller `kind` for the configured airframe at `design` (the shipped one by
-    default); None for "px4": the vehicle flies its own cascade."""
+    """The offboard outer loop of controller `kind` for the airframe the controllers are designed for
+    (config.controller_airframe: the true one unless the config names a design airframe) at `design` (the shipped
+    one by default); None for "px4": the vehicle flies its own cascade."""
     if kind == "px4":
         return None
-    return outer_loop_for(kind, config.airframe, design, rate_hz=OUTER_RATE_HZ)
+    return outer_loop_for(kind, config.controller_airframe, design, rate_hz=OUTER_RATE_HZ)
 
 
 def configure_vehicle(kind: str, config: VehicleConfig, design: Design | None = None) -> VehicleConfig:
@@ -74,7 +75,8 @@ def configure_vehicle(kind: str, config: VehicleConfig, design: Design | None = 
     config = replace(config, control=replace(config.control, attitude_controller=inner))
     if kind == "pid":
         design = design if design is not None else load_design("pid")
-        config = replace(config, attitude_pid=PidAttitudeGains(**pid_attitude_gains(config.airframe, design)))
+        gains = pid_attitude_gains(config.controller_airframe, design)
+        config = replace(config, attitude_pid=PidAttitudeGains(**gains))
     return config
 
 

@@ -6,6 +6,10 @@ vehicle above 1 m:
 - rms_error_m / max_error_m: 3-D position error, truth vs reference;
 - cross_track_rms_m / cross_track_max_m: horizontal distance to the planned leg (straight segment between
   consecutive waypoints, takeoff point first) while flying to each buoy;
+- along_track_lag_rms_m / along_track_lag_max_m / along_track_lag_mean_m: along-track lag, the reference's position
+  minus the vehicle's (horizontal), projected on the direction of the leg being flown (positive = the vehicle
+  behind its reference, negative = ahead of it), over the same ticks as cross-track: RMS, the largest (signed)
+  value, and the mean (signed: RMS alone does not tell behind from ahead);
 - gust_peak_m: largest 3-D error within 10 s of the gust onset; gust_recovery_s: time from the onset until
   the error is back under 0.2 m for good within that window (10 s = not recovered):
   gcs.domain.tracking_metrics.gust_effect,
@@ -104,7 +108,7 @@ def flight_metrics(s: dict[str, np.ndarray], scenario: Scenario, n_items: int) -
     out["altitude_rms_m"] = _rms((truth[:, 2] - ref[:, 2])[tracking])
     # cross-track against the planned legs
     waypoints = np.asarray(scenario.waypoints_ne)
-    cross = []
+    cross, lag = [], []
     for leg in range(1, len(waypoints)):
         on_leg = tracking & (seq == FIRST_BUOY_SEQ - 1 + leg)
         a, b = waypoints[leg - 1], waypoints[leg]
@@ -112,9 +116,14 @@ def flight_metrics(s: dict[str, np.ndarray], scenario: Scenario, n_items: int) -
         direction = b - a
         u = np.clip(((p - a) @ direction) / float(direction @ direction), 0.0, 1.0)
         cross.append(np.linalg.norm(p - (a + np.outer(u, direction)), axis=1))
+        lag.append((ref[on_leg, :2] - p) @ (direction / float(np.linalg.norm(direction))))
     cross_track = np.concatenate(cross) if cross else np.zeros(0)
     out["cross_track_rms_m"] = _rms(cross_track)
     out["cross_track_max_m"] = _max(cross_track)
+    along_track = np.concatenate(lag) if lag else np.zeros(0)
+    out["along_track_lag_rms_m"] = _rms(along_track)
+    out["along_track_lag_max_m"] = _max(along_track)
+    out["along_track_lag_mean_m"] = float(along_track.mean()) if along_track.size else math.nan
     # the gust
     t_gust = scenario.wind.gust_start_s
     window = (t_since_takeoff >= t_gust) & (t_since_takeoff <= t_gust + GUST_WINDOW_S)

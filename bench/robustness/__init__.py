@@ -1,0 +1,1 @@
+"""Robustness sweeps of the controllers (`python -m bench.robustness`; see __main__'s docstring)."""
