@@ -5,7 +5,8 @@ and its gains for any airframe follow from that airframe's envelope (`uavcore.en
 
 - the attitude loop's bandwidth is a fraction (`attitude_bandwidth`) of what the motors allow, 1 / (4 tau);
   yaw's is `yaw_ratio` of it; the position loop's horizontal bandwidth is the attitude bandwidth divided by
-  `separation` (time-scale separation of the cascade) and the vertical one is `vertical_ratio` times that;
+  `separation` (time-scale separation of the cascade) and the vertical one is `vertical_ratio` times that; every
+  loop's bandwidth is at most 0.1 rad/s per Hz of its sampling rate (5 rad/s at 50 Hz, 25 rad/s at 250 Hz);
 - the ADRC's observers sit at `observer_ratio` (outer) and `attitude_observer_ratio` (inner) times their loop's
   bandwidth (Gao's bandwidth parameterisation, `adrc.bandwidth_parameters`), b0 = 1 (outer, acceleration) and 1/I
   (inner, torque); the feedback's acceleration bounds r1 are shares of the envelope's accelerations, the torque
@@ -50,6 +51,8 @@ OUTER_RATE_HZ = 50.0
 ATTITUDE_RATE_HZ = 250.0
 
 # fixed shares, not tuned (why, beside each)
+SAMPLED_BANDWIDTH_SHARE = 0.1  # rad/s per Hz: omega h <= 0.1, where a discrete loop still behaves as designed
+RATE_LOOP_SHARE = 0.3  # the PID's rate loop (P-dominant, no observer) may go to omega h = 0.3 at the attitude rate
 OUTER_DELTA_M = 0.02  # fal's linear zone in the position channels: above the 2 cm position noise
 ATTITUDE_DELTA_RAD = 0.005  # ... in the attitude channels: above the 0.3 deg attitude noise
 R1_SHARE = 0.85  # NLSEF acceleration bound as a share of what the actuator gives (room for the observer's z3)
@@ -124,14 +127,20 @@ class Design:
             raise AttributeError(name) from None
 
     def bandwidths(self, airframe: Airframe) -> dict[str, float]:
-        """Attitude (roll/pitch), yaw, horizontal and vertical position bandwidths in rad/s for `airframe`."""
-        attitude = self.attitude_bandwidth * envelope(airframe).attitude_bandwidth_limit
-        horizontal = attitude / self.separation
+        """Attitude (roll/pitch), yaw, horizontal and vertical position bandwidths in rad/s for `airframe`, each at
+        most SAMPLED_BANDWIDTH_SHARE of its loop's sampling rate (a fast airframe's motors allow more than a 50 Hz
+        position loop or a 250 Hz attitude loop can sample)."""
+        attitude = min(
+            self.attitude_bandwidth * envelope(airframe).attitude_bandwidth_limit,
+            SAMPLED_BANDWIDTH_SHARE * ATTITUDE_RATE_HZ,
+        )
+        outer_cap = SAMPLED_BANDWIDTH_SHARE * OUTER_RATE_HZ
+        horizontal = min(attitude / self.separation, outer_cap)
         return {
             "attitude": attitude,
             "yaw": self.yaw_ratio * attitude,
             "horizontal": horizontal,
-            "vertical": self.vertical_ratio * horizontal,
+            "vertical": min(self.vertical_ratio * horizontal, outer_cap),
         }
 
 
@@ -219,7 +228,9 @@ def pid_attitude_gains(airframe: Airframe, design: Design) -> dict[str, float]:
     env, w = envelope(airframe), design.bandwidths(airframe)
     out: dict[str, float] = {"mc_roll_p": w["attitude"], "mc_pitch_p": w["attitude"], "mc_yaw_p": w["yaw"]}
     for axis, name, inertia in ((0, "roll", airframe.ixx), (1, "pitch", airframe.iyy), (2, "yaw", airframe.izz)):
-        rate_bandwidth = design.rate_ratio * (w["yaw"] if axis == 2 else w["attitude"])
+        rate_bandwidth = min(
+            design.rate_ratio * (w["yaw"] if axis == 2 else w["attitude"]), RATE_LOOP_SHARE * ATTITUDE_RATE_HZ
+        )
         p = inertia * rate_bandwidth
         out[f"mc_{name}rate_p"] = p
         out[f"mc_{name}rate_i"] = p * design.rate_integral * rate_bandwidth
