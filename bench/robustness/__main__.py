@@ -1,13 +1,15 @@
-"""Robustness sweeps: every controller at its shipped gains, flown on the short scenario under each condition.
+"""Robustness sweeps: every controller at its shipped design, flown on the short scenario under each condition.
 
-    .venv/bin/python -m bench.robustness [--seeds 10] [--conditions NAMES|GROUPS] [--controllers adrc,pid,px4]
+    .venv/bin/python -m bench.robustness [--seeds 10] [--conditions NAMES|GROUPS] [--controllers adrc,pid,...]
                                          [--workers ray|serial] [--address ADDR] [--cpus N] [--no-figures]
 
 Conditions (bench/robustness/conditions.py, a list that is data): model error (the vehicle's real airframe
 perturbed, the controllers designed for the nominal one), wind (mean 0-12 m/s with gust and turbulence scaled,
 a wandering mean wind), the paper's disturbances (a 0.1 s wind change, D-term variance 0.05-15), sensors (noise
-x0/x3, delay 20/60 ms), two other airframes. Gains come from the shipped files through the usual loaders (the
-outer loops' defaults, gains/attitude_adrc.json, the vehicle's PID defaults), so the sweep follows those files.
+x0/x3, delay 20/60 ms), two other airframes. Each family flies its shipped design (adrc_offboard/gains/design.json,
+chosen by `python -m bench.tune`): its gains for both loops derived from the airframe its controllers are designed
+for (adrc_offboard.design): the nominal Table 2 under model error, the other airframe's own file for the airframe
+conditions; "px4" flies the vehicle's PX4 defaults.
 
 Per flight (bench/robustness/flight.py): bench.control.metrics' tracking RMS and peak error, cross-track,
 along-track lag, gust peak and recovery, saturated fraction; success = the mission completed and the 3-D tracking
