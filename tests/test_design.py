@@ -13,7 +13,10 @@ from adrc_offboard.adrc import AdrcParameterError
 from adrc_offboard.adrc_attitude import AdrcAttitudeGains
 from adrc_offboard.cli import make_controller as offboard_controller
 from adrc_offboard.design import (
+    ATTITUDE_RATE_HZ,
     DESIGN_PARAMETERS,
+    RATE_LOOP_SHARE,
+    SAMPLED_BANDWIDTH_SHARE,
     Design,
     acceleration_limits,
     adrc_attitude_gains,
@@ -67,13 +70,13 @@ def test_a_smaller_airframe_gets_its_own_gains_by_the_same_rules() -> None:
     small = TABLE2.replace(ixx=TABLE2.ixx / 2, iyy=TABLE2.iyy / 2, motor_time_constant=0.01)
     design = load_design("adrc")
     big, little = adrc_attitude_gains(TABLE2, design), adrc_attitude_gains(small, design)
-    assert little.roll["omega_c"] == pytest.approx(2 * big.roll["omega_c"])  # motors twice as fast
+    cap = SAMPLED_BANDWIDTH_SHARE * ATTITUDE_RATE_HZ  # what a 250 Hz loop can sample
+    assert little.roll["omega_c"] == pytest.approx(min(2 * big.roll["omega_c"], cap))  # motors twice as fast
     assert little.roll["u_max"] == pytest.approx(big.roll["u_max"])  # same mixer
     assert little.roll["r1"] == pytest.approx(2 * big.roll["r1"])  # half the inertia: twice the acceleration
     pid = load_design("pid")
-    assert pid_attitude_gains(small, pid)["mc_rollrate_p"] == pytest.approx(
-        pid_attitude_gains(TABLE2, pid)["mc_rollrate_p"]  # half the inertia times twice the bandwidth
-    )
+    rate = min(pid.rate_ratio * pid.bandwidths(small)["attitude"], RATE_LOOP_SHARE * ATTITUDE_RATE_HZ)
+    assert pid_attitude_gains(small, pid)["mc_rollrate_p"] == pytest.approx(small.ixx * rate)  # P = I w_r
     heavy = TABLE2.replace(mass=1.5 * TABLE2.mass)  # thrust-to-weight 1.49: less room to tilt or climb
     assert envelope(heavy).max_horizontal_acc < 0.75 * envelope(TABLE2).max_horizontal_acc
     assert acceleration_limits(heavy).max_up < 0.5 * acceleration_limits(TABLE2).max_up
