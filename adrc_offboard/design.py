@@ -65,35 +65,13 @@ PID_I_MAX_SHARE = 2.0 / 3.0  # PID position integrator clamp as a share of the h
 PID_ROLL_INTEGRATOR_SHARE = 0.08  # rate-integrator clamps as shares of the axis's torque authority
 PID_YAW_INTEGRATOR_SHARE = 0.6
 
+CASCADE = ("attitude_bandwidth", "yaw_ratio", "separation", "vertical_ratio")  # every family's bandwidths
+ADRC_OBSERVERS = ("observer_ratio", "attitude_observer_ratio")
 DESIGN_PARAMETERS: dict[str, tuple[str, ...]] = {
-    "adrc": (
-        "attitude_bandwidth",
-        "yaw_ratio",
-        "separation",
-        "vertical_ratio",
-        "observer_ratio",
-        "attitude_observer_ratio",
-    ),
-    "adrc_paper": (
-        "attitude_bandwidth",
-        "yaw_ratio",
-        "separation",
-        "vertical_ratio",
-        "observer_ratio",
-        "attitude_observer_ratio",
-        "td_ratio",
-    ),
-    "pid": (
-        "attitude_bandwidth",
-        "yaw_ratio",
-        "separation",
-        "vertical_ratio",
-        "integral_ratio",
-        "rate_ratio",
-        "rate_integral",
-        "rate_derivative",
-    ),
-    "geometric": ("attitude_bandwidth", "yaw_ratio", "separation", "vertical_ratio", "attitude_damping"),
+    "adrc": (*CASCADE, *ADRC_OBSERVERS),
+    "adrc_paper": (*CASCADE, *ADRC_OBSERVERS, "td_ratio"),
+    "pid": (*CASCADE, "integral_ratio", "rate_ratio", "rate_integral", "rate_derivative"),
+    "geometric": (*CASCADE, "attitude_damping"),
 }
 
 

@@ -199,7 +199,6 @@ def main(argv: list[str] | None = None) -> int:
             for m, t in targets.items()
         )
     )
-    figures = draw_figures(scenario, series, traces, args.out.parent) if args.figures else []
     result = {
         "command": "python -m bench.control " + " ".join(argv if argv is not None else sys.argv[1:]),
         "elapsed_s": elapsed,
@@ -228,11 +227,14 @@ def main(argv: list[str] | None = None) -> int:
         "paper_disturbance_completed": paper_completed,
         "targets": targets,
         "per_seed": per_seed,
-        "figures": figures,
+        "figures": [],
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(_finite_or_null(result), indent=1, default=float))
-    print(f"\nwrote {args.out} ({elapsed:.0f} s){''.join(chr(10) + '  ' + f for f in figures)}")
+    args.out.write_text(json.dumps(_finite_or_null(result), indent=1, default=float))  # before the figures: kept
+    if args.figures:
+        result["figures"] = draw_figures(scenario, series, traces, args.out.parent)
+        args.out.write_text(json.dumps(_finite_or_null(result), indent=1, default=float))
+    print(f"\nwrote {args.out} ({elapsed:.0f} s){''.join(chr(10) + '  ' + f for f in result['figures'])}")
     return 0
 
 

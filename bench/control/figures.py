@@ -24,7 +24,7 @@ def draw_figures(scenario: Scenario, series: dict[str, dict], steps: dict[str, n
     matplotlib.use("Agg")  # files only, no display
     import matplotlib.pyplot as plt
 
-    colours = {"adrc": "tab:green", "pid": "tab:red", "px4": "tab:purple", "geometric": "tab:orange"}
+    colours = COLOURS
     paths = []
     t_gust = scenario.wind.gust_start_s
 
@@ -111,8 +111,20 @@ def _save(fig, path: Path) -> str:
 
 
 # ----- the paper's Figures 6, 7 and 9 complete (bench/paper_figures.py draws them; draw_figures above too)
-COLOURS = {"adrc": "tab:green", "pid": "tab:red", "px4": "tab:purple"}
-SHORT = {"adrc": "ADRC", "pid": "PID", "px4": "PX4 defaults"}
+COLOURS = {
+    "adrc": "tab:green",
+    "adrc_paper": "tab:olive",
+    "pid": "tab:red",
+    "geometric": "tab:orange",
+    "px4": "tab:purple",
+}
+SHORT = {
+    "adrc": "ADRC",
+    "adrc_paper": "ADRC (paper's form)",
+    "pid": "PID",
+    "geometric": "geometric",
+    "px4": "PX4 defaults",
+}
 
 
 def mission_time(s: dict[str, np.ndarray]) -> np.ndarray:

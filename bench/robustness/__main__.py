@@ -171,7 +171,7 @@ def draw(results: dict, controllers: list[str], out_dir: Path) -> list[str]:
             ax2.bar(pos, succ, width, label=kind)
         ax.set_yscale("log")
         ax.set_ylabel("RMS tracking error, m (95 % CI)")
-        ax.set_title(f"robustness: {group} (shipped gains, short scenario)")
+        ax.set_title(f"robustness: {group} (shipped designs, short scenario)")
         ax.legend()
         ax2.set_ylabel(f"success % (completed, max error < {SUCCESS_MAX_ERROR_M:g} m)")
         ax2.set_ylim(0, 105)

@@ -8,7 +8,7 @@ between), 10 m/s at 5 m, 5 m/s crosswind, the 4 m/s 1-cosine gust halfway along 
   fields scaled ("inertia" = ixx, iyy, izz; "drag" = the four drag_* coefficients); the controllers keep the
   nominal Table 2 (VehicleConfig.design_airframe): model error;
 - airframe_file: another airframe (uavcore/airframes/NAME) that the controllers also know (design = true),
-  flown with the shipped gains and limits;
+  flown at the shipped designs, with the gains and limits derived for it (adrc_offboard.design);
 - wind_mean_m_s: the mean crosswind, with the gust and the Dryden intensity scaled with it (gust 0.8 x mean,
   sigma 0.2 x mean, as 4 and 1 m/s are at the nominal 5 m/s);
 - wander: {"std_m_s", "time_constant_s"}: the mean wind wanders (sitl_quad.wind's Ornstein-Uhlenbeck drift);
@@ -69,7 +69,7 @@ CONDITIONS: list[dict] = [
     {"name": "noise_x3", "group": "sensors", "noise_scale": 3.0},
     {"name": "delay_20ms", "group": "sensors", "delay_s": 0.02},
     {"name": "delay_60ms", "group": "sensors", "delay_s": 0.06},
-    # other airframes (controllers at their shipped gains and limits)
+    # other airframes (each family at its shipped design: gains and limits derived for the airframe)
     {"name": "airframe_hummingbird_0.5kg", "group": "airframe", "airframe_file": "hummingbird.json"},
     {"name": "airframe_x500_3kg", "group": "airframe", "airframe_file": "x500_3kg.json"},
 ]

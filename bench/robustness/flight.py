@@ -19,6 +19,9 @@ from sitl_quad.vehicle import TickRecord, Vehicle
 from uavcore.airframe import ModelParameterError
 
 SUCCESS_MAX_ERROR_M = 10.0  # success: the mission completed and the 3-D tracking error never exceeded this
+# the nominal short mission lasts about 100 s: one not over after three times that has failed (and a failed flight
+# would otherwise fly on to the harness's 900 s, ten times a good one's cost)
+TIMEOUT_S = 300.0
 AIRBORNE_M = 1.0
 KEPT = (
     "rms_error_m",
@@ -78,7 +81,7 @@ def fly_condition(condition: str, kind: str, seed: int) -> dict:
 
     completed, failure = True, ""
     try:
-        harness.fly_mission(scenario.items, idle_ticks=60, on_tick=on_tick)
+        harness.fly_mission(scenario.items, idle_ticks=60, timeout_s=TIMEOUT_S, on_tick=on_tick)
     except (HarnessError, ModelParameterError) as exc:
         completed, failure = False, f"{type(exc).__name__}: {exc}"[:200]
     state = vehicle.navigator.mission_state
