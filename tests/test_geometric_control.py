@@ -68,7 +68,8 @@ def test_at_hover_the_outer_loop_commands_level_attitude_and_hover_thrust(yaw):
 
 
 def test_the_outer_loop_tilts_toward_the_error_and_projects_the_thrust_on_the_current_body_axis():
-    loop = GeometricOuterLoop(AIRFRAME.mass, AIRFRAME.g, AIRFRAME.max_thrust_n)
+    # the law at a known bandwidth (kx = 4 /s^2), not the shipped design's numbers
+    loop = GeometricOuterLoop(AIRFRAME.mass, AIRFRAME.g, AIRFRAME.max_thrust_n, GeometricGains.for_bandwidth(2.0, 2.5))
     # 1 m south of the setpoint (NED x = -1): push north, i.e. pitch nose down (negative pitch in FRD/NED)
     target = loop.update(
         TrajectorySetpoint(position=np.array([0.0, 0.0, -10.0])),
