@@ -18,26 +18,19 @@ import os
 import subprocess
 import sys
 import time
-from functools import cache
 from pathlib import Path
 
 from bench.campaign import run_tasks, start_ray
 from bench.control import RESULTS
 
 
-@cache
-def _short():  # the scenario, built once per process (worker)
-    from bench.control.scenario import build_scenario, short_scenario
-
-    return short_scenario(build_scenario())
-
-
 def short_flight(kind: str, seed: int) -> dict:
     """One short lockstep flight at the shipped gains; its headline metrics and the process's wall time for it."""
     from bench.control.flight import fly
+    from bench.control.scenario import short_reference_scenario
 
     started = time.perf_counter()
-    scenario = _short()
+    scenario = short_reference_scenario()
     metrics, _ = fly(kind, seed, scenario, items=scenario.items)
     keep = ("rms_error_m", "max_error_m", "gust_peak_m", "saturated_fraction", "completed", "flight_s")
     return {k: metrics[k] for k in keep} | {"wall_s": time.perf_counter() - started, "pid": os.getpid()}

@@ -48,7 +48,7 @@ from adrc_offboard.design import DESIGN_PARAMETERS, Design, describe, gains_file
 from bench.campaign import run_tasks
 from bench.control import RESULTS
 from bench.control.flight import fly
-from bench.control.scenario import build_scenario, short_scenario
+from bench.control.scenario import short_reference_scenario
 from uavcore.airframe import Airframe
 
 FAMILIES = ("adrc", "adrc_paper", "pid", "geometric")
@@ -80,7 +80,7 @@ PHYSICAL_BOUNDS: dict[tuple[str, str], str] = {}  # (parameter, "low"|"high") ->
 
 def flight_task(family: str, design: dict[str, float], seed: int) -> dict[str, Any]:
     """One tuning flight (a Ray task): the short scenario at `design`, seed `seed`; the metrics the score needs."""
-    scenario = short_scenario(_base_scenario())
+    scenario = short_reference_scenario()
     try:
         built = Design(family, design)
         metrics, _ = fly(family, seed, scenario, design=built, items=scenario.items)
@@ -88,16 +88,6 @@ def flight_task(family: str, design: dict[str, float], seed: int) -> dict[str, A
         return {"buildable": False, "reason": str(exc)[:200]}
     keep = ("rms_error_m", "max_error_m", "gust_peak_m", "saturated_fraction", "thrust_step_rms", "completed")
     return {"buildable": True} | {k: _finite(metrics[k]) for k in keep}
-
-
-_BASE = None
-
-
-def _base_scenario():
-    global _BASE
-    if _BASE is None:
-        _BASE = build_scenario()
-    return _BASE
 
 
 def _finite(value: Any) -> Any:

@@ -15,7 +15,7 @@ from adrc_offboard.design import geometric_gains, load_design
 from adrc_offboard.gains import load_gains
 from adrc_offboard.geometric import GeometricGains, GeometricOuterLoop
 from bench.control.flight import fly
-from bench.control.scenario import build_scenario, short_scenario
+from bench.control.scenario import short_reference_scenario
 from sitl_quad.attitude_geometric import GeometricAttitudeController, attitude_error
 from sitl_quad.attitude_loops import attitude_loops
 from sitl_quad.config import AttitudeControllerKind, ControlConfig, VehicleConfig
@@ -156,7 +156,7 @@ def test_a_yaw_step_converges_and_the_tilt_stays_level():
 
 
 def test_the_short_mission_flies_with_the_geometric_controller():
-    short = short_scenario(build_scenario())
+    short = short_reference_scenario()
     metrics, _ = fly("geometric", 0, short, items=short.items)
     assert metrics["completed"]
     # measured rms_error_m 0.396 m at seed 0 (0.391, 0.429 at seeds 1, 2; the ADRC 0.047, the PID 0.087 on the

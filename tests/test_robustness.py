@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from bench.control.flight import configure_vehicle, make_controller
+from bench.control.scenario import short_reference_scenario
 from bench.robustness.conditions import BY_NAME, build
-from bench.robustness.flight import base_scenario
 from sitl_quad.attitude_loops import attitude_loops
 from sitl_quad.config import AttitudeControllerKind, ControlConfig, VehicleConfig
 from sitl_quad.sensors import MeasurementDelay, SensorNoise
@@ -86,7 +86,7 @@ def test_sensor_delay_delays_the_vehicles_estimate() -> None:
 def test_a_perturbed_airframe_reaches_the_vehicle_while_the_controllers_keep_the_nominal_one() -> None:
     nominal = Airframe.table2()
     for kind in ("adrc", "pid"):
-        config, _ = build(BY_NAME["mass+30%"], base_scenario())
+        config, _ = build(BY_NAME["mass+30%"], short_reference_scenario())
         config = configure_vehicle(kind, config)
         assert config.airframe.mass == pytest.approx(1.3 * nominal.mass)
         assert config.controller_airframe == nominal
@@ -98,7 +98,7 @@ def test_a_perturbed_airframe_reaches_the_vehicle_while_the_controllers_keep_the
         assert controller is not None
         output = getattr(controller, "_out", controller)  # the ADRC keeps its thrust model in its output stage
         assert output.mass == nominal.mass
-    config = configure_vehicle("adrc", build(BY_NAME["inertia+30%"], base_scenario())[0])
+    config = configure_vehicle("adrc", build(BY_NAME["inertia+30%"], short_reference_scenario())[0])
     assert config.airframe.ixx == pytest.approx(1.3 * nominal.ixx)
     designed = Vehicle(config, HOME, seed=0, attitude_loops=attitude_loops()).attitude
     truthful = Vehicle(

@@ -22,6 +22,7 @@ noise and D terms on) and then steps the reference 5 m east. Both take a `design
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -38,6 +39,7 @@ from sitl_quad.config import AttitudeControllerKind, VehicleConfig
 from sitl_quad.lockstep_harness import HarnessError, LockstepHarness
 from sitl_quad.vehicle import TickRecord, Vehicle
 from sitl_quad.wind import WindConfig
+from uavcore.airframe import ModelParameterError
 from uavcore.control import OuterLoopController
 from uavcore.mission import MissionItem
 from uavcore.rotation import euler_from_quat, heading
@@ -230,22 +232,41 @@ def fly(
     items: list[MissionItem] | None = None,
     config: VehicleConfig | None = None,
     timeout_s: float = 900.0,
+    observe: Callable[[TickRecord, LockstepHarness], None] | None = None,
 ) -> tuple[dict, dict[str, np.ndarray]]:
     """One mission (the scenario's, or `items`) at `design` (the family's shipped one by default), in the scenario's
     air or on `config`; returns (metrics, per-tick series). A flight still going timeout_s (simulated) after the
-    mission start is cut there and counts as not completed."""
+    mission start is cut there and counts as not completed. `observe`, if given, sees every tick's record with the
+    harness after the recorder has it (what a caller wants beyond the metrics: the wind met, the vehicle's texts).
+
+    Besides the metrics: `completed`, `mission_state` (the navigator's at the end) and `failure` (why a flight that
+    did not complete ended: the harness's or the model's error, else the mission's state and the vehicle's last
+    STATUSTEXT, a crash or a failsafe; empty when it completed)."""
     config = config if config is not None else scenario.config(paper_disturbance)
     harness = _lockstep(kind, config, scenario, seed, design)
     recorder = FlightRecorder(harness)
-    completed = True
+    texts: list[str] = []
+
+    def on_tick(record: TickRecord) -> None:
+        recorder(record)
+        texts.extend(e.text for e in harness.last_events if e.kind == "text" and e.text)
+        if observe is not None:
+            observe(record, harness)
+
+    failure = ""
     try:
-        harness.fly_mission(items or scenario.items, idle_ticks=60, timeout_s=timeout_s, on_tick=recorder)
-    except HarnessError:
-        completed = False
-    completed = completed and harness.vehicle.navigator.mission_state == "complete"
+        harness.fly_mission(items or scenario.items, idle_ticks=60, timeout_s=timeout_s, on_tick=on_tick)
+    except (HarnessError, ModelParameterError) as exc:
+        failure = f"{type(exc).__name__}: {exc}"[:200]
+    vehicle = harness.vehicle
+    state = vehicle.navigator.mission_state
+    if not failure and state != "complete":  # ended without an error: say how (a crash, a failsafe)
+        failure = f"mission {state}, vehicle {'armed' if vehicle.armed else 'disarmed'}" + (
+            f": {texts[-1]}" if texts else ""
+        )
     series = recorder.series()
-    metrics = flight_metrics(series, scenario, len(items or scenario.items))
-    metrics["completed"] = completed
+    metrics = flight_metrics(series, scenario, len(items or scenario.items)) if recorder.rows else {}
+    metrics.update(completed=not failure, mission_state=state, failure=failure)
     return metrics, series
 
 

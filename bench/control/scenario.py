@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import cache
 
 import numpy as np
 
@@ -221,3 +222,10 @@ def short_scenario(base: Scenario) -> Scenario:
         gust_start_s=gust,
         wind=replace(base.wind, gust_start_s=gust),
     )
+
+
+@cache
+def short_reference_scenario() -> Scenario:
+    """short_scenario of the reference scenario: the tuning's, the robustness sweeps' and the campaign benchmark's
+    flight, built once per process (a Scenario is not changed after it is built: variants are `replace`d copies)."""
+    return short_scenario(build_scenario())

@@ -5,18 +5,14 @@ from __future__ import annotations
 
 import math
 import time
-from functools import cache
 
 import numpy as np
 
-from bench.control.flight import FlightRecorder, configure_vehicle, make_controller
-from bench.control.metrics import flight_metrics
-from bench.control.scenario import OUTER_RATE_HZ, Scenario, build_scenario, short_scenario
+from bench.control.flight import fly
+from bench.control.scenario import short_reference_scenario
 from bench.robustness.conditions import BY_NAME, build
-from sitl_quad.attitude_loops import attitude_loops
-from sitl_quad.lockstep_harness import HarnessError, LockstepHarness
-from sitl_quad.vehicle import TickRecord, Vehicle
-from uavcore.airframe import ModelParameterError
+from sitl_quad.lockstep_harness import LockstepHarness
+from sitl_quad.vehicle import TickRecord
 
 SUCCESS_MAX_ERROR_M = 10.0  # success: the mission completed and the 3-D tracking error never exceeded this
 # the nominal short mission lasts about 100 s: one not over after three times that has failed (and a failed flight
@@ -40,12 +36,6 @@ KEPT = (
 )
 
 
-@cache
-def base_scenario() -> Scenario:
-    """The nominal short flight (bench.control.scenario.short_scenario), built once per process."""
-    return short_scenario(build_scenario())
-
-
 def wind_stats(wind_ned: np.ndarray) -> dict:
     """The wind the vehicle met (per tick, while airborne): horizontal speed mean, standard deviation and peak, and
     the spread of the horizontal wind vector (sqrt of the trace of its covariance: what a wandering mean adds)."""
@@ -64,43 +54,24 @@ def wind_stats(wind_ned: np.ndarray) -> dict:
 def fly_condition(condition: str, kind: str, seed: int) -> dict:
     """Fly the short mission under `condition` with controller `kind` on `seed`; a JSON-able dict of results."""
     started = time.perf_counter()
-    base = base_scenario()
-    config, scenario = build(BY_NAME[condition], base)
-    config = configure_vehicle(kind, config)  # the family's inner loop, designed for config.controller_airframe
-    vehicle = Vehicle(config, scenario.home, seed=seed, outer_rate_hz=OUTER_RATE_HZ, attitude_loops=attitude_loops())
-    harness = LockstepHarness(vehicle, make_controller(kind, config), outer_rate_hz=OUTER_RATE_HZ)
-    recorder = FlightRecorder(harness)
+    config, scenario = build(BY_NAME[condition], short_reference_scenario())
     winds: list[np.ndarray] = []
-    texts: list[str] = []  # the vehicle's STATUSTEXTs: why a flight that did not complete ended
 
-    def on_tick(record: TickRecord) -> None:
-        recorder(record)
-        texts.extend(e.text for e in harness.last_events if e.kind == "text" and e.text)
+    def wind_met(record: TickRecord, _harness: LockstepHarness) -> None:
         if -record.truth.position[2] > AIRBORNE_M:
             winds.append(record.disturbance["wind_ned"])
 
-    completed, failure = True, ""
-    try:
-        harness.fly_mission(scenario.items, idle_ticks=60, timeout_s=TIMEOUT_S, on_tick=on_tick)
-    except (HarnessError, ModelParameterError) as exc:
-        completed, failure = False, f"{type(exc).__name__}: {exc}"[:200]
-    state = vehicle.navigator.mission_state
-    if completed and state != "complete":  # ended without the harness's error: say how (a crash, a failsafe)
-        failure = f"mission {state}, vehicle {'armed' if vehicle.armed else 'disarmed'}" + (
-            f": {texts[-1]}" if texts else ""
-        )
-    completed = completed and state == "complete"
-    metrics = flight_metrics(recorder.series(), scenario, len(scenario.items)) if recorder.rows else {}
+    metrics, _ = fly(kind, seed, scenario, config=config, timeout_s=TIMEOUT_S, observe=wind_met)
     out: dict = {k: _finite_or_none(metrics.get(k, math.nan)) for k in KEPT}
     max_error = metrics.get("max_error_m", math.nan)
     out.update(
         condition=condition,
         controller=kind,
         seed=seed,
-        completed=completed,
-        success=bool(completed and math.isfinite(max_error) and max_error < SUCCESS_MAX_ERROR_M),
-        failure=failure,
-        mission_state=state,
+        completed=metrics["completed"],
+        success=bool(metrics["completed"] and math.isfinite(max_error) and max_error < SUCCESS_MAX_ERROR_M),
+        failure=metrics["failure"],
+        mission_state=metrics["mission_state"],
         wall_s=time.perf_counter() - started,
     )
     out.update({k: _finite_or_none(v) for k, v in wind_stats(np.asarray(winds).reshape(-1, 3)).items()})
