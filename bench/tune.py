@@ -45,7 +45,7 @@ import numpy as np
 
 from adrc_offboard.adrc import AdrcParameterError
 from adrc_offboard.design import DESIGN_PARAMETERS, Design, describe, gains_files, load_designs
-from bench.campaign import run_tasks
+from bench.campaign import load_store, run_tasks
 from bench.control import RESULTS
 from bench.control.flight import fly
 from bench.control.scenario import short_reference_scenario
@@ -161,11 +161,10 @@ class FamilyStudy:
             trial.suggest_float(name, low, high, log=True)
         return trial
 
-    def record(self, trial: Any, result: dict[str, Any]) -> None:
-        """A trial's score and what it is made of, then its value (a trial asked now or left running earlier)."""
-        for name, value in result.items():
-            self.study._storage.set_trial_user_attr(trial._trial_id, name, value)
-        self.study.tell(trial.number, result["value"])
+    def record(self, number: int, value: float) -> None:
+        """A trial's value (a trial asked now or left running earlier: Optuna's tell takes either by number). What
+        the value is made of is not stored in the study: summarise_study scores the trial's flights again."""
+        self.study.tell(number, value)
 
     def running(self) -> list[Any]:
         import optuna
@@ -208,19 +207,22 @@ def tune(args: argparse.Namespace) -> dict[str, Any]:
         ]
         flights = run_tasks(flight_task, tasks, store, desc="tuning flights", **run)
         for s, t in batch:
-            result = score([flights[_key(s.family, t.number, seed)] for seed in args.train_seeds])
-            s.record(t, result)
+            s.record(t.number, score([flights[_key(s.family, t.number, seed)] for seed in args.train_seeds])["value"])
         done = {f: s.finished() for f, s in studies.items()}
         print(f"  trials finished: {done}", flush=True)
-    return {family: summarise_study(s) for family, s in studies.items()}
+    flights = load_store(store)
+    return {family: summarise_study(s, flights, args.train_seeds) for family, s in studies.items()}
 
 
-def summarise_study(study: FamilyStudy) -> dict[str, Any]:
+def summarise_study(study: FamilyStudy, flights: dict[str, dict], train_seeds: list[int]) -> dict[str, Any]:
+    """Each completed trial's design and score (from its flights in the store, the same `score` its value came
+    from), the admissible ones counted and the best of them."""
     import optuna
 
     trials = study.study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.COMPLETE,))
     rows = [
-        {"number": t.number, "value": t.value, "params": t.params, **{k: v for k, v in t.user_attrs.items()}}
+        {"number": t.number, "params": t.params}
+        | score([flights[_key(study.family, t.number, seed)] for seed in train_seeds])
         for t in trials
     ]
     admissible = [r for r in rows if r.get("admissible")]
