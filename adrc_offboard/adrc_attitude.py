@@ -59,6 +59,7 @@ from adrc_offboard.adrc import (
 )
 from adrc_offboard.gains import channel_parameters, load_gains
 from uavcore.airframe import Airframe
+from uavcore.quaternion_kernels import error_quaternion
 from uavcore.state import AttitudeTarget, VehicleState
 
 AXES = ("roll", "pitch", "yaw")
@@ -71,13 +72,8 @@ _NO_FEEDFORWARD = np.zeros(3)
 @njit(cache=True)
 def attitude_errors(q: np.ndarray, qd: np.ndarray) -> tuple[float, float, float]:
     """(roll, pitch, yaw) errors in rad from the attitude q to the target qd (module docstring: tilt first)."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    tw, tx, ty, tz = qd[0], qd[1], qd[2], qd[3]
     # q_err = conj(q) * q_target (rotation current body -> target body, body axes)
-    ew = w * tw + x * tx + y * ty + z * tz
-    ex = w * tx - x * tw - y * tz + z * ty
-    ey = w * ty + x * tz - y * tw - z * tx
-    ez = w * tz - x * ty + y * tx - z * tw
+    ew, ex, ey, ez = error_quaternion((q[0], q[1], q[2], q[3]), (qd[0], qd[1], qd[2], qd[3]))
     # Tilt first (PX4's reduced attitude): the target's thrust axis seen from the current body,
     # z_t = R(q_err) e3, and the shortest rotation taking the body z axis onto it.
     zx = 2.0 * (ex * ez + ew * ey)

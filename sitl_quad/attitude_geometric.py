@@ -39,6 +39,7 @@ from numba import njit
 from sitl_quad.inner_loop import fly_attitude_step, measure
 from sitl_quad.rigid_body import STATE_SIZE
 from uavcore.airframe import Airframe, ModelParameterError
+from uavcore.quaternion_kernels import error_quaternion
 from uavcore.state import AttitudeTarget, VehicleState
 
 # The kernel's gains array: k_R [0:3] (N m / rad), k_Omega [3:6] (N m / (rad/s)), inertias [6:9] (kg m^2),
@@ -90,12 +91,7 @@ class GeometricAttitudeGains:
 @njit(cache=True)
 def relative_rotation(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     """R^T R_d as a 3x3 matrix: the matrix of q^-1 qd (the target's axes in the current body axes)."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    tw, tx, ty, tz = qd[0], qd[1], qd[2], qd[3]
-    ew = w * tw + x * tx + y * ty + z * tz
-    ex = w * tx - x * tw - y * tz + z * ty
-    ey = w * ty + x * tz - y * tw - z * tx
-    ez = w * tz - x * ty + y * tx - z * tw
+    ew, ex, ey, ez = error_quaternion((q[0], q[1], q[2], q[3]), (qd[0], qd[1], qd[2], qd[3]))
     n2 = ew * ew + ex * ex + ey * ey + ez * ez
     s = 2.0 / n2
     m = np.empty((3, 3))

@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from sitl_quad.quaternion_kernels import Quat, Vec3, quat_inverse, quat_product, rotate_vector
 from uavcore.airframe import ModelParameterError
+from uavcore.quaternion_kernels import Quat, Vec3, quat_inverse, quat_product, rotate_vector
 from uavcore.state import AttitudeTarget, VehicleState
 
 

@@ -27,8 +27,8 @@ import numpy as np
 from numba import njit
 
 from sitl_quad.normal_stream import NormalStream, Zeros
-from sitl_quad.quaternion_kernels import quat_product
 from uavcore.airframe import ModelParameterError
+from uavcore.quaternion_kernels import quat_product
 from uavcore.state import VehicleState
 
 NOISE_PER_MEASUREMENT = 12  # position, velocity, attitude rotation vector, gyro: 3 each

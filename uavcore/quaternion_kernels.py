@@ -1,7 +1,7 @@
 """Quaternion products for numba kernels: uavcore.rotation's formulas on tuples of floats.
 
-The attitude PID and the sensor noise run inside the vehicle's compiled 250 Hz loop, where rotation's numpy
-helpers cannot be called. Same conventions: (w, x, y, z), body FRD -> world NED.
+The attitude laws (the vehicle's PID, ADRC and geometric inner loops) and the sensor noise run inside compiled
+loops, where rotation's numpy helpers cannot be called. Same conventions: (w, x, y, z), body FRD -> world NED.
 """
 
 from __future__ import annotations
@@ -28,6 +28,13 @@ def quat_product(a: Quat, b: Quat) -> Quat:
 def quat_inverse(q: Quat) -> Quat:
     """The conjugate, which is the inverse of a unit quaternion."""
     return (q[0], -q[1], -q[2], -q[3])
+
+
+@njit(cache=True)
+def error_quaternion(q: Quat, qd: Quat) -> Quat:
+    """q^-1 qd: the rotation from the current body q to the target body qd, in body axes (every attitude law's
+    error starts here: the ADRC's tilt-first angles, the geometric law's R^T R_d)."""
+    return quat_product(quat_inverse(q), qd)
 
 
 @njit(cache=True)
