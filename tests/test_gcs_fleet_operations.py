@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import asyncio
 import itertools
+import math
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -25,8 +27,10 @@ from gcs.domain.schemas import FenceZoneIn
 from gcs.missions.validation import fence_from_request
 from gcs.settings import Settings
 from gcs.vehicle.link import LinkManager
+from gcs.vehicle.mission_protocol import MissionRejectedError, upload_items
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 from uavcore.geofence import Geofence
+from uavcore.mission import MissionType, rally_point_items
 
 pytestmark = pytest.mark.integration
 
@@ -88,7 +92,41 @@ INCLUSION = {"kind": "polygon", "inclusion": True, "vertices": [_point(-60, -60)
              _point(260, -60)]}  # fmt: skip
 EXCLUSION = {"kind": "polygon", "inclusion": False, "vertices": [_point(95, 70), _point(105, 70), _point(105, 90),
              _point(95, 90)]}  # fmt: skip
-RALLY = {**_point(240, -40), "alt_m": 12.0}  # farther from every buoy than the homes are: no landing there
+# farther from every buoy than the homes (PX4 RTL_TYPE 0 lands at the nearer); a mission given rally points ends
+# by a waypoint at its depot and NAV_LAND anyway
+RALLY = {**_point(240, -40), "alt_m": 12.0}
+
+
+def test_the_vehicle_takes_the_fence_and_rally_points_as_uploaded_and_refuses_bad_ones_by_their_result(start_sitl):
+    """The lists the service uploads, against the vehicle's own acceptance: read back as sent; a polygon whose
+    vertex count (param1) does not add up is MAV_MISSION_INVALID_PARAM1, a rally point without an altitude
+    MAV_MISSION_INVALID_PARAM7, each error naming the list."""
+    vehicle = start_sitl(speed=SPEED)
+    fence = fence_from_request([FenceZoneIn.model_validate(zone) for zone in (INCLUSION, EXCLUSION)])
+
+    async def scenario() -> None:
+        link = LinkManager(f"udpout://127.0.0.1:{vehicle.port}", 5.0)
+        await link.start()
+        try:
+            assert await link.wait_connected(CONNECT_S)
+            await link.upload_fence(fence)
+            await link.upload_rally_points([(RALLY["lat"], RALLY["lon"], RALLY["alt_m"])])
+            on_board = await link.download_fence()
+            assert [(z.inclusion, len(z.vertices)) for z in on_board.zones] == [(True, 4), (False, 4)]
+            assert np.allclose(on_board.zones[1].vertices, fence.zones[1].vertices, rtol=0, atol=1.5e-7)
+            (rally,) = await link.download_rally_points()
+            assert rally.z == RALLY["alt_m"]
+            short = [replace(item, param1=5.0) for item in fence.to_items()[:4]]  # says 5 vertices, has 4
+            with pytest.raises(MissionRejectedError, match=r"refused the geofence \(MAV_MISSION_INVALID_PARAM1\)"):
+                await upload_items(link, short, mission_type=MissionType.FENCE)
+            (no_altitude,) = rally_point_items([(RALLY["lat"], RALLY["lon"], math.nan)])
+            with pytest.raises(MissionRejectedError, match=r"refused the rally points \(MAV_MISSION_INVALID_PARAM7\)"):
+                await upload_items(link, [no_altitude], mission_type=MissionType.RALLY)
+            assert len((await link.download_fence()).zones) == 2  # a refused list changes nothing on board
+        finally:
+            await link.stop()
+
+    asyncio.run(scenario())
 
 
 @pytest.mark.slow
@@ -164,7 +202,9 @@ def test_a_vehicle_its_battery_failsafe_brings_down_is_lost_and_its_buoys_reshar
         fleet = mission["fleet"]
         assert set(fleet["inspected_by"]) == {b["id"] for b in buoys}  # every buoy, by someone
         lost = next(s for s in fleet["shares"] if s["sysid"] == 2)
-        assert lost["status"] == "aborted" and lost["lost"].startswith("battery failsafe (Critical battery level! Executing RTL")
+        assert lost["status"] == "aborted" and lost["lost"].startswith(
+            "battery failsafe (Critical battery level! Executing RTL"
+        )
         handed = [b for taken in lost["handed_over"].values() for b in taken]
         assert handed and set(handed) == set(lost["buoys"]) - set(lost["visited_buoys"])
         assert all(fleet["inspected_by"][buoys[b]["id"]] == 1 for b in handed)
