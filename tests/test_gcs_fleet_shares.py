@@ -20,6 +20,7 @@ from gcs.missions.fleet_planning import FleetMissionPlan, plan_fleet_mission
 from gcs.missions.fleet_shares import constrained_fleet_plan
 from gcs.missions.validation import RequestInvalidError, fence_from_request
 from gcs.settings import Settings
+from gcs.storage import open_storage
 from planner.energy import EnergyModel
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 from uavcore.geofence import CircleZone, Geofence, PolygonZone
@@ -148,6 +149,30 @@ def test_a_fleet_with_a_fence_and_a_rally_point_inside_it_is_planned_inside_the_
     fence = fence_from_request(MissionRequest.model_validate(body).geofence or [])
     for share in shares:
         assert all(fence.segment_violation(tuple(a), tuple(b)) is None for a, b in itertools.pairwise(share["route"]))
+
+
+def test_the_request_fence_and_rally_points_are_stored_with_every_plan_a_vehicle_flies(tmp_path, client):
+    """What the lifecycle uploads before each sortie (Plan.fence, Plan.rally_points): a single mission's plan and each
+    part's of a fleet mission carry the request's, stored and read back; a request without them carries none (the
+    vehicle keeps its own lists)."""
+    rally = [{**_point(200, 0), "alt_m": 15.0}]
+    lists = {"geofence": FENCE, "rally_points": rally, "start": False, "planner": {"time_limit_s": 0.5}}
+    single = client.post("/missions", json=BODY | lists | {"vehicles": None, "vehicle": 2})
+    fleet = client.post("/missions", json=BODY | lists)
+    bare = client.post("/missions", json=BODY | {"vehicles": None, "start": False})
+    assert [a.status_code for a in (single, fleet, bare)] == [201, 201, 201], (single.text, fleet.text, bare.text)
+    storage = open_storage(tmp_path / "gcs.sqlite")
+    try:
+        parts = storage.fleet_parts(fleet.json()["id"])
+        assert len(parts) >= 1
+        for record in (storage.get_mission(single.json()["id"]), *parts):
+            assert record is not None
+            assert [zone.model_dump(mode="json", exclude_none=True) for zone in record.plan.fence or []] == FENCE
+            assert record.plan.rally_points == [[rally[0]["lat"], rally[0]["lon"], 15.0]]
+        plain = storage.get_mission(bare.json()["id"])
+        assert plain is not None and (plain.plan.fence, plain.plan.rally_points) == (None, None)
+    finally:
+        storage.close()
 
 
 @pytest.mark.parametrize(
