@@ -71,17 +71,26 @@ def reachable_shares(
     vehicle can serve."""
     sysids = list(homes)
     given = {share.sysid: share for share in planned.shares}
-    need = {
-        sysid: out_and_back_wh(homes[sysid], buoys, replace(flight, altitude_m=layer_altitude(planned, sysid, flight)),
-                               batteries[sysid], model)
-        for sysid in sysids
-    }  # fmt: skip
+    shares = {sysid: list(given[sysid].buoys) if sysid in given else [] for sysid in sysids}
     allowed = {sysid: budget(batteries[sysid], model)["budget_wh"] for sysid in sysids}
-    can = {sysid: need[sysid] <= allowed[sysid] for sysid in sysids}
-    nobody = [j for j in range(len(buoys)) if not any(can[s][j] for s in sysids)]
+
+    def needs(sysid: int, indices: list[int]) -> dict[int, float]:
+        if not indices:
+            return {}
+        share_flight = replace(flight, altitude_m=layer_altitude(planned, sysid, flight))
+        wh = out_and_back_wh(homes[sysid], [buoys[j] for j in indices], share_flight, batteries[sysid], model)
+        return dict(zip(indices, map(float, wh), strict=True))
+
+    # each buoy on its own vehicle first; the others' only for the buoys it cannot serve (a model evaluation each)
+    need = {sysid: needs(sysid, shares[sysid]) for sysid in sysids}
+    stranded = [j for sysid in sysids for j in shares[sysid] if need[sysid][j] > allowed[sysid]]
+    for sysid in sysids:
+        need[sysid] |= needs(sysid, [j for j in stranded if j not in need[sysid]])
+    can = {sysid: {j for j, wh in need[sysid].items() if wh <= allowed[sysid]} for sysid in sysids}
+    nobody = [j for j in stranded if not any(j in can[s] for s in sysids)]
     if nobody:
-        # the least any vehicle would need, against that vehicle's budget
-        best = [min(sysids, key=lambda s: float(need[s][j] - allowed[s])) for j in nobody]
+        # the least short of any vehicle, against that vehicle's budget
+        best = [min(sysids, key=lambda s: need[s][j] - allowed[s]) for j in nobody]
         errors = [
             unreachable_errors(UnreachableBuoyError([j + 1], [need[s][j]], allowed[s]), buoy_ids)[0]
             for j, s in zip(nobody, best, strict=True)
@@ -90,12 +99,11 @@ def reachable_shares(
     origin = homes[sysids[0]]
     _, points, _ = local_nodes(origin, buoys)
     home_points = {sysid: local_nodes(origin, [homes[sysid]])[1][0] for sysid in sysids}
-    shares = {sysid: list(given[sysid].buoys) if sysid in given else [] for sysid in sysids}
     for sysid in sysids:
-        for b in [b for b in shares[sysid] if not can[sysid][b]]:
+        for b in [b for b in shares[sysid] if b not in can[sysid]]:
             shares[sysid].remove(b)
             best_key: tuple[float, int, int] | None = None  # (length after, vehicle, position)
-            for other in (s for s in sysids if can[s][b]):
+            for other in (s for s in sysids if b in can[s]):
                 order = shares[other]
                 for at in range(len(order) + 1):
                     length = _tour_m(points, home_points[other], [*order[:at], b, *order[at:]])
