@@ -5,6 +5,7 @@ checked at POST /plans, 422 naming the field."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -75,15 +76,15 @@ def test_a_buoy_its_vehicle_cannot_serve_goes_to_one_that_can_and_one_nobody_can
     # as if the time-based sharing had given the far buoy to vehicle 1, which cannot fly there and back on a pack
     first = planned.shares[0]
     assert first.sysid == 1
-    shares = [type(first)(first.sysid, [*first.buoys, 6], first.plan, first.altitude_m, 0.0), *planned.shares[1:]]
+    shares = [dataclasses.replace(first, buoys=[*first.buoys, 6]), *planned.shares[1:]]
     moved = constrained_fleet_plan(
-        FleetMissionPlan(shares, 0.0, 0.0, 0.0, 3.0), HOMES, buoys, ids, FLIGHT, None, batteries, OPTIONS, MODEL
+        dataclasses.replace(planned, shares=shares), HOMES, buoys, ids, FLIGHT, None, batteries, OPTIONS, MODEL
     )
     by_vehicle = {share.sysid: share.buoys for share in moved.shares}
     assert 6 in by_vehicle[2] and 6 not in by_vehicle.get(1, [])
     with pytest.raises(RequestInvalidError) as refused:
         constrained_fleet_plan(
-            FleetMissionPlan(shares, 0.0, 0.0, 0.0, 3.0), HOMES, buoys, ids, FLIGHT, None, _batteries(120.0), OPTIONS,
+            dataclasses.replace(planned, shares=shares), HOMES, buoys, ids, FLIGHT, None, _batteries(120.0), OPTIONS,
             MODEL,
         )  # fmt: skip
     located = {loc: message for loc, message in refused.value.errors}

@@ -171,9 +171,19 @@ def constrained_fleet_plan(
         flown = [own[i] for i in plan.order]
         position = {i: k for k, i in enumerate(plan.order)}
         plan = _reindexed(plan, position)
-        shares.append(FleetShare(sysid, flown, plan, share_flight.altitude_m, float(time_s)))
+        shares.append(_share(planned, sysid, flown, plan, share_flight.altitude_m, float(time_s)))
     times = [share.predicted_time_s for share in shares]
     return replace(planned, shares=shares, makespan_s=max(times, default=0.0), total_time_s=float(sum(times)))
+
+
+def _share(planned: FleetMissionPlan, sysid: int, buoys: list[int], plan: Plan, altitude_m: float,
+           time_s: float) -> FleetShare:  # fmt: skip
+    """A share as re-planned here: the sharing's own share of that vehicle with its buoys, plan and time replaced
+    (whatever else the sharing says of it kept), or a new one for a vehicle the sharing gave nothing."""
+    own = next((share for share in planned.shares if share.sysid == sysid), None)
+    if own is None:
+        return FleetShare(sysid, buoys, plan, altitude_m, time_s)
+    return replace(own, buoys=buoys, plan=plan, predicted_time_s=time_s)
 
 
 def _request_location(error: tuple[tuple, str], own: list[int]) -> tuple[tuple, str]:
