@@ -47,12 +47,12 @@ def _home_arg(north: float, east: float) -> str:
     return ",".join(f"{v:.8f}" for v in FRAME.from_ned(north, east, 0.0))
 
 
-def _fleet(start_sitl, *per_vehicle: tuple[str, ...]) -> list[str]:
+def _fleet(start_sitl, *per_vehicle: tuple[str, ...], speed: float = SPEED) -> list[str]:
     """Vehicles 1, 2, ... at homes 160 m apart along east, each with its own extra arguments: their links."""
     links = []
     for k, extra in enumerate(per_vehicle):
         sysid = k + 1
-        vehicle = start_sitl(speed=SPEED, extra_args=("--sysid", str(sysid), "--home", _home_arg(0.0, 160.0 * k),
+        vehicle = start_sitl(speed=speed, extra_args=("--sysid", str(sysid), "--home", _home_arg(0.0, 160.0 * k),
                                                       *extra))  # fmt: skip
         links.append(f"{sysid}=udpout:127.0.0.1:{vehicle.port}")
     return links
@@ -185,8 +185,10 @@ def test_a_vehicle_its_battery_failsafe_brings_down_is_lost_and_its_buoys_reshar
     its failsafe returns it (COM_LOW_BAT_ACT 1, PX4's "Return"), its part ends "battery failsafe", and its buoys not
     visited are uploaded in flight to vehicle 1, which completes the fleet mission."""
     failing = ("--param", "BAT1_CAPACITY=500", "--param", "COM_LOW_BAT_ACT=1", "--battery-percent", "16")
-    links = _fleet(start_sitl, (), failing)
-    buoys = [{"id": f"B{i + 1}", **_point(n, e)} for i, (n, e) in enumerate((n, e) for n in (60, 160, 260)
+    # at half the pace, with shares of some 100 simulated seconds: vehicle 2 comes down in its first 30 or so, and
+    # its part ends (the service's disarm grace and polls are wall-clock) long before vehicle 1 is home
+    links = _fleet(start_sitl, (), failing, speed=SPEED / 2)
+    buoys = [{"id": f"B{i + 1}", **_point(n, e)} for i, (n, e) in enumerate((n, e) for n in (60, 200, 340)
              for e in (0, 160))]  # fmt: skip
     request = {"vehicles": "fleet", "buoys": buoys, "dwell_s": 2.0, "inspect": False, "override": True}
     with TestClient(create_app(Settings(data_dir=tmp_path, vehicles=links, vehicle_wait_s=30.0))) as client:
