@@ -41,6 +41,7 @@ def lat_lon(north: float, east: float) -> tuple[float, float]:
 HOMES = {1: lat_lon(0.0, 0.0), 2: lat_lon(0.0, 160.0)}
 BUOYS = [lat_lon(n, e) for n in (60.0, 140.0) for e in (0.0, 80.0, 160.0)]
 IDS = [f"B{i + 1}" for i in range(len(BUOYS))]
+NO_FENCES: dict = {1: None, 2: None}
 
 
 def _batteries(capacity_mah: float) -> dict:
@@ -54,7 +55,7 @@ def _planned() -> FleetMissionPlan:
 
 def test_each_share_flies_in_sorties_that_fit_its_vehicles_battery():
     batteries = _batteries(350.0)  # 4.4 Wh a sortie: three of these buoys are more than one battery
-    fleet = constrained_fleet_plan(_planned(), HOMES, BUOYS, IDS, FLIGHT, None, batteries, OPTIONS, MODEL)
+    fleet = constrained_fleet_plan(_planned(), HOMES, BUOYS, IDS, FLIGHT, NO_FENCES, batteries, OPTIONS, MODEL)
     assert sorted(b for share in fleet.shares for b in share.buoys) == list(range(len(BUOYS)))
     allowed = budget(batteries[1], MODEL)["budget_wh"]
     for share in fleet.shares:
@@ -78,14 +79,14 @@ def test_a_buoy_its_vehicle_cannot_serve_goes_to_one_that_can_and_one_nobody_can
     assert first.sysid == 1
     shares = [dataclasses.replace(first, buoys=[*first.buoys, 6]), *planned.shares[1:]]
     moved = constrained_fleet_plan(
-        dataclasses.replace(planned, shares=shares), HOMES, buoys, ids, FLIGHT, None, batteries, OPTIONS, MODEL
+        dataclasses.replace(planned, shares=shares), HOMES, buoys, ids, FLIGHT, NO_FENCES, batteries, OPTIONS, MODEL
     )
     by_vehicle = {share.sysid: share.buoys for share in moved.shares}
     assert 6 in by_vehicle[2] and 6 not in by_vehicle.get(1, [])
     with pytest.raises(RequestInvalidError) as refused:
         constrained_fleet_plan(
-            dataclasses.replace(planned, shares=shares), HOMES, buoys, ids, FLIGHT, None, _batteries(120.0), OPTIONS,
-            MODEL,
+            dataclasses.replace(planned, shares=shares), HOMES, buoys, ids, FLIGHT, NO_FENCES, _batteries(120.0),
+            OPTIONS, MODEL,
         )  # fmt: skip
     located = {loc: message for loc, message in refused.value.errors}
     assert ("body", "buoys", 6) in located and located[("body", "buoys", 6)].startswith("buoy far cannot be reached")
@@ -98,12 +99,37 @@ def test_each_share_is_routed_around_the_fence_from_its_home():
     request = MissionRequest(buoys=[{"lat": a, "lon": b} for a, b in BUOYS], geofence=zones)
     assert request.geofence is not None
     fence = fence_from_request(request.geofence)
-    fleet = constrained_fleet_plan(_planned(), HOMES, BUOYS, IDS, FLIGHT, fence, None, OPTIONS, MODEL)
+    fleet = constrained_fleet_plan(_planned(), HOMES, BUOYS, IDS, FLIGHT, {1: fence, 2: fence}, None, OPTIONS, MODEL)
     assert sorted(b for share in fleet.shares for b in share.buoys) == list(range(len(BUOYS)))
     for share in fleet.shares:
         route = [tuple(point) for point in share.plan.route_lat_lon()]
         assert all(fence.segment_violation(a, b) is None for a, b in itertools.pairwise(route)), share.sysid
         assert share.plan.buoy_ids == [IDS[b] for b in share.buoys]
+
+
+def test_without_a_request_fence_each_vehicles_own_fence_keeps_its_share_and_one_outside_every_fence_is_named():
+    """The fences the vehicles hold (a fleet request without `geofence`, as a single mission): vehicle 1 holds an
+    inclusion circle around its home that leaves out the buoys on vehicle 2's side, vehicle 2 none."""
+    own = {1: Geofence((CircleZone(HOMES[1], 120.0, True),)), 2: None}
+    planned = _planned()
+    # as if the sharing had given vehicle 1 every buoy: those outside its circle go to vehicle 2
+    everything = [dataclasses.replace(planned.shares[0], sysid=1, buoys=list(range(len(BUOYS))))]
+    fleet = constrained_fleet_plan(dataclasses.replace(planned, shares=everything), HOMES, BUOYS, IDS, FLIGHT, own,
+                                   None, OPTIONS, MODEL)  # fmt: skip
+    by_vehicle = {share.sysid: sorted(share.buoys) for share in fleet.shares}
+    circle = own[1].zones[0]
+    assert by_vehicle[1] == [j for j, (lat, lon) in enumerate(BUOYS) if own[1].contains(lat, lon)] != []
+    assert sorted(by_vehicle[1] + by_vehicle[2]) == list(range(len(BUOYS)))
+    first = next(share for share in fleet.shares if share.sysid == 1)
+    route = [tuple(point) for point in first.plan.route_lat_lon()]
+    assert all(own[1].segment_violation(a, b) is None for a, b in itertools.pairwise(route)), circle
+    both = {1: own[1], 2: Geofence((CircleZone(HOMES[2], 120.0, True),))}
+    with pytest.raises(RequestInvalidError) as refused:
+        constrained_fleet_plan(dataclasses.replace(planned, shares=everything), HOMES, BUOYS, IDS, FLIGHT, both,
+                               None, OPTIONS, MODEL)  # fmt: skip
+    outside = [j for j, (lat, lon) in enumerate(BUOYS) if not any(f.contains(lat, lon) for f in both.values())]
+    assert outside and [loc for loc, _ in refused.value.errors] == [("body", "buoys", j) for j in outside]
+    assert all(message.endswith("is outside the geofence of every vehicle") for _, message in refused.value.errors)
 
 
 def test_a_fence_and_rally_points_become_the_lists_the_vehicle_reads_back():

@@ -56,60 +56,70 @@ def _tour_m(points: np.ndarray, home: np.ndarray, order: list[int]) -> float:
     return float(sum(np.hypot(*(b - a)) for a, b in itertools.pairwise(stops)))
 
 
-def reachable_shares(
+def servable_shares(
     planned: FleetMissionPlan,
     homes: dict[int, LatLon],
     buoys: list[LatLon],
     buoy_ids: list[str],
     flight: FlightParams,
-    batteries: dict[int, BatteryPlan],
+    fences: dict[int, Geofence | None],
+    batteries: dict[int, BatteryPlan] | None,
     model: EnergyModel,
 ) -> dict[int, list[int]]:
     """Each vehicle's buoys (request indices, in plan_fleet's order) after moving every buoy its vehicle cannot
-    serve within one battery to the vehicle that can and whose tour it lengthens least. Vehicles plan_fleet gave
-    nothing are in the answer too (they may receive buoys). Raises RequestInvalidError naming each buoy no
-    vehicle can serve."""
+    serve (outside its fence, or beyond one battery from its home) to a vehicle that can, the one whose tour it
+    lengthens least. Vehicles plan_fleet gave nothing are in the answer too (they may receive buoys). Raises
+    RequestInvalidError naming each buoy no vehicle can serve, and why."""
     sysids = list(homes)
     given = {share.sysid: share for share in planned.shares}
     shares = {sysid: list(given[sysid].buoys) if sysid in given else [] for sysid in sysids}
-    allowed = {sysid: budget(batteries[sysid], model)["budget_wh"] for sysid in sysids}
+    inside = {
+        sysid: {j for j, (lat, lon) in enumerate(buoys) if fence is None or fence.contains(lat, lon)}
+        for sysid, fence in fences.items()
+    }
+    allowed = {sysid: budget(batteries[sysid], model)["budget_wh"] for sysid in sysids} if batteries else {}
 
     def needs(sysid: int, indices: list[int]) -> dict[int, float]:
-        if not indices:
+        """Its out-and-back energy to each of these buoys (none without energy planning)."""
+        indices = [j for j in indices if j in inside[sysid]]
+        if not indices or batteries is None:
             return {}
         share_flight = replace(flight, altitude_m=layer_altitude(planned, sysid, flight))
         wh = out_and_back_wh(homes[sysid], [buoys[j] for j in indices], share_flight, batteries[sysid], model)
         return dict(zip(indices, map(float, wh), strict=True))
 
+    def serves(sysid: int, j: int) -> bool:
+        return j in inside[sysid] and (batteries is None or need[sysid][j] <= allowed[sysid])
+
     # each buoy on its own vehicle first; the others' only for the buoys it cannot serve (a model evaluation each)
     need = {sysid: needs(sysid, shares[sysid]) for sysid in sysids}
-    stranded = [j for sysid in sysids for j in shares[sysid] if need[sysid][j] > allowed[sysid]]
+    stranded = [j for sysid in sysids for j in shares[sysid] if not serves(sysid, j)]
     for sysid in sysids:
         need[sysid] |= needs(sysid, [j for j in stranded if j not in need[sysid]])
-    can = {sysid: {j for j, wh in need[sysid].items() if wh <= allowed[sysid]} for sysid in sysids}
-    nobody = [j for j in stranded if not any(j in can[s] for s in sysids)]
-    if nobody:
-        # the least short of any vehicle, against that vehicle's budget
-        best = [min(sysids, key=lambda s: need[s][j] - allowed[s]) for j in nobody]
-        errors = [
-            unreachable_errors(UnreachableBuoyError([j + 1], [need[s][j]], allowed[s]), buoy_ids)[0]
-            for j, s in zip(nobody, best, strict=True)
-        ]
+    errors: list[tuple[tuple, str]] = []
+    for j in stranded:
+        fenced_in = [s for s in sysids if j in inside[s]]
+        if not fenced_in:
+            errors.append((("body", "buoys", j), f"buoy {buoy_ids[j]} is outside the geofence of every vehicle"))
+        elif not any(serves(s, j) for s in fenced_in):
+            s = min(fenced_in, key=lambda s: need[s][j] - allowed[s])  # the least short of one battery
+            errors += unreachable_errors(UnreachableBuoyError([j + 1], [need[s][j]], allowed[s]), buoy_ids)
+    if errors:
         raise RequestInvalidError(errors)
     origin = homes[sysids[0]]
     _, points, _ = local_nodes(origin, buoys)
     home_points = {sysid: local_nodes(origin, [homes[sysid]])[1][0] for sysid in sysids}
     for sysid in sysids:
-        for b in [b for b in shares[sysid] if b not in can[sysid]]:
+        for b in [b for b in shares[sysid] if not serves(sysid, b)]:
             shares[sysid].remove(b)
             best_key: tuple[float, int, int] | None = None  # (length after, vehicle, position)
-            for other in (s for s in sysids if b in can[s]):
+            for other in (s for s in sysids if serves(s, b)):
                 order = shares[other]
                 for at in range(len(order) + 1):
                     length = _tour_m(points, home_points[other], [*order[:at], b, *order[at:]])
                     if best_key is None or length < best_key[0]:
                         best_key = (length, other, at)
-            assert best_key is not None  # some vehicle can serve b: `nobody` is empty
+            assert best_key is not None  # some vehicle can serve b: no error was raised
             _, other, at = best_key
             shares[other].insert(at, b)
     return shares
@@ -130,20 +140,18 @@ def constrained_fleet_plan(
     buoys: list[LatLon],
     buoy_ids: list[str],
     flight: FlightParams,
-    fence: Geofence | None,
+    fences: dict[int, Geofence | None],
     batteries: dict[int, BatteryPlan] | None,
     options: PlannerOptions,
     model: EnergyModel,
 ) -> FleetMissionPlan:
     """`planned` with each share flyable (module doc): in sorties within its vehicle's battery (`batteries`
-    {sysid: BatteryPlan}, None: no energy planning) and routed around the fence (None: no fence). Raises
-    RequestInvalidError."""
-    if batteries is None and (fence is None or fence.empty):
+    {sysid: BatteryPlan}, None: no energy planning) and inside and routed around its vehicle's fence (`fences`
+    {sysid: the request's fence, or the one the vehicle holds; None: none}). Raises RequestInvalidError."""
+    fences = {sysid: None if fence is None or fence.empty else fence for sysid, fence in fences.items()}
+    if batteries is None and not any(fences.values()):
         return planned
-    if batteries is not None:
-        order = reachable_shares(planned, homes, buoys, buoy_ids, flight, batteries, model)
-    else:
-        order = {share.sysid: share.buoys for share in planned.shares}
+    order = servable_shares(planned, homes, buoys, buoy_ids, flight, fences, batteries, model)
     layers = {share.sysid: share.altitude_m for share in planned.shares}
     top = max(layers.values(), default=flight.altitude_m)
     flying = [sysid for sysid in homes if order.get(sysid)]
@@ -153,7 +161,8 @@ def constrained_fleet_plan(
         own = order[sysid]
         home, own_points, own_ids = homes[sysid], [buoys[b] for b in own], [buoy_ids[b] for b in own]
         share_flight = replace(flight, altitude_m=layers.get(sysid, top))
-        fenced = {} if fence is None or fence.empty else fenced_legs(home, np.asarray(own_points), fence)
+        fence = fences[sysid]
+        fenced = {} if fence is None else fenced_legs(home, np.asarray(own_points), fence)
         plan: Plan
         if batteries is not None:
             try:

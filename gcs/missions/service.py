@@ -317,8 +317,10 @@ class MissionService:
             request.dwell_s, options.seed, options.time_limit_s,
         )  # fmt: skip
         flight = _flight(request, override=override)
+        # each share inside its vehicle's fence: the request's, else the one it holds (read now), as a single mission
+        fences = {sysid: fence if request.geofence else await self._vehicle(sysid).fence() for sysid in sysids}
         planned = await asyncio.to_thread(
-            constrained_fleet_plan, planned, homes, buoys, ids, flight, fence, batteries, options, self.energy_model
+            constrained_fleet_plan, planned, homes, buoys, ids, flight, fences, batteries, options, self.energy_model
         )
         marks = _marks(request, self.settings.iala_region)
         lists = _uploaded_lists(request)
