@@ -7,7 +7,9 @@ it and whose share grows least (cheapest insertion); one that no vehicle can ser
 then split into sorties by the single mission's machinery (gcs.missions.energy_planning.energy_plan: its vehicle's
 pack and reserve, the forecast wind, its own layer's altitude), so every sortie of every share fits by the exact
 prediction, and the share's predicted time is its sorties' flight time (the swaps between them are the operator's).
-With `geofence`, each share is routed from its home around the fence's forbidden legs as a single tour is
+Each vehicle's fence (the request's `geofence`, else the one the vehicle holds, as a single mission's default): a
+buoy outside it goes to a vehicle whose fence holds it (the same cheapest insertion), one outside every vehicle's
+is a 422; each share is routed from its home around its fence's forbidden legs as a single tour is
 (gcs.domain.planning.fenced_legs, make_plan or energy_plan), and a share that still needs a forbidden leg is a 422.
 
 Pure computation (CPU-bound: the service runs it in a worker thread).
