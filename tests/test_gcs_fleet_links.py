@@ -209,9 +209,10 @@ def test_a_fleet_mission_shares_the_buoys_flies_each_share_at_its_layer_and_comp
     with TestClient(create_app(Settings(data_dir=tmp_path, vehicles=links, vehicle_wait_s=30.0))) as client:
         _wait_all_connected(client, 3)
         _wait_homes(client)
-        bad = client.post("/missions", json={"vehicles": [1, 7], "buoys": buoys, "battery": {"reserve_pct": 30}})
+        depot = {"lat": buoys[0]["lat"], "lon": buoys[0]["lon"]}  # a fleet flies from its vehicles' homes
+        bad = client.post("/missions", json={"vehicles": [1, 7], "buoys": buoys, "depot": depot})
         assert bad.status_code == 422
-        assert {tuple(e["loc"]) for e in bad.json()["detail"]} == {("body", "battery"), ("body", "vehicles", 1)}
+        assert {tuple(e["loc"]) for e in bad.json()["detail"]} == {("body", "depot"), ("body", "vehicles", 1)}
         # the preview (POST /plans): the same sharing, nothing stored
         preview = client.post("/plans", json={"vehicles": "fleet", "buoys": buoys, "layer_gap_m": 4.0})
         assert preview.status_code == 200, preview.text

@@ -75,6 +75,14 @@ def test_the_fleet_progress_maps_each_parts_visits_to_the_fleets_buoys_and_its_e
     assert fleet_ending(fleet, parts)[0] == MissionStatus.ABORTED
     parts[1] = _record(3, "completed", [0, 1], sysid=2)
     assert fleet_ending(fleet, parts) == (MissionStatus.COMPLETED, None)
+    # its battery failsafe brought vehicle 2 down: lost as by a link loss, not aborted by the operator
+    parts[1] = _record(3, "aborted", [0], "battery failsafe (Critical battery level!): ...", sysid=2)
+    assert fleet_ending(fleet, parts) == (
+        MissionStatus.FAILED,
+        "vehicle 2 aborted (battery failsafe (Critical battery level!): ...); not inspected: B",
+    )
+    parts[1] = _record(3, "aborted", [0, 1], "battery failsafe (Critical battery level!): ...", sysid=2)
+    assert fleet_ending(fleet, parts) == (MissionStatus.COMPLETED, None)  # its buoys inspected by the others
 
 
 def test_a_fleet_request_names_known_vehicles_once_and_keeps_its_layers_within_the_airframe():

@@ -37,6 +37,7 @@ from bench.processes import free_port, stop_process
 from gcs.domain.inspection import Finding, StoredFrame
 from gcs.domain.records import MissionProgress
 from gcs.domain.schemas import PreflightCheck
+from gcs.missions.fleet_missions import shares_progress
 from gcs.storage import open_storage
 from stack.demo import reference_request
 from stack.options import UpOptions
@@ -681,6 +682,39 @@ def test_plan_and_fly_wait_for_the_answer_and_a_superseded_plan_answer_changes_n
         labels = sorted(int(text) for text in page.locator(".buoy-icon").all_inner_texts())
         assert labels == [1, 2, 3, 4, 5]
         browser.close()
+    assert errors == []
+
+
+def test_pack_swapped_on_a_fleet_mission_is_for_the_vehicle_whose_part_waits(tmp_path):
+    """A fleet mission flying in sorties whose part on vehicle 2 waits for its swap (as the lifecycle and the
+    coordinator store it): "Pack swapped" on the fleet mission tells vehicle 2 (POST /vehicles/2/battery-swap), not
+    the service's first vehicle; the answer is shown as text (here: no vehicle to tell)."""
+    with serving(tmp_path / "gcs.sqlite", tmp_path / "service.log", sysids=(1, 2)) as url:
+        frame = LocalFrame(*DEFAULT_HOME)
+        buoys = [dict(zip(("lat", "lon"), map(float, frame.from_ned(n, e, 0.0)[:2]), strict=True))
+                 for n, e in ((60, -60), (60, 60), (120, -60), (120, 60))]  # fmt: skip
+        created = post_json(f"{url}/missions", {"vehicles": [2, 1], "buoys": buoys, "battery": "vehicle",
+                                                "start": False, "planner": {"time_limit_s": 0.5}})  # fmt: skip
+        storage = open_storage(tmp_path / "gcs.sqlite")
+        parts = storage.fleet_parts(created["id"])
+        waiting = next(part for part in parts if part.vehicle_sysid == 2)
+        storage.set_status(waiting.id, "flying", "sortie 1 of 2")
+        storage.set_status(waiting.id, "waiting_for_battery", "sortie 2 needs 60 %; the vehicle reports 20 %")
+        storage.set_status(created["id"], "flying")
+        fleet = storage.get_mission(created["id"])
+        storage.set_progress(created["id"], shares_progress(fleet, storage.fleet_parts(created["id"])))
+        storage.close()
+        errors: list[str] = []
+        with sync_playwright() as p:
+            browser, page = open_page(p, errors)
+            page.goto(url)
+            expect(page.get_by_test_id("mission-status")).to_contain_text(f"#{created['id']}: flying", timeout=30_000)
+            page.get_by_test_id("battery-swap").click()
+            with page.expect_request(lambda request: "battery-swap" in request.url) as sent:
+                page.get_by_test_id("confirm-ok").click()
+            assert urlsplit(sent.value.url).path == "/vehicles/2/battery-swap"
+            expect(page.locator("#message")).to_contain_text("409: ")
+            browser.close()
     assert errors == []
 
 

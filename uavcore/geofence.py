@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from functools import cached_property
 
 from uavcore.geodesy import LocalFrame
-from uavcore.mission import MavCmd, MissionItem
+from uavcore.mission import MavCmd, MavFrame, MissionItem, MissionType
 
 LatLon = tuple[float, float]  # degrees
 NorthEast = tuple[float, float]  # metres on a local tangent plane
@@ -248,6 +248,37 @@ class Geofence:
                 raise FenceError(f"fence item {item.seq}: command {item.command} is not a fence item", item.seq)
             index += 1
         return cls(tuple(zones), return_point)
+
+    def to_items(self) -> list[MissionItem]:
+        """The MISSION_TYPE_FENCE list that describes this fence (what `from_items` reads back): each polygon's
+        vertices in order with param1 its vertex count, each circle with param1 its radius, then the return point
+        if any; positions in MAV_FRAME_GLOBAL_INT as PX4's and QGC's fence plans carry them."""
+        items: list[MissionItem] = []
+
+        def add(command: int, point: LatLon, param1: float) -> None:
+            items.append(
+                MissionItem(
+                    seq=len(items),
+                    frame=MavFrame.GLOBAL_INT,
+                    command=command,
+                    param1=param1,
+                    x=round(point[0] * 1e7),
+                    y=round(point[1] * 1e7),
+                    mission_type=MissionType.FENCE,
+                )
+            )
+
+        for zone in self.zones:
+            if isinstance(zone, PolygonZone):
+                command = next(c for c, inclusion in POLYGON_COMMANDS.items() if inclusion == zone.inclusion)
+                for vertex in zone.vertices:
+                    add(command, vertex, float(len(zone.vertices)))
+            else:
+                command = next(c for c, inclusion in CIRCLE_COMMANDS.items() if inclusion == zone.inclusion)
+                add(command, zone.center, zone.radius_m)
+        if self.return_point is not None:
+            add(MavCmd.NAV_FENCE_RETURN_POINT, self.return_point, 0.0)
+        return items
 
     @property
     def empty(self) -> bool:

@@ -9,6 +9,7 @@ off the wire compares equal to its enum member).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -139,3 +140,21 @@ class MissionItem:
     def has_position(self) -> bool:
         """Whether the item names a place (lat/lon 0,0 means "here" for takeoff/land/RTL, as in PX4)."""
         return self.command in POSITION_COMMANDS and (self.x != 0 or self.y != 0)
+
+
+def rally_point_items(points: Sequence[tuple[float, float, float]]) -> list[MissionItem]:
+    """The MISSION_TYPE_RALLY list of rally points (latitude, longitude degrees, altitude above home metres): one
+    MAV_CMD_NAV_RALLY_POINT each, in MAV_FRAME_GLOBAL_RELATIVE_ALT_INT (PX4's RTL goes to the nearest one, or
+    home, whichever is closer: RTL_TYPE 0)."""
+    return [
+        MissionItem(
+            seq=seq,
+            frame=MavFrame.GLOBAL_RELATIVE_ALT_INT,
+            command=MavCmd.NAV_RALLY_POINT,
+            x=round(lat * 1e7),
+            y=round(lon * 1e7),
+            z=float(alt_m),
+            mission_type=MissionType.RALLY,
+        )
+        for seq, (lat, lon, alt_m) in enumerate(points)
+    ]

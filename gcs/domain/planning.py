@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from gcs.domain.records import PlanEnergy, PlanFleet
+from gcs.domain.schemas import FenceZoneIn
 from planner import plan_tour
 from planner.distances import closed_tour_length, euclidean_matrix
 from uavcore.buoy_world import DEFAULT_SWING_RADIUS_M
@@ -100,6 +101,10 @@ class Plan:
     fleet: PlanFleet | None = None
     # What the chart says of each buoy (input order); None: positions only (a plan stored before charts were asked)
     marks: list[BuoyMark] | None = None
+    # The request's geofence and rally points, uploaded to the vehicle before each sortie (MAV_MISSION_TYPE_FENCE,
+    # MAV_MISSION_TYPE_RALLY) so that it enforces them itself; None: the vehicle keeps what it holds
+    fence: list[FenceZoneIn] | None = None
+    rally_points: list[list[float]] | None = None  # [lat, lon, altitude above home m]
 
     def mark(self, index: int) -> BuoyMark:
         """Buoy `index`'s charted kind, light and swing radius (all unknown when none were given)."""
@@ -154,18 +159,20 @@ class Plan:
         sections = {
             "energy": None if self.energy is None else self.energy.model_dump(mode="json"),
             "fleet": None if self.fleet is None else self.fleet.model_dump(mode="json"),
+            "fence": None if self.fence is None else [zone.model_dump(mode="json") for zone in self.fence],
         }
-        return asdict(replace(self, energy=None, fleet=None)) | sections
+        return asdict(replace(self, energy=None, fleet=None, fence=None)) | sections
 
     @staticmethod
     def from_dict(data: dict[str, Any]) -> Plan:
-        energy, fleet, marks = data.get("energy"), data.get("fleet"), data.get("marks")
+        energy, fleet, marks, fence = data.get("energy"), data.get("fleet"), data.get("marks"), data.get("fence")
         return Plan(
             **{**data, "depot": tuple(data["depot"])}
             | {
                 "energy": None if energy is None else PlanEnergy.model_validate(energy),
                 "fleet": None if fleet is None else PlanFleet.model_validate(fleet),
                 "marks": None if marks is None else [BuoyMark.from_dict(mark) for mark in marks],
+                "fence": None if fence is None else [FenceZoneIn.model_validate(zone) for zone in fence],
             }
         )
 

@@ -18,6 +18,8 @@ from uavcore.light_character import LightCharacterError, parse
 MAX_BUOYS = 500
 MAX_FENCE_ZONES = 50
 MAX_FENCE_VERTICES = 200
+# PX4 keeps at most 8 rally ("safe") points (dataman's DM_KEY_SAFE_POINTS_MAX)
+MAX_RALLY_POINTS = 8
 PlannerMethod = Literal["auto", "chnn-ga", "chnn", "exact"]
 # An operator's command in force on a flying mission (gcs.missions.lifecycle): held where it is, returning to the
 # depot (resumable until it lands), or landing where it is. A resume ends the first two; nothing ends a landing.
@@ -97,6 +99,13 @@ class FenceZoneIn(Strict):
         if self.kind == "circle" and (self.center is None or self.radius_m is None or self.vertices is not None):
             raise ValueError("a circle zone has a center and a radius_m and no vertices")
         return self
+
+
+class RallyPointIn(LatLon):
+    """A rally point: where the vehicle may return instead of home (PX4's RTL flies to the nearest rally point or
+    home, RTL_TYPE 0), uploaded to it as a MAV_MISSION_TYPE_RALLY list."""
+
+    alt_m: float = Field(default=10.0, description="altitude above home, m")
 
 
 class PlannerOptions(Strict):
@@ -191,7 +200,14 @@ class PlanRequest(Strict):
     geofence: list[FenceZoneIn] | None = Field(
         default=None,
         max_length=MAX_FENCE_ZONES,
-        description="zones the route must respect; default: the fence the vehicle holds, if any",
+        description="zones the route must respect, uploaded to the vehicle (each vehicle of a fleet) as its fence "
+        "before it flies; default: the fence the vehicle holds, if any",
+    )
+    rally_points: list[RallyPointIn] | None = Field(
+        default=None,
+        max_length=MAX_RALLY_POINTS,
+        description="rally points uploaded to the vehicle (each vehicle of a fleet) with the mission, inside the "
+        "geofence; default: none uploaded (the vehicle keeps its own)",
     )
     battery: BatteryIn | Literal["vehicle"] | None = Field(
         default=None,

@@ -23,7 +23,7 @@ from gcs.domain.records import MissionProgress, MissionResults, ShareProgress
 from gcs.domain.schemas import PlanRequest, SeparationOut
 from gcs.domain.status import TERMINAL, MissionStatus
 from gcs.missions.fleet_planning import reshare
-from gcs.missions.lifecycle import MissionConflictError
+from gcs.missions.lifecycle import MissionConflictError, ended_by_the_vehicle
 from gcs.missions.validation import RequestInvalidError
 from gcs.settings import Limits
 from gcs.storage import MissionRecord
@@ -131,7 +131,9 @@ def fleet_ending(fleet: MissionRecord, parts: list[MissionRecord]) -> tuple[Miss
     progress = shares_progress(fleet, parts)
     ids = fleet.plan.buoy_ids
     missed = [ids[b] for b in range(len(ids)) if b not in set(progress.visited_buoys)]
-    aborted = any(part.status == MissionStatus.ABORTED for part in parts)
+    # a part its vehicle's battery failsafe ended aborted was lost, as one that failed: the operator aborted none
+    aborted = any(part.status == MissionStatus.ABORTED and not ended_by_the_vehicle(part.status, part.reason)
+                  for part in parts)  # fmt: skip
     if not missed and not aborted:
         return MissionStatus.COMPLETED, None
     problems = [
@@ -150,10 +152,8 @@ def fleet_vehicles(request: PlanRequest, known: list[int], limits: Limits) -> li
     wanted = list(known) if request.vehicles == "fleet" else list(request.vehicles or [])
     if request.vehicle is not None:
         errors.append((("body", "vehicle"), "a fleet mission names its vehicles in `vehicles` only"))
-    for field_name in ("battery", "geofence", "depot"):
-        if getattr(request, field_name) is not None:
-            why = "a fleet flies from its vehicles' homes" if field_name == "depot" else "not with a fleet (yet)"
-            errors.append((("body", field_name), why))
+    if request.depot is not None:
+        errors.append((("body", "depot"), "a fleet flies from its vehicles' homes"))
     for i, sysid in enumerate(wanted):
         if sysid not in known:
             errors.append((("body", "vehicles", i), f"no vehicle with system id {sysid} (the fleet's: {known})"))
@@ -223,12 +223,14 @@ class FleetCoordinator:
         if fleet.status != MissionStatus.FLYING:
             await self.storage.set_status(fleet_id, MissionStatus.FLYING)
         stored: MissionProgress | None = None
-        lost: set[int] = {p.id for p in parts if p.status == MissionStatus.FAILED}  # before a restart: handled
+        # before a restart: handled
+        lost: set[int] = {p.id for p in parts if ended_by_the_vehicle(p.status, p.reason)}
         try:
             while True:
                 parts = await self.storage.fleet_parts(fleet_id)
                 for part in parts:
-                    if part.status == MissionStatus.FAILED and part.id not in lost:
+                    # lost: its link, a reboot, or a failsafe (battery, geofence) brought it down
+                    if ended_by_the_vehicle(part.status, part.reason) and part.id not in lost:
                         lost.add(part.id)
                         fleet = await self._reshare(fleet, part, parts)
                 progress = shares_progress(fleet, parts)
@@ -271,7 +273,8 @@ class FleetCoordinator:
             sysid = _vehicle_of(part)
             status = self._link_of(sysid).status
             flying = status.connected and status.armed and not status.mission_complete and status.lat is not None
-            if part.status != MissionStatus.FLYING or not flying:
+            # a part flying sorties within its battery takes nothing in flight: more buoys could overrun the pack
+            if part.status != MissionStatus.FLYING or not flying or part.plan.energy is not None:
                 continue
             part_plan, done = part.plan, set(part.progress.visited_buoys)
             left = [i for i in part_plan.order if i not in done]
@@ -301,7 +304,8 @@ class FleetCoordinator:
                     part_plan.elapsed_s,
                 )
                 new_plan = replace(new_plan, marks=[*map(part_plan.mark, range(len(part_plan.buoy_ids))),
-                                                    *map(plan.mark, added)])  # fmt: skip
+                                                    *map(plan.mark, added)],
+                                   fence=part_plan.fence, rally_points=part_plan.rally_points)  # fmt: skip
                 try:
                     self._replan(part, new_plan)
                 except MissionConflictError:  # it landed or ended meanwhile: the buoys stay not inspected

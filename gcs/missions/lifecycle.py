@@ -62,6 +62,7 @@ from gcs.missions.energy_planning import ChargeNeed, charge_needed, model_pack
 from gcs.missions.inspector import NO_CAMERA, NOT_ASKED, FrameAnalysis, InspectionLimits, Inspector, not_inspected
 from gcs.missions.recorder import MissionRecorder
 from gcs.missions.results import flight_results
+from gcs.missions.validation import fence_from_request
 from gcs.settings import Settings
 from gcs.storage import MissionRecord
 from gcs.storage.off_loop import AsyncStorage
@@ -156,6 +157,17 @@ def operator_end(recorder: MissionRecorder, command: OperatorCommand) -> Mission
     )
 
 
+BATTERY_FAILSAFE = "battery failsafe"  # the reason of a mission the vehicle's battery failsafe ended begins so
+
+
+def ended_by_the_vehicle(status: MissionStatus, reason: str | None) -> bool:
+    """Whether a mission ended by what happened to its vehicle (lost, rebooted, brought down by a failsafe) rather
+    than by the operator or as planned: failed, or aborted by its battery failsafe (`ended_early`)."""
+    return status == MissionStatus.FAILED or (
+        status == MissionStatus.ABORTED and (reason or "").startswith(BATTERY_FAILSAFE)
+    )
+
+
 def ended_early(recorder: MissionRecorder) -> MissionEndError:
     """How a mission ends when the vehicle disarmed before completing it: aborted after a battery failsafe (the
     vehicle reported its battery critical and came down: returned or landed, as its COM_LOW_BAT_ACT /
@@ -165,7 +177,7 @@ def ended_early(recorder: MissionRecorder) -> MissionEndError:
         said = f" ({battery_failsafe_text([e.text for e in recorder.vehicle_events])})"
         return MissionEndError(
             MissionStatus.ABORTED,
-            f"battery failsafe{said}: the vehicle came down with {progress.visited} of {progress.buoys} buoys "
+            f"{BATTERY_FAILSAFE}{said}: the vehicle came down with {progress.visited} of {progress.buoys} buoys "
             f"inspected; not inspected: {', '.join(recorder.not_inspected())}",
         )
     reason = ended_early_reason(recorder.vehicle_events, progress.visited, progress.buoys)
@@ -476,6 +488,7 @@ class FlightLifecycle:
         sortie_plan = plan.sortie_plan(sortie)
         camera, camera_text = await self._camera(flight)
         items = self._items(sortie_plan, flight, camera is not None)
+        await self._upload_fence_and_rally(plan)
         await self.link.upload_mission(items, self.link.status.home or self.settings.home)
         recorder.mission_uploaded(camera_text if camera is not None else None)
         if sortie == 0:
@@ -498,6 +511,15 @@ class FlightLifecycle:
         finally:
             if inspector is not None:
                 await self._inspectors.pop(mission_id, inspector).close()
+
+    async def _upload_fence_and_rally(self, plan: Plan) -> None:
+        """The plan's geofence and rally points to the vehicle before its mission, every sortie (a pack swapped by
+        hand may reboot it): the fence first, since PX4 refuses a mission with an item outside its fence and
+        enforces the fence itself in flight (GF_ACTION); the vehicle keeps its own lists when the plan has none."""
+        if plan.fence is not None:
+            await self.link.upload_fence(fence_from_request(plan.fence))
+        if plan.rally_points:
+            await self.link.upload_rally_points([(p[0], p[1], p[2]) for p in plan.rally_points])
 
     def _start_inspector(self, mission_id: int, sortie_plan: Plan, camera: CameraInfo) -> Inspector:
         s = self.settings
@@ -674,6 +696,8 @@ class FlightLifecycle:
         """The mission items of a (sortie) plan for this vehicle: back to its home by RTL when the depot is it; with
         `camera`, each buoy inspected (gcs.domain.planning.inspection_items)."""
         home = self.link.status.home
+        if plan.rally_points:  # PX4's RTL (RTL_TYPE 0) lands at the closest of home and the rally points: a
+            home = None  # mission given rally points ends with a waypoint at its depot and a landing there
         return mission_items(plan, flight, None if home is None else (home[0], home[1]), camera)
 
     async def _upload_in_flight(

@@ -34,6 +34,7 @@ from gcs.domain.status import TERMINAL, MissionStatus
 from gcs.missions.energy_planning import battery_plan, energy_plan
 from gcs.missions.fleet_missions import FleetCoordinator, fleet_vehicles, shares_progress
 from gcs.missions.fleet_planning import METHOD, plan_fleet_mission
+from gcs.missions.fleet_shares import constrained_fleet_plan
 from gcs.missions.fleet_vehicle import FleetVehicle
 from gcs.missions.inspector import FrameAnalysis
 from gcs.missions.lifecycle import ABORTED_BEFORE_TAKEOFF, MissionConflictError
@@ -45,6 +46,7 @@ from gcs.missions.validation import (
     fence_from_request,
     validate_fence_points,
     validate_fenced_route,
+    validate_rally_points,
     validate_request,
     validate_route_length,
 )
@@ -88,6 +90,13 @@ def _flight(request: PlanRequest, **changes: Any) -> FlightParams:
     flight = FlightParams(request.altitude_m, request.speed_m_s, request.dwell_s, request.acceptance_radius_m,
                           inspect=request.inspect, inspection_range_m=request.inspection_range_m)  # fmt: skip
     return replace(flight, **changes)
+
+
+def _uploaded_lists(request: PlanRequest) -> dict[str, Any]:
+    """What a plan carries to upload to its vehicle besides the mission: the request's fence and rally points
+    (Plan.fence, Plan.rally_points; None: the vehicle keeps its own)."""
+    rally = None if request.rally_points is None else [[p.lat, p.lon, p.alt_m] for p in request.rally_points]
+    return {"fence": request.geofence, "rally_points": rally}
 
 
 # a fleet mission's part as stored: its flight (at its layer), its plan (its share), its vehicle's system id
@@ -223,6 +232,7 @@ class MissionService:
         if fence is not None and not fence.empty:
             validate_fence_points(depot, buoys, fence)
             fenced = fenced_legs(depot, np.asarray(buoys), fence)
+        validate_rally_points(request.rally_points or [], fence, self.settings.limits)
         flight = _flight(request)
         options = request.planner
         if request.battery is None:
@@ -233,7 +243,7 @@ class MissionService:
             plan = energy_plan(depot, buoys, ids, flight, battery, options.seed, options.time_limit_s, fenced,
                                options.method, self.energy_model)  # fmt: skip
         validate_fenced_route(plan, fenced)
-        return replace(plan, marks=_marks(request, self.settings.iala_region)), flight
+        return replace(plan, marks=_marks(request, self.settings.iala_region), **_uploaded_lists(request)), flight
 
     # ----- the lifecycle
     def active_mission(self) -> int | None:
@@ -292,20 +302,37 @@ class MissionService:
         validate_request(request, first_home, self.settings.limits)
         ids, buoys = _named_buoys(request)
         options = request.planner
+        # the request's fence and battery, as a single mission's (gcs.missions.fleet_shares): every vehicle's home
+        # and every buoy inside the fence, each vehicle's own pack
+        fence = fence_from_request(request.geofence) if request.geofence else None
+        if fence is not None and not fence.empty:
+            validate_fence_points(first_home, buoys, fence, homes=homes)
+        validate_rally_points(request.rally_points or [], fence, self.settings.limits)
+        batteries = None
+        if request.battery is not None:
+            batteries = {sysid: battery_plan(request, await self._vehicle(sysid).pack(), self.energy_model)
+                         for sysid in sysids}  # fmt: skip
         planned = await asyncio.to_thread(
             plan_fleet_mission, homes, buoys, ids, request.altitude_m, request.layer_gap_m, request.speed_m_s,
             request.dwell_s, options.seed, options.time_limit_s,
         )  # fmt: skip
         flight = _flight(request, override=override)
+        # each share inside its vehicle's fence: the request's, else the one it holds (read now), as a single mission
+        fences = {sysid: fence if request.geofence else await self._vehicle(sysid).fence() for sysid in sysids}
+        planned = await asyncio.to_thread(
+            constrained_fleet_plan, planned, homes, buoys, ids, flight, fences, batteries, options, self.energy_model
+        )
         marks = _marks(request, self.settings.iala_region)
+        lists = _uploaded_lists(request)
         overview = sorties_plan(first_home, buoys, ids, [[b for s in planned.shares for b in s.buoys]], METHOD,
                                 planned.elapsed_s)  # fmt: skip
         overview = replace(
-            overview, length_m=sum(s.plan.length_m for s in planned.shares), fleet=planned.plan_section(), marks=marks
-        )
+            overview, length_m=sum(s.plan.length_m for s in planned.shares), fleet=planned.plan_section(), marks=marks,
+            **lists,
+        )  # fmt: skip
         parts = [
-            (replace(flight, altitude_m=share.altitude_m), replace(share.plan, marks=[marks[b] for b in share.buoys]),
-             share.sysid)
+            (replace(flight, altitude_m=share.altitude_m),
+             replace(share.plan, marks=[marks[b] for b in share.buoys], **lists), share.sysid)
             for share in planned.shares
         ]  # fmt: skip
         return overview, flight, parts

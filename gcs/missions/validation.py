@@ -12,7 +12,7 @@ import itertools
 import numpy as np
 
 from gcs.domain.planning import Plan
-from gcs.domain.schemas import FenceZoneIn, PlanRequest
+from gcs.domain.schemas import FenceZoneIn, PlanRequest, RallyPointIn
 from gcs.settings import Limits
 from planner.distances import euclidean_matrix
 from uavcore.geodesy import LocalFrame
@@ -116,16 +116,47 @@ def fence_from_request(zones: list[FenceZoneIn]) -> Geofence:
     return Geofence(tuple(built))
 
 
-def validate_fence_points(depot: tuple[float, float], buoys: list[tuple[float, float]], fence: Geofence) -> None:
-    """The depot and every buoy where the fence lets the vehicle be."""
+def validate_fence_points(
+    depot: tuple[float, float],
+    buoys: list[tuple[float, float]],
+    fence: Geofence,
+    homes: dict[int, tuple[float, float]] | None = None,
+) -> None:
+    """The depot (a fleet's: each vehicle's home, `homes` {sysid: (lat, lon)}) and every buoy where the fence lets
+    the vehicle be."""
     errors: list[tuple[Location, str]] = []
-    zone = fence.violation(*depot)
-    if zone is not None:
-        errors.append((("body", "depot"), f"the depot breaks the geofence's {zone.kind}"))
+    if homes is None:
+        zone = fence.violation(*depot)
+        if zone is not None:
+            errors.append((("body", "depot"), f"the depot breaks the geofence's {zone.kind}"))
+    for sysid, home in (homes or {}).items():
+        zone = fence.violation(*home)
+        if zone is not None:
+            errors.append((("body", "geofence"), f"vehicle {sysid}'s home breaks the geofence's {zone.kind}"))
     for i, (lat, lon) in enumerate(buoys):
         zone = fence.violation(lat, lon)
         if zone is not None:
             errors.append((("body", "buoys", i), f"buoy {i} breaks the geofence's {zone.kind}"))
+    if errors:
+        raise RequestInvalidError(errors)
+
+
+def validate_rally_points(points: list[RallyPointIn], fence: Geofence | None, limits: Limits) -> None:
+    """Each rally point at an altitude the airframe flies, and where the fence lets the vehicle be (a vehicle
+    returning to it must not breach the fence it was given)."""
+    errors: list[tuple[Location, str]] = []
+    low, high = limits.altitude_m
+    for i, point in enumerate(points):
+        if not low <= point.alt_m <= high:
+            errors.append(
+                (
+                    ("body", "rally_points", i, "alt_m"),
+                    f"{point.alt_m:g} m is outside the airframe's limits [{low:g}, {high:g}] m",
+                )
+            )
+        zone = None if fence is None else fence.violation(point.lat, point.lon)
+        if zone is not None:
+            errors.append((("body", "rally_points", i), f"rally point {i} breaks the geofence's {zone.kind}"))
     if errors:
         raise RequestInvalidError(errors)
 

@@ -55,7 +55,7 @@ from uavcore.mavlink import (
     parse_datagram,
     statustext,
 )
-from uavcore.mission import MavCmd, MissionItem, MissionType
+from uavcore.mission import MavCmd, MissionItem, MissionType, rally_point_items
 
 log = logging.getLogger(__name__)
 
@@ -469,6 +469,19 @@ class LinkManager:
 
     async def download_mission(self) -> list[MissionItem]:
         return self.autopilot.items_from_vehicle(await download_items(self))
+
+    async def upload_fence(self, fence: Geofence) -> None:
+        """Give the vehicle this geofence (MISSION_TYPE_FENCE: it enforces it itself, GF_ACTION), kept as `fence`."""
+        await upload_items(self, fence.to_items(), mission_type=MissionType.FENCE)
+        self.fence = fence
+
+    async def upload_rally_points(self, points: Sequence[tuple[float, float, float]]) -> None:
+        """Give the vehicle these rally points (MISSION_TYPE_RALLY; latitude, longitude, altitude above home m)."""
+        await upload_items(self, rally_point_items(points), mission_type=MissionType.RALLY)
+
+    async def download_rally_points(self) -> list[MissionItem]:
+        """The rally points the vehicle holds (MISSION_TYPE_RALLY), as items."""
+        return await download_items(self, mission_type=MissionType.RALLY)
 
     async def download_fence(self) -> Geofence:
         """The geofence the vehicle holds (MISSION_TYPE_FENCE), kept as `fence` for the planner."""

@@ -33,10 +33,22 @@ class MissionTransferError(RuntimeError):
     """The transfer did not complete (the message says at which step and why)."""
 
 
+def list_name(mission_type: int) -> str:
+    """What a list of this MAV_MISSION_TYPE is called in a transfer's errors."""
+    names = {
+        MISSION: "mission",
+        mavlink.MAV_MISSION_TYPE_FENCE: "geofence",
+        mavlink.MAV_MISSION_TYPE_RALLY: "rally points",
+    }
+    return names.get(mission_type, f"list of mission type {mission_type}")
+
+
 class MissionRejectedError(MissionTransferError):
-    def __init__(self, result: int, step: str) -> None:
+    def __init__(self, result: int, step: str, mission_type: int = MISSION) -> None:
         self.result = result
-        super().__init__(f"the vehicle refused the mission ({result_name('MAV_MISSION_RESULT', result)}) {step}")
+        super().__init__(
+            f"the vehicle refused the {list_name(mission_type)} ({result_name('MAV_MISSION_RESULT', result)}) {step}"
+        )
 
 
 class MissionTimeoutError(MissionTransferError):
@@ -74,6 +86,7 @@ async def upload_items(
     if not items:
         raise ValueError("an upload needs at least one mission item")
     count = link.encoder.mission_count_encode(*link.target, len(items), mission_type)
+    what = list_name(mission_type)
     with link.subscribe({"MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"}) as inbox:
         last_sent, step, tries_left, highest_sent = count, "after MISSION_COUNT", retries, -1
         link.send(count)
@@ -81,21 +94,21 @@ async def upload_items(
             message = await _next(inbox, step_timeout_s, mission_type)
             if message is None:
                 if tries_left == 0:
-                    raise MissionTimeoutError(f"mission upload: no answer {step} ({retries} retries)")
+                    raise MissionTimeoutError(f"{what} upload: no answer {step} ({retries} retries)")
                 tries_left -= 1
                 link.send(last_sent)
                 continue
             if message.get_type() == "MISSION_ACK":
                 if message.type != mavlink.MAV_MISSION_ACCEPTED:
-                    raise MissionRejectedError(message.type, step)
+                    raise MissionRejectedError(message.type, step, mission_type)
                 if highest_sent == len(items) - 1:
                     return
                 raise MissionTransferError(
-                    f"mission upload: accepted after only {highest_sent + 1} of {len(items)} items"
+                    f"{what} upload: accepted after only {highest_sent + 1} of {len(items)} items"
                 )
             seq = message.seq
             if not 0 <= seq < len(items):
-                raise MissionTransferError(f"mission upload: the vehicle asked for item {seq} of {len(items)}")
+                raise MissionTransferError(f"{what} upload: the vehicle asked for item {seq} of {len(items)}")
             last_sent = item_message(items[seq], *link.target)
             step, tries_left = f"after item {seq}", retries
             highest_sent = max(highest_sent, seq)
@@ -122,7 +135,7 @@ async def _exchange(
             if message is None:
                 break
             if message.get_type() == "MISSION_ACK" and message.type != mavlink.MAV_MISSION_ACCEPTED:
-                raise MissionRejectedError(message.type, f"while waiting for {what}")
+                raise MissionRejectedError(message.type, f"while waiting for {what}", mission_type)
             if accept(message):
                 return message
     raise MissionTimeoutError(f"mission download: no {what} ({retries} retries)")

@@ -22,7 +22,7 @@ import * as panel from "./panel.js";
 import { RegisterLayer } from "./register.js";
 import { sortieLook } from "./sorties.js";
 import { buoyMarkings, buoysEditable, inspectionRows, state } from "./state.js";
-import { defineMissionStatus, isFinished, isUnderway } from "./status.js";
+import { defineMissionStatus, isFinished, isUnderway, MissionStatus } from "./status.js";
 import { clockTime, vehicleInstant } from "./times.js";
 import { VehicleChoice } from "./vehicles.js";
 
@@ -242,6 +242,13 @@ function consoleVehicle() {
   return (sysid != null && liveVehicles.bySysid.get(sysid)) || liveVehicles.first;
 }
 
+// The vehicle a "Pack swapped" is for: a fleet mission's vehicle whose part waits for its battery (the fleet
+// mission itself goes on flying), else the watched mission's (null: the service's first vehicle).
+function swapVehicle(mission) {
+  const waiting = mission?.fleet?.shares?.find((share) => share.status === MissionStatus.waiting_for_battery);
+  return waiting ? waiting.sysid : (mission?.vehicle_sysid ?? null);
+}
+
 // The status and the operator command in force are the mission document's (the poll's, or an action's answer):
 // one source, so that the buttons and the log never flip between it and the stream; the counts are the stream's
 // (fresher).
@@ -413,7 +420,7 @@ function wireControls() {
         confirm: "A charged pack is in",
       };
       if (!(await confirmAction(question))) return;
-      const answer = await api.swapBattery(state.mission?.vehicle_sysid ?? null);
+      const answer = await api.swapBattery(swapVehicle(state.mission));
       const waiting = answer.waiting_mission == null ? "" : `; mission ${answer.waiting_mission} goes on`;
       panel.say(`pack swapped (vehicle: ${answer.vehicle})${waiting}`, true);
       pollMission();
