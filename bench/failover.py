@@ -16,7 +16,7 @@ PostgreSQL when its session dies). Per run:
 - the mission's end (completed, buoys visited) and the machine's 1-minute load average.
 
     .venv/bin/python -m bench.failover --fleet 2 [--runs 3]
-    # the fleet case: rows added under "fleet" in bench/results/failover.json (the single-vehicle rows kept)
+    # the fleet case: rows under "fleet", "K vehicles" in bench/results/failover.json (the other rows kept)
 
 The fleet case (`--fleet K`): K vehicles (system ids 1..K, on pads 3 m apart at the depot, each its own port) and
 two instances each linked to all of them (`serve --vehicle 1=URL --vehicle 2=URL ...`): the first owns the
@@ -552,7 +552,8 @@ def write_fleet_results(runs: list[dict[str, Any]], speed: float) -> int:
         f"buoys lost {figures['buoys_lost']}; cores {os.cpu_count()}"
     )
     fleet = {"speed": speed, "cores": os.cpu_count(), "summary": figures, "runs": runs}
-    write_results(_stored() | {"fleet": fleet})
+    stored = _stored()
+    write_results(stored | {"fleet": stored.get("fleet", {}) | {f"{figures['vehicles']} vehicles": fleet}})
     return 0
 
 

@@ -247,9 +247,8 @@ class FleetCoordinator:
         )
         stored: MissionProgress | None = None
         stored_separation = replace(monitor.separation)
-        lost = handled_losses(
-            fleet, parts
-        )  # the lost parts whose buoys went to others (by this coordinator or one before)
+        # the lost parts whose buoys went to others (by this coordinator or one before it)
+        lost = handled_losses(fleet, parts)
         try:
             while True:
                 parts = await self.storage.fleet_parts(fleet_id)
