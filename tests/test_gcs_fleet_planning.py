@@ -69,3 +69,6 @@ def test_a_lost_vehicles_buoys_go_where_they_lengthen_the_longest_remaining_flig
     moved = reshare({1: flying[1], 2: (np.array([10.0, 130.0]), [], home)}, lost, 10.0, 1.0)
     # both near the lost buoys: one each keeps the longest remaining flight shortest
     assert (len(moved[1]), len(moved[2])) == (2, 1)
+    # one vehicle left flying (a fleet of two lost the other): it takes every lost buoy
+    alone = reshare({1: flying[1]}, lost, 10.0, 1.0)
+    assert sorted(alone[1]) == [0, 1, 2]

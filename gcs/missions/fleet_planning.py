@@ -147,7 +147,7 @@ def reshare(
             for at in range(len(order) + 1):
                 trial = [*order[:at], node, *order[at:]]
                 t = remaining_s(sysid, trial)
-                makespan = max(t, *(times[o] for o in routes if o != sysid))
+                makespan = max([t, *(times[o] for o in routes if o != sysid)])  # one flying: its own
                 key = (makespan, t - times[sysid])
                 if best is None or key < best[0]:
                     best = (key, sysid, trial, t)
