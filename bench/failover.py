@@ -17,6 +17,8 @@ PostgreSQL when its session dies). Per run:
 
     .venv/bin/python -m bench.failover --fleet 2 [--runs 3]
     # the fleet case: rows under "fleet", "K vehicles" in bench/results/failover.json (the other rows kept)
+    .venv/bin/python -m bench.failover --fleet 3 --lose-vehicle 3
+    # vehicle 3 killed with the owner: the stand-by gives it up and re-shares its buoys to the others
 
 The fleet case (`--fleet K`): K vehicles (system ids 1..K, on pads 3 m apart at the depot, each its own port) and
 two instances each linked to all of them (`serve --vehicle 1=URL --vehicle 2=URL ...`): the first owns the
@@ -70,6 +72,7 @@ PAD_SPACING_M = 3.0  # the vehicles' pads, east of each other at the depot (as `
 MISSION = {"altitude_m": 5.0, "speed_m_s": 5.0, "dwell_s": 1.0, "acceptance_radius_m": 2.0}
 TELEMETRY_PERIOD_S = 0.1  # the service's default sample spacing (simulated time)
 TAKEOVER_REQUIREMENT_S = 5.0
+VEHICLE_WAIT_S = 30.0  # wall seconds a mission waits for its vehicle (`serve --vehicle-wait`): a loaded machine
 START_TIMEOUT_S = 120.0  # a loaded 2-core machine takes long to import numpy, numba and FastAPI
 FLIGHT_TIMEOUT_S = 180.0
 # wall seconds an instance may take to stop on SIGTERM: uvicorn's grace for open requests (gcs.cli's
@@ -177,6 +180,9 @@ class FailoverStack:
     speed: float = 4.0
     lease_poll_s: float = 0.5
     vehicles: int = 1  # more: a fleet, system ids 1..vehicles, each instance linked to every one
+    # wall seconds the stand-by, once owner, waits for a vehicle to re-attach its mission (`--vehicle-wait`): how
+    # soon it gives up on a vehicle lost with the owner
+    standby_vehicle_wait_s: float = VEHICLE_WAIT_S
     instances: list[Instance] = field(default_factory=list)
     supervisor: Supervisor | None = None
 
@@ -203,7 +209,7 @@ class FailoverStack:
             specs.append(
                 ChildSpec(
                     name,
-                    self._serve(ports, port),
+                    self._serve(ports, port, VEHICLE_WAIT_S if name == "gcs-a" else self.standby_vehicle_wait_s),
                     ready=lambda instance=instance, ready=ready: ready(instance),
                     start_timeout_s=START_TIMEOUT_S,
                     env={"BUOY_GCS_INSTANCE_NAME": name, "BUOY_GCS_LEASE_POLL_S": str(self.lease_poll_s)},
@@ -225,7 +231,7 @@ class FailoverStack:
             return owns_a_connected_vehicle(instance.vehicle())
         return owns_every_vehicle(instance.get("/vehicles"))
 
-    def _serve(self, vehicle_ports: list[int], port: int) -> list[str]:
+    def _serve(self, vehicle_ports: list[int], port: int, vehicle_wait_s: float) -> list[str]:
         """`python -m gcs serve` for the vehicles on vehicle_ports (a fleet: each named by its system id), on the
         shared database, HTTP on port."""
         if self.vehicles == 1:
@@ -233,7 +239,7 @@ class FailoverStack:
         else:
             links = [f"{sysid}=udpout:127.0.0.1:{p}" for sysid, p in enumerate(vehicle_ports, 1)]
         vehicles = [arg for link in links for arg in ("--vehicle", link)]
-        wait = ("--vehicle-wait", "30")  # 30 s: a loaded machine
+        wait = ("--vehicle-wait", f"{vehicle_wait_s:g}")
         return python_module("gcs", "serve", *vehicles, *wait, "--db", self.db_url, "--port", str(port))
 
     def log(self, name: str) -> str:
@@ -326,9 +332,14 @@ def fly_and_kill(
     }
 
 
-def _event_after(mission: dict[str, Any], reason: str, kill_unix: float) -> float | None:
-    """Wall seconds from the kill to the mission's first event with this reason (None: it has none)."""
-    times = [_unix(e["at"]) - kill_unix for e in mission["events"] if e["reason"] == reason]
+def _event_after(mission: dict[str, Any], reason: str, kill_unix: float, prefix: bool = False) -> float | None:
+    """Wall seconds from the kill to the mission's first event with this reason (or beginning so with `prefix`),
+    None when it has none."""
+    times = [
+        _unix(e["at"]) - kill_unix
+        for e in mission["events"]
+        if e["reason"] == reason or (prefix and (e["reason"] or "").startswith(reason))
+    ]
     return times[0] if times else None
 
 
@@ -337,10 +348,12 @@ def fly_fleet_and_kill(
     kill_after_samples: int = 20,
     how: signal.Signals = signal.SIGKILL,
     before_kill: Callable[[int], None] | None = None,
+    lose_vehicle: int | None = None,
 ) -> dict[str, Any]:
     """Post a fleet mission (FLEET_BUOYS_EN_M over every vehicle) to the owner, kill the owner once every part flies
-    and has stored kill_after_samples samples (`before_kill(fleet_id)` called just before), and follow the fleet
-    mission to its end on the stand-by. Figures."""
+    and has stored kill_after_samples samples (`before_kill(fleet_id)` called just before; `lose_vehicle`: that
+    vehicle's process killed with it, as a vehicle lost with the owner's host), and follow the fleet mission to its
+    end on the stand-by. Figures."""
     owner, standby = stack.instances
     load_before = os.getloadavg()[0]
     buoys = close_buoys(FLEET_BUOYS_EN_M)
@@ -366,6 +379,10 @@ def fly_fleet_and_kill(
         before_kill(fleet_id)
     kill_t_s = {vehicle["sysid"]: vehicle["t_s"] for vehicle in owner.get("/vehicles") or []}
     kill_unix, kill_wall = time.time(), time.monotonic()
+    if lose_vehicle is not None:
+        vehicle = stack.supervisor.children[lose_vehicle - 1].process
+        vehicle.kill()
+        vehicle.wait()
     owner.kill(how)
     poll(standby.vehicle, lambda v: v["role"] == "owner", 30.0, f"{standby.name} owning the links")
     takeover_s = time.monotonic() - kill_wall
@@ -390,11 +407,12 @@ def fly_fleet_and_kill(
         coordination = storage.fleet_coordination(fleet_id)
     finally:
         storage.close()
-    reattached_parts = [part["reattached_s"] for part in per_part]
+    reattached_parts = [part["reattached_s"] for part in per_part if part["sysid"] != lose_vehicle]
     return {
         "victim": "owner",
         "mission": fleet_id,
         "vehicles": stack.vehicles,
+        "lost_vehicle": lose_vehicle,
         "status": fleet["status"],
         "reason": fleet["reason"],
         "visited": fleet["progress"].get("visited"),
@@ -402,7 +420,10 @@ def fly_fleet_and_kill(
         "buoys_lost": len(buoys) - (fleet["progress"].get("visited") or 0),
         "takeover_s": takeover_s,
         "followed_again_s": _event_after(fleet, FOLLOWED_AGAIN, kill_unix),
-        "reattached_s": None if None in reattached_parts else max(reattached_parts),  # the last part's
+        "reattached_s": None if None in reattached_parts else max(reattached_parts),  # the last part's (not lost)
+        "reshared_s": None
+        if lose_vehicle is None
+        else _event_after(fleet, f"vehicle {lose_vehicle} lost", kill_unix, True),
         "gap_s": max(part["gap_s"] for part in per_part),
         "gap_wall_s": max(part["gap_s"] for part in per_part) / stack.speed,
         "duplicates": sum(part["duplicates"] for part in per_part),
@@ -417,11 +438,17 @@ def fly_fleet_and_kill(
     }
 
 
-def one_run(db_url: str, logs: Path, speed: float, vehicles: int = 1) -> dict[str, Any]:
-    stack = FailoverStack(db_url, logs, speed, vehicles=vehicles)
+LOST_VEHICLE_WAIT_S = 3.0  # the stand-by's --vehicle-wait when a vehicle is lost with the owner
+
+
+def one_run(
+    db_url: str, logs: Path, speed: float, vehicles: int = 1, lose_vehicle: int | None = None
+) -> dict[str, Any]:
+    wait_s = VEHICLE_WAIT_S if lose_vehicle is None else LOST_VEHICLE_WAIT_S
+    stack = FailoverStack(db_url, logs, speed, vehicles=vehicles, standby_vehicle_wait_s=wait_s)
     try:
         stack.start()
-        return fly_and_kill(stack, "owner") if vehicles == 1 else fly_fleet_and_kill(stack)
+        return fly_and_kill(stack, "owner") if vehicles == 1 else fly_fleet_and_kill(stack, lose_vehicle=lose_vehicle)
     finally:
         stack.close()
 
@@ -443,16 +470,16 @@ def print_table(runs: list[dict[str, Any]]) -> None:
 
 def print_fleet_table(runs: list[dict[str, Any]]) -> None:
     print(
-        f"{'run':>3} {'vehicles':>8} {'take-over s':>11} {'followed s':>10} {'re-attach s':>11} {'gap sim s':>9} "
-        f"{'dups':>4} {'lost':>4} {'buoys lost':>10} {'status':>9} {'min 3-D m':>9} {'load':>9}"
+        f"{'run':>3} {'vehicles':>8} {'take-over s':>11} {'followed s':>10} {'re-attach s':>11} {'re-share s':>10} "
+        f"{'gap sim s':>9} {'dups':>4} {'lost':>4} {'buoys lost':>10} {'status':>9} {'min 3-D m':>9} {'load':>9}"
     )
     for i, run in enumerate(runs, 1):
-        followed, reattached = (
-            "-" if run[key] is None else f"{run[key]:.2f}" for key in ("followed_again_s", "reattached_s")
+        followed, reattached, reshared = (
+            "-" if run[key] is None else f"{run[key]:.2f}" for key in ("followed_again_s", "reattached_s", "reshared_s")
         )
         distance = "-" if run["min_distance_m"] is None else f"{run['min_distance_m']:.1f}"
         print(
-            f"{i:>3} {run['vehicles']:>8} {run['takeover_s']:>11.2f} {followed:>10} {reattached:>11} "
+            f"{i:>3} {run['vehicles']:>8} {run['takeover_s']:>11.2f} {followed:>10} {reattached:>11} {reshared:>10} "
             f"{run['gap_s']:>9.2f} {run['duplicates']:>4} {run['lost_beyond_gap']:>4} {run['buoys_lost']:>10} "
             f"{run['status']:>9} {distance:>9} {run['load_before']:>4.1f}-{run['load_after']:<4.1f}"
         )
@@ -508,9 +535,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--fleet", type=int, metavar="K", help="the fleet case: K vehicles (2-3 on 2 cores) flying one fleet mission"
     )
+    parser.add_argument(
+        "--lose-vehicle",
+        type=int,
+        metavar="SYSID",
+        help="the fleet case: that vehicle killed with the owner (given up after 3 s, its buoys re-shared)",
+    )
     args = parser.parse_args(argv)
     if args.fleet is not None and args.fleet < 2:
         parser.error("--fleet: a fleet has 2 vehicles or more")
+    if args.lose_vehicle is not None and not 1 <= args.lose_vehicle <= (args.fleet or 0):
+        parser.error("--lose-vehicle: the system id of one of the --fleet's vehicles")
     server = None
     if args.db is None:
         from tests.postgres_server import PostgresServer, postgres_bindir  # test infrastructure, reused
@@ -524,7 +559,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         for i in range(args.runs):
             db_url = args.db or server.new_database()
-            runs.append(one_run(db_url, args.logs / f"run-{i + 1}", args.speed, args.fleet or 1))
+            runs.append(one_run(db_url, args.logs / f"run-{i + 1}", args.speed, args.fleet or 1, args.lose_vehicle))
     finally:
         if server is not None:
             server.stop()
@@ -552,8 +587,11 @@ def write_fleet_results(runs: list[dict[str, Any]], speed: float) -> int:
         f"buoys lost {figures['buoys_lost']}; cores {os.cpu_count()}"
     )
     fleet = {"speed": speed, "cores": os.cpu_count(), "summary": figures, "runs": runs}
+    case = f"{figures['vehicles']} vehicles"
+    if (lost := runs[0]["lost_vehicle"]) is not None:
+        case += f", vehicle {lost} lost with the owner"
     stored = _stored()
-    write_results(stored | {"fleet": stored.get("fleet", {}) | {f"{figures['vehicles']} vehicles": fleet}})
+    write_results(stored | {"fleet": stored.get("fleet", {}) | {case: fleet}})
     return 0
 
 

@@ -19,8 +19,10 @@ import pytest
 from websockets.sync.client import connect
 
 from bench.failover import (
+    LOST_VEHICLE_WAIT_S,
     TAKEOVER_REQUIREMENT_S,
     TELEMETRY_PERIOD_S,
+    VEHICLE_WAIT_S,
     FailoverStack,
     close_buoys,
     fly_and_kill,
@@ -143,8 +145,10 @@ def test_an_owner_stopped_in_flight_hands_the_mission_over_instead_of_failing_it
 
 
 @pytest.fixture
-def fleet_stack(postgres_url, tmp_path):
-    started = FailoverStack(postgres_url, tmp_path / "logs", speed=4.0, vehicles=2)
+def fleet_stack(postgres_url, tmp_path, request):
+    """Two vehicles and two instances linked to both; `request.param`, when given: the stand-by's --vehicle-wait."""
+    wait_s = getattr(request, "param", VEHICLE_WAIT_S)
+    started = FailoverStack(postgres_url, tmp_path / "logs", speed=4.0, vehicles=2, standby_vehicle_wait_s=wait_s)
     try:
         yield started.start()
     finally:
@@ -200,3 +204,27 @@ def test_the_standby_carries_a_fleet_mission_on_when_its_owner_is_killed_and_no_
     assert reasons.count(FOLLOWED_AGAIN) == 1 and fleet["events"][-1]["status"] == "completed"
     assert [v["role"] for v in standby.get("/vehicles")] == ["owner", "owner"]
     assert udp_sockets(standby.process.pid) == 2  # a link per vehicle
+
+
+@pytest.mark.parametrize("fleet_stack", [LOST_VEHICLE_WAIT_S], indirect=True)
+def test_a_vehicle_lost_with_the_owner_has_its_buoys_re_shared_by_the_standby_and_no_buoy_is_lost(fleet_stack):
+    """Vehicle 2 dies with the owner (one host for both, a radio gone): the stand-by re-attaches vehicle 1's part,
+    gives vehicle 2's up once it does not answer within its --vehicle-wait, and re-shares its buoys not inspected to
+    vehicle 1, in flight: the fleet mission completes with every buoy."""
+    _, standby = fleet_stack.instances
+    run = fly_fleet_and_kill(fleet_stack, lose_vehicle=2)
+    print(
+        f"\nfleet fail-over, vehicle 2 lost with the owner: take-over {run['takeover_s']:.2f} s, vehicle 1 "
+        f"re-attached after {run['reattached_s']:.2f} s, vehicle 2's buoys re-shared after {run['reshared_s']:.2f} s; "
+        f"{run['buoys_lost']} buoys lost; load {run['load_after']:.1f}"
+    )
+    assert run["takeover_s"] < TAKEOVER_REQUIREMENT_S
+    assert [(part["sysid"], part["status"]) for part in run["parts"]] == [(1, "completed"), (2, "failed")]
+    assert run["reattached_s"] is not None and run["reshared_s"] is not None
+    assert (run["status"], run["reason"], run["visited"], run["buoys_lost"]) == ("completed", None, 6, 0)
+    fleet = standby.get(f"/missions/{run['mission']}")
+    lost = fleet["fleet"]["shares"][1]
+    assert lost["sysid"] == 2 and lost["lost"] and set(lost["handed_over"]) == {"1"}
+    handed = lost["handed_over"]["1"]
+    assert handed and all(fleet["fleet"]["inspected_by"][f"B{b + 1}"] == 1 for b in handed)  # flown by vehicle 1
+    assert run["coordinator"] == "gcs-b"
