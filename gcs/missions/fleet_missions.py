@@ -301,7 +301,7 @@ class FleetCoordinator:
         new plan. The fleet mission's plan records who took what; its events say so. Returns the fleet re-read."""
         plan = fleet.plan
         assert plan.fleet is not None  # a fleet mission's plan has its fleet section
-        shares = {share.sysid: share for share in plan.fleet.shares}  # changed in place, stored at the end
+        shares = {share.sysid: share for share in plan.fleet.shares}  # changed in place, stored with the re-share
         lost_share = shares[_vehicle_of(lost_part)]
         visited = set(lost_part.progress.visited_buoys)
         orphans = [b for i, b in enumerate(lost_share.buoys) if i not in visited]
