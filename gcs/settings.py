@@ -98,7 +98,9 @@ class Settings(BaseSettings):
         description="this instance's name, shown by the others while it owns the vehicle link (default host:pid)",
     )
     vehicle_name: str | None = Field(
-        None, description="the vehicle lease's name: instances naming the same vehicle share it (default: vehicle_url)"
+        None,
+        description="the vehicle lease's name: instances naming the same vehicle share it (default: vehicle_url); "
+        "with a fleet, its name (each vehicle's lease is `NAME/system N`; default `system N`)",
     )
     lease_poll_s: float = Field(
         0.5, gt=0, description="wall seconds between a stand-by's tries to take the vehicle lease (and owner checks)"

@@ -8,7 +8,17 @@ import asyncio
 import psycopg
 import pytest
 
-from gcs.missions.ownership import LEASE_NAMESPACE, NotOwnerError, Ownership, PostgresLease, Role, SoleLease, lease_key
+from gcs.missions.ownership import (
+    LEASE_NAMESPACE,
+    NotOwnerError,
+    Ownership,
+    PostgresLease,
+    Role,
+    SoleLease,
+    lease_key,
+    lease_names,
+)
+from gcs.settings import Settings
 
 VEHICLE = "udpout://127.0.0.1:14540"
 GRACE_S = 0.3
@@ -37,6 +47,46 @@ def test_one_owner_per_vehicle_and_the_others_see_who(postgres_url):
                 await lease.release()
 
     run(scenario())
+
+
+@pytest.mark.integration
+def test_a_fleet_is_owned_whole_its_vehicles_leases_taken_all_or_none(postgres_url):
+    """A fleet's instance holds one lock per vehicle on its one session: another instance configured for the same
+    fleet, or for a fleet sharing one of its vehicles, takes none of them; when the owner's session ends, all of
+    them move to one stand-by at once."""
+
+    async def scenario() -> None:
+        fleet = ["system 1", "system 2", "system 3"]
+        owner, standby = PostgresLease(postgres_url, fleet, "gcs-a"), PostgresLease(postgres_url, fleet, "gcs-b")
+        overlapping = PostgresLease(postgres_url, ["system 3", "system 4"], "gcs-c")
+        try:
+            assert await owner.try_acquire() and await owner.still_held()
+            assert not await standby.try_acquire() and not await overlapping.try_acquire()
+            assert await standby.holder() == "gcs-a" and await overlapping.holder() == "gcs-a"
+            with psycopg.connect(postgres_url, autocommit=True) as admin:
+                held = admin.execute(
+                    "SELECT a.application_name, l.objid::int8 FROM pg_locks l JOIN pg_stat_activity a USING (pid)"
+                    " WHERE l.locktype = 'advisory' ORDER BY 2"
+                ).fetchall()
+                # the refused ones gave back what they took on the way (system 4 was free)
+                assert held == [("gcs-a", key) for key in sorted(lease_key(name) for name in fleet)]
+                admin.execute("SELECT pg_terminate_backend(pid) FROM pg_stat_activity WHERE application_name = 'gcs-a'")
+            assert not await owner.still_held()
+            assert await standby.try_acquire() and await standby.still_held()  # every vehicle's lease, at once
+            assert not await overlapping.try_acquire() and await overlapping.holder() == "gcs-b"
+        finally:
+            for lease in (owner, standby, overlapping):
+                await lease.release()
+
+    run(scenario())
+
+
+def test_a_fleets_lease_names_are_its_system_ids_a_lone_vehicles_its_connection():
+    fleet = Settings(vehicles=["1=udpout://127.0.0.1:14540", "2=udpout://127.0.0.1:14541"])
+    assert lease_names(fleet) == ["system 1", "system 2"]
+    named = Settings(vehicles=["1=udpout://127.0.0.1:14540", "2=udpout://127.0.0.1:14541"], vehicle_name="site-a")
+    assert lease_names(named) == ["site-a/system 1", "site-a/system 2"]  # two fleets on one database, told apart
+    assert lease_names(Settings(vehicle_url="udpout:127.0.0.1:14540")) == [VEHICLE]
 
 
 @pytest.mark.integration

@@ -15,9 +15,10 @@ import psycopg
 import pytest
 from stored_missions import FLIGHT, PLAN
 
+from gcs.domain.fleet_coordination import Reshare
 from gcs.domain.inspection import InspectionRecord, StoredFrame
 from gcs.domain.records import MissionProgress, MissionResults
-from gcs.domain.schemas import TrackingFigures
+from gcs.domain.schemas import SeparationOut, TrackingFigures
 from gcs.missions.inspector import not_inspected
 from gcs.storage import MIGRATIONS, ConstraintError, FramesFullError, Storage, StorageError, open_storage
 from gcs.storage.postgres import VERSION_LOCK
@@ -270,6 +271,46 @@ def test_a_fleet_mission_and_its_parts_are_stored_together_or_not_at_all(storage
             FLIGHT, PLAN, [(FLIGHT, PLAN, 1), (FLIGHT, dataclasses.replace(PLAN, length_m=float("nan")), 2)]
         )
     assert storage.list_missions() == [] and storage.latest_version() == before
+
+
+def _reshare(part_id: int, at: str = "2026-01-01T00:00:00.000000+00:00") -> Reshare:
+    return Reshare(part_id=part_id, sysid=2, reason="link lost", handed_over={"1": [3]}, orders={"1": [2, 1]}, at=at)
+
+
+def test_a_fleet_missions_coordinator_state_is_claimed_kept_and_read_back_by_another_instance(open_db):
+    storage = open_db()
+    fleet, (first, second) = storage.create_fleet_mission(FLIGHT, PLAN, [(FLIGHT, PLAN, 1), (FLIGHT, PLAN, 2)])
+    assert storage.fleet_coordination(fleet) is None  # nobody followed it yet
+    state = storage.claim_fleet(fleet, "gcs-a")
+    assert (state.coordinator, state.reshares, state.separation.min_distance_m) == ("gcs-a", [], None)
+    separation = SeparationOut(min_horizontal_m=3.0, min_vertical_m=0.5, min_distance_m=3.2)
+    storage.set_fleet_separation(fleet, separation)
+    grown = dataclasses.replace(PLAN, length_m=PLAN.length_m + 10.0)
+    storage.record_reshare(fleet, grown, _reshare(second), "vehicle 2 lost (link lost): B4 to vehicle 1")
+    storage.record_reshare(fleet, grown, _reshare(first), "vehicle 1 lost")
+    taken_over = open_db().claim_fleet(fleet, "gcs-b")  # another instance, as a stand-by taking over
+    assert taken_over.coordinator == "gcs-b" and taken_over.separation == separation
+    assert taken_over.reshares == [_reshare(second), _reshare(first)] and taken_over.handled() == {first, second}
+    record = storage.get_mission(fleet)
+    assert record.plan.length_m == grown.length_m and record.status == "flying"
+    assert [(e.status, e.reason) for e in record.events][-2:] == [
+        ("flying", "vehicle 2 lost (link lost): B4 to vehicle 1"),
+        ("flying", "vehicle 1 lost"),
+    ]
+    assert storage.delete_mission(fleet) and storage.fleet_coordination(fleet) is None
+
+
+def test_a_reshare_is_stored_with_its_plan_and_event_or_not_at_all(storage):
+    fleet, (_, second) = storage.create_fleet_mission(FLIGHT, PLAN, [(FLIGHT, PLAN, 1), (FLIGHT, PLAN, 2)])
+    storage.claim_fleet(fleet, "gcs-a")
+    before, version = storage.get_mission(fleet), storage.latest_version()
+    with pytest.raises(ValueError):  # the plan cannot be stored (NaN is not JSON): nothing of the re-share is
+        storage.record_reshare(fleet, dataclasses.replace(PLAN, length_m=float("nan")), _reshare(second), "lost")
+    with pytest.raises(KeyError):  # no such fleet mission: its state is not written either
+        storage.record_reshare(fleet + 100, PLAN, _reshare(second), "lost")
+    after = storage.get_mission(fleet)
+    assert (after.plan, after.events, storage.latest_version()) == (before.plan, before.events, version)
+    assert storage.fleet_coordination(fleet).reshares == [] and storage.fleet_coordination(fleet + 100) is None
 
 
 def test_migration_5_leaves_every_stored_mission_on_the_one_vehicle(database):

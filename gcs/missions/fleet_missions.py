@@ -3,6 +3,12 @@ part mission per vehicle, each an ordinary mission flown and recorded by its veh
 mission follows its parts: its status (flying once launched; completed when every part completed, else failed or
 aborted naming the vehicles and the buoys not inspected), its progress (each share's status and inspected
 buoys), and a separation monitor records how close any two vehicles came while both were in the air.
+
+What it needs to carry on after a restart, or when a stand-by instance takes the fleet's vehicles over
+(gcs.missions.ownership), is in the database as it changes (gcs.domain.fleet_coordination): the separation so far,
+and each re-share, stored with the fleet mission's plan in one transaction before the receiving parts are told. The
+next coordinator so re-shares a loss nobody handled, and delivers a decided re-share whose receivers did not get
+their new plans.
 """
 
 from __future__ import annotations
@@ -14,15 +20,19 @@ import logging
 import math
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
+from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
 
-from gcs.domain.planning import Plan, sorties_plan
+from gcs.domain.fleet_coordination import Reshare
+from gcs.domain.listing import stored_time
+from gcs.domain.planning import Plan
 from gcs.domain.records import MissionProgress, MissionResults, ShareProgress
 from gcs.domain.schemas import PlanRequest, SeparationOut
 from gcs.domain.status import TERMINAL, MissionStatus
 from gcs.missions.fleet_planning import reshare
+from gcs.missions.fleet_takeover import grown_plan, handled_losses, undelivered_plans
 from gcs.missions.lifecycle import MissionConflictError, ended_by_the_vehicle
 from gcs.missions.validation import RequestInvalidError
 from gcs.settings import Limits
@@ -35,6 +45,8 @@ log = logging.getLogger(__name__)
 
 POLL_S = 0.5  # wall seconds between reads of the parts' state
 AIRBORNE_M = 1.0  # above home: a vehicle higher than this counts as in the air for the separation
+# the fleet mission's event when a coordinator (after a restart, or a stand-by that took over) follows it again
+FOLLOWED_AGAIN = "GCS restarted or taken over; following the fleet mission again"
 
 
 @dataclass
@@ -102,6 +114,10 @@ def _vehicle_of(part: MissionRecord) -> int:
     """The system id a fleet mission's part flies on: every part is stored with its vehicle's."""
     assert part.vehicle_sysid is not None
     return part.vehicle_sysid
+
+
+def _separation_out(separation: Separation) -> SeparationOut:
+    return SeparationOut.model_validate(asdict(separation))
 
 
 def shares_progress(fleet: MissionRecord, parts: list[MissionRecord]) -> MissionProgress:
@@ -179,10 +195,12 @@ class FleetCoordinator:
         storage: AsyncStorage,
         link_of: Callable[[int], LinkManager],
         replan: Callable[[MissionRecord, Plan], None],
+        instance: str = "",
     ) -> None:
         """link_of(sysid): a vehicle's link; replan(part, plan): fly a part on with a new plan, in flight (raises
-        MissionConflictError when that part is not flying)."""
-        self.storage, self._link_of, self._replan = storage, link_of, replan
+        MissionConflictError when that part is not flying); instance: this service instance's name, stored as the
+        fleet missions' coordinator."""
+        self.storage, self._link_of, self._replan, self.instance = storage, link_of, replan, instance
         self._tasks: dict[int, asyncio.Task] = {}
 
     def follow(self, fleet_id: int) -> None:
@@ -217,17 +235,24 @@ class FleetCoordinator:
     async def _follow_parts(self, fleet_id: int) -> None:
         fleet = await self.storage.existing_mission(fleet_id)
         parts = await self.storage.fleet_parts(fleet_id)
+        state = await self.storage.claim_fleet(fleet_id, self.instance)
         frame = fleet.plan.frame
         monitor = SeparationMonitor(frame, {sysid: self._link_of(sysid) for sysid in map(_vehicle_of, parts)})
+        monitor.separation = Separation(**state.separation.model_dump())  # the closest approach before, if any
         monitor.start()
-        if fleet.status != MissionStatus.FLYING:
-            await self.storage.set_status(fleet_id, MissionStatus.FLYING)
+        # a fleet mission already flying was followed by a coordinator before this one: carry on from its state
+        undelivered = undelivered_plans(fleet, parts, state) if fleet.status == MissionStatus.FLYING else {}
+        await self.storage.set_status(
+            fleet_id, MissionStatus.FLYING, FOLLOWED_AGAIN if fleet.status == MissionStatus.FLYING else None
+        )
         stored: MissionProgress | None = None
-        # before a restart: handled
-        lost: set[int] = {p.id for p in parts if ended_by_the_vehicle(p.status, p.reason)}
+        stored_separation = replace(monitor.separation)
+        # the lost parts whose buoys went to others (by this coordinator or one before it)
+        lost = handled_losses(fleet, parts)
         try:
             while True:
                 parts = await self.storage.fleet_parts(fleet_id)
+                undelivered = self._deliver(parts, undelivered)
                 for part in parts:
                     # lost: its link, a reboot, or a failsafe (battery, geofence) brought it down
                     if ended_by_the_vehicle(part.status, part.reason) and part.id not in lost:
@@ -237,6 +262,9 @@ class FleetCoordinator:
                 if progress != stored:
                     await self.storage.set_progress(fleet_id, progress)
                     stored = progress
+                if monitor.separation != stored_separation:
+                    stored_separation = replace(monitor.separation)
+                    await self.storage.set_fleet_separation(fleet_id, _separation_out(stored_separation))
                 if all(part.status in TERMINAL for part in parts):
                     break
                 await asyncio.sleep(POLL_S)
@@ -244,11 +272,27 @@ class FleetCoordinator:
             monitor.stop()
         ids = fleet.plan.buoy_ids
         inspected_by = {ids[b]: share.sysid for share in progress.shares for b in share.visited}
-        separation = SeparationOut.model_validate(asdict(monitor.separation))
+        separation = _separation_out(monitor.separation)
+        await self.storage.set_fleet_separation(fleet_id, separation)
         await self.storage.set_results(fleet_id, MissionResults(separation=separation, inspected_by=inspected_by))
         status, reason = fleet_ending(fleet, parts)
         await self.storage.set_status(fleet_id, status, reason)
         log.info("fleet mission %s %s%s", fleet_id, status, f": {reason}" if reason else "")
+
+    def _deliver(self, parts: list[MissionRecord], undelivered: dict[int, Plan]) -> dict[int, Plan]:
+        """Tell each receiver of an earlier re-share its new plan once its part flies here again (re-attached);
+        returns those still waiting. A part that ended meanwhile keeps its buoys not inspected (the end names them)."""
+        waiting = {}
+        for part in parts:
+            if (plan := undelivered.get(part.id)) is None or part.status in TERMINAL:
+                continue
+            try:
+                self._replan(part, plan)
+            except MissionConflictError:  # not re-attached yet: at the next poll
+                waiting[part.id] = plan
+                continue
+            log.warning("fleet mission: part %s flies the re-share decided before the take-over", part.id)
+        return waiting
 
     async def _reshare(
         self, fleet: MissionRecord, lost_part: MissionRecord, parts: list[MissionRecord]
@@ -258,7 +302,7 @@ class FleetCoordinator:
         new plan. The fleet mission's plan records who took what; its events say so. Returns the fleet re-read."""
         plan = fleet.plan
         assert plan.fleet is not None  # a fleet mission's plan has its fleet section
-        shares = {share.sysid: share for share in plan.fleet.shares}  # changed in place, stored at the end
+        shares = {share.sysid: share for share in plan.fleet.shares}  # changed in place, stored with the re-share
         lost_share = shares[_vehicle_of(lost_part)]
         visited = set(lost_part.progress.visited_buoys)
         orphans = [b for i, b in enumerate(lost_share.buoys) if i not in visited]
@@ -283,6 +327,8 @@ class FleetCoordinator:
             receivers[sysid] = (part, part_plan, left)
             positions[sysid] = (here, points[[share.buoys[i] for i in left]].reshape(-1, 2), home)
         handed: dict[int, list[int]] = {}
+        told: dict[int, tuple[MissionRecord, Plan]] = {}  # sysid -> its part and its new plan, once stored
+        orders: dict[str, list[int]] = {}
         if orphans and receivers:
             routes = reshare(positions, points[orphans], fleet.flight.speed_m_s, fleet.flight.dwell_s)
             for sysid, (part, part_plan, left) in receivers.items():
@@ -295,30 +341,40 @@ class FleetCoordinator:
                         new_order.append(len(part_plan.buoy_ids) + len(added) - 1)
                 if not added:
                     continue
-                new_plan = sorties_plan(
-                    part_plan.depot,
-                    [*part_plan.buoys_lat_lon, *(plan.buoys_lat_lon[b] for b in added)],
-                    [*part_plan.buoy_ids, *(plan.buoy_ids[b] for b in added)],
-                    [new_order],
-                    part_plan.method,
-                    part_plan.elapsed_s,
-                )
-                new_plan = replace(new_plan, marks=[*map(part_plan.mark, range(len(part_plan.buoy_ids))),
-                                                    *map(plan.mark, added)],
-                                   fence=part_plan.fence, rally_points=part_plan.rally_points)  # fmt: skip
-                try:
-                    self._replan(part, new_plan)
-                except MissionConflictError:  # it landed or ended meanwhile: the buoys stay not inspected
-                    continue
+                told[sysid] = (part, grown_plan(plan, part_plan, added, new_order))
                 shares[sysid].buoys = [*shares[sysid].buoys, *added]
-                handed[sysid] = added
+                handed[sysid], orders[str(sysid)] = added, new_order
         lost_share.handed_over = {str(sysid): buoys for sysid, buoys in handed.items()}
-        await self.storage.set_plan(fleet.id, plan)
         names = {sysid: ", ".join(plan.buoy_ids[b] for b in buoys) for sysid, buoys in handed.items()}
         given = "; ".join(f"{names[sysid]} to vehicle {sysid}" for sysid in names) or "nobody left to take its buoys"
         why = f" ({lost_part.reason})" if lost_part.reason else ""
-        await self.storage.set_status(
-            fleet.id, MissionStatus.FLYING, f"vehicle {lost_part.vehicle_sysid} lost{why}: {given}"
+        decided = Reshare(
+            part_id=lost_part.id,
+            sysid=_vehicle_of(lost_part),
+            reason=lost_part.reason,
+            handed_over=lost_share.handed_over,
+            orders=orders,
+            at=stored_time(datetime.now(UTC)),
+        )
+        # decided and stored before any receiver is told: a coordinator killed in between leaves a decision its
+        # successor delivers (`undelivered_plans`), never buoys told to a vehicle the fleet mission does not know of
+        await self.storage.record_reshare(
+            fleet.id, plan, decided, f"vehicle {lost_part.vehicle_sysid} lost{why}: {given}"
         )
         log.warning("fleet mission %s: vehicle %s lost; %s", fleet.id, lost_part.vehicle_sysid, given)
+        refused = []
+        for sysid, (part, new_plan) in told.items():
+            try:
+                self._replan(part, new_plan)
+            except MissionConflictError:  # it landed or ended meanwhile: the buoys stay not inspected
+                refused.append(sysid)
+        if refused:  # the fleet mission's plan says who really took what
+            for sysid in refused:
+                shares[sysid].buoys = shares[sysid].buoys[: -len(handed[sysid])]
+                del lost_share.handed_over[str(sysid)]
+            await self.storage.set_plan(fleet.id, plan)
+            ended = ", ".join(map(str, refused))
+            await self.storage.set_status(
+                fleet.id, MissionStatus.FLYING, f"vehicle(s) {ended} ended before taking their buoys: not re-shared"
+            )
         return await self.storage.existing_mission(fleet.id)

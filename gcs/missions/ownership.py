@@ -27,6 +27,19 @@ that an old owner still running has noticed and exited. (An old owner frozen lon
 by SIGSTOP, could still send a few messages when it wakes before its next check: the lease has no fencing
 token the vehicle could check.)
 
+A fleet (several vehicles, each `SYSID=URL`) is owned whole: the instance's lease is one advisory lock per vehicle,
+keyed by `system N` (prefixed by `vehicle_name` when given, so that two fleets with the same system ids can share
+a database), all held on the one lease connection and taken all or none (`try_acquire` takes them in key order
+and gives back what it took when one is held elsewhere: it never waits, so two instances cannot deadlock). Why
+the vehicles and not the fleet missions: a fleet mission's parts are ordinary missions of their vehicles, flown by
+whoever owns each vehicle's link, and its coordinator (gcs.missions.fleet_missions) needs every part's link for
+the separation and to upload re-shared buoys in flight. The instance that owns all of a fleet's vehicles so owns
+its fleet missions too, with no lease of their own that could disagree with the vehicles' leases; it follows
+each unfinished fleet mission whose vehicles are all its own, from the coordinator state stored before
+(gcs.domain.fleet_coordination). Every vehicle's lease moves with the fleet at a take-over, at once, on the one
+session PostgreSQL ends when its owner dies. Per-vehicle keys also keep one vehicle from being owned twice: an
+instance configured for a subset of the fleet competes for those vehicles' locks.
+
 With SQLite (one file, one service instance) the instance is always the owner (`SoleLease`).
 """
 
@@ -37,7 +50,7 @@ import contextlib
 import hashlib
 import logging
 import os
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Sequence
 from enum import StrEnum
 from typing import Any, NoReturn, Protocol
 
@@ -115,18 +128,22 @@ class SoleLease:
 
 
 class PostgresLease:
-    """A session-level advisory lock on a connection of its own, named after the instance."""
+    """Session-level advisory locks, one per vehicle, on a connection of its own named after the instance."""
 
-    # the lock this session, or any, holds on the key: pg_locks shows (int4, int4) keys as classid, objid, 2
+    # the locks this session, or any, holds on the keys: pg_locks shows (int4, int4) keys as classid, objid, 2
     _HELD = (
         "SELECT a.application_name, l.pid = pg_backend_pid() FROM pg_locks l JOIN pg_stat_activity a ON a.pid = l.pid"
-        " WHERE l.locktype = 'advisory' AND l.granted AND l.classid = %s::int4::oid AND l.objid = %s::int4::oid"
+        " WHERE l.locktype = 'advisory' AND l.granted AND l.classid = %s::int4::oid AND l.objid::int8 = ANY(%s::int8[])"
         " AND l.objsubid = 2"
     )
+    _TRY = "SELECT pg_try_advisory_lock(%s::int4, %s::int4)"
+    _UNLOCK = "SELECT pg_advisory_unlock(%s::int4, %s::int4)"
 
-    def __init__(self, url: str, vehicle_name: str, instance: str) -> None:
+    def __init__(self, url: str, vehicle_names: str | Sequence[str], instance: str) -> None:
+        """vehicle_names: the vehicle (one name) or every vehicle of the fleet this instance owns whole."""
         self.url, self.instance = url, instance
-        self.keys = (LEASE_NAMESPACE, lease_key(vehicle_name))
+        names = [vehicle_names] if isinstance(vehicle_names, str) else list(vehicle_names)
+        self.keys = sorted({lease_key(name) for name in names})  # one order for every instance: see try_acquire
         self._connection: psycopg.AsyncConnection | None = None
 
     async def _connect(self) -> psycopg.AsyncConnection:
@@ -144,12 +161,12 @@ class PostgresLease:
             )
         return self._connection
 
-    async def _query(self, sql: str) -> list[tuple[Any, ...]]:
-        """Run one query on the lease connection; a broken or slow connection is closed (the lock with it)."""
+    async def _query(self, sql: str, parameters: tuple[Any, ...]) -> list[tuple[Any, ...]]:
+        """Run one query on the lease connection; a broken or slow connection is closed (the locks with it)."""
         try:
             connection = await self._connect()
             async with asyncio.timeout(QUERY_TIMEOUT_S):
-                cursor = await connection.execute(sql, self.keys)
+                cursor = await connection.execute(sql, parameters)
             return await cursor.fetchall()
         except (psycopg.Error, OSError, TimeoutError):
             await self._drop()
@@ -162,24 +179,32 @@ class PostgresLease:
                 await connection.close()
 
     async def try_acquire(self) -> bool:
+        """Every vehicle's lock or none: in key order (every instance the same), giving back those taken when one
+        is held elsewhere. pg_try_advisory_lock never waits, so instances with overlapping fleets cannot deadlock."""
+        taken: list[int] = []
         try:
-            rows = await self._query("SELECT pg_try_advisory_lock(%s::int4, %s::int4)")
-        except (psycopg.Error, OSError, TimeoutError) as error:
+            for key in self.keys:
+                if not (await self._query(self._TRY, (LEASE_NAMESPACE, key)))[0][0]:
+                    for held in taken:
+                        await self._query(self._UNLOCK, (LEASE_NAMESPACE, held))
+                    return False
+                taken.append(key)
+        except (psycopg.Error, OSError, TimeoutError) as error:  # the connection is closed: its locks are gone
             log.warning("vehicle lease: cannot reach the database (%s); trying again", error)
             return False
-        return bool(rows[0][0])
+        return True
 
     async def still_held(self) -> bool:
         try:
-            rows = await self._query(self._HELD)
+            rows = await self._query(self._HELD, (LEASE_NAMESPACE, self.keys))
         except (psycopg.Error, OSError, TimeoutError) as error:
             log.error("vehicle lease: the lease connection failed (%s)", error)
             return False
-        return any(ours for _, ours in rows)
+        return sum(bool(ours) for _, ours in rows) == len(self.keys)  # every vehicle's, on this session
 
     async def holder(self) -> str | None:
         try:
-            rows = await self._query(self._HELD)
+            rows = await self._query(self._HELD, (LEASE_NAMESPACE, self.keys))
         except (psycopg.Error, OSError, TimeoutError):
             return None
         return rows[0][0] if rows else None
@@ -189,7 +214,8 @@ class PostgresLease:
         server has noticed: unlocking first frees the lease before this returns)."""
         if self._connection is not None:
             with contextlib.suppress(psycopg.Error, OSError, TimeoutError):
-                await self._query("SELECT pg_advisory_unlock(%s::int4, %s::int4)")
+                for key in self.keys:
+                    await self._query(self._UNLOCK, (LEASE_NAMESPACE, key))
         await self._drop()
 
 
@@ -287,11 +313,20 @@ class Ownership:
                 return
 
 
+def lease_names(settings: Settings) -> list[str]:
+    """The names of the vehicles whose leases this instance takes: its one vehicle's (`vehicle_name`, else its
+    connection string normalised), or each of its fleet's by system id (`system N`, after `vehicle_name/` when
+    given): a fleet's vehicles keep distinct system ids (PX4's MAV_SYS_ID) whatever connection reaches them."""
+    if len(settings.vehicles) < 2:
+        return [settings.vehicle_name or str(parse_connection(settings.vehicle_url))]
+    prefix = f"{settings.vehicle_name}/" if settings.vehicle_name else ""
+    return [f"{prefix}system {sysid}" for sysid, _ in settings.fleet]
+
+
 def ownership_for(settings: Settings) -> Ownership:
     """On a PostgreSQL database, a lease shared with the other instances there; on SQLite, the sole owner."""
     if settings.db is None:
         return Ownership(SoleLease(), settings.instance_name, settings.lease_poll_s)
-    vehicle_name = settings.vehicle_name or str(parse_connection(settings.vehicle_url))
-    lease = PostgresLease(settings.db, vehicle_name, settings.instance_name)
+    lease = PostgresLease(settings.db, lease_names(settings), settings.instance_name)
     grace_s = TAKEOVER_GRACE_POLLS * settings.lease_poll_s
     return Ownership(lease, settings.instance_name, settings.lease_poll_s, grace_s=grace_s)

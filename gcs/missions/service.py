@@ -142,6 +142,7 @@ class MissionService:
             storage,
             lambda sysid: self._vehicle(sysid).link,
             lambda part, plan: self._vehicle_of(part).flights.replan(part.id, plan),
+            settings.instance_name,
         )
         self._ownership = ownership or ownership_for(settings)
         # the read routes' encoded documents by version (gcs.missions.read_cache); GET /missions' pages apart, so a
@@ -162,13 +163,19 @@ class MissionService:
         """As the links' new owner: start them and re-attach each vehicle's mission left flying, as after a restart."""
         # read before this run can start any mission
         unfinished = [await self._storage.unfinished_missions(vehicle.sysid) for vehicle in self._vehicles]
-        fleets = await self._storage.unfinished_fleets()
+        fleets = [fleet_id for fleet_id in await self._storage.unfinished_fleets() if await self._flies(fleet_id)]
         for vehicle in self._vehicles:
             await vehicle.link.start()
         for vehicle, missions in zip(self._vehicles, unfinished, strict=True):
             await vehicle.flights.reattach(missions)
         for fleet_id in fleets:
             self._fleets.follow(fleet_id)
+
+    async def _flies(self, fleet_id: int) -> bool:
+        """Whether every part of the fleet mission flies on a vehicle of this instance (whose leases it holds, all or
+        none: gcs.missions.ownership); an instance owning other vehicles on the same database leaves it alone."""
+        ours = {vehicle.sysid for vehicle in self._vehicles}
+        return all(part.vehicle_sysid in ours for part in await self._storage.fleet_parts(fleet_id))
 
     async def stop(self) -> None:
         """Stop. On a shared database a mission in flight is handed over, not failed: a stand-by takes the link

@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
 from typing import Any, ClassVar, Protocol
 
+from gcs.domain.fleet_coordination import FleetCoordination, Reshare
 from gcs.domain.inspection import InspectionRecord, StoredFrame
 from gcs.domain.listing import MissionFilter, PageKey, stored_time
 from gcs.domain.planning import FlightParams, Plan
@@ -30,7 +31,7 @@ from gcs.domain.register import (
     StoredBuoy,
     defect_findings,
 )
-from gcs.domain.schemas import StatusEvent
+from gcs.domain.schemas import SeparationOut, StatusEvent
 from gcs.domain.status import UNFINISHED, MissionKind, MissionStatus
 from gcs.storage.migrations import MIGRATIONS, TRACK_COLUMNS
 
@@ -144,6 +145,21 @@ _STORED_BUOYS = f"""SELECT {_BUOY_COLUMNS}, mmsi, created_at, updated_at,
     (SELECT COUNT(*) FROM buoy_defects AS d WHERE d.buoy_id = b.id AND d.state IN ('open', 'confirmed'))
      AS unclosed_defects
     FROM buoys AS b"""
+
+
+def _coordination(row: Any) -> FleetCoordination:
+    separation = SeparationOut(
+        min_horizontal_m=row["min_horizontal_m"],
+        min_vertical_m=row["min_vertical_m"],
+        min_distance_m=row["min_distance_m"],
+    )
+    return FleetCoordination(
+        fleet_id=row["fleet_id"],
+        coordinator=row["coordinator"],
+        separation=separation,
+        reshares=[Reshare.model_validate(item) for item in json.loads(row["reshares"])],
+        updated_at=row["updated_at"],
+    )
 
 
 def _charted_values(buoy: RegisterBuoy) -> tuple[Any, ...]:
@@ -403,6 +419,59 @@ class Storage(ABC):
                 "SELECT * FROM missions WHERE fleet_id = ? AND id <> ? ORDER BY id", (fleet_id, fleet_id)
             ).fetchall()
         return [_record(row, []) for row in rows]
+
+    # ----- a fleet mission's coordinator state (gcs.domain.fleet_coordination), so another instance can carry it on
+    def fleet_coordination(self, fleet_id: int) -> FleetCoordination | None:
+        """The fleet mission's coordinator state, None before anyone followed it."""
+        with self._reading() as db:
+            row = db.execute("SELECT * FROM fleet_coordination WHERE fleet_id = ?", (fleet_id,)).fetchone()
+        return None if row is None else _coordination(row)
+
+    def claim_fleet(self, fleet_id: int, coordinator: str) -> FleetCoordination:
+        """Record that instance `coordinator` follows the fleet mission from now (the caller holds the leases of
+        its vehicles: gcs.missions.ownership); returns its state as stored (empty the first time)."""
+        with self.transaction() as db:
+            db.execute(
+                "INSERT INTO fleet_coordination (fleet_id, coordinator, updated_at) VALUES (?, ?, ?)"
+                " ON CONFLICT (fleet_id) DO UPDATE SET coordinator = excluded.coordinator,"
+                " updated_at = excluded.updated_at",
+                (fleet_id, coordinator, _now()),
+            )
+            row = db.execute("SELECT * FROM fleet_coordination WHERE fleet_id = ?", (fleet_id,)).fetchone()
+        return _coordination(row)
+
+    def set_fleet_separation(self, fleet_id: int, separation: SeparationOut) -> None:
+        """The closest approach so far of the fleet mission's vehicles (its row made by `claim_fleet`)."""
+        with self.transaction() as db:
+            db.execute(
+                "UPDATE fleet_coordination SET min_horizontal_m = ?, min_vertical_m = ?, min_distance_m = ?,"
+                " updated_at = ? WHERE fleet_id = ?",
+                (separation.min_horizontal_m, separation.min_vertical_m, separation.min_distance_m, _now(), fleet_id),
+            )
+
+    def record_reshare(self, fleet_id: int, plan: Plan, reshare: Reshare, reason: str) -> None:
+        """A lost part's buoys re-shared, in one transaction: the fleet mission's plan (the lost share marked, the
+        receiving shares grown), its event (still flying, `reason`) and the re-share added to its coordinator
+        state. Nothing of it is stored if any of it fails."""
+        now = _now()
+        with self._mission_write() as db:
+            cursor = db.execute(
+                "UPDATE missions SET plan = ?, status = ?, reason = ?, updated_at = ?, version = ? WHERE id = ?",
+                (_json(plan.to_dict()), MissionStatus.FLYING, reason, now, next_version(db), fleet_id),
+            )
+            if cursor.rowcount != 1:
+                raise KeyError(f"no mission {fleet_id}")
+            db.execute(
+                "INSERT INTO mission_events (mission_id, at, status, reason) VALUES (?, ?, ?, ?)",
+                (fleet_id, now, MissionStatus.FLYING, reason),
+            )
+            row = db.execute("SELECT reshares FROM fleet_coordination WHERE fleet_id = ?", (fleet_id,)).fetchone()
+            reshares = [*(json.loads(row["reshares"]) if row is not None else []), reshare.model_dump(mode="json")]
+            db.execute(
+                "INSERT INTO fleet_coordination (fleet_id, reshares, updated_at) VALUES (?, ?, ?)"
+                " ON CONFLICT (fleet_id) DO UPDATE SET reshares = excluded.reshares, updated_at = excluded.updated_at",
+                (fleet_id, _json(reshares), now),
+            )
 
     def get_mission(self, mission_id: int) -> MissionRecord | None:
         with self._reading() as db:
@@ -736,6 +805,7 @@ class Storage(ABC):
             ids = sorted((int(row["id"]) for row in rows), reverse=True)  # parts (higher ids) before their fleet
             for table in ("frames", "inspections", "telemetry", "mission_events"):
                 db.executemany(f"DELETE FROM {table} WHERE mission_id = ?", [(i,) for i in ids])
+            db.executemany("DELETE FROM fleet_coordination WHERE fleet_id = ?", [(i,) for i in ids])
             db.executemany("DELETE FROM missions WHERE id = ?", [(i,) for i in ids])
             if ids:
                 next_version(db)  # the list changed: what was cached under the counter is stale

@@ -198,6 +198,21 @@ _MISSION_CHANGES = """
     INSERT INTO mission_changes (id, version) SELECT 1, COALESCE(MAX(version), 0) FROM missions;
 """
 
+# Migration 12: a fleet mission's coordinator state (gcs.domain.fleet_coordination), one row per fleet mission, so
+# that another service instance can carry the fleet mission on: the separation so far, the re-shares decided (JSON:
+# a list, read and written whole), and the instance following it
+_FLEET_COORDINATION = """
+    CREATE TABLE fleet_coordination (
+        fleet_id {integer} PRIMARY KEY REFERENCES missions(id),
+        coordinator TEXT,
+        min_horizontal_m {real},
+        min_vertical_m {real},
+        min_distance_m {real},
+        reshares TEXT NOT NULL DEFAULT '[]',
+        updated_at TEXT NOT NULL
+    );
+"""
+
 
 def _sqlite_status_check(db: Any) -> None:
     """Migration 6 in SQLite: the missions table's CHECK lists every MissionStatus. SQLite cannot alter a
@@ -249,4 +264,8 @@ MIGRATIONS: list[Migration] = [
     Migration(sqlite=_BY_CREATION, postgresql=_BY_CREATION),
     Migration(sqlite=_CHART_BASEMAPS, postgresql=_CHART_BASEMAPS),
     Migration(sqlite=_MISSION_CHANGES, postgresql=_MISSION_CHANGES),
+    Migration(
+        sqlite=_FLEET_COORDINATION.format(integer="INTEGER", real="REAL"),
+        postgresql=_FLEET_COORDINATION.format(integer="BIGINT", real="DOUBLE PRECISION"),
+    ),
 ]

@@ -23,11 +23,13 @@ from collections.abc import Callable, Hashable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, ParamSpec, TypeVar
 
+from gcs.domain.fleet_coordination import FleetCoordination, Reshare
 from gcs.domain.inspection import InspectionRecord, StoredFrame
 from gcs.domain.listing import MissionFilter, PageKey
 from gcs.domain.planning import FlightParams, Plan
 from gcs.domain.records import MissionProgress, MissionResults
 from gcs.domain.register import BuoyEvent, BuoyFilter, Defect, DefectState, RegisterBuoy, StoredBuoy
+from gcs.domain.schemas import SeparationOut
 from gcs.domain.status import MissionStatus
 from gcs.storage.base import MissionRecord, Storage
 
@@ -98,6 +100,15 @@ class AsyncStorage:
     async def set_results(self, mission_id: int, results: MissionResults) -> None:
         await self._run(self._writer, self.blocking.set_results, mission_id, results)
 
+    async def claim_fleet(self, fleet_id: int, coordinator: str) -> FleetCoordination:
+        return await self._run(self._writer, self.blocking.claim_fleet, fleet_id, coordinator)
+
+    async def set_fleet_separation(self, fleet_id: int, separation: SeparationOut) -> None:
+        await self._run(self._writer, self.blocking.set_fleet_separation, fleet_id, separation)
+
+    async def record_reshare(self, fleet_id: int, plan: Plan, reshare: Reshare, reason: str) -> None:
+        await self._run(self._writer, self.blocking.record_reshare, fleet_id, plan, reshare, reason)
+
     async def add_telemetry(self, mission_id: int, samples: list[dict[str, Any]]) -> None:
         await self._run(self._writer, self.blocking.add_telemetry, mission_id, samples)
 
@@ -139,6 +150,9 @@ class AsyncStorage:
 
     async def fleet_parts(self, fleet_id: int) -> list[MissionRecord]:
         return await self._run(self._readers, self.blocking.fleet_parts, fleet_id)
+
+    async def fleet_coordination(self, fleet_id: int) -> FleetCoordination | None:
+        return await self._run(self._readers, self.blocking.fleet_coordination, fleet_id)
 
     async def unfinished_missions(self, vehicle_sysid: int | None = None) -> list[int]:
         return await self._run(self._readers, self.blocking.unfinished_missions, vehicle_sysid)
