@@ -25,7 +25,7 @@ from sitl_quad.battery import BatteryWarning
 from sitl_quad.config import FailsafeAction, FailsafeConfig, GeofenceAction, LowBatteryAction
 from sitl_quad.offboard_setpoints import PositionTarget, RatesTarget, SetpointKind
 from uavcore.geodesy import LocalFrame
-from uavcore.geofence import Geofence, PlanarFence, Zone
+from uavcore.geofence import Geofence, NorthEast, PlanarFence, Zone
 from uavcore.modes import FlightMode
 from uavcore.state import AttitudeTarget
 
@@ -103,10 +103,20 @@ class GeofenceGuard:
     def present(self) -> bool:
         return not self.fence.empty
 
-    def set_fence(self, fence: Geofence, frame: LocalFrame) -> None:
-        self.fence = fence
-        self.plane = fence.in_plane(frame)
+    def set_fence(self, fence: Geofence, frame: LocalFrame, position: NorthEast | None = None) -> list[str]:
+        """Load a fence as PX4's Geofence::_updateFence does: a zone that bars home, the origin of `frame`
+        (checkHomeRequirementsForGeofence), or bars `position`, the flying vehicle's place while GF_ACTION acts
+        (checkCurrentPositionRequirementsForGeofence), is discarded and the rest kept. PX4's critical
+        texts for the discarded zones, one each, are returned."""
+        plane, barring_home = fence.in_plane(frame).split_barring((0.0, 0.0))
+        texts = ["Geofence invalid, doesn't contain Home position"] * len(barring_home)
+        if position is not None:
+            plane, barring_vehicle = plane.split_barring(position)
+            texts += ["Geofence invalid, doesn't contain current vehicle position"] * len(barring_vehicle)
+        self.fence = Geofence(tuple(zone.zone for zone in plane.zones), fence.return_point)
+        self.plane = plane
         self.breached = False
+        return texts
 
     def violation(self, north: float, east: float) -> Zone | None:
         return self.plane.violation((north, east)) if self.present else None

@@ -29,6 +29,7 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from sitl_quad.arming import (
+    AIRBORNE_ALTITUDE_M,
     CLIMBING_ACTIVITIES,
     FORCE_DISARM_MAGIC,
     PREFLIGHT_DISARM_S,
@@ -42,6 +43,7 @@ from sitl_quad.arming import (
 from sitl_quad.battery import Battery, electrical_power, rotor_mechanical_power
 from sitl_quad.config import AttitudeControllerKind, GeofenceAction, LowBatteryAction, VehicleConfig
 from sitl_quad.failsafe import (
+    SEVERITY_CRITICAL,
     BatteryGuard,
     GeofenceGuard,
     OffboardStream,
@@ -343,17 +345,26 @@ class Vehicle:
         """DO_REPOSITION (QGC's "go to location", MAVSDK's goto_location): hold at a place, as PX4 does.
 
         NaN keeps the current value of a coordinate; yaw NaN keeps the heading toward the travel. During a
-        takeoff (spool-up included) the place is flown to once the climb is done."""
-        taking_off = self.mode == FlightMode.AUTO_TAKEOFF and (
+        takeoff (spool-up included) the place is flown to once the climb is done.
+
+        Armed on the ground, the vehicle takes off toward the place, as PX4 does: its commander switches to
+        AUTO_LOITER whatever the landed state, and its position controller takes off toward a loiter setpoint
+        above a landed vehicle. MAVSDK's goto_location first switches to hold (Action::goto_location sets
+        FlightMode::Hold, then sends DO_REPOSITION): one second after takeoff() that hold lands during the
+        motors' spool-up and cancels the takeoff, so the reposition finds the vehicle armed on the ground."""
+        # a takeoff, or a climb _take_off_toward started in AUTO_LOITER
+        taking_off = self.mode in (FlightMode.AUTO_TAKEOFF, FlightMode.AUTO_LOITER) and (
             self.arming.pending_climb is not None or self.navigator.activity == "takeoff"
         )
-        if not self.armed or not (self.in_air or taking_off):
-            self._emit("text", "Reposition denied: not flying", 4)
+        if not self.armed:
+            self._emit("text", "Reposition denied: disarmed", 4)
             return CommandResult.DENIED
         place = reposition_target(self.frame, self.home[2], self.estimate, lat, lon, alt_amsl)
         if place is None:
             return CommandResult.DENIED
-        if taking_off:
+        if not (self.in_air or taking_off):
+            self._take_off_toward(place)
+        if taking_off or not self.in_air:
             self._reposition_after_takeoff = (lat, lon, alt_amsl, yaw)
             return CommandResult.ACCEPTED
         self._choose(FlightMode.AUTO_LOITER)
@@ -429,10 +440,13 @@ class Vehicle:
     # ----- geofence and rally points (the other two lists of the mission protocol)
     def set_fence(self, items: list[MissionItem]) -> None:
         """Store a MISSION_TYPE_FENCE list; raises uavcore.geofence.FenceError (nothing changed) if it does not
-        describe zones."""
+        describe zones. The list is kept as sent (a download hands it back whole) and its zones are loaded as
+        PX4 loads them: one barring home, or the flying vehicle, is discarded with PX4's critical text."""
         fence = Geofence.from_items(items)
         self.fence_items = list(items)
-        self.geofence.set_fence(fence, self.frame)
+        flying = self.armed and self.in_air and self.config.failsafe.geofence_action != GeofenceAction.NONE
+        for text in self.geofence.set_fence(fence, self.frame, self._north_east() if flying else None):
+            self._emit("text", text, SEVERITY_CRITICAL)
 
     def set_rally_points(self, items: list[MissionItem]) -> None:
         self.rally_points = list(items)
@@ -523,6 +537,13 @@ class Vehicle:
         if climb is not None and self.armed:
             self._start_activity(climb.mode, climb.first_seq, climb.altitude)
 
+    def _take_off_toward(self, place: tuple[float, float, float]) -> None:
+        """In AUTO_LOITER, spool up and climb to the place's height (MIS_TAKEOFF_ALT if it is not above home);
+        the reposition that asked is kept for once the climb is done (_reposition_once_climbed)."""
+        self._choose(FlightMode.AUTO_LOITER)
+        height = -place[2]
+        self._prepare_takeoff(FlightMode.AUTO_TAKEOFF, None, height if height > AIRBORNE_ALTITUDE_M else None)
+
     def _reposition_once_climbed(self) -> None:
         """Fly to a place asked for during the takeoff, once the climb is done."""
         request = self._reposition_after_takeoff
@@ -542,7 +563,9 @@ class Vehicle:
         next_mode = geofence_action_mode(action)
         then = next_mode.label if next_mode is not None else "warning only"
         self._emit("text", f"Geofence breached ({zone.kind}): {then}", 2)
-        if next_mode is not None and next_mode != self.mode:
+        # a hold is taken here even in AUTO_LOITER: flying to a place beyond the fence (a reposition) is a loiter
+        # too, and PX4's navigator then sets its loiter point where the breach is (Navigator::geofence_breach_check)
+        if next_mode is not None and (next_mode != self.mode or next_mode == FlightMode.AUTO_LOITER):
             self._enter(next_mode)
 
     def _check_battery(self) -> None:
