@@ -46,9 +46,11 @@ from sitl_quad.failsafe import (
     SEVERITY_CRITICAL,
     BatteryGuard,
     GeofenceGuard,
+    HomeDistanceLimit,
     OffboardStream,
     battery_failsafe,
     geofence_action_mode,
+    home_limits_on,
     offboard_loss_mode,
 )
 from sitl_quad.flight_loop import AttitudeLoopFactory, FlightLoop, builtin_pid_loop, motors_off_target
@@ -449,13 +451,17 @@ class Vehicle:
             self._emit("text", text, SEVERITY_CRITICAL)
 
     def set_rally_points(self, items: list[MissionItem]) -> None:
+        """Store a MISSION_TYPE_RALLY list: a return (RTL) then goes to the closest of home and these."""
         self.rally_points = list(items)
+        self.navigator.set_rally_points(self.rally_points)
 
     def _north_east(self) -> tuple[float, float]:
         return float(self.estimate.position[0]), float(self.estimate.position[1])
 
     def _geofence_enforced(self) -> bool:
-        return self.geofence.present and self.config.failsafe.geofence_action != GeofenceAction.NONE
+        failsafe = self.config.failsafe
+        fenced = self.geofence.present or home_limits_on(failsafe)
+        return fenced and failsafe.geofence_action != GeofenceAction.NONE
 
     def _mission_inside_fence(self) -> bool:
         """PX4's mission feasibility check: every place the mission names is where the vehicle may be."""
@@ -499,7 +505,9 @@ class Vehicle:
         self.loop.reset_controllers()
         self.estimate = self.sim.measure()
         first_seq = resume_seq(self.navigator, first_seq)
-        self.navigator = flight_navigator(self.frame, self.config.navigator, self.mission, self.clock, self.estimate)
+        self.navigator = flight_navigator(
+            self.frame, self.config.navigator, self.mission, self.rally_points, self.clock, self.estimate
+        )
         self.arming.schedule_climb(PendingClimb(self.clock + SPOOLUP_S, mode, first_seq, altitude))
 
     def _enter_offboard(self) -> None:
@@ -556,13 +564,16 @@ class Vehicle:
         """GF_ACTION when the flying vehicle leaves where its geofence lets it be (sitl_quad.failsafe)."""
         if not (self.armed and self.in_air and self._geofence_enforced()):
             return
-        zone = self.geofence.new_breach(*self._north_east())
-        if zone is None:
+        height = -float(self.estimate.position[2])
+        breach = self.geofence.new_breach(*self._north_east(), height, self.config.failsafe)
+        if breach is None:
             return
         action = GeofenceAction(self.config.failsafe.geofence_action)
         next_mode = geofence_action_mode(action)
         then = next_mode.label if next_mode is not None else "warning only"
-        self._emit("text", f"Geofence breached ({zone.kind}): {then}", 2)
+        if isinstance(breach, HomeDistanceLimit):
+            self._emit("text", breach.px4_text, SEVERITY_CRITICAL)
+        self._emit("text", f"Geofence breached ({breach.kind}): {then}", SEVERITY_CRITICAL)
         # a hold is taken here even in AUTO_LOITER: flying to a place beyond the fence (a reposition) is a loiter
         # too, and PX4's navigator then sets its loiter point where the breach is (Navigator::geofence_breach_check)
         if next_mode is not None and (next_mode != self.mode or next_mode == FlightMode.AUTO_LOITER):
