@@ -353,20 +353,24 @@ class Vehicle:
         AUTO_LOITER whatever the landed state, and its position controller takes off toward a loiter setpoint
         above a landed vehicle. MAVSDK's goto_location first switches to hold (Action::goto_location sets
         FlightMode::Hold, then sends DO_REPOSITION): one second after takeoff() that hold lands during the
-        motors' spool-up and cancels the takeoff, so the reposition finds the vehicle armed on the ground."""
+        motors' spool-up, or on the first ticks of the climb while the vehicle still touches the ground, and
+        cancels the takeoff, so the reposition finds the vehicle armed on the ground."""
         # a takeoff, or a climb _take_off_toward started in AUTO_LOITER
         taking_off = self.mode in (FlightMode.AUTO_TAKEOFF, FlightMode.AUTO_LOITER) and (
             self.arming.pending_climb is not None or self.navigator.activity == "takeoff"
         )
+        # on the ground and not flown yet: the landed state says TAKEOFF from the climb's first tick, before
+        # the vehicle leaves the ground, and a hold then idles the rotors there
+        grounded = self.sim.on_ground and not self.arming.was_airborne
         if not self.armed:
             self._emit("text", "Reposition denied: disarmed", 4)
             return CommandResult.DENIED
         place = reposition_target(self.frame, self.home[2], self.estimate, lat, lon, alt_amsl)
         if place is None:
             return CommandResult.DENIED
-        if not (self.in_air or taking_off):
+        if grounded and not taking_off:
             self._take_off_toward(place)
-        if taking_off or not self.in_air:
+        if taking_off or grounded:
             self._reposition_after_takeoff = (lat, lon, alt_amsl, yaw)
             return CommandResult.ACCEPTED
         self._choose(FlightMode.AUTO_LOITER)

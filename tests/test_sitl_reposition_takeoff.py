@@ -66,6 +66,22 @@ def test_hold_during_spool_up_then_reposition_takes_off_toward_the_place():
     assert math.dist(vehicle.truth.position, (-15.0, -40.0, -20.0)) < 0.5
 
 
+def test_hold_on_the_climbs_first_ticks_then_reposition_takes_off_toward_the_place():
+    """The hold arriving just after the climb began, the vehicle still on the ground (its landed state already
+    TAKEOFF): the hold idles the rotors there, and the reposition takes off toward the place."""
+    vehicle = Vehicle(VehicleConfig(), home=HOME, seed=3)
+    vehicle.arm()
+    vehicle.takeoff()
+    fly_until(vehicle, lambda v: v.landed_state == LandedState.TAKEOFF, 5.0)
+    assert vehicle.sim.on_ground and not vehicle.arming.was_airborne
+    assert vehicle.set_mode(FlightMode.AUTO_LOITER) == CommandResult.ACCEPTED
+    lat, lon, _ = FRAME.from_ned(-15.0, -40.0, 0.0)
+    assert vehicle.reposition(float(lat), float(lon), HOME[2] + 20.0, math.nan) == CommandResult.ACCEPTED
+    fly_until(vehicle, lambda v: False, 40.0)
+    assert vehicle.armed and vehicle.landed_state == LandedState.IN_AIR
+    assert math.dist(vehicle.truth.position, (-15.0, -40.0, -20.0)) < 0.5
+
+
 def test_reposition_armed_on_the_ground_without_a_place_height_climbs_to_the_takeoff_altitude():
     vehicle = Vehicle(VehicleConfig(), home=HOME, seed=3)
     vehicle.arm()
