@@ -60,6 +60,8 @@ class FailsafeConfig:
     offboard_loss_timeout_s: float = 0.5  # OFFB_LOSS_T, simulated seconds
     offboard_loss_action: int = FailsafeAction.HOLD  # OFFB_LOSS_ACT
     geofence_action: int = GeofenceAction.HOLD  # GF_ACTION
+    geofence_max_horizontal_m: float = 0.0  # GF_MAX_HOR_DIST: horizontal distance from home, m (0: no limit)
+    geofence_max_vertical_m: float = 0.0  # GF_MAX_VER_DIST: height above home, m (0: no limit)
     low_battery_action: int = LowBatteryAction.WARNING  # COM_LOW_BAT_ACT (PX4's default: warn only)
     arm_battery_min: float = -1.0  # COM_ARM_BAT_MIN: no arming below this charge; negative: below BAT_CRIT_THR
 

@@ -19,13 +19,14 @@ mode, as PX4's failsafe framework does (Failsafe::fromBatteryWarningActParam): 0
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from sitl_quad.battery import BatteryWarning
 from sitl_quad.config import FailsafeAction, FailsafeConfig, GeofenceAction, LowBatteryAction
 from sitl_quad.offboard_setpoints import PositionTarget, RatesTarget, SetpointKind
 from uavcore.geodesy import LocalFrame
-from uavcore.geofence import Geofence, PlanarFence, Zone
+from uavcore.geofence import Geofence, NorthEast, PlanarFence, Zone
 from uavcore.modes import FlightMode
 from uavcore.state import AttitudeTarget
 
@@ -87,6 +88,40 @@ GEOFENCE_MODES = {
 }
 
 
+MAX_DISTANCE, MAX_ALTITUDE = "max distance", "max altitude"  # GF_MAX_HOR_DIST, GF_MAX_VER_DIST
+
+
+@dataclass(frozen=True)
+class HomeDistanceLimit:
+    """GF_MAX_HOR_DIST or GF_MAX_VER_DIST, broken."""
+
+    kind: str  # for the breach text, as a zone's kind (short: a STATUSTEXT holds 50 characters)
+    limit_m: float
+
+    @property
+    def px4_text(self) -> str:
+        """PX4's critical STATUSTEXT (Geofence::isCloserThanMaxDistToHome, isBelowMaxAltitude)."""
+        what = "distance from home" if self.kind == MAX_DISTANCE else "altitude above home"
+        return f"Maximum {what} reached ({self.limit_m:.5f})"
+
+
+def home_limits_on(failsafe: FailsafeConfig) -> bool:
+    return failsafe.geofence_max_horizontal_m > 0 or failsafe.geofence_max_vertical_m > 0
+
+
+def home_distance_breach(
+    north: float, east: float, height: float, failsafe: FailsafeConfig
+) -> HomeDistanceLimit | None:
+    """The limit a place (NED metres from home, its height above home) breaks, as PX4 checks them: farther from
+    home horizontally than GF_MAX_HOR_DIST, higher above home than GF_MAX_VER_DIST; a limit of 0 is off."""
+    max_horizontal, max_vertical = failsafe.geofence_max_horizontal_m, failsafe.geofence_max_vertical_m
+    if max_horizontal > 0 and math.hypot(north, east) > max_horizontal:
+        return HomeDistanceLimit(MAX_DISTANCE, max_horizontal)
+    if max_vertical > 0 and height > max_vertical:
+        return HomeDistanceLimit(MAX_ALTITUDE, max_vertical)
+    return None
+
+
 class GeofenceGuard:
     """The vehicle's geofence in its own NED frame, and whether the vehicle is breaching it.
 
@@ -103,20 +138,35 @@ class GeofenceGuard:
     def present(self) -> bool:
         return not self.fence.empty
 
-    def set_fence(self, fence: Geofence, frame: LocalFrame) -> None:
-        self.fence = fence
-        self.plane = fence.in_plane(frame)
+    def set_fence(self, fence: Geofence, frame: LocalFrame, position: NorthEast | None = None) -> list[str]:
+        """Load a fence as PX4's Geofence::_updateFence does: a zone that bars home, the origin of `frame`
+        (checkHomeRequirementsForGeofence), or bars `position`, the flying vehicle's place while GF_ACTION acts
+        (checkCurrentPositionRequirementsForGeofence), is discarded and the rest kept. PX4's critical
+        texts for the discarded zones, one each, are returned."""
+        plane, barring_home = fence.in_plane(frame).split_barring((0.0, 0.0))
+        texts = ["Geofence invalid, doesn't contain Home position"] * len(barring_home)
+        if position is not None:
+            plane, barring_vehicle = plane.split_barring(position)
+            texts += ["Geofence invalid, doesn't contain current vehicle position"] * len(barring_vehicle)
+        self.fence = Geofence(tuple(zone.zone for zone in plane.zones), fence.return_point)
+        self.plane = plane
         self.breached = False
+        return texts
 
     def violation(self, north: float, east: float) -> Zone | None:
         return self.plane.violation((north, east)) if self.present else None
 
-    def new_breach(self, north: float, east: float) -> Zone | None:
-        """The zone broken if the vehicle at (north, east) has just left where it may be, else None."""
-        zone = self.violation(north, east)
-        began = zone is not None and not self.breached
-        self.breached = zone is not None
-        return zone if began else None
+    def new_breach(
+        self, north: float, east: float, height: float, failsafe: FailsafeConfig
+    ) -> Zone | HomeDistanceLimit | None:
+        """What the vehicle at (north, east, height above home) has just broken, a zone of the fence or a limit
+        of GF_MAX_HOR_DIST / GF_MAX_VER_DIST, else None (also while a breach goes on)."""
+        breach: Zone | HomeDistanceLimit | None = self.violation(north, east)
+        if breach is None:
+            breach = home_distance_breach(north, east, height, failsafe)
+        began = breach is not None and not self.breached
+        self.breached = breach is not None
+        return breach if began else None
 
 
 def geofence_action_mode(action: GeofenceAction) -> FlightMode | None:

@@ -65,11 +65,18 @@ def resume_seq(navigator: Navigator, first_seq: int | None) -> int | None:
 
 
 def flight_navigator(
-    frame: LocalFrame, config: NavigatorConfig, mission: list[MissionItem], t: float, est: VehicleState
+    frame: LocalFrame,
+    config: NavigatorConfig,
+    mission: list[MissionItem],
+    rally_points: list[MissionItem],
+    t: float,
+    est: VehicleState,
 ) -> Navigator:
-    """A fresh navigator for a new flight: the mission stored, holding where the vehicle stands."""
+    """A fresh navigator for a new flight: the mission and rally points stored, holding where the vehicle
+    stands."""
     navigator = Navigator(frame, config)
     navigator.set_mission(mission)
+    navigator.set_rally_points(rally_points)
     navigator.hold(t, est)
     return navigator
 

@@ -11,7 +11,8 @@ within the acceptance radius horizontally and within the altitude tolerance vert
 dwells for the item's hold time and makes the next item current. DO_ items run at once (a camera or gimbal
 item is reported for the vehicle's payload to execute, as PX4 re-issues it as a command). A LAND or RTL item
 ends the mission with a landing; a mission that ends otherwise holds over its last waypoint. Outside a
-mission it flies hold, takeoff, return-to-launch and land.
+mission it flies hold, takeoff, return-to-launch and land. A return goes to the closest of home and the rally
+points, as PX4's RTL with RTL_TYPE 0 picks its destination among home and the safe points, and lands there.
 
 Pure computation: no I/O, no clocks. Times are the vehicle's simulated seconds; positions are NED metres in
 the local frame whose origin is home (altitude above home h is z = -h); the ground is taken as flat at home's
@@ -143,8 +144,22 @@ class Navigator:
         self._mission_speed: float | None = None  # DO_CHANGE_SPEED overrides; None = the configured limit
         self._mission_climb: float | None = None
         self._mission_descent: float | None = None
+        self._rally_points: list[tuple[float, float]] = []  # north, east m: where a return may go besides home
 
     # ---- mission storage -------------------------------------------------------------------------------
+
+    def set_rally_points(self, items: list[MissionItem]) -> None:
+        """The rally points (MAV_CMD_NAV_RALLY_POINT items) a return may go to instead of home."""
+        points = []
+        for item in items:
+            north, east, _ = self.frame.to_ned(item.lat, item.lon, self.frame.alt0)
+            points.append((float(north), float(east)))
+        self._rally_points = points
+
+    def return_destination(self, north: float, east: float) -> tuple[float, float]:
+        """Where a return from (north, east) goes: the closest of home and the rally points (PX4's RTL,
+        RTL_TYPE 0: RtlDirect's destination is the closest safe point or home; home wins a tie)."""
+        return min([(0.0, 0.0), *self._rally_points], key=lambda p: math.hypot(p[0] - north, p[1] - east))
 
     def set_mission(self, items: list[MissionItem]) -> None:
         """Replace the stored mission (already validated by the mission protocol).
@@ -220,7 +235,7 @@ class Navigator:
         self._switch_activity("takeoff", trajectory, _Goal(target, self.config.acceptance_radius))
 
     def start_rtl(self, t: float, state: VehicleState) -> None:
-        """Return to launch: climb to the return altitude if lower, fly home, land."""
+        """Return to launch: climb to the return altitude if lower, fly home (or to a closer rally point), land."""
         trajectory = self._fresh_trajectory(t, state)
         self._switch_activity("rtl", trajectory, self._plan_return(trajectory, mission=False))
 
@@ -461,9 +476,10 @@ class Navigator:
         trajectory.line_to(target, limits)
 
     def _plan_return(self, trajectory: Trajectory, mission: bool) -> _Goal:
-        """Climb to the return altitude if lower, fly home at it, land. Close to home, just land there."""
+        """Climb to the return altitude if lower, fly to the return destination (home or the closest rally
+        point) at it, land. Close to it, just land there."""
         here = trajectory.end_position
-        home = (0.0, 0.0)
+        home = self.return_destination(here[0], here[1])
         if math.hypot(here[0] - home[0], here[1] - home[1]) > self.config.acceptance_radius:
             cruise_down = min(here[2], -self.config.rtl_altitude)
             trajectory.line_to((here[0], here[1], cruise_down), self._limits(mission))

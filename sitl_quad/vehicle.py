@@ -29,6 +29,7 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from sitl_quad.arming import (
+    AIRBORNE_ALTITUDE_M,
     CLIMBING_ACTIVITIES,
     FORCE_DISARM_MAGIC,
     PREFLIGHT_DISARM_S,
@@ -42,11 +43,14 @@ from sitl_quad.arming import (
 from sitl_quad.battery import Battery, electrical_power, rotor_mechanical_power
 from sitl_quad.config import AttitudeControllerKind, GeofenceAction, LowBatteryAction, VehicleConfig
 from sitl_quad.failsafe import (
+    SEVERITY_CRITICAL,
     BatteryGuard,
     GeofenceGuard,
+    HomeDistanceLimit,
     OffboardStream,
     battery_failsafe,
     geofence_action_mode,
+    home_limits_on,
     offboard_loss_mode,
 )
 from sitl_quad.flight_loop import AttitudeLoopFactory, FlightLoop, builtin_pid_loop, motors_off_target
@@ -343,17 +347,30 @@ class Vehicle:
         """DO_REPOSITION (QGC's "go to location", MAVSDK's goto_location): hold at a place, as PX4 does.
 
         NaN keeps the current value of a coordinate; yaw NaN keeps the heading toward the travel. During a
-        takeoff (spool-up included) the place is flown to once the climb is done."""
-        taking_off = self.mode == FlightMode.AUTO_TAKEOFF and (
+        takeoff (spool-up included) the place is flown to once the climb is done.
+
+        Armed on the ground, the vehicle takes off toward the place, as PX4 does: its commander switches to
+        AUTO_LOITER whatever the landed state, and its position controller takes off toward a loiter setpoint
+        above a landed vehicle. MAVSDK's goto_location first switches to hold (Action::goto_location sets
+        FlightMode::Hold, then sends DO_REPOSITION): one second after takeoff() that hold lands during the
+        motors' spool-up, or on the first ticks of the climb while the vehicle still touches the ground, and
+        cancels the takeoff, so the reposition finds the vehicle armed on the ground."""
+        # a takeoff, or a climb _take_off_toward started in AUTO_LOITER
+        taking_off = self.mode in (FlightMode.AUTO_TAKEOFF, FlightMode.AUTO_LOITER) and (
             self.arming.pending_climb is not None or self.navigator.activity == "takeoff"
         )
-        if not self.armed or not (self.in_air or taking_off):
-            self._emit("text", "Reposition denied: not flying", 4)
+        # on the ground and not flown yet: the landed state says TAKEOFF from the climb's first tick, before
+        # the vehicle leaves the ground, and a hold then idles the rotors there
+        grounded = self.sim.on_ground and not self.arming.was_airborne
+        if not self.armed:
+            self._emit("text", "Reposition denied: disarmed", 4)
             return CommandResult.DENIED
         place = reposition_target(self.frame, self.home[2], self.estimate, lat, lon, alt_amsl)
         if place is None:
             return CommandResult.DENIED
-        if taking_off:
+        if grounded and not taking_off:
+            self._take_off_toward(place)
+        if taking_off or grounded:
             self._reposition_after_takeoff = (lat, lon, alt_amsl, yaw)
             return CommandResult.ACCEPTED
         self._choose(FlightMode.AUTO_LOITER)
@@ -429,19 +446,26 @@ class Vehicle:
     # ----- geofence and rally points (the other two lists of the mission protocol)
     def set_fence(self, items: list[MissionItem]) -> None:
         """Store a MISSION_TYPE_FENCE list; raises uavcore.geofence.FenceError (nothing changed) if it does not
-        describe zones."""
+        describe zones. The list is kept as sent (a download hands it back whole) and its zones are loaded as
+        PX4 loads them: one barring home, or the flying vehicle, is discarded with PX4's critical text."""
         fence = Geofence.from_items(items)
         self.fence_items = list(items)
-        self.geofence.set_fence(fence, self.frame)
+        flying = self.armed and self.in_air and self.config.failsafe.geofence_action != GeofenceAction.NONE
+        for text in self.geofence.set_fence(fence, self.frame, self._north_east() if flying else None):
+            self._emit("text", text, SEVERITY_CRITICAL)
 
     def set_rally_points(self, items: list[MissionItem]) -> None:
+        """Store a MISSION_TYPE_RALLY list: a return (RTL) then goes to the closest of home and these."""
         self.rally_points = list(items)
+        self.navigator.set_rally_points(self.rally_points)
 
     def _north_east(self) -> tuple[float, float]:
         return float(self.estimate.position[0]), float(self.estimate.position[1])
 
     def _geofence_enforced(self) -> bool:
-        return self.geofence.present and self.config.failsafe.geofence_action != GeofenceAction.NONE
+        failsafe = self.config.failsafe
+        fenced = self.geofence.present or home_limits_on(failsafe)
+        return fenced and failsafe.geofence_action != GeofenceAction.NONE
 
     def _mission_inside_fence(self) -> bool:
         """PX4's mission feasibility check: every place the mission names is where the vehicle may be."""
@@ -485,7 +509,9 @@ class Vehicle:
         self.loop.reset_controllers()
         self.estimate = self.sim.measure()
         first_seq = resume_seq(self.navigator, first_seq)
-        self.navigator = flight_navigator(self.frame, self.config.navigator, self.mission, self.clock, self.estimate)
+        self.navigator = flight_navigator(
+            self.frame, self.config.navigator, self.mission, self.rally_points, self.clock, self.estimate
+        )
         self.arming.schedule_climb(PendingClimb(self.clock + SPOOLUP_S, mode, first_seq, altitude))
 
     def _enter_offboard(self) -> None:
@@ -523,6 +549,13 @@ class Vehicle:
         if climb is not None and self.armed:
             self._start_activity(climb.mode, climb.first_seq, climb.altitude)
 
+    def _take_off_toward(self, place: tuple[float, float, float]) -> None:
+        """In AUTO_LOITER, spool up and climb to the place's height (MIS_TAKEOFF_ALT if it is not above home);
+        the reposition that asked is kept for once the climb is done (_reposition_once_climbed)."""
+        self._choose(FlightMode.AUTO_LOITER)
+        height = -place[2]
+        self._prepare_takeoff(FlightMode.AUTO_TAKEOFF, None, height if height > AIRBORNE_ALTITUDE_M else None)
+
     def _reposition_once_climbed(self) -> None:
         """Fly to a place asked for during the takeoff, once the climb is done."""
         request = self._reposition_after_takeoff
@@ -535,14 +568,19 @@ class Vehicle:
         """GF_ACTION when the flying vehicle leaves where its geofence lets it be (sitl_quad.failsafe)."""
         if not (self.armed and self.in_air and self._geofence_enforced()):
             return
-        zone = self.geofence.new_breach(*self._north_east())
-        if zone is None:
+        height = -float(self.estimate.position[2])
+        breach = self.geofence.new_breach(*self._north_east(), height, self.config.failsafe)
+        if breach is None:
             return
         action = GeofenceAction(self.config.failsafe.geofence_action)
         next_mode = geofence_action_mode(action)
         then = next_mode.label if next_mode is not None else "warning only"
-        self._emit("text", f"Geofence breached ({zone.kind}): {then}", 2)
-        if next_mode is not None and next_mode != self.mode:
+        if isinstance(breach, HomeDistanceLimit):
+            self._emit("text", breach.px4_text, SEVERITY_CRITICAL)
+        self._emit("text", f"Geofence breached ({breach.kind}): {then}", SEVERITY_CRITICAL)
+        # a hold is taken here even in AUTO_LOITER: flying to a place beyond the fence (a reposition) is a loiter
+        # too, and PX4's navigator then sets its loiter point where the breach is (Navigator::geofence_breach_check)
+        if next_mode is not None and (next_mode != self.mode or next_mode == FlightMode.AUTO_LOITER):
             self._enter(next_mode)
 
     def _check_battery(self) -> None:

@@ -119,6 +119,22 @@ VEHICLE_PARAMETERS: list[ParamSpec] = [
         "geofence breach action: 0 none, 1 warning, 2 hold, 3 return, 5 land (4 terminate: not simulated)",
     ),
     ParamSpec(
+        "GF_MAX_HOR_DIST",
+        "failsafe.geofence_max_horizontal_m",
+        REAL32,
+        0.0,
+        10000.0,
+        "max horizontal distance from home, m; beyond it GF_ACTION (0: no limit)",
+    ),
+    ParamSpec(
+        "GF_MAX_VER_DIST",
+        "failsafe.geofence_max_vertical_m",
+        REAL32,
+        0.0,
+        1000.0,
+        "max height above home, m; above it GF_ACTION (0: no limit)",
+    ),
+    ParamSpec(
         "MC_ATT_CTRL", "control.attitude_controller", INT32, 0, 2, "attitude loop: 0 PID, 1 ADRC, 2 geometric SE(3)"
     ),
     # battery (sitl_quad.battery) and its failsafe, PX4's names and ranges

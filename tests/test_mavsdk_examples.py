@@ -409,19 +409,27 @@ def test_mission_import(flight, tmp_path):
         assert got == [pytest.approx(item, abs=1e-6) for item in expected]
 
 
+DISCARDED_ZONE = "Geofence invalid, doesn't contain Home position"  # PX4's text for a fence zone barring home
+
+
 def test_geofence(flight, tmp_path):
-    """Uploads an inclusion polygon of ±0.0001° around home; the vehicle then holds it as its fence."""
+    """Uploads an inclusion polygon of ±0.0001° around home with a zero-radius inclusion circle at (0, 0), the
+    example's "no circle": the vehicle accepts the list and hands it back whole, and, as PX4, discards the circle
+    (it holds no point, so not home) with a critical text, keeping the polygon as its fence."""
     f = flight(speed=2)
     run = run_example("geofence", f.mavlink_port, tmp_path, timeout=120)
     assert_exit_0(run)
     assert "Geofence uploaded!" in run.stdout, run.describe()
-    vertices = f.observer.stop_recording().download_mission(mission_type=mavlink.MAV_MISSION_TYPE_FENCE)
-    assert vertices is not None, "the vehicle did not hand its fence back"
+    f.observer.wait_for(lambda r: DISCARDED_ZONE in r.texts, "the circle discarded", CATCH_UP_S)
+    items = f.observer.stop_recording().download_mission(mission_type=mavlink.MAV_MISSION_TYPE_FENCE)
+    assert items is not None, "the vehicle did not hand its fence back"
     lat, lon = HOME[0], HOME[1]
     corners = [(lat - 1e-4, lon - 1e-4), (lat + 1e-4, lon - 1e-4), (lat + 1e-4, lon + 1e-4), (lat - 1e-4, lon + 1e-4)]
+    vertices, circle = items[:4], items[4:]
     assert [v.command for v in vertices] == [mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION] * 4
     assert [v.param1 for v in vertices] == [4] * 4  # the polygon's vertex count
     assert [(v.x * 1e-7, v.y * 1e-7) for v in vertices] == [pytest.approx(c, abs=1e-7) for c in corners]
+    assert [(c.command, c.param1, c.x, c.y) for c in circle] == [(mavlink.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION, 0, 0, 0)]
 
 
 def listed_parameters() -> dict[str, float]:

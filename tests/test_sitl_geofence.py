@@ -3,8 +3,10 @@ GF_ACTION on a breach (a mission whose leg cuts an exclusion polygon, flown anyw
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
+import numpy as np
 import pytest
 from sitl_process import WAIT_S, GroundStation, mission_item
 from test_sitl_vehicle import FRAME, HOME, fly_until, item
@@ -69,7 +71,8 @@ def test_fence_items_become_zones():
     [
         (polygon_items(EXCLUSION[:3], MavCmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION)[:2], 0),  # 3 announced, 2 sent
         ([fence_item(0, MavCmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION, 0, 0, 2.0)], 0),  # not a polygon
-        ([fence_item(0, MavCmd.NAV_FENCE_CIRCLE_EXCLUSION, 0, 0, 0.0)], 0),  # no radius
+        ([fence_item(0, MavCmd.NAV_FENCE_CIRCLE_EXCLUSION, 0, 0, -1.0)], 0),  # a negative radius
+        ([fence_item(0, MavCmd.NAV_FENCE_CIRCLE_INCLUSION, 0, 0, math.nan)], 0),  # no radius
         (
             [
                 *polygon_items(EXCLUSION, MavCmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION)[:3],
@@ -217,3 +220,119 @@ def test_fence_upload_download_and_sys_status_over_udp(start_sitl):
 
 def lat_lon_of(mission: MissionItem) -> tuple[float, float]:
     return mission.lat, mission.lon
+
+
+# ----- a zone that bars home or the flying vehicle is discarded as the fence loads (PX4's Geofence::_updateFence)
+# MAVSDK-Python's geofence example uploads its polygon with "no circle" spelt as a zero-radius inclusion circle at
+# (0, 0); PX4 accepts the list and drops the circle, which holds no point, so not home either.
+SQUARE = [(-11.0, -8.0), (11.0, -8.0), (11.0, 8.0), (-11.0, 8.0)]  # ±0.0001° around home, as the example's
+
+
+def polygon_and_zero_circle() -> list[MissionItem]:
+    circle = fence_item(4, MavCmd.NAV_FENCE_CIRCLE_INCLUSION, 0.0, 0.0, 0.0)
+    circle = dataclasses.replace(circle, x=0, y=0)  # at latitude 0, longitude 0
+    return [*polygon_items(SQUARE, MavCmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION), circle]
+
+
+def test_a_zero_radius_circle_is_a_zone_holding_no_point():
+    fence = Geofence.from_items(polygon_and_zero_circle())
+    polygon, circle = fence.zones
+    assert isinstance(circle, CircleZone) and circle.radius_m == 0.0
+    assert fence.contains(*lat_lon(0.0, 0.0))  # inside the polygon, one of the inclusion zones
+    assert not Geofence((circle,)).contains(0.0, 0.0)  # not even its own centre (PX4: distance² < radius²)
+    assert fence.violation(*lat_lon(30.0, 0.0)) == polygon
+
+
+def test_the_vehicle_discards_the_zero_radius_circle_and_enforces_the_polygon():
+    vehicle = Vehicle(VehicleConfig(failsafe=FailsafeConfig(geofence_action=GeofenceAction.RETURN)), HOME, seed=3)
+    vehicle.set_fence(polygon_and_zero_circle())
+    texts = [(e.text, e.severity) for e in vehicle.events if e.kind == "text"]
+    assert texts == [("Geofence invalid, doesn't contain Home position", mavlink.MAV_SEVERITY_CRITICAL)]
+    assert len(vehicle.fence_items) == 5  # kept as sent: a download hands back the whole list
+    assert [zone.kind for zone in vehicle.geofence.fence.zones] == ["inclusion polygon"]
+    assert vehicle.arm() == CommandResult.ACCEPTED
+    assert vehicle.takeoff() == CommandResult.ACCEPTED
+    fly_until(vehicle, lambda v: v.in_air and v.navigator.activity != "takeoff", 60.0)
+    lat, lon = lat_lon(40.0, 0.0)
+    assert vehicle.reposition(lat, lon, math.nan, math.nan) == CommandResult.ACCEPTED
+    events = fly_until(vehicle, lambda v: v.mode == FlightMode.AUTO_RTL, 60.0)
+    assert vehicle.mode == FlightMode.AUTO_RTL
+    assert 10.0 < vehicle.truth.position[0] < 14.0  # turned back at the polygon's northern edge (11 m)
+    assert any(e.text.startswith("Geofence breached (inclusion polygon)") for e in events)
+
+
+def test_a_zone_barring_the_flying_vehicle_is_discarded():
+    vehicle = Vehicle(VehicleConfig(failsafe=FailsafeConfig(geofence_action=GeofenceAction.RETURN)), HOME, seed=3)
+    assert vehicle.arm() == CommandResult.ACCEPTED
+    assert vehicle.takeoff() == CommandResult.ACCEPTED
+    fly_until(vehicle, lambda v: v.in_air and v.navigator.activity != "takeoff", 60.0)
+    lat, lon = lat_lon(30.0, 0.0)
+    vehicle.reposition(lat, lon, math.nan, math.nan)
+    fly_until(vehicle, lambda v: v.truth.position[0] > 25.0, 60.0)
+    vehicle.events.clear()
+    # home is inside the square, the vehicle 25 m north of it is not: PX4 keeps no zone that GF_ACTION would
+    # act on at once (checkCurrentPositionRequirementsForGeofence)
+    vehicle.set_fence(polygon_items(SQUARE, MavCmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION))
+    texts = [e.text for e in vehicle.events if e.kind == "text"]
+    assert texts == ["Geofence invalid, doesn't contain current vehicle position"]
+    assert not vehicle.geofence.present
+    fly_until(vehicle, lambda v: False, 2.0)
+    assert vehicle.mode == FlightMode.AUTO_LOITER  # no breach taken
+
+
+def test_gf_action_hold_stops_a_reposition_beyond_the_fence():
+    """GF_ACTION hold (the default) during a go-to, itself a loiter: the vehicle holds near the edge rather than
+    flying on to the place beyond it."""
+    vehicle = Vehicle(VehicleConfig(), HOME, seed=3)
+    vehicle.set_fence(polygon_items(SQUARE, MavCmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION))
+    assert vehicle.arm() == CommandResult.ACCEPTED
+    assert vehicle.takeoff() == CommandResult.ACCEPTED
+    fly_until(vehicle, lambda v: v.in_air and v.navigator.activity != "takeoff", 60.0)
+    vehicle.reposition(*lat_lon(60.0, 0.0), math.nan, math.nan)
+    events = fly_until(vehicle, lambda v: False, 30.0)
+    assert [e.text for e in events if e.kind == "text"] == ["Geofence breached (inclusion polygon): AUTO.LOITER"]
+    assert vehicle.mode == FlightMode.AUTO_LOITER
+    assert 11.0 < vehicle.truth.position[0] < 35.0  # past the edge by its braking distance, far from 60 m
+    assert float(np.linalg.norm(vehicle.truth.velocity)) < 0.5  # holding
+
+
+@pytest.mark.integration
+def test_polygon_with_a_zero_radius_circle_over_udp(start_sitl):
+    """The list MAVSDK's geofence example sends: accepted, the circle discarded with PX4's critical text, the list
+    handed back whole, and the polygon enforced (GF_ACTION return on a go-to beyond it)."""
+    vehicle = start_sitl(speed=10.0, extra_args=("--param", "GF_ACTION=3"))
+    gcs, watcher = GroundStation(vehicle.port), GroundStation(vehicle.port)  # the watcher only reads STATUSTEXT
+    try:
+        gcs.connect()
+        watcher.connect()
+        fence = [
+            mission_item(
+                i.seq,
+                i.command,
+                i.lat,
+                i.lon,
+                frame=mavlink.MAV_FRAME_GLOBAL_INT,
+                params=(i.param1, 0.0, 0.0, 0.0),
+                mission_type=mavlink.MAV_MISSION_TYPE_FENCE,
+            )
+            for i in polygon_and_zero_circle()
+        ]
+        ack = gcs.upload_mission(fence, mission_type=mavlink.MAV_MISSION_TYPE_FENCE, timeout=WAIT_S)
+        assert ack is not None and ack.type == mavlink.MAV_MISSION_ACCEPTED
+        invalid = watcher.recv("STATUSTEXT", timeout=WAIT_S, condition=lambda m: m.text.startswith("Geofence"))
+        assert invalid is not None and invalid.text == "Geofence invalid, doesn't contain Home position"
+        assert invalid.severity == mavlink.MAV_SEVERITY_CRITICAL
+        stored = gcs.download_mission(mission_type=mavlink.MAV_MISSION_TYPE_FENCE)
+        assert [(i.command, i.param1, i.x, i.y) for i in stored] == [(f.command, f.param1, f.x, f.y) for f in fence]
+
+        assert gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == mavlink.MAV_RESULT_ACCEPTED
+        assert gcs.command(mavlink.MAV_CMD_NAV_TAKEOFF).result == mavlink.MAV_RESULT_ACCEPTED
+        lat, lon = lat_lon(40.0, 0.0)
+        ack = gcs.command(mavlink.MAV_CMD_DO_REPOSITION, -1, 1, 0, math.nan, lat * 1e7, lon * 1e7, use_int=True)
+        assert ack.result == mavlink.MAV_RESULT_ACCEPTED
+        breach = watcher.recv("STATUSTEXT", timeout=WAIT_S, condition=lambda m: m.text.startswith("Geofence"))
+        assert breach is not None and breach.text.startswith("Geofence breached (inclusion polygon)"), breach
+        assert gcs.wait_heartbeat(lambda m: FlightMode.from_custom_mode(m.custom_mode) == FlightMode.AUTO_RTL, WAIT_S)
+    finally:
+        gcs.close()
+        watcher.close()

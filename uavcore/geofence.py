@@ -139,7 +139,8 @@ class PlanarCircle:
     zone: CircleZone
 
     def contains(self, point: NorthEast) -> bool:
-        return math.dist(point, self.center) <= self.radius_m
+        # strictly inside, as PX4's Geofence::insideCircle: a circle of radius 0 holds no point at all
+        return math.dist(point, self.center) < self.radius_m
 
     def inside_intervals(self, start: NorthEast, end: NorthEast) -> list[Interval]:
         """The chord: where |start + t (end - start) - center| <= radius, a quadratic in t."""
@@ -191,6 +192,16 @@ class PlanarFence:
     def exclusions(self) -> list[PlanarZone]:
         return [z for z in self.zones if not z.zone.inclusion]
 
+    def split_barring(self, point: NorthEast) -> tuple[PlanarFence, list[PlanarZone]]:
+        """(the zones that let the vehicle be at point, the zones that do not): PX4's per-zone test
+        (Geofence::checkPointAgainstPolygonCircle: inside an inclusion zone, outside an exclusion zone), with
+        which its geofence discards, as it loads a fence, every zone that would bar home."""
+        kept: list[PlanarZone] = []
+        barring: list[PlanarZone] = []
+        for zone in self.zones:
+            (kept if zone.contains(point) == zone.zone.inclusion else barring).append(zone)
+        return PlanarFence(tuple(kept)), barring
+
     def violation(self, point: NorthEast) -> Zone | None:
         """The zone a point breaks (an exclusion zone it is in, or the first inclusion zone when it is in none),
         or None where the vehicle may be."""
@@ -227,7 +238,12 @@ class Geofence:
     @classmethod
     def from_items(cls, items: Sequence[MissionItem]) -> Geofence:
         """The fence a MISSION_TYPE_FENCE list describes; FenceError if a polygon's vertices do not add up or a
-        circle has no radius. Items are taken in order (their seq is the mission protocol's business)."""
+        circle's radius is negative or not a number. Items are taken in order (their seq is the mission
+        protocol's business).
+
+        A circle of radius 0 is a zone that holds no point: PX4 stores it as sent (MavlinkMissionManager copies
+        param1 into circle_radius unchecked) and MAVSDK's geofence example sends one at (0, 0) to mean "no
+        circle"; the vehicle then discards it as it discards any zone that bars home (PlanarFence.split_barring)."""
         zones: list[Zone] = []
         return_point = None
         index = 0
@@ -239,8 +255,9 @@ class Geofence:
                 index += len(polygon.vertices)
                 continue
             if item.command in CIRCLE_COMMANDS:
-                if not (math.isfinite(item.param1) and item.param1 > 0):
-                    raise FenceError(f"fence item {item.seq}: circle radius must be > 0 m, got {item.param1}", item.seq)
+                if not (math.isfinite(item.param1) and item.param1 >= 0):
+                    radius = item.param1
+                    raise FenceError(f"fence item {item.seq}: circle radius must be >= 0 m, got {radius}", item.seq)
                 zones.append(CircleZone((item.lat, item.lon), float(item.param1), CIRCLE_COMMANDS[item.command]))
             elif item.command == MavCmd.NAV_FENCE_RETURN_POINT:
                 return_point = (item.lat, item.lon)

@@ -1,4 +1,4 @@
-"""MAVSDK-Python's example `examples/all_params.py` (repository mavlink/MAVSDK-Python, commit 08c093ce): the
+"""MAVSDK-Python's example `examples/all_params.py` (repository mavlink/MAVSDK-Python, commit 4fab80e4): the
 same calls; only the addresses come from argv (see example_steps.py).
 
 Connect and print every parameter, the int ones, then the float ones, as "NAME: VALUE".

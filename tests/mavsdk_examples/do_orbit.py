@@ -1,4 +1,4 @@
-"""MAVSDK-Python's example `examples/do_orbit.py` (repository mavlink/MAVSDK-Python, commit 7c4b61c2): the same
+"""MAVSDK-Python's example `examples/do_orbit.py` (repository mavlink/MAVSDK-Python, commit 4fab80e4): the same
 calls, arguments and waits; only the addresses come from argv (see example_steps.py).
 
 Connect, wait for a global position and home, note the current AMSL altitude, arm, take off, wait 10 s, orbit

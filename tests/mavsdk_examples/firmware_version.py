@@ -1,4 +1,4 @@
-"""MAVSDK-Python's example `examples/firmware_version.py` (repository mavlink/MAVSDK-Python, commit 87a7aefc):
+"""MAVSDK-Python's example `examples/firmware_version.py` (repository mavlink/MAVSDK-Python, commit 4fab80e4):
 the same calls; only the addresses come from argv (see example_steps.py).
 
 Connect, then print the autopilot's version information (Info.get_version, from AUTOPILOT_VERSION).

@@ -1,16 +1,16 @@
-"""MAVSDK-Python's example `examples/geofence.py` (repository mavlink/MAVSDK-Python, commit 0a2890d7): the same
-calls, arguments and waits; only the addresses come from argv (see example_steps.py). That version of the
-example predates MAVSDK-Python 2's geofence API: the fence type is `FenceType.INCLUSION` (was
-`Polygon.FenceType.INCLUSION`) and `upload_geofence` takes a `GeofenceData(polygons, circles)` (was a list of
-polygons), as the installed 3.x requires.
+"""MAVSDK-Python's example `examples/geofence.py` (repository mavlink/MAVSDK-Python, commit 4fab80e4): the same
+calls, arguments and waits; only the addresses come from argv (see example_steps.py).
 
-Connect, read home, wait 1 s, upload an inclusion polygon of ±0.0001° around home.
+Connect, read home, wait 1 s, upload an inclusion polygon of ±0.0001° around home together with the example's
+"no circle": an inclusion circle of radius 0 at latitude 0, longitude 0 (MAVSDK's GeofenceData takes polygons
+and circles; the example fills the circles with that one rather than leave them empty). PX4 accepts the list and
+discards the circle as it loads the fence ("Geofence invalid, doesn't contain Home position").
 """
 
 import asyncio
 
 from example_steps import connect, wait_until_connected
-from mavsdk.geofence import FenceType, GeofenceData, Point, Polygon
+from mavsdk.geofence import Circle, FenceType, GeofenceData, Point, Polygon
 
 
 async def run():
@@ -30,9 +30,10 @@ async def run():
     p3 = Point(latitude + 0.0001, longitude + 0.0001)
     p4 = Point(latitude - 0.0001, longitude + 0.0001)
     polygon = Polygon([p1, p2, p3, p4], FenceType.INCLUSION)
+    no_circle = Circle(Point(0, 0), 0, FenceType.INCLUSION)
 
     print("Uploading geofence...")
-    await drone.geofence.upload_geofence(GeofenceData(polygons=[polygon], circles=[]))
+    await drone.geofence.upload_geofence(GeofenceData([polygon], [no_circle]))
 
     print("Geofence uploaded!")
 

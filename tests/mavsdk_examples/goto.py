@@ -1,4 +1,4 @@
-"""MAVSDK-Python's example `examples/goto.py` (repository mavlink/MAVSDK-Python, commit 87a7aefc): the same
+"""MAVSDK-Python's example `examples/goto.py` (repository mavlink/MAVSDK-Python, commit 4fab80e4): the same
 calls, arguments and waits; only the addresses come from argv (see example_steps.py).
 
 Connect, wait for a global position and home, read home's AMSL altitude, arm, take off, and 1 s later go to

@@ -1,7 +1,6 @@
-"""MAVSDK-Python's example `examples/mission.py` (repository mavlink/MAVSDK-Python, commit 0a2890d7): the same
-calls, arguments and waits; only the addresses come from argv (see example_steps.py). MissionItem gained
-a 14th argument, vehicle_action, in MAVSDK-Python 2: it is given as VehicleAction.NONE, as later versions of
-the example do.
+"""MAVSDK-Python's example `examples/mission.py` (repository mavlink/MAVSDK-Python, commit 4fab80e4): the same
+calls, arguments and waits; only the addresses come from argv (see example_steps.py). The example writes its
+three MissionItems out one by one; here they differ only in their place (WAYPOINTS).
 
 Connect, print the mission progress as it changes, upload three waypoints 25 m up at 10 m/s with return to
 launch after the mission, wait for a global position and home, arm, start the mission, and return once the

@@ -1,4 +1,4 @@
-"""MAVSDK-Python's example `examples/mission_import.py` (repository mavlink/MAVSDK-Python, commit 07eda84b):
+"""MAVSDK-Python's example `examples/mission_import.py` (repository mavlink/MAVSDK-Python, commit 4fab80e4):
 the same calls, arguments and waits; only the addresses come from argv (see example_steps.py).
 
 Connect, import the QGroundControl plan "example-mission.plan" from the working directory (the test runs this

@@ -1,4 +1,4 @@
-"""MAVSDK-Python's example `examples/offboard_attitude.py` (repository mavlink/MAVSDK-Python, commit 87a7aefc):
+"""MAVSDK-Python's example `examples/offboard_attitude.py` (repository mavlink/MAVSDK-Python, commit 4fab80e4):
 the same calls, arguments and waits; only the addresses come from argv (see example_steps.py).
 
 Connect, wait for a global position and home, arm, set a level attitude at zero thrust, start offboard, then

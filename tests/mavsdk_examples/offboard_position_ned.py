@@ -1,5 +1,5 @@
 """MAVSDK-Python's example `examples/offboard_position_ned.py` (repository mavlink/MAVSDK-Python, commit
-07eda84b): the same calls, arguments and waits; only the addresses come from argv (see example_steps.py).
+4fab80e4): the same calls, arguments and waits; only the addresses come from argv (see example_steps.py).
 
 Connect, wait for a global position and home, arm, set the NED position setpoint 0/0/0 yaw 0, start offboard,
 then go to 0/0/-5 (10 s), 5/0/-5 facing east (10 s), 5/10/-5 (15 s), 0/10/0 facing south (10 s), and stop

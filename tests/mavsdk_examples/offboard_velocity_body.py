@@ -1,5 +1,5 @@
 """MAVSDK-Python's example `examples/offboard_velocity_body.py` (repository mavlink/MAVSDK-Python, commit
-07eda84b): the same calls, arguments and waits; only the addresses come from argv (see example_steps.py).
+4fab80e4): the same calls, arguments and waits; only the addresses come from argv (see example_steps.py).
 
 Connect, wait for a global position and home, arm, set a zero body velocity setpoint, start offboard, then
 (forward, right, down m/s, yaw rate °/s): climb 1 turning at 60 (5 s), turn back at -60 (5 s), wait (2 s),

@@ -1,5 +1,5 @@
 """MAVSDK-Python's example `examples/offboard_velocity_ned.py` (repository mavlink/MAVSDK-Python, commit
-07eda84b): the same calls, arguments and waits; only the addresses come from argv (see example_steps.py).
+4fab80e4): the same calls, arguments and waits; only the addresses come from argv (see example_steps.py).
 
 Connect, wait for a global position and home, arm, set a zero NED velocity setpoint, start offboard, then
 (NED m/s, yaw °): up 2 (4 s), north 2 facing east (4 s), south 2 facing west (4 s), west 2 facing east (4 s),

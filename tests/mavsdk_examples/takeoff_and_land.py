@@ -1,4 +1,4 @@
-"""MAVSDK-Python's example `examples/takeoff_and_land.py` (repository mavlink/MAVSDK-Python, commit 08c093ce):
+"""MAVSDK-Python's example `examples/takeoff_and_land.py` (repository mavlink/MAVSDK-Python, commit 4fab80e4):
 the same calls, arguments and waits; only the addresses come from argv (see example_steps.py).
 
 Connect, wait for a global position and home, arm, take off, hover 10 s, land; status texts are printed as

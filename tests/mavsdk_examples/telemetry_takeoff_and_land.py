@@ -1,5 +1,5 @@
 """MAVSDK-Python's example `examples/telemetry_takeoff_and_land.py` (repository mavlink/MAVSDK-Python, commit
-07eda84b): the same calls, arguments and waits; only the addresses come from argv (see example_steps.py).
+4fab80e4): the same calls, arguments and waits; only the addresses come from argv (see example_steps.py).
 
 Connect; print the altitude and the flight mode whenever they change; wait for a global position and home;
 arm, set the takeoff altitude to 10 m, take off, hover 10 s, land, and return once the vehicle has been in the
