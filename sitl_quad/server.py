@@ -20,6 +20,7 @@ from sitl_quad.ais_out import AisOut
 from sitl_quad.camera import Environment
 from sitl_quad.mavlink.camera import CameraComponent
 from sitl_quad.mavlink.commands import Commands
+from sitl_quad.mavlink.failure_injection import FailureInjection
 from sitl_quad.mavlink.ftp import CAMERA_COMPID, FileTransfer
 from sitl_quad.mavlink.gimbal import GimbalManager
 from sitl_quad.mavlink.heartbeat import Heartbeat, heartbeat_message
@@ -87,6 +88,7 @@ class VehicleServer:
         self.mission = MissionProtocol(vehicle, self.send, link.sysid, link.compid)
         self.offboard = Offboard(vehicle)
         self.file_transfer = FileTransfer(link, ftp_root, ftp_component)
+        self.failure_injection = FailureInjection(vehicle, link, self.commands)
         home_id = mavlink.MAVLINK_MSG_ID_HOME_POSITION
         version_id = mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION
         self.commands.register(mavlink.MAV_CMD_REQUEST_MESSAGE, lambda p: self._request_message(p[0]))
@@ -97,7 +99,10 @@ class VehicleServer:
         )
         self.commands.register(mavlink.MAV_CMD_REQUEST_PROTOCOL_VERSION, lambda p: CommandResult.UNSUPPORTED)
         self.dispatch: dict = {}
-        for capability in (self.parameters, self.commands, self.mission, self.offboard, self.file_transfer):
+        capabilities = (
+            self.parameters, self.commands, self.mission, self.offboard, self.file_transfer, self.failure_injection
+        )  # fmt: skip
+        for capability in capabilities:
             self.dispatch.update(capability.handlers())
         self._setpoint_types = set(self.offboard.handlers())
         # ----- the camera on its gimbal: the gimbal manager is the autopilot's, the camera its own component
@@ -148,6 +153,7 @@ class VehicleServer:
         self.mission.poll(now)
         self.parameters.poll()
         self.file_transfer.poll()
+        self.failure_injection.poll(now)
         if self.camera is not None:
             self.camera.poll(now)
 
