@@ -11,7 +11,7 @@ from test_sitl_vehicle import HOME, fly_until, item
 
 from sitl_quad.battery import BatteryWarning
 from sitl_quad.config import DataLinkLossAction, LowBatteryAction, VehicleConfig
-from sitl_quad.failure_injection import FailureType, FailureUnit, Failures, inject
+from sitl_quad.failure_injection import Failures, FailureType, FailureUnit, inject
 from sitl_quad.vehicle import CommandResult, Vehicle
 from uavcore.mission import MavCmd
 from uavcore.modes import FlightMode
