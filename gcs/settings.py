@@ -63,6 +63,10 @@ class Settings(BaseSettings):
     db_path: Path = Field(
         default_factory=lambda fields: fields["data_dir"] / DB_FILENAME, description="the SQLite file"
     )
+    flight_log_dir: Path = Field(
+        default_factory=lambda fields: fields["data_dir"] / "flight_logs",
+        description="where each mission's flight log (the vehicle's ULog, downloaded after the landing) is kept",
+    )
     db: str | None = Field(
         None,
         description="a PostgreSQL database instead of the SQLite file: postgresql://USER[:PASSWORD]@HOST:PORT/NAME",

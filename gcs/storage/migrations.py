@@ -198,6 +198,19 @@ _MISSION_CHANGES = """
     INSERT INTO mission_changes (id, version) SELECT 1, COALESCE(MAX(version), 0) FROM missions;
 """
 
+# The flight log a mission's vehicle kept (ULog, downloaded over the MAVLink log protocol after the landing): the file
+# under the service's data directory, or, when the download failed, only the note saying why (file NULL)
+_FLIGHT_LOGS = """
+    CREATE TABLE flight_logs (
+        mission_id BIGINT PRIMARY KEY REFERENCES missions(id),
+        file TEXT,
+        size_bytes BIGINT,
+        vehicle_log_id BIGINT,
+        downloaded_at TEXT NOT NULL,
+        note TEXT
+    );
+"""
+
 
 def _sqlite_status_check(db: Any) -> None:
     """Migration 6 in SQLite: the missions table's CHECK lists every MissionStatus. SQLite cannot alter a
@@ -249,4 +262,5 @@ MIGRATIONS: list[Migration] = [
     Migration(sqlite=_BY_CREATION, postgresql=_BY_CREATION),
     Migration(sqlite=_CHART_BASEMAPS, postgresql=_CHART_BASEMAPS),
     Migration(sqlite=_MISSION_CHANGES, postgresql=_MISSION_CHANGES),
+    Migration(sqlite=_FLIGHT_LOGS, postgresql=_FLIGHT_LOGS),
 ]

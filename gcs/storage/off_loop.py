@@ -29,7 +29,7 @@ from gcs.domain.planning import FlightParams, Plan
 from gcs.domain.records import MissionProgress, MissionResults
 from gcs.domain.register import BuoyEvent, BuoyFilter, Defect, DefectState, RegisterBuoy, StoredBuoy
 from gcs.domain.status import MissionStatus
-from gcs.storage.base import MissionRecord, Storage
+from gcs.storage.base import MissionRecord, Storage, StoredFlightLog
 
 P = ParamSpec("P")
 T = TypeVar("T")
@@ -159,6 +159,12 @@ class AsyncStorage:
     async def telemetry_count(self, mission_id: int) -> int:
         key = ("telemetry_count", mission_id)
         return await self._read_coalesced(key, functools.partial(self.blocking.telemetry_count, mission_id))
+
+    async def set_flight_log(self, mission_id: int, log: StoredFlightLog) -> None:
+        await self._run(self._writer, self.blocking.set_flight_log, mission_id, log)
+
+    async def flight_log(self, mission_id: int) -> StoredFlightLog | None:
+        return await self._run(self._readers, self.blocking.flight_log, mission_id)
 
     async def frames(self, mission_id: int) -> list[StoredFrame]:
         return await self._run(self._readers, self.blocking.frames, mission_id)
