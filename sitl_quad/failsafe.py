@@ -193,9 +193,12 @@ def data_link_loss_mode(action: DataLinkLossAction) -> FlightMode | None:
 
 
 # Modes that need a horizontal position estimate: without GPS, PX4's failsafe leaves them for Descend (reported as
-# AUTO.LAND), as its position-loss failsafe does when only the altitude is still known.
+# AUTO.LAND), as its position-loss failsafe does when only the altitude is still known. OFFBOARD is one here: this
+# vehicle's offboard controller flies the navigator's position reference from the position estimate (PX4 likewise
+# requires a position for offboard position and velocity setpoints).
 POSITION_MODES = frozenset(
     {
+        FlightMode.OFFBOARD,
         FlightMode.POSCTL,
         FlightMode.ORBIT,
         FlightMode.AUTO_TAKEOFF,

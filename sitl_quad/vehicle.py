@@ -480,7 +480,7 @@ class Vehicle:
         if failures.gps_off and not reported.gps_off:
             descend = self.mode in POSITION_MODES
             then = f": {FlightMode.AUTO_LAND.label}" if descend else ""
-            self._emit("text", f"Failsafe: GPS lost, no position estimate{then}", 2)
+            self._emit("text", f"Failsafe: GPS lost, no position{then}", 2)
             if descend:
                 self._enter(FlightMode.AUTO_LAND)
         for motor in sorted(failures.motors_off - reported.motors_off):

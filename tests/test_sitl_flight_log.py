@@ -168,5 +168,5 @@ def check_gps_loss_log(path: Path) -> None:
     assert status["nav_state"][np.argmax(gps_lost) :].tolist().count(18) > 0  # then AUTO.LAND (Descend)
     texts = [m.message for m in ulog.logged_messages]
     assert "Failure injection: GPS off" in texts
-    assert "Failsafe: GPS lost, no position estimate: AUTO.LAND" in texts
+    assert "Failsafe: GPS lost, no position: AUTO.LAND" in texts
     assert ulog.initial_parameters["SYS_FAILURE_EN"] == 1
