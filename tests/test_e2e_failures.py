@@ -44,11 +44,13 @@ def fly_until_out(stack: Stack, *vehicle_params: str) -> int:
     return mission_id
 
 
-def inject(stack: Stack, unit: int, kind: int, instance: int = 0) -> None:
-    """MAV_CMD_INJECT_FAILURE from a second ground station, acknowledged ACCEPTED."""
+def inject(stack: Stack, unit: int, kind: int, instance: int = 0, vehicle_silent: bool = False) -> None:
+    """MAV_CMD_INJECT_FAILURE from a second ground station, acknowledged ACCEPTED (to a silent vehicle, whose
+    MAVLink signal is failed, the command is sent without waiting for its heartbeat first)."""
     station = GroundStation(stack.vehicle_port, sysid=254)
     try:
-        station.connect()
+        if not vehicle_silent:
+            station.connect()
         ack = station.command(mavlink.MAV_CMD_INJECT_FAILURE, unit, kind, instance)
         assert ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED, ack
     finally:
@@ -103,8 +105,14 @@ def test_a_motor_off_brings_the_vehicle_down_and_the_mission_fails_naming_the_mo
     status = ulog.get_dataset("vehicle_status").data
     blocked = (status["motors_off_mask"] & 0b100) != 0
     assert blocked.any()
-    after = np.argmax(blocked) + 10  # a second later: the rotor has spun down (motor time constant 20 ms)
-    assert rotors["speed_rad_s[2]"][after:].max() < 1.0 < rotors["speed_rad_s[0]"][after]
+    # from 0.3 s after the block (the motor's time constant is 20 ms) until the disarm: rotor 3 stopped, the others
+    # driven by the mixer as the vehicle tumbles down
+    falling = np.arange(len(blocked)) >= np.argmax(blocked) + 3
+    falling &= status["arming_state"] == 2
+    assert falling.any()
+    assert rotors["speed_rad_s[2]"][falling].max() < 5.0
+    others = np.max([rotors[f"speed_rad_s[{i}]"][falling] for i in (0, 1, 3)], axis=0)
+    assert others.min() > 100.0  # the mixer drives what it can (its diagonal partner it may idle)
 
 
 def test_battery_off_triggers_the_battery_failsafe_and_the_mission_ends_on_it(stack, tmp_path):
@@ -141,5 +149,7 @@ def test_mavlink_signal_off_the_service_fails_the_mission_link_lost_and_the_vehi
     texts = [m.message for m in ulog.logged_messages]
     assert any(t.startswith("Failsafe: no ground station for") and t.endswith("AUTO.RTL") for t in texts), texts
     assert 5 in ulog.get_dataset("vehicle_status").data["nav_state"]  # AUTO_RTL
-    inject(stack, MAVLINK_SIGNAL, OK)  # the one command a failed signal still hears: the link comes back
+    inject(
+        stack, MAVLINK_SIGNAL, OK, vehicle_silent=True
+    )  # the one command a failed signal still hears: the link comes back
     stack.wait_connected()
