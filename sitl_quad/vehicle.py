@@ -8,6 +8,7 @@
 - sitl_quad.failsafe: the offboard setpoint stream and its loss (`OffboardStream`), the geofence (`GeofenceGuard`),
   the battery's warnings and actions (`BatteryGuard`);
 - sitl_quad.battery: the flight battery, drawn every tick by the rotors' power (`Battery`);
+- sitl_quad.failure_injection: the failures MAV_CMD_INJECT_FAILURE put in force (`Failures`);
 - sitl_quad.offboard_setpoints: what position/velocity and body-rate setpoints ask of the loops;
 - sitl_quad.orbit: DO_ORBIT's circle;
 - sitl_quad.vehicle_types: command results, events, tick records.
