@@ -392,6 +392,7 @@ class VehicleServer:
             "handler_errors": self.handler_errors,
             "mission_uploads": {"completed": self.mission.transfers_completed, "failed": self.mission.transfers_failed},
             "offboard_setpoints": self.vehicle.offboard.count,
+            "log_data_sent": self.log_transfer.pieces_sent if self.log_transfer is not None else None,
             "motor_saturated_ticks": self.vehicle.saturated_ticks,
             "camera": self.camera.stats() if self.camera is not None else None,
             "ais": self.ais_out.stats() if self.ais_out is not None else None,

@@ -100,11 +100,9 @@ class LogTransfer:
             self._allowance = 0.0
             return
         self._allowance = min(MAX_BURST, self._allowance + elapsed * DATA_RATE_PER_S)
-        if self._allowance < 1.0 and self.pieces_sent > 0:
-            return
-        pieces = max(1, int(self._allowance))
+        pieces = int(self._allowance)
         self._allowance -= pieces
-        for _ in range(pieces):
+        for _ in range(pieces):  # none until a whole piece is due
             piece = transfer.data[transfer.offset : min(transfer.end, transfer.offset + DATA_LEN)]
             padded = piece + bytes(DATA_LEN - len(piece))
             self.send(
