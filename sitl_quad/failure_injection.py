@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 
 from sitl_quad.vehicle_types import CommandResult
+from uavcore.state import TrajectorySetpoint, VehicleState
 
 MOTORS = (1, 2, 3, 4)
 
@@ -112,6 +113,30 @@ def inject(failures: Failures, enabled: bool, unit: float, kind: float, instance
         changed = dataclasses.replace(failures, mavlink_off=off)
         text = f"Failure injection: MAVLink signal {word}"
     return Injection(CommandResult.ACCEPTED, changed, text)
+
+
+def estimate_without_gps(measured: VehicleState, held_north_east: tuple[float, float]) -> VehicleState:
+    """The state estimate with the GPS off: the altitude and attitude still measured (barometer, IMU), the horizontal
+    position held where the last fix put it and the horizontal velocity unknown (0), as an estimator with no
+    horizontal aiding leaves them. A position loop flying it holds the vehicle level: it drifts with its momentum and
+    the wind while it descends, as PX4's Descend."""
+    position = measured.position.copy()
+    position[:2] = held_north_east
+    velocity = measured.velocity.copy()
+    velocity[:2] = 0.0
+    return dataclasses.replace(measured, position=position, velocity=velocity)
+
+
+def without_horizontal_control(setpoint: TrajectorySetpoint, estimate: VehicleState) -> TrajectorySetpoint:
+    """A setpoint with no horizontal part: held where the estimate is, no velocity or acceleration asked. With the
+    position estimate gone the navigator's horizontal reference means nothing (it would chase a frozen estimate to
+    full tilt); the vehicle keeps level and controls only its height and yaw, as PX4's Descend."""
+    position = setpoint.position.copy()
+    position[:2] = estimate.position[:2]
+    velocity, acceleration = setpoint.velocity.copy(), setpoint.acceleration.copy()
+    velocity[:2] = 0.0
+    acceleration[:2] = 0.0
+    return dataclasses.replace(setpoint, position=position, velocity=velocity, acceleration=acceleration)
 
 
 def rotor_health(failures: Failures) -> tuple[float, float, float, float]:

@@ -58,7 +58,13 @@ from sitl_quad.failsafe import (
     geofence_action_mode,
     offboard_loss_mode,
 )
-from sitl_quad.failure_injection import Failures, inject, rotor_health
+from sitl_quad.failure_injection import (
+    Failures,
+    estimate_without_gps,
+    inject,
+    rotor_health,
+    without_horizontal_control,
+)
 from sitl_quad.flight_loop import AttitudeLoopFactory, FlightLoop, builtin_pid_loop, motors_off_target
 from sitl_quad.flight_modes import (
     ARMING_PREVENTED_MODES,
@@ -143,6 +149,7 @@ class Vehicle:
         self.battery_guard = BatteryGuard()
         self.failures = Failures()  # injected by MAV_CMD_INJECT_FAILURE (sitl_quad.failure_injection)
         self._failures_reported = Failures()  # the ones the failsafes have already acted on this flight
+        self._last_fix: tuple[float, float] | None = None  # GPS off: where the last fix put the vehicle (north, east)
 
     # ----- the parts, by the names the vehicle's users know them
     @property
@@ -452,6 +459,8 @@ class Vehicle:
         answer = inject(self.failures, enabled, unit, kind, instance)
         if answer.text:
             self._emit("text", answer.text, 4 if answer.result == CommandResult.ACCEPTED else 3)
+        if self.failures.gps_off != answer.failures.gps_off:
+            self._last_fix = self._north_east() if answer.failures.gps_off else None
         self.failures = answer.failures
         self.sim.set_rotor_health(rotor_health(self.failures))
         self.battery.reads_empty = self.failures.battery_empty
@@ -482,6 +491,7 @@ class Vehicle:
             descend = self.mode in POSITION_MODES
             then = f": {FlightMode.AUTO_LAND.label}" if descend else ""
             self._emit("text", f"Failsafe: GPS lost, no position{then}", 2)
+            self.loop.position.reset_horizontal()
             if descend:
                 self._enter(FlightMode.AUTO_LAND)
         for motor in sorted(failures.motors_off - reported.motors_off):
@@ -646,7 +656,10 @@ class Vehicle:
         The estimate and the reference are taken at the start of the tick and are what the tick's state
         messages carry, so the offboard controller sees them consistent (same instant), one tick old.
         """
-        self.estimate = est = self.measurement_delay.push(self.sim.measure())
+        est = self.measurement_delay.push(self.sim.measure())
+        if self._last_fix is not None:
+            est = estimate_without_gps(est, self._last_fix)
+        self.estimate = est
         self._start_pending_takeoff()
         kind = self.offboard.kind if self.mode == FlightMode.OFFBOARD and self.offboard_fresh() else None
         if self.armed and kind in (SetpointKind.TRAJECTORY, SetpointKind.RATES):
@@ -663,6 +676,8 @@ class Vehicle:
             self._reposition_once_climbed()
         else:
             self.setpoint = self._hold_here()
+        if self._last_fix is not None:  # no GPS: level, height and yaw only (PX4's Descend)
+            self.setpoint = without_horizontal_control(self.setpoint, est)
         self._check_offboard_loss()
         self._check_failures()
         self._check_geofence()

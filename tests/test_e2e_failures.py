@@ -76,7 +76,7 @@ def downloaded_log(stack: Stack, mission_id: int, path) -> ULog:
     return ULog(str(path))
 
 
-def test_gps_off_in_flight_lands_where_it_is_and_the_mission_fails_naming_the_gps(stack, tmp_path):
+def test_gps_off_in_flight_descends_out_there_and_the_mission_fails_naming_the_gps(stack, tmp_path):
     mission_id = fly_until_out(stack)
     inject(stack, GPS, OFF)
     mission = ended(stack, mission_id)
