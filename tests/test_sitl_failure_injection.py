@@ -111,3 +111,35 @@ def test_data_link_loss_acts_as_nav_dll_act_says():
     quiet = mission_vehicle()  # NAV_DLL_ACT 0 (PX4's default): nothing happens
     quiet.data_link_lost(10.0)
     assert quiet.mode == FlightMode.AUTO_MISSION
+
+
+# ----- over UDP: the command's answers, and a vehicle whose MAVLink signal is failed
+
+
+@pytest.mark.integration
+def test_mavlink_signal_off_silences_the_vehicle_until_the_one_command_that_restores_it(start_sitl):
+    from sitl_process import WAIT_S, GroundStation
+
+    from sitl_quad.params import INT32, encode_value
+    from uavcore.mavlink import mavlink
+
+    vehicle = start_sitl(speed=20)
+    gcs = GroundStation(vehicle.port)
+    inject_failure = mavlink.MAV_CMD_INJECT_FAILURE
+    try:
+        gcs.connect()
+        assert gcs.command(inject_failure, MAVLINK_SIGNAL, OFF, 0).result == mavlink.MAV_RESULT_DENIED  # disabled
+        assert gcs.set_param("SYS_FAILURE_EN", encode_value(1, INT32), mavlink.MAV_PARAM_TYPE_INT32) is not None
+        assert gcs.command(inject_failure, GPS, FailureType.STUCK, 0).result == mavlink.MAV_RESULT_UNSUPPORTED
+        assert gcs.command(inject_failure, MOTOR, OFF, 5).result == mavlink.MAV_RESULT_DENIED  # a quad: 1..4
+        assert gcs.command(inject_failure, MAVLINK_SIGNAL, OFF, 0).result == mavlink.MAV_RESULT_ACCEPTED
+        gcs.drain()
+        assert gcs.recv("HEARTBEAT", timeout=2.5) is None  # silent (heartbeats are 1 Hz of wall clock)
+        assert gcs.command(mavlink.MAV_CMD_REQUEST_MESSAGE, 148, timeout=2.0) is None  # and deaf
+        gcs.mav.command_long_send(1, 1, inject_failure, 0, MAVLINK_SIGNAL, OK, 0, 0, 0, 0, 0)  # sent once: its
+        restored = gcs.recv("COMMAND_ACK", timeout=WAIT_S, condition=lambda m: m.command == inject_failure)  # ACK heard
+        assert restored is not None and restored.result == mavlink.MAV_RESULT_ACCEPTED
+        assert gcs.recv("HEARTBEAT", timeout=WAIT_S) is not None
+    finally:
+        gcs.close()
+    assert "Traceback" not in vehicle.stderr()

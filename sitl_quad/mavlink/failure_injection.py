@@ -16,7 +16,7 @@ import time
 from sitl_quad.failure_injection import FailureType, FailureUnit
 from sitl_quad.mavlink.commands import Commands
 from sitl_quad.mavlink.link import UdpLink
-from sitl_quad.vehicle import Vehicle
+from sitl_quad.vehicle import CommandResult, Vehicle
 from uavcore.mavlink import mavlink
 
 
@@ -34,9 +34,17 @@ class FailureInjection:
     def __init__(self, vehicle: Vehicle, link: UdpLink, commands: Commands) -> None:
         self.vehicle = vehicle
         self.link = link
-        commands.register(mavlink.MAV_CMD_INJECT_FAILURE, lambda p: vehicle.inject_failure(p[0], p[1], p[2]))
+        commands.register(mavlink.MAV_CMD_INJECT_FAILURE, self.inject)
         self._last_gcs_heartbeat: float | None = None  # wall clock; None until a ground station has been heard
         self._loss_reported = False
+
+    def inject(self, p: tuple) -> CommandResult:
+        """The vehicle's answer; a restored signal speaks at once, so this very COMMAND_ACK is heard (a failed one
+        falls silent at the next loop pass, after its ACK)."""
+        result = self.vehicle.inject_failure(p[0], p[1], p[2])
+        if not self.vehicle.failures.mavlink_off:
+            self.link.signal_failed = None
+        return result
 
     def handlers(self) -> dict:
         return {"HEARTBEAT": self.heartbeat}
