@@ -63,10 +63,6 @@ class Settings(BaseSettings):
     db_path: Path = Field(
         default_factory=lambda fields: fields["data_dir"] / DB_FILENAME, description="the SQLite file"
     )
-    flight_log_dir: Path = Field(
-        default_factory=lambda fields: fields["data_dir"] / "flight_logs",
-        description="where each mission's flight log (the vehicle's ULog, downloaded after the landing) is kept",
-    )
     db: str | None = Field(
         None,
         description="a PostgreSQL database instead of the SQLite file: postgresql://USER[:PASSWORD]@HOST:PORT/NAME",
@@ -179,6 +175,12 @@ class Settings(BaseSettings):
     def reports_dir(self) -> Path:
         """Where GET /missions/{id}/report caches its drawings: beside the database."""
         return self.db_path.parent / "reports"
+
+    @property
+    def flight_log_dir(self) -> Path:
+        """Where each mission's flight log (the vehicle's ULog, downloaded after the landing) is kept: beside the
+        database, as the reports."""
+        return self.db_path.parent / "flight_logs"
 
     @classmethod
     def default(cls, name: str) -> Any:
