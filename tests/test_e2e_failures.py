@@ -135,7 +135,7 @@ def test_mavlink_signal_off_the_service_fails_the_mission_link_lost_and_the_vehi
     note = wait_until(
         lambda: (
             (r := stack.api.get(f"/missions/{mission_id}/log")).status_code == 404
-            and "flight log not downloaded" in r.text
+            and "flight log not downloaded: no link to the vehicle" in r.text
             and r.json()
         ),
         WAIT_S,

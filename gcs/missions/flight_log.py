@@ -30,9 +30,13 @@ def log_file_name(mission_id: int) -> str:
 async def fetch_flight_log(link: LinkManager, storage: AsyncStorage, directory: Path, mission_id: int) -> None:
     """Download the vehicle's newest log for this mission and record it (or a note saying why not)."""
     now = stored_time(datetime.now(UTC))
-    if link.status.armed:
-        note = "flight log not downloaded: the vehicle is still armed, its log still being written"
-        await storage.set_flight_log(mission_id, StoredFlightLog(downloaded_at=now, note=note))
+    unavailable = None
+    if not link.status.connected:
+        unavailable = "flight log not downloaded: no link to the vehicle"
+    elif link.status.armed:
+        unavailable = "flight log not downloaded: the vehicle is still armed, its log still being written"
+    if unavailable is not None:
+        await storage.set_flight_log(mission_id, StoredFlightLog(downloaded_at=now, note=unavailable))
         return
     try:
         entry = await link.logs.latest()
