@@ -13,7 +13,10 @@ from sitl_process import WAIT_S, GroundStation
 from stored_missions import FLIGHT, PLAN
 from test_gcs_battery_link import connected_link
 
+from gcs.missions.flight_log import fetch_flight_log
 from gcs.storage import StoredFlightLog, open_storage
+from gcs.storage.off_loop import AsyncStorage
+from gcs.vehicle.link import LinkManager
 from gcs.vehicle.logs import DATA_LEN, LogTooLargeError, NoLogsError
 
 pytestmark = pytest.mark.integration
@@ -83,15 +86,39 @@ def test_the_vehicle_answers_the_log_protocol_at_its_edges(start_sitl, log_dir):
         gcs.close()
 
 
-def test_a_vehicle_without_logs_is_a_no_logs_error(start_sitl, tmp_path):
+def test_a_vehicle_without_logs_is_a_no_logs_error_and_the_mission_gets_a_note(start_sitl, tmp_path):
     vehicle = start_sitl(speed=1, extra_args=("--log-dir", str(tmp_path / "empty")))
+    storage = AsyncStorage(open_storage(tmp_path / "gcs.sqlite"))
+    mission = storage.blocking.create_mission(FLIGHT, PLAN)
 
     async def scenario() -> None:
         async with connected_link(vehicle.port) as link:
             with pytest.raises(NoLogsError, match="no flight logs"):
                 await link.logs.entries()
+            await fetch_flight_log(link, storage, tmp_path / "flight_logs", mission)
 
     asyncio.run(scenario())
+    recorded = storage.blocking.flight_log(mission)
+    assert recorded is not None and recorded.file is None
+    assert recorded.note == "flight log not downloaded: the vehicle has no flight logs"
+    assert storage.blocking.get_mission(mission).status == "planned"  # the mission's own record untouched
+    asyncio.run(storage.close())
+
+
+def test_without_a_link_or_a_mission_the_fetch_notes_or_gives_up_quietly(tmp_path):
+    storage = AsyncStorage(open_storage(tmp_path / "gcs.sqlite"))
+    mission = storage.blocking.create_mission(FLIGHT, PLAN)
+    link = LinkManager()  # never started: not connected
+
+    async def scenario() -> None:
+        await fetch_flight_log(link, storage, tmp_path, mission)
+        assert (await storage.flight_log(mission)).note == "flight log not downloaded: no link to the vehicle"
+        assert await storage.delete_mission(mission)
+        await fetch_flight_log(link, storage, tmp_path, mission)  # deleted meanwhile: nothing recorded, no error
+        assert await storage.flight_log(mission) is None
+
+    asyncio.run(scenario())
+    asyncio.run(storage.close())
 
 
 def test_flight_logs_are_recorded_replaced_and_deleted_with_their_mission(database):
