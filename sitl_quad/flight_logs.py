@@ -3,7 +3,8 @@ writes them by default (SDLOG_MODE 0), in a directory (`sitl-quad --log-dir`), w
 (sitl_quad.mavlink.log_transfer).
 
 Logged at LOG_INTERVAL_S of simulated time: vehicle_status (arming, PX4's nav_state and custom mode, injected
-failures), vehicle_local_position, vehicle_global_position, vehicle_attitude, trajectory_setpoint,
+failures), vehicle_local_position (the estimate) and vehicle_local_position_groundtruth (the simulator's truth, as
+PX4 SITL logs it), vehicle_global_position, vehicle_attitude, trajectory_setpoint,
 vehicle_attitude_setpoint, battery_status and sim_rotors (the four rotor speeds); every text the vehicle says
 (STATUSTEXT) as a logged string; the parameters at arming. Timestamps are microseconds since boot in simulated
 time, as PX4 SITL's. A log is written to `<name>.ulg.part` and renamed to `<name>.ulg` at the disarm: only
@@ -43,6 +44,7 @@ ARMING_STATE_DISARMED, ARMING_STATE_ARMED = 1, 2  # PX4's vehicle_status.arming_
 # vehicle_status.failure_flags bits (this vehicle's own: PX4 logs injected failures only as strings)
 FAILURE_GPS, FAILURE_BATTERY, FAILURE_MAVLINK = 1, 2, 4
 
+LOCAL_POSITION_FIELDS = tuple(("float", name) for name in ("x", "y", "z", "vx", "vy", "vz", "heading"))
 TOPICS = (
     Topic(
         "vehicle_status",
@@ -54,7 +56,8 @@ TOPICS = (
             ("uint8_t", "motors_off_mask"),
         ),
     ),
-    Topic("vehicle_local_position", tuple(("float", name) for name in ("x", "y", "z", "vx", "vy", "vz", "heading"))),
+    Topic("vehicle_local_position", LOCAL_POSITION_FIELDS),
+    Topic("vehicle_local_position_groundtruth", LOCAL_POSITION_FIELDS),  # PX4 SITL's name: the simulator's truth
     Topic("vehicle_global_position", (("double", "lat"), ("double", "lon"), ("float", "alt"))),
     Topic("vehicle_attitude", (("float[4]", "q"),)),
     Topic(
@@ -169,7 +172,7 @@ class FlightLogs:
 
     def _samples(self, vehicle: Vehicle, record: TickRecord) -> list[bytes]:
         us = round(vehicle.t * 1e6)
-        est, sp, target = record.estimate, record.setpoint, record.target
+        est, truth, sp, target = record.estimate, record.truth, record.setpoint, record.target
         failures = vehicle.failures
         flags = FAILURE_GPS * failures.gps_off | FAILURE_BATTERY * failures.battery_empty
         flags |= FAILURE_MAVLINK * failures.mavlink_off
@@ -185,6 +188,9 @@ class FlightLogs:
                 (arming, NAV_STATES.get(vehicle.mode, 255), vehicle.mode.custom_mode, flags, motors_mask),
             ),
             encode("vehicle_local_position", us, (*est.position, *est.velocity, _yaw(est.quaternion))),
+            encode(
+                "vehicle_local_position_groundtruth", us, (*truth.position, *truth.velocity, _yaw(truth.quaternion))
+            ),
             encode("vehicle_global_position", us, (float(lat), float(lon), float(alt))),
             encode("vehicle_attitude", us, tuple(est.quaternion)),
             encode("trajectory_setpoint", us, (*sp.position, *sp.velocity, *sp.acceleration, sp.yaw)),

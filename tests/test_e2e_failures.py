@@ -92,6 +92,12 @@ def test_gps_off_in_flight_descends_out_there_and_the_mission_fails_naming_the_g
     assert lost.any() and not lost[0]
     assert 18 in status["nav_state"][np.argmax(lost) :]  # AUTO.LAND (Descend) after the loss
     assert "Failsafe: GPS lost, no position: AUTO.LAND" in [m.message for m in ulog.logged_messages]
+    # the estimate held the last fix while the truth came down to the ground, level (PX4's Descend)
+    estimate = ulog.get_dataset("vehicle_local_position").data
+    truth = ulog.get_dataset("vehicle_local_position_groundtruth").data
+    after = np.argmax(lost)
+    assert np.ptp(estimate["x"][after:]) < 0.5 and np.ptp(estimate["y"][after:]) < 0.5
+    assert truth["z"][after] < -3.0 and truth["z"][-1] > -0.3
 
 
 def test_a_motor_off_brings_the_vehicle_down_and_the_mission_fails_naming_the_motor(stack, tmp_path):
