@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from pathlib import Path
 
 from sitl_quad.flight_logs import FlightLogs
 from uavcore.mavlink import mavlink
@@ -47,6 +48,7 @@ class LogTransfer:
         self._allowance = 0.0
         self._last_poll: float | None = None
         self.pieces_sent = 0
+        self._cached: tuple[Path, bytes] | None = None  # the log last asked for
 
     def handlers(self) -> dict:
         return {
@@ -71,10 +73,8 @@ class LogTransfer:
         if not 0 <= msg.id < len(entries):
             log.info("LOG_REQUEST_DATA for log %d: there are %d", msg.id, len(entries))
             return
-        try:
-            data = entries[msg.id].path.read_bytes()
-        except OSError as exc:  # erased meanwhile
-            log.info("log %d unreadable: %s", msg.id, exc)
+        data = self._read(entries[msg.id].path)
+        if data is None:
             return
         if msg.ofs >= len(data):
             self.send(mavlink.MAVLink_log_data_message(msg.id, msg.ofs, 0, bytes(DATA_LEN)), peer)
@@ -83,11 +83,23 @@ class LogTransfer:
         end = min(len(data), msg.ofs + msg.count)
         self.transfer = Transfer(msg.id, data, msg.ofs, end, peer)
 
+    def _read(self, path: Path) -> bytes | None:
+        """The log's bytes, read once: MAVSDK asks for a log chunk by chunk, and a finished log never changes."""
+        if self._cached is not None and self._cached[0] == path:
+            return self._cached[1]
+        try:
+            data = path.read_bytes()
+        except OSError as exc:  # erased meanwhile
+            log.info("log %s unreadable: %s", path.name, exc)
+            return None
+        self._cached = (path, data)
+        return data
+
     def request_end(self, peer, msg) -> None:
         self.transfer = None
 
     def erase(self, peer, msg) -> None:
-        self.transfer = None
+        self.transfer = self._cached = None
         erased = self.logs.erase()
         log.info("LOG_ERASE: %d logs deleted", erased)
 
