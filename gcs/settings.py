@@ -176,12 +176,6 @@ class Settings(BaseSettings):
         """Where GET /missions/{id}/report caches its drawings: beside the database."""
         return self.db_path.parent / "reports"
 
-    @property
-    def flight_log_dir(self) -> Path:
-        """Where each mission's flight log (the vehicle's ULog, downloaded after the landing) is kept: beside the
-        database, as the reports."""
-        return self.db_path.parent / "flight_logs"
-
     @classmethod
     def default(cls, name: str) -> Any:
         """A field's default as written above (not the environment's value), for command-line help."""

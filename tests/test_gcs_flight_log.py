@@ -95,11 +95,11 @@ def test_a_vehicle_without_logs_is_a_no_logs_error_and_the_mission_gets_a_note(s
         async with connected_link(vehicle.port) as link:
             with pytest.raises(NoLogsError, match="no flight logs"):
                 await link.logs.entries()
-            await fetch_flight_log(link, storage, tmp_path / "flight_logs", mission)
+            await fetch_flight_log(link, storage, mission)
 
     asyncio.run(scenario())
     recorded = storage.blocking.flight_log(mission)
-    assert recorded is not None and recorded.file is None
+    assert recorded is not None and recorded.size_bytes is None and storage.blocking.flight_log_data(mission) is None
     assert recorded.note == "flight log not downloaded: the vehicle has no flight logs"
     assert storage.blocking.get_mission(mission).status == "planned"  # the mission's own record untouched
     asyncio.run(storage.close())
@@ -111,10 +111,10 @@ def test_without_a_link_or_a_mission_the_fetch_notes_or_gives_up_quietly(tmp_pat
     link = LinkManager()  # never started: not connected
 
     async def scenario() -> None:
-        await fetch_flight_log(link, storage, tmp_path, mission)
+        await fetch_flight_log(link, storage, mission)
         assert (await storage.flight_log(mission)).note == "flight log not downloaded: no link to the vehicle"
         assert await storage.delete_mission(mission)
-        await fetch_flight_log(link, storage, tmp_path, mission)  # deleted meanwhile: nothing recorded, no error
+        await fetch_flight_log(link, storage, mission)  # deleted meanwhile: nothing recorded, no error
         assert await storage.flight_log(mission) is None
 
     asyncio.run(scenario())
@@ -133,12 +133,11 @@ def test_flight_logs_are_recorded_replaced_and_deleted_with_their_mission(databa
         assert storage.flight_log(mission) == failed
         assert storage.get_mission(mission).status == before.status  # the mission's own record as it was
         assert storage.get_mission(mission).updated_at > before.updated_at  # but its report is drawn anew
-        stored = StoredFlightLog(
-            downloaded_at="2026-11-28T05:01:00.000000+00:00", file="mission_1.ulg", size_bytes=2**33, vehicle_log_id=4
-        )
-        storage.set_flight_log(mission, stored)
+        stored = StoredFlightLog(downloaded_at="2026-11-28T05:01:00.000000+00:00", size_bytes=4, vehicle_log_id=4)
+        storage.set_flight_log(mission, stored, b"ULog")
         assert storage.flight_log(mission) == stored and storage.flight_log(other) is None
+        assert storage.flight_log_data(mission) == b"ULog" and storage.flight_log_data(other) is None
         assert storage.delete_mission(mission)
-        assert storage.flight_log(mission) is None
+        assert storage.flight_log(mission) is None and storage.flight_log_data(mission) is None
     finally:
         storage.close()

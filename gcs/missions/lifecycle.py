@@ -436,7 +436,7 @@ class FlightLifecycle:
             await self.storage.set_results(mission_id, flight_results(plan, flight, samples, progress))
         await self._transition(mission_id, status, reason)
         if recorder.armed_seen and fetch_log:  # it flew: the vehicle's newest log is its (gcs.missions.flight_log)
-            fetch = fetch_flight_log(self.link, self.storage, self.settings.flight_log_dir, mission_id)
+            fetch = fetch_flight_log(self.link, self.storage, mission_id)
             task = asyncio.create_task(fetch, name=f"flight-log-{mission_id}")  # the vehicle is free meanwhile
             self._log_fetches.add(task)
             task.add_done_callback(self._log_fetches.discard)

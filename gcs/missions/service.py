@@ -35,7 +35,6 @@ from gcs.missions.energy_planning import battery_plan, energy_plan
 from gcs.missions.fleet_missions import FleetCoordinator, fleet_vehicles, shares_progress
 from gcs.missions.fleet_planning import METHOD, plan_fleet_mission
 from gcs.missions.fleet_vehicle import FleetVehicle
-from gcs.missions.flight_log import log_file_name
 from gcs.missions.inspector import FrameAnalysis
 from gcs.missions.lifecycle import ABORTED_BEFORE_TAKEOFF, MissionConflictError
 from gcs.missions.ownership import Ownership, ownership_for
@@ -536,19 +535,20 @@ class MissionService:
             raise FrameNotFoundError(f"mission {mission_id} has no frame {frame_id}")
         return data
 
-    async def flight_log(self, mission_id: int) -> Path:
-        """Where the mission's flight log (ULog) is; raises MissionNotFoundError or FlightLogNotFoundError."""
+    async def flight_log(self, mission_id: int) -> bytes:
+        """The mission's flight log (ULog); raises MissionNotFoundError or FlightLogNotFoundError (with the note
+        recorded when its download failed)."""
         await self.get(mission_id)
+        data = await self._storage.flight_log_data(mission_id)
+        if data is not None:
+            return data
         stored = await self._storage.flight_log(mission_id)
         if stored is None:
             raise FlightLogNotFoundError(f"mission {mission_id} has no flight log (not flown, or still being fetched)")
-        path = self.settings.flight_log_dir / stored.file if stored.file is not None else None
-        if path is None or not await asyncio.to_thread(path.is_file):
-            raise FlightLogNotFoundError(f"mission {mission_id} has no flight log: {stored.note or 'its file is gone'}")
-        return path
+        raise FlightLogNotFoundError(f"mission {mission_id} has no flight log: {stored.note}")
 
     async def delete(self, mission_id: int) -> None:
-        """Remove a mission with its telemetry, frames, inspections, report and flight log (a fleet mission: its parts
+        """Remove a mission with its telemetry, frames, inspections, flight log and report (a fleet mission: its parts
         too).
         Raises MissionConflictError while it (or a part) is being flown: abort it first."""
         self._ownership.ensure_owner()
@@ -562,8 +562,6 @@ class MissionService:
         await self._storage.delete_mission(mission_id)
         for mission in (record, *parts):
             await asyncio.to_thread(shutil.rmtree, self.settings.reports_dir / f"mission-{mission.id}", True)
-            log_file = self.settings.flight_log_dir / log_file_name(mission.id)
-            await asyncio.to_thread(log_file.unlink, True)
 
     async def report_index(self, mission_id: int) -> Path:
         """The mission's report (drawn, or the cached drawing when the mission has not changed): its index.html.

@@ -417,10 +417,10 @@ def flight_log_section(mission_id: int, flight_log: StoredFlightLog | None) -> s
     mission that never flew). The note may quote the vehicle: escaped."""
     if flight_log is None:
         return ""
-    if flight_log.file is None:
+    if flight_log.size_bytes is None:
         text = html.escape(flight_log.note or "not downloaded")
         return f'\n<h2>Flight log</h2>\n<p data-testid="flight-log">{text}</p>'
-    size = f"{flight_log.size_bytes / 1024:.0f} kB" if flight_log.size_bytes is not None else "size unknown"
+    size = f"{flight_log.size_bytes / 1024:.0f} kB"
     link = f'<a href="/missions/{mission_id}/log" download="mission-{mission_id}.ulg">mission-{mission_id}.ulg</a>'
     return (
         f'\n<h2>Flight log</h2>\n<p data-testid="flight-log">{link} ({size}, ULog: the vehicle\'s log '

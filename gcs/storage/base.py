@@ -112,11 +112,10 @@ class MissionRecord:
 
 @dataclass(frozen=True)
 class StoredFlightLog:
-    """A mission's flight log as the service fetched it: `file` (a name in the service's flight-log directory) and
-    its size and id on the vehicle, or, when the download failed, file None and a `note` saying why."""
+    """A mission's flight log as the service fetched it: its size and id on the vehicle (its bytes: `flight_log_data`),
+    or, when the download failed, only a `note` saying why (size None)."""
 
     downloaded_at: str
-    file: str | None = None
     size_bytes: int | None = None
     vehicle_log_id: int | None = None
     note: str | None = None
@@ -738,14 +737,14 @@ class Storage(ABC):
         )
 
     # ----- removal
-    def set_flight_log(self, mission_id: int, log: StoredFlightLog) -> None:
-        """Record (or replace) the flight log fetched for a mission."""
+    def set_flight_log(self, mission_id: int, log: StoredFlightLog, data: bytes | None = None) -> None:
+        """Record (or replace) the flight log fetched for a mission: its bytes, or None with a note."""
         with self._mission_write() as db:
             db.execute("DELETE FROM flight_logs WHERE mission_id = ?", (mission_id,))
             db.execute(
-                "INSERT INTO flight_logs (mission_id, file, size_bytes, vehicle_log_id, downloaded_at, note) "
+                "INSERT INTO flight_logs (mission_id, data, size_bytes, vehicle_log_id, downloaded_at, note) "
                 "VALUES (?, ?, ?, ?, ?, ?)",
-                (mission_id, log.file, log.size_bytes, log.vehicle_log_id, log.downloaded_at, log.note),
+                (mission_id, data, log.size_bytes, log.vehicle_log_id, log.downloaded_at, log.note),
             )
             # the mission's report links the log: its version and time move so cached reads and drawings are redone
             db.execute(
@@ -753,20 +752,26 @@ class Storage(ABC):
             )
 
     def flight_log(self, mission_id: int) -> StoredFlightLog | None:
+        """What was recorded of the mission's flight log, without its bytes (None: nothing yet)."""
         with self._reading() as db:
             row = db.execute(
-                "SELECT file, size_bytes, vehicle_log_id, downloaded_at, note FROM flight_logs WHERE mission_id = ?",
+                "SELECT size_bytes, vehicle_log_id, downloaded_at, note FROM flight_logs WHERE mission_id = ?",
                 (mission_id,),
             ).fetchone()
         if row is None:
             return None
         return StoredFlightLog(
             downloaded_at=row["downloaded_at"],
-            file=row["file"],
             size_bytes=_optional_int(row["size_bytes"]),
             vehicle_log_id=_optional_int(row["vehicle_log_id"]),
             note=row["note"],
         )
+
+    def flight_log_data(self, mission_id: int) -> bytes | None:
+        """The flight log's bytes (None: none was downloaded)."""
+        with self._reading() as db:
+            row = db.execute("SELECT data FROM flight_logs WHERE mission_id = ?", (mission_id,)).fetchone()
+        return None if row is None or row["data"] is None else bytes(row["data"])
 
     def delete_mission(self, mission_id: int) -> bool:
         """Remove a mission and everything of it (a fleet mission: its parts too): events, telemetry, frames and

@@ -198,12 +198,15 @@ _MISSION_CHANGES = """
     INSERT INTO mission_changes (id, version) SELECT 1, COALESCE(MAX(version), 0) FROM missions;
 """
 
-# The flight log a mission's vehicle kept (ULog, downloaded over the MAVLink log protocol after the landing): the file
-# under the service's data directory, or, when the download failed, only the note saying why (file NULL)
-_FLIGHT_LOGS = """
+
+def _flight_logs(blob: str) -> str:
+    """Migration 12: the flight log a mission's vehicle kept (ULog, downloaded over the MAVLink log protocol after the
+    landing), its bytes in the database as the camera frames' (every instance on a shared database serves it), or,
+    when the download failed, only the note saying why (data NULL)."""
+    return f"""
     CREATE TABLE flight_logs (
         mission_id BIGINT PRIMARY KEY REFERENCES missions(id),
-        file TEXT,
+        data {blob},
         size_bytes BIGINT,
         vehicle_log_id BIGINT,
         downloaded_at TEXT NOT NULL,
@@ -262,5 +265,5 @@ MIGRATIONS: list[Migration] = [
     Migration(sqlite=_BY_CREATION, postgresql=_BY_CREATION),
     Migration(sqlite=_CHART_BASEMAPS, postgresql=_CHART_BASEMAPS),
     Migration(sqlite=_MISSION_CHANGES, postgresql=_MISSION_CHANGES),
-    Migration(sqlite=_FLIGHT_LOGS, postgresql=_FLIGHT_LOGS),
+    Migration(sqlite=_flight_logs("BLOB"), postgresql=_flight_logs("BYTEA")),
 ]

@@ -7,7 +7,6 @@ import asyncio
 import json
 
 from fastapi import APIRouter, Depends, Response
-from fastapi.responses import FileResponse
 
 from gcs.api.routes.deps import ServiceDep
 from gcs.api.routes.missions import MissionId, download_response, file_responses
@@ -64,15 +63,16 @@ async def get_frame(mission_id: MissionId, frame_id: MissionId, service: Service
 
 @router.get(
     "/missions/{mission_id}/log",
-    response_class=FileResponse,
+    response_class=Response,
     responses=file_responses("application/octet-stream"),
 )
-async def get_flight_log(mission_id: MissionId, service: ServiceDep) -> FileResponse:
+async def get_flight_log(mission_id: MissionId, service: ServiceDep) -> Response:
     """The flight log the vehicle kept of the mission (PX4's ULog, downloaded over the MAVLink log protocol after
     the landing), for pyulog, PlotJuggler or Flight Review. 404 while there is none, saying why when its download
     failed."""
-    path = await service.flight_log(mission_id)
-    return FileResponse(path, media_type="application/octet-stream", filename=f"mission-{mission_id}.ulg")
+    data = await service.flight_log(mission_id)
+    headers = {"Content-Disposition": f'attachment; filename="mission-{mission_id}.ulg"'}
+    return Response(data, media_type="application/octet-stream", headers=headers)
 
 
 @router.delete(
