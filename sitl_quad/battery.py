@@ -123,6 +123,9 @@ class Battery:
         self.power_w = 0.0
         self.consumed_mah = 0.0
         self.consumed_wh = 0.0
+        # an injected battery failure (PX4's BatterySimulator `_force_empty_battery`): the pack reports empty, at
+        # its empty voltage, while its true charge is kept (and is reported again once the failure is cleared)
+        self.reads_empty = False
         self.reset(state_of_charge)
 
     def reset(self, state_of_charge: float = 1.0) -> None:
@@ -146,8 +149,18 @@ class Battery:
         return self.state_of_charge * self.config.capacity_mah
 
     @property
+    def reported_charge(self) -> float:
+        """The state of charge the vehicle's battery monitor reports (0..1): the true one unless reads_empty."""
+        return 0.0 if self.reads_empty else self.state_of_charge
+
+    @property
+    def reported_voltage_v(self) -> float:
+        """The terminal voltage the monitor reports: every cell at BAT1_V_EMPTY while reads_empty."""
+        return self.config.cells * self.config.v_empty if self.reads_empty else self.voltage_v
+
+    @property
     def warning(self) -> BatteryWarning:
-        return self.config.warning(self.state_of_charge)
+        return self.config.warning(self.reported_charge)
 
     def draw(self, power_w: float, dt: float) -> None:
         """Deliver power_w (W) for dt seconds of simulated time."""

@@ -245,6 +245,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="also report a virtual AtoN (nothing in the water; virtual flag set) at this position, e.g. over a new "
         "wreck; KIND one of the world file's kinds (default isolated_danger); repeatable; needs --ais-out",
     )
+    p.add_argument(
+        "--log-dir",
+        type=Path,
+        metavar="DIR",
+        help="where the ULog flight logs go, one per arming, served over the MAVLink log protocol "
+        "(default: a new temporary directory, printed at start)",
+    )
     p.add_argument("--list-params", action="store_true", help="print every parameter with its value and exit")
     p.add_argument("-v", "--verbose", action="store_true", help="log every peer and protocol event")
     return p
@@ -311,6 +318,12 @@ def main(argv: list[str] | None = None) -> int:
         except OSError as exc:
             return _fail(f"--image-dir {image_dir}: {exc.strerror}")
         print(f"sitl-quad: camera images in {image_dir}", flush=True)
+    log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="sitl_quad_logs_"))
+    try:
+        log_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        return _fail(f"--log-dir {log_dir}: {exc.strerror}")
+    print(f"sitl-quad: flight logs in {log_dir}", flush=True)
     warm_up(config, args.home, args.outer_rate)  # before listening: no ground station waits on a compile
     vehicle = Vehicle(
         config, home=args.home, seed=args.seed, outer_rate_hz=args.outer_rate, attitude_loops=attitude_loops()
@@ -334,6 +347,7 @@ def main(argv: list[str] | None = None) -> int:
         speed=args.speed,
         lockstep=args.lockstep,
         flight_log=args.log,
+        log_dir=log_dir,
         on_params_changed=save_params,
         # the camera's images are served where its CAMERA_IMAGE_CAPTURED file_url (mftp://[;comp=100]/...) says
         ftp_root=args.ftp_root or image_dir,

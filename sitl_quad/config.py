@@ -38,6 +38,16 @@ class GeofenceAction(IntEnum):
     LAND = 5  # land where it is (AUTO.LAND)
 
 
+class DataLinkLossAction(IntEnum):
+    """What the vehicle does when no ground station has been heard for COM_DL_LOSS_T (NAV_DLL_ACT, PX4's numbers;
+    5 terminate and 6 lockdown are not simulated)."""
+
+    DISABLED = 0
+    HOLD = 1
+    RETURN = 2
+    LAND = 3
+
+
 class LowBatteryAction(IntEnum):
     """What the vehicle does at the battery's critical and emergency levels (COM_LOW_BAT_ACT, PX4's numbers)."""
 
@@ -64,6 +74,9 @@ class FailsafeConfig:
     geofence_max_vertical_m: float = 0.0  # GF_MAX_VER_DIST: height above home, m (0: no limit)
     low_battery_action: int = LowBatteryAction.WARNING  # COM_LOW_BAT_ACT (PX4's default: warn only)
     arm_battery_min: float = -1.0  # COM_ARM_BAT_MIN: no arming below this charge; negative: below BAT_CRIT_THR
+    data_link_loss_action: int = DataLinkLossAction.DISABLED  # NAV_DLL_ACT (PX4's default: disabled)
+    data_link_loss_timeout_s: float = 10.0  # COM_DL_LOSS_T, s on the wall clock (ground stations beat on it)
+    failure_injection_enabled: int = 0  # SYS_FAILURE_EN: MAV_CMD_INJECT_FAILURE refused while 0
 
     def __post_init__(self) -> None:
         if self.geofence_action == GeofenceAction.TERMINATE:

@@ -1,5 +1,6 @@
 """Failsafes: the offboard setpoint stream and its loss (OFFB_LOSS_T, OFFB_LOSS_ACT); the geofence (GF_ACTION);
-the battery (BAT_LOW_THR, BAT_CRIT_THR, BAT_EMERGEN_THR, COM_LOW_BAT_ACT).
+the battery (BAT_LOW_THR, BAT_CRIT_THR, BAT_EMERGEN_THR, COM_LOW_BAT_ACT); the data link (NAV_DLL_ACT,
+COM_DL_LOSS_T); the position estimate lost with the GPS (an injected failure, sitl_quad.failure_injection).
 
 Offboard setpoints (attitude + thrust from the offboard controller; body rates + thrust; position, velocity,
 acceleration and yaw targets, see sitl_quad.offboard_setpoints) fly the vehicle only in OFFBOARD and only while
@@ -23,7 +24,7 @@ import math
 from dataclasses import dataclass
 
 from sitl_quad.battery import BatteryWarning
-from sitl_quad.config import FailsafeAction, FailsafeConfig, GeofenceAction, LowBatteryAction
+from sitl_quad.config import DataLinkLossAction, FailsafeAction, FailsafeConfig, GeofenceAction, LowBatteryAction
 from sitl_quad.offboard_setpoints import PositionTarget, RatesTarget, SetpointKind
 from uavcore.geodesy import LocalFrame
 from uavcore.geofence import Geofence, NorthEast, PlanarFence, Zone
@@ -227,3 +228,32 @@ class BatteryGuard:
             return None
         self.announced = level
         return level
+
+
+DATA_LINK_LOSS_MODES = {
+    DataLinkLossAction.HOLD: FlightMode.AUTO_LOITER,
+    DataLinkLossAction.RETURN: FlightMode.AUTO_RTL,
+    DataLinkLossAction.LAND: FlightMode.AUTO_LAND,
+}
+
+
+def data_link_loss_mode(action: DataLinkLossAction) -> FlightMode | None:
+    """The mode NAV_DLL_ACT switches to when no ground station is heard for COM_DL_LOSS_T (None: disabled)."""
+    return DATA_LINK_LOSS_MODES.get(action)
+
+
+# Modes that need a horizontal position estimate: without GPS, PX4's failsafe leaves them for Descend (reported as
+# AUTO.LAND), as its position-loss failsafe does when only the altitude is still known. OFFBOARD is one here: this
+# vehicle's offboard controller flies the navigator's position reference from the position estimate (PX4 likewise
+# requires a position for offboard position and velocity setpoints).
+POSITION_MODES = frozenset(
+    {
+        FlightMode.OFFBOARD,
+        FlightMode.POSCTL,
+        FlightMode.ORBIT,
+        FlightMode.AUTO_TAKEOFF,
+        FlightMode.AUTO_LOITER,
+        FlightMode.AUTO_MISSION,
+        FlightMode.AUTO_RTL,
+    }
+)

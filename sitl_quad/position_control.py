@@ -68,6 +68,11 @@ class PidPositionController:
         self.gains = gains or PidPositionGains()
         self.reset()
 
+    def reset_horizontal(self) -> None:
+        """Forget the horizontal velocity integrator: with no horizontal position estimate (GPS lost) the vehicle
+        descends level, as PX4's Descend, instead of leaning on into the wind it last fought."""
+        self.integral[:2] = 0.0
+
     def reset(self) -> None:
         """Forget the velocity integrator and the derivative filter (on arming, after landing)."""
         self.integral = np.zeros(3)

@@ -24,6 +24,7 @@ that starts a step on the ground (the ground holds it).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from numba import njit
@@ -43,9 +44,11 @@ from uavcore.airframe import (
     P_MOTOR_TAU,
     P_OMEGA_MAX,
     P_OMEGA_MIN,
+    Airframe,
 )
 
 STATE_SIZE = 17
+P_ROTOR_HEALTH = len(Airframe.field_names())  # physics_params(): the four rotors' health after the airframe
 POS, VEL, QUAT, RATES, ROTORS = slice(0, 3), slice(3, 6), slice(6, 10), slice(10, 13), slice(13, 17)
 # last-step disturbance report written by advance(): wind NED [0:3], D_xyz [3:6], D_angular [6:9], external
 # acceleration NED [9:12] (drag + D_xyz), and at the step's end the body's angular acceleration split in two:
@@ -121,9 +124,19 @@ def derivative(
     out[11] = r * p * (izz - ixx) / iyy + tau_y / iyy + d_angular[1]  # eq. (1), pitch
     out[12] = p * qr * (ixx - iyy) / izz + tau_z / izz + d_angular[2]  # eq. (1), yaw
     lo, hi, tau_m = params[P_OMEGA_MIN], params[P_OMEGA_MAX], params[P_MOTOR_TAU]
+    health = params.shape[0] >= P_ROTOR_HEALTH + 4  # physics_params() appended the ESCs' health
     for i in range(4):
-        out[13 + i] = (min(max(omega_cmd[i], lo), hi) - state[13 + i]) / tau_m
+        command = min(max(omega_cmd[i], lo), hi)
+        if health and params[P_ROTOR_HEALTH + i] == 0.0:
+            command = 0.0  # a blocked ESC (injected motor failure): the rotor spins down and stays stopped
+        out[13 + i] = (command - state[13 + i]) / tau_m
     return out
+
+
+def physics_params(airframe: Airframe, rotor_health: Sequence[float] = (1.0, 1.0, 1.0, 1.0)) -> np.ndarray:
+    """The kernels' parameter array: the airframe's fields (Airframe.as_array()) then, per rotor, 1.0 while its ESC
+    drives it and 0.0 once it is blocked (sitl_quad.failure_injection). An airframe-only array flies all four."""
+    return np.concatenate([airframe.as_array(), np.asarray(rotor_health, dtype=np.float64)])
 
 
 @njit(cache=True)

@@ -18,12 +18,15 @@ from pathlib import Path
 
 from sitl_quad.ais_out import AisOut
 from sitl_quad.camera import Environment
+from sitl_quad.flight_logs import FlightLogs
 from sitl_quad.mavlink.camera import CameraComponent
 from sitl_quad.mavlink.commands import Commands
+from sitl_quad.mavlink.failure_injection import FailureInjection
 from sitl_quad.mavlink.ftp import CAMERA_COMPID, FileTransfer
 from sitl_quad.mavlink.gimbal import GimbalManager
 from sitl_quad.mavlink.heartbeat import Heartbeat, heartbeat_message
 from sitl_quad.mavlink.link import UdpLink
+from sitl_quad.mavlink.log_transfer import LogTransfer
 from sitl_quad.mavlink.mission import MissionProtocol
 from sitl_quad.mavlink.offboard import Offboard
 from sitl_quad.mavlink.parameters import Parameters
@@ -50,6 +53,7 @@ class VehicleServer:
         speed: float = 1.0,
         lockstep: bool = False,
         flight_log: Path | None = None,
+        log_dir: Path | None = None,
         on_params_changed=None,
         ftp_root: Path | None = None,
         ftp_component: int = CAMERA_COMPID,
@@ -59,7 +63,9 @@ class VehicleServer:
         ais_out: AisOut | None = None,
     ) -> None:
         """image_dir: the camera's (None: no camera and no gimbal); world: what it sees; current: the water's;
-        ais_out: the world's AIS reports, sent as simulated time reaches them (their buoys move in the current)."""
+        ais_out: the world's AIS reports, sent as simulated time reaches them (their buoys move in the current);
+        flight_log: the CSV of every tick (--log); log_dir: the ULog flight logs, one per arming (--log-dir), served
+        over the MAVLink log protocol (none kept without it)."""
         self.vehicle = vehicle
         vehicle.wall_clock = time.monotonic  # protocol-facing timers also respect the wall clock
         self.params = params
@@ -87,6 +93,9 @@ class VehicleServer:
         self.mission = MissionProtocol(vehicle, self.send, link.sysid, link.compid)
         self.offboard = Offboard(vehicle)
         self.file_transfer = FileTransfer(link, ftp_root, ftp_component)
+        self.failure_injection = FailureInjection(vehicle, link, self.commands)
+        self.flight_logs = FlightLogs(log_dir, params, self.telemetry.boot_unix_us) if log_dir is not None else None
+        self.log_transfer = LogTransfer(self.flight_logs, self.send) if self.flight_logs is not None else None
         home_id = mavlink.MAVLINK_MSG_ID_HOME_POSITION
         version_id = mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION
         self.commands.register(mavlink.MAV_CMD_REQUEST_MESSAGE, lambda p: self._request_message(p[0]))
@@ -97,7 +106,12 @@ class VehicleServer:
         )
         self.commands.register(mavlink.MAV_CMD_REQUEST_PROTOCOL_VERSION, lambda p: CommandResult.UNSUPPORTED)
         self.dispatch: dict = {}
-        for capability in (self.parameters, self.commands, self.mission, self.offboard, self.file_transfer):
+        capabilities = [
+            self.parameters, self.commands, self.mission, self.offboard, self.file_transfer, self.failure_injection
+        ]  # fmt: skip
+        if self.log_transfer is not None:
+            capabilities.append(self.log_transfer)
+        for capability in capabilities:
             self.dispatch.update(capability.handlers())
         self._setpoint_types = set(self.offboard.handlers())
         # ----- the camera on its gimbal: the gimbal manager is the autopilot's, the camera its own component
@@ -148,6 +162,9 @@ class VehicleServer:
         self.mission.poll(now)
         self.parameters.poll()
         self.file_transfer.poll()
+        self.failure_injection.poll(now)
+        if self.log_transfer is not None:
+            self.log_transfer.poll(now)
         if self.camera is not None:
             self.camera.poll(now)
 
@@ -190,6 +207,8 @@ class VehicleServer:
                     self.armed_lateness_s.append(self.tick_lateness_s[-1])
             record = self.vehicle.tick()
             self._publish_events()
+            if self.flight_logs is not None:
+                self.flight_logs.tick(self.vehicle, record)
             if self.payload is not None:
                 self.payload.tick()
             self.telemetry.publish_due()
@@ -259,6 +278,8 @@ class VehicleServer:
             return
         if event.kind == "text" or (event.kind in ("armed", "mission_complete") and event.text):
             self.send(mavlink.MAVLink_statustext_message(event.severity, event.text.encode()[:50]))
+            if self.flight_logs is not None:
+                self.flight_logs.text(event.severity, event.text, self.vehicle.t)
         if event.kind in ("mode", "armed"):
             self.send(heartbeat_message(self.vehicle))  # tools learn mode and arming changes at once
         if event.kind == "mode":
@@ -371,12 +392,15 @@ class VehicleServer:
             "handler_errors": self.handler_errors,
             "mission_uploads": {"completed": self.mission.transfers_completed, "failed": self.mission.transfers_failed},
             "offboard_setpoints": self.vehicle.offboard.count,
+            "log_data_sent": self.log_transfer.pieces_sent if self.log_transfer is not None else None,
             "motor_saturated_ticks": self.vehicle.saturated_ticks,
             "camera": self.camera.stats() if self.camera is not None else None,
             "ais": self.ais_out.stats() if self.ais_out is not None else None,
         }
 
     def close(self) -> None:
+        if self.flight_logs is not None:
+            self.flight_logs.close()
         if self.payload is not None:
             self.payload.close()
         if self._log_file is not None:

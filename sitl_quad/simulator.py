@@ -18,7 +18,7 @@ import numpy as np
 from sitl_quad.attitude_pid import PidAttitudeController
 from sitl_quad.disturbances import DisturbanceConfig, GaussianDisturbance
 from sitl_quad.inner_loop import disturbance_samples_due, pid_inner_loop
-from sitl_quad.rigid_body import INFO_SIZE, STATE_SIZE, advance
+from sitl_quad.rigid_body import INFO_SIZE, STATE_SIZE, advance, physics_params
 from sitl_quad.rotors import Mixer
 from sitl_quad.sensors import SensorNoise, Sensors
 from sitl_quad.wind import WindConfig, WindModel
@@ -64,7 +64,8 @@ class Simulator:
         self.sensor_noise = sensor_noise or SensorNoise.none()
         self.dt = float(dt)
         self.seed = seed
-        self._params = self.airframe.as_array()
+        self.rotor_health: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0)  # sitl_quad.failure_injection
+        self._params = physics_params(self.airframe, self.rotor_health)
         self._state = np.zeros(STATE_SIZE)
         self._omega_cmd = np.zeros(4)
         self._info = np.zeros(INFO_SIZE)
@@ -107,7 +108,7 @@ class Simulator:
         held disturbance sample stays until the next sample time of the new configuration."""
         if airframe is not None:
             self.airframe = airframe
-            self._params = airframe.as_array()
+            self._params = physics_params(airframe, self.rotor_health)
             self.set_rotor_commands(self._omega_cmd)
         if wind is not None:
             turbulence = self.wind.turbulence
@@ -161,6 +162,11 @@ class Simulator:
         values[6:10] /= np.linalg.norm(values[6:10])
         self._state[:] = values
         self._on_ground = bool(values[2] >= 0.0)
+
+    def set_rotor_health(self, health: tuple[float, float, float, float]) -> None:
+        """Per rotor 1.0 (its ESC drives it) or 0.0 (blocked: an injected motor failure, the rotor spins down)."""
+        self.rotor_health = tuple(float(h) for h in health)
+        self._params = physics_params(self.airframe, self.rotor_health)
 
     def set_rotor_commands(self, omega_cmd) -> None:
         """Four rotor-speed commands (rad/s), clipped to the airframe's limits, held until changed."""

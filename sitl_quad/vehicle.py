@@ -8,6 +8,7 @@
 - sitl_quad.failsafe: the offboard setpoint stream and its loss (`OffboardStream`), the geofence (`GeofenceGuard`),
   the battery's warnings and actions (`BatteryGuard`);
 - sitl_quad.battery: the flight battery, drawn every tick by the rotors' power (`Battery`);
+- sitl_quad.failure_injection: the failures MAV_CMD_INJECT_FAILURE put in force (`Failures`);
 - sitl_quad.offboard_setpoints: what position/velocity and body-rate setpoints ask of the loops;
 - sitl_quad.orbit: DO_ORBIT's circle;
 - sitl_quad.vehicle_types: command results, events, tick records.
@@ -41,17 +42,32 @@ from sitl_quad.arming import (
     touching_ground,
 )
 from sitl_quad.battery import Battery, electrical_power, rotor_mechanical_power
-from sitl_quad.config import AttitudeControllerKind, GeofenceAction, LowBatteryAction, VehicleConfig
+from sitl_quad.config import (
+    AttitudeControllerKind,
+    DataLinkLossAction,
+    GeofenceAction,
+    LowBatteryAction,
+    VehicleConfig,
+)
 from sitl_quad.failsafe import (
+    POSITION_MODES,
     SEVERITY_CRITICAL,
     BatteryGuard,
     GeofenceGuard,
     HomeDistanceLimit,
     OffboardStream,
     battery_failsafe,
+    data_link_loss_mode,
     geofence_action_mode,
     home_limits_on,
     offboard_loss_mode,
+)
+from sitl_quad.failure_injection import (
+    Failures,
+    estimate_without_gps,
+    inject,
+    rotor_health,
+    without_horizontal_control,
 )
 from sitl_quad.flight_loop import AttitudeLoopFactory, FlightLoop, builtin_pid_loop, motors_off_target
 from sitl_quad.flight_modes import (
@@ -135,6 +151,9 @@ class Vehicle:
         self.saturated_ticks = 0
         self.battery = Battery(config.battery)
         self.battery_guard = BatteryGuard()
+        self.failures = Failures()  # injected by MAV_CMD_INJECT_FAILURE (sitl_quad.failure_injection)
+        self._failures_reported = Failures()  # the ones the failsafes have already acted on this flight
+        self._last_fix: tuple[float, float] | None = None  # GPS off: where the last fix put the vehicle (north, east)
 
     # ----- the parts, by the names the vehicle's users know them
     @property
@@ -243,13 +262,17 @@ class Vehicle:
         if self._geofence_enforced() and self.geofence.violation(*self._north_east()) is not None:
             self._emit("text", "Arming denied: vehicle outside geofence", 4)
             return CommandResult.DENIED
+        if self.failures.gps_off:
+            self._emit("text", "Arming denied: no GPS fix", 4)
+            return CommandResult.DENIED
         minimum = self._arming_battery_minimum()
-        if self.battery.state_of_charge < minimum:
-            charge = self.battery.state_of_charge
+        if self.battery.reported_charge < minimum:
+            charge = self.battery.reported_charge
             self._emit("text", f"Arming denied: battery {charge:.0%}, below {minimum:.0%}", 4)
             return CommandResult.DENIED
         self.arming.arm(self.t)
         self.battery_guard.reset()
+        self._failures_reported = Failures()
         self.loop.reset_controllers()
         self._emit("armed", "Armed")
         self._enter(self.mode)
@@ -297,6 +320,9 @@ class Vehicle:
         self._enter(mode, first_seq, altitude)
 
     def set_mode(self, mode: FlightMode) -> CommandResult:
+        if self.failures.gps_off and mode in POSITION_MODES:
+            self._emit("text", f"{mode.label} denied: no position estimate (GPS)", 4)
+            return CommandResult.DENIED
         if mode == FlightMode.OFFBOARD and not self.offboard_fresh():
             self._emit("text", "Offboard denied: no setpoint stream", 4)
             return CommandResult.TEMPORARILY_REJECTED
@@ -442,6 +468,54 @@ class Vehicle:
     def set_offboard_rates_target(self, target: RatesTarget) -> None:
         """SET_ATTITUDE_TARGET with body rates and thrust, the attitude ignored."""
         self.offboard.receive_rates(target, self._arrival_step())
+
+    # ----- injected failures and the data link (sitl_quad.failure_injection)
+    def inject_failure(self, unit: float, kind: float, instance: float) -> CommandResult:
+        """MAV_CMD_INJECT_FAILURE, refused unless SYS_FAILURE_EN: GPS, motor, battery or MAVLink signal off / ok."""
+        enabled = bool(self.config.failsafe.failure_injection_enabled)
+        answer = inject(self.failures, enabled, unit, kind, instance)
+        if answer.text:
+            self._emit("text", answer.text, 4 if answer.result == CommandResult.ACCEPTED else 3)
+        if self.failures.gps_off != answer.failures.gps_off:
+            self._last_fix = self._north_east() if answer.failures.gps_off else None
+        self.failures = answer.failures
+        self.sim.set_rotor_health(rotor_health(self.failures))
+        self.battery.reads_empty = self.failures.battery_empty
+        if not self.failures.gps_off:  # a position is known again: a later loss acts again
+            self._failures_reported = dataclasses.replace(self._failures_reported, gps_off=False)
+        return answer.result
+
+    def data_link_lost(self, silent_s: float) -> None:
+        """No ground station heard for silent_s >= COM_DL_LOSS_T (the server measures it): NAV_DLL_ACT, once per
+        loss (the server calls again only after a ground station was heard), while flying."""
+        next_mode = data_link_loss_mode(DataLinkLossAction(self.config.failsafe.data_link_loss_action))
+        if next_mode is None or not (self.armed and self.in_air):
+            return
+        if self.failures.gps_off and next_mode in POSITION_MODES:
+            next_mode = FlightMode.AUTO_LAND
+        self._emit("text", f"Failsafe: no ground station for {silent_s:.0f} s, {next_mode.label}", 2)
+        if next_mode != self.mode and self.mode != FlightMode.AUTO_LAND:
+            self._enter(next_mode)
+
+    def _check_failures(self) -> None:
+        """What PX4's failsafes and failure detector make of an injected failure, once per flight: without GPS no
+        position estimate, so a mode that needs one descends (Land); a blocked motor is reported (PX4's
+        COM_ACT_FAIL_ACT defaults to warning only: the vehicle flies on as the physics lets it)."""
+        if not (self.armed and self.in_air):
+            return
+        failures, reported = self.failures, self._failures_reported
+        if failures.gps_off and not reported.gps_off:
+            descend = self.mode in POSITION_MODES
+            then = f": {FlightMode.AUTO_LAND.label}" if descend else ""
+            self._emit("text", f"Failsafe: GPS lost, no position{then}", 2)
+            self.loop.position.reset_horizontal()
+            if descend:
+                self._enter(FlightMode.AUTO_LAND)
+        for motor in sorted(failures.motors_off - reported.motors_off):
+            self._emit("text", f"Failsafe: motor {motor} failure", 2)
+        self._failures_reported = dataclasses.replace(
+            reported, gps_off=failures.gps_off or reported.gps_off, motors_off=failures.motors_off | reported.motors_off
+        )
 
     # ----- geofence and rally points (the other two lists of the mission protocol)
     def set_fence(self, items: list[MissionItem]) -> None:
@@ -620,7 +694,10 @@ class Vehicle:
         The estimate and the reference are taken at the start of the tick and are what the tick's state
         messages carry, so the offboard controller sees them consistent (same instant), one tick old.
         """
-        self.estimate = est = self.measurement_delay.push(self.sim.measure())
+        est = self.measurement_delay.push(self.sim.measure())
+        if self._last_fix is not None:
+            est = estimate_without_gps(est, self._last_fix)
+        self.estimate = est
         self._start_pending_takeoff()
         kind = self.offboard.kind if self.mode == FlightMode.OFFBOARD and self.offboard_fresh() else None
         if self.armed and kind in (SetpointKind.TRAJECTORY, SetpointKind.RATES):
@@ -637,7 +714,10 @@ class Vehicle:
             self._reposition_once_climbed()
         else:
             self.setpoint = self._hold_here()
+        if self._last_fix is not None:  # no GPS: level, height and yaw only (PX4's Descend)
+            self.setpoint = without_horizontal_control(self.setpoint, est)
         self._check_offboard_loss()
+        self._check_failures()
         self._check_geofence()
         self._check_battery()
         offboard = self._offboard_attitude(est) if self.mode == FlightMode.OFFBOARD else None

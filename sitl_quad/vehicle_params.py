@@ -159,6 +159,18 @@ VEHICLE_PARAMETERS: list[ParamSpec] = [
     ParamSpec(
         "COM_ARM_BAT_MIN", "failsafe.arm_battery_min", REAL32, -1.0, 0.9, "no arming below; negative: BAT_CRIT_THR"
     ),
+    ParamSpec(
+        "NAV_DLL_ACT",
+        "failsafe.data_link_loss_action",
+        INT32,
+        0,
+        3,
+        "data link loss action: 0 disabled, 1 hold, 2 return, 3 land (5 terminate, 6 lockdown: not simulated)",
+    ),
+    ParamSpec(
+        "COM_DL_LOSS_T", "failsafe.data_link_loss_timeout_s", REAL32, 5.0, 300.0, "no ground station this long (s)"
+    ),
+    ParamSpec("SYS_FAILURE_EN", "failsafe.failure_injection_enabled", INT32, 0, 1, "MAV_CMD_INJECT_FAILURE allowed"),
     # the simulation's pace, changeable in flight (ArduPilot SITL's name): an operator watches a mission at 1 after a
     # demo flown at full lockstep speed (stack.up --real-time); the same range as --speed
     ParamSpec(

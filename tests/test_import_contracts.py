@@ -26,6 +26,7 @@ IO_MODULES = {
     "sitl_quad.ais_out",
     "sitl_quad.cli",
     "sitl_quad.server",
+    "sitl_quad.flight_logs",  # writes the ULog files (sitl_quad.ulog encodes them, pure)
     "sitl_quad.lockstep_harness",
     "sitl_quad.__main__",
     "planner.__main__",

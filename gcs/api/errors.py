@@ -22,7 +22,12 @@ from gcs.domain.buoy_files import BuoyFileError
 from gcs.missions.lifecycle import MissionConflictError, VehicleCommandError
 from gcs.missions.ownership import NotOwnerError
 from gcs.missions.register import BuoyNotFoundError
-from gcs.missions.service import FrameNotFoundError, MissionNotFoundError, VehicleNotFoundError
+from gcs.missions.service import (
+    FlightLogNotFoundError,
+    FrameNotFoundError,
+    MissionNotFoundError,
+    VehicleNotFoundError,
+)
 from gcs.missions.validation import Location, RequestInvalidError
 from planner.errors import PlannerError
 
@@ -109,6 +114,10 @@ def install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(FrameNotFoundError)
     async def no_frame(_: Request, error: FrameNotFoundError) -> JSONResponse:
         return error_response(404, [(("path", "frame_id"), error.args[0])])
+
+    @app.exception_handler(FlightLogNotFoundError)
+    async def no_flight_log(_: Request, error: FlightLogNotFoundError) -> JSONResponse:
+        return error_response(404, [(("path", "mission_id"), error.args[0])])
 
     @app.exception_handler(BuoyNotFoundError)
     async def no_buoy(_: Request, error: BuoyNotFoundError) -> JSONResponse:

@@ -59,6 +59,7 @@ from gcs.domain.records import MissionProgress
 from gcs.domain.schemas import OperatorCommand, PreflightCheck, VehicleEvent
 from gcs.domain.status import TERMINAL, MissionStatus
 from gcs.missions.energy_planning import ChargeNeed, charge_needed, model_pack
+from gcs.missions.flight_log import fetch_flight_log
 from gcs.missions.inspector import NO_CAMERA, NOT_ASKED, FrameAnalysis, InspectionLimits, Inspector, not_inspected
 from gcs.missions.recorder import MissionRecorder
 from gcs.missions.results import flight_results
@@ -234,6 +235,7 @@ class FlightLifecycle:
         self._swapped = asyncio.Event()  # the operator confirmed a battery swap (a waiting mission goes on)
         self._inspectors: dict[int, Inspector] = {}  # each flying mission's inspection of its sortie's buoys
         self._watching: set[int] = set()  # missions whose sortie is in the air, watched: the operator commands it
+        self._log_fetches: set[asyncio.Task] = set()  # flight logs being downloaded after their missions ended
 
     async def reattach(self, unfinished: list[int]) -> None:
         """At start-up, with the ids of the missions a previous run left unfinished (oldest first)."""
@@ -250,9 +252,9 @@ class FlightLifecycle:
         `hand_over` a mission in flight is left as it is, its samples and progress stored, for the instance that
         owns the vehicle link next (a stand-by on the shared database, or this one restarted) to re-attach."""
         self._handing_over = hand_over
-        for task in list(self._tasks.values()):
+        for task in [*self._tasks.values(), *self._log_fetches]:
             task.cancel()
-        for task in list(self._tasks.values()):
+        for task in [*self._tasks.values(), *self._log_fetches]:
             with contextlib.suppress(asyncio.CancelledError):
                 await task
 
@@ -410,7 +412,7 @@ class FlightLifecycle:
             status, reason = MissionStatus.FAILED, "the service stopped during the mission"
             if mission_id in self._abort_requested:
                 status, reason = MissionStatus.ABORTED, ABORTED_BEFORE_TAKEOFF
-            await self._finish(mission_id, recorder.mission_plan, flight, recorder, status, reason)
+            await self._finish(mission_id, recorder.mission_plan, flight, recorder, status, reason, fetch_log=False)
             raise
         except Exception as error:  # never leave a mission hanging in a non-terminal state
             log.exception("mission %s failed", mission_id)
@@ -430,7 +432,10 @@ class FlightLifecycle:
         recorder: MissionRecorder,
         status: MissionStatus,
         reason: str | None,
+        fetch_log: bool = True,
     ) -> None:
+        """End a mission: its samples, progress and results stored, its status set; then (fetch_log) the vehicle's
+        flight log downloaded in the background."""
         self._abort_requested.discard(mission_id)
         progress = await self._detach(mission_id, recorder)
         inspected = {record.buoy for record in await self.storage.inspections(mission_id)}
@@ -442,6 +447,11 @@ class FlightLifecycle:
         if samples:
             await self.storage.set_results(mission_id, flight_results(plan, flight, samples, progress))
         await self._transition(mission_id, status, reason)
+        if recorder.armed_seen and fetch_log:  # it flew: the vehicle's newest log is its (gcs.missions.flight_log)
+            fetch = fetch_flight_log(self.link, self.storage, mission_id)
+            task = asyncio.create_task(fetch, name=f"flight-log-{mission_id}")  # the vehicle is free meanwhile
+            self._log_fetches.add(task)
+            task.add_done_callback(self._log_fetches.discard)
 
     async def _detach(self, mission_id: int, recorder: MissionRecorder) -> MissionProgress:
         """Stop recording a mission, storing all it recorded: its samples and progress (returned). A mission

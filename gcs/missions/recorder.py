@@ -74,6 +74,7 @@ class MissionRecorder:
         self.sorties_flown: list[SortieFlown] = []  # each flown sortie's battery figures
         self.consumed_at_start: float | None = None
         self.worst_charge_state = 0
+        self.armed_seen = False  # the vehicle reported itself armed while this recorder listened
         self.samples: list[dict[str, Any]] = []
         self.last_ms: float | None = None
         self.reached_seqs: list[int] = []
@@ -223,6 +224,8 @@ class MissionRecorder:
         kind = message.get_type()
         status = self.link.status
         from_autopilot = message.get_srcComponent() == status.compid
+        if kind == "HEARTBEAT" and from_autopilot and status.armed:
+            self.armed_seen = True  # this mission flew (or tried to): the vehicle's newest log is its
         if kind == "STATUSTEXT" and from_autopilot:
             self._event(statustext(message), message.severity)
         elif kind == "HEARTBEAT" and from_autopilot and message.custom_mode != self.custom_mode:

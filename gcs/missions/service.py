@@ -111,6 +111,11 @@ class FrameNotFoundError(KeyError):
     pass
 
 
+class FlightLogNotFoundError(KeyError):
+    """The mission has no flight log: it never flew, its log is still being fetched, or the download failed (the
+    message then gives the note recorded with the mission)."""
+
+
 class VehicleNotFoundError(KeyError):
     pass
 
@@ -564,8 +569,21 @@ class MissionService:
             raise FrameNotFoundError(f"mission {mission_id} has no frame {frame_id}")
         return data
 
+    async def flight_log(self, mission_id: int) -> bytes:
+        """The mission's flight log (ULog); raises MissionNotFoundError or FlightLogNotFoundError (with the note
+        recorded when its download failed)."""
+        await self.get(mission_id)
+        data = await self._storage.flight_log_data(mission_id)
+        if data is not None:
+            return data
+        stored = await self._storage.flight_log(mission_id)
+        if stored is None:
+            raise FlightLogNotFoundError(f"mission {mission_id} has no flight log (not flown, or still being fetched)")
+        raise FlightLogNotFoundError(f"mission {mission_id} has no flight log: {stored.note}")
+
     async def delete(self, mission_id: int) -> None:
-        """Remove a mission with its telemetry, frames, inspections and report (a fleet mission: its parts too).
+        """Remove a mission with its telemetry, frames, inspections, flight log and report (a fleet mission: its parts
+        too).
         Raises MissionConflictError while it (or a part) is being flown: abort it first."""
         self._ownership.ensure_owner()
         record = await self.get(mission_id)

@@ -37,7 +37,7 @@ from gcs.reports.inspection_report import (
     write_inspection_section,
 )
 from gcs.reports.views import sorties_out
-from gcs.storage import MissionRecord, Storage
+from gcs.storage import MissionRecord, Storage, StoredFlightLog
 
 FIGURES = ("route.png", "tracking_error.png", "cross_track.png", "altitude.png", "yaw.png", "eso.png")
 ENERGY_FIGURE = "energy.png"  # drawn only for a mission planned with energy figures
@@ -307,9 +307,11 @@ def write_report(
     samples: list[dict[str, Any]],
     out_dir: Path,
     inspections: InspectionSection | None = None,
+    flight_log: StoredFlightLog | None = None,
 ) -> Path:
     """Draw every figure and write index.html into out_dir; returns the index.html path. `inspections`: the
-    mission's inspection records and defective buoys' best frames (none: the section says there are none)."""
+    mission's inspection records and defective buoys' best frames (none: the section says there are none);
+    `flight_log`: the vehicle's log as the service fetched it (linked), or why it could not."""
     out_dir.mkdir(parents=True, exist_ok=True)
     plan = record.plan
     series = report_series(samples)
@@ -354,6 +356,7 @@ def write_report(
     inspection = write_inspection_section(plan, inspections or InspectionSection(), [track], out_dir)
     index = out_dir / "index.html"
     shown = sorties if plan.sorties or plan.energy else []
+    inspection += flight_log_section(record.id, flight_log)
     index.write_text(report_html(record, summary_rows(record, series), shown, figures, inspection))
     return index
 
@@ -407,6 +410,22 @@ def report_html(
 {images}
 </body></html>
 """
+
+
+def flight_log_section(mission_id: int, flight_log: StoredFlightLog | None) -> str:
+    """The vehicle's flight log: a link to GET /missions/{id}/log, or the note saying why there is none ("" for a
+    mission that never flew). The note may quote the vehicle: escaped."""
+    if flight_log is None:
+        return ""
+    if flight_log.size_bytes is None:
+        text = html.escape(flight_log.note or "not downloaded")
+        return f'\n<h2>Flight log</h2>\n<p data-testid="flight-log">{text}</p>'
+    size = f"{flight_log.size_bytes / 1024:.0f} kB"
+    link = f'<a href="/missions/{mission_id}/log" download="mission-{mission_id}.ulg">mission-{mission_id}.ulg</a>'
+    return (
+        f'\n<h2>Flight log</h2>\n<p data-testid="flight-log">{link} ({size}, ULog: the vehicle\'s log '
+        f"{flight_log.vehicle_log_id}, downloaded {html.escape(flight_log.downloaded_at)})</p>"
+    )
 
 
 def _utc(unix_s: float | None) -> str:
@@ -512,7 +531,8 @@ def write_stored_report(storage: Storage, record: MissionRecord, out_dir: Path) 
     """A stored mission's report into out_dir: a mission's (write_report), or a fleet mission's, over its parts'
     telemetry and inspections (gcs.reports.fleet_report)."""
     if not record.is_fleet:
-        return write_report(record, storage.telemetry(record.id), out_dir, load_inspections(storage, record.id))
+        inspections = load_inspections(storage, record.id)
+        return write_report(record, storage.telemetry(record.id), out_dir, inspections, storage.flight_log(record.id))
 
     parts = storage.fleet_parts(record.id)
     samples = {part.id: storage.telemetry(part.id) for part in parts}

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gcs.storage.base import ConstraintError, FramesFullError, MissionRecord, Storage, StorageError
+from gcs.storage.base import ConstraintError, FramesFullError, MissionRecord, Storage, StorageError, StoredFlightLog
 from gcs.storage.migrations import MIGRATIONS
 from gcs.storage.postgres import PostgresStorage, is_postgres_url, redacted
 from gcs.storage.sqlite import SqliteStorage
@@ -31,6 +31,7 @@ __all__ = [
     "SqliteStorage",
     "Storage",
     "StorageError",
+    "StoredFlightLog",
     "is_postgres_url",
     "open_storage",
     "redacted",

@@ -111,6 +111,17 @@ class MissionRecord:
         return MissionKind.SINGLE if self.fleet_id is None else MissionKind.FLEET_PART
 
 
+@dataclass(frozen=True)
+class StoredFlightLog:
+    """A mission's flight log as the service fetched it: its size and id on the vehicle (its bytes: `flight_log_data`),
+    or, when the download failed, only a `note` saying why (size None)."""
+
+    downloaded_at: str
+    size_bytes: int | None = None
+    vehicle_log_id: int | None = None
+    note: str | None = None
+
+
 def _now() -> str:
     return stored_time(datetime.now(UTC))  # one width for every time: GET /missions compares them as text
 
@@ -795,6 +806,42 @@ class Storage(ABC):
         )
 
     # ----- removal
+    def set_flight_log(self, mission_id: int, log: StoredFlightLog, data: bytes | None = None) -> None:
+        """Record (or replace) the flight log fetched for a mission: its bytes, or None with a note."""
+        with self._mission_write() as db:
+            db.execute("DELETE FROM flight_logs WHERE mission_id = ?", (mission_id,))
+            db.execute(
+                "INSERT INTO flight_logs (mission_id, data, size_bytes, vehicle_log_id, downloaded_at, note) "
+                "VALUES (?, ?, ?, ?, ?, ?)",
+                (mission_id, data, log.size_bytes, log.vehicle_log_id, log.downloaded_at, log.note),
+            )
+            # the mission's report links the log: its version and time move so cached reads and drawings are redone
+            db.execute(
+                "UPDATE missions SET version = ?, updated_at = ? WHERE id = ?", (next_version(db), _now(), mission_id)
+            )
+
+    def flight_log(self, mission_id: int) -> StoredFlightLog | None:
+        """What was recorded of the mission's flight log, without its bytes (None: nothing yet)."""
+        with self._reading() as db:
+            row = db.execute(
+                "SELECT size_bytes, vehicle_log_id, downloaded_at, note FROM flight_logs WHERE mission_id = ?",
+                (mission_id,),
+            ).fetchone()
+        if row is None:
+            return None
+        return StoredFlightLog(
+            downloaded_at=row["downloaded_at"],
+            size_bytes=_optional_int(row["size_bytes"]),
+            vehicle_log_id=_optional_int(row["vehicle_log_id"]),
+            note=row["note"],
+        )
+
+    def flight_log_data(self, mission_id: int) -> bytes | None:
+        """The flight log's bytes (None: none was downloaded)."""
+        with self._reading() as db:
+            row = db.execute("SELECT data FROM flight_logs WHERE mission_id = ?", (mission_id,)).fetchone()
+        return None if row is None or row["data"] is None else bytes(row["data"])
+
     def delete_mission(self, mission_id: int) -> bool:
         """Remove a mission and everything of it (a fleet mission: its parts too): events, telemetry, frames and
         inspections, in one transaction. False when there is no such mission."""
@@ -803,7 +850,7 @@ class Storage(ABC):
                 "SELECT id FROM missions WHERE id = ? OR (fleet_id = ? AND fleet_id <> id)", (mission_id, mission_id)
             ).fetchall()
             ids = sorted((int(row["id"]) for row in rows), reverse=True)  # parts (higher ids) before their fleet
-            for table in ("frames", "inspections", "telemetry", "mission_events"):
+            for table in ("frames", "inspections", "telemetry", "mission_events", "flight_logs"):
                 db.executemany(f"DELETE FROM {table} WHERE mission_id = ?", [(i,) for i in ids])
             db.executemany("DELETE FROM fleet_coordination WHERE fleet_id = ?", [(i,) for i in ids])
             db.executemany("DELETE FROM missions WHERE id = ?", [(i,) for i in ids])

@@ -214,6 +214,22 @@ _FLEET_COORDINATION = """
 """
 
 
+def _flight_logs(blob: str) -> str:
+    """Migration 13: the flight log a mission's vehicle kept (ULog, downloaded over the MAVLink log protocol after the
+    landing), its bytes in the database as the camera frames' (every instance on a shared database serves it), or,
+    when the download failed, only the note saying why (data NULL)."""
+    return f"""
+    CREATE TABLE flight_logs (
+        mission_id BIGINT PRIMARY KEY REFERENCES missions(id),
+        data {blob},
+        size_bytes BIGINT,
+        vehicle_log_id BIGINT,
+        downloaded_at TEXT NOT NULL,
+        note TEXT
+    );
+"""
+
+
 def _sqlite_status_check(db: Any) -> None:
     """Migration 6 in SQLite: the missions table's CHECK lists every MissionStatus. SQLite cannot alter a
     constraint; a CHECK that admits more values changes no stored row, so the table's definition is rewritten in
@@ -268,4 +284,5 @@ MIGRATIONS: list[Migration] = [
         sqlite=_FLEET_COORDINATION.format(integer="INTEGER", real="REAL"),
         postgresql=_FLEET_COORDINATION.format(integer="BIGINT", real="DOUBLE PRECISION"),
     ),
+    Migration(sqlite=_flight_logs("BLOB"), postgresql=_flight_logs("BYTEA")),
 ]

@@ -31,7 +31,7 @@ from gcs.domain.records import MissionProgress, MissionResults
 from gcs.domain.register import BuoyEvent, BuoyFilter, Defect, DefectState, RegisterBuoy, StoredBuoy
 from gcs.domain.schemas import SeparationOut
 from gcs.domain.status import MissionStatus
-from gcs.storage.base import MissionRecord, Storage
+from gcs.storage.base import MissionRecord, Storage, StoredFlightLog
 
 P = ParamSpec("P")
 T = TypeVar("T")
@@ -173,6 +173,15 @@ class AsyncStorage:
     async def telemetry_count(self, mission_id: int) -> int:
         key = ("telemetry_count", mission_id)
         return await self._read_coalesced(key, functools.partial(self.blocking.telemetry_count, mission_id))
+
+    async def set_flight_log(self, mission_id: int, log: StoredFlightLog, data: bytes | None = None) -> None:
+        await self._run(self._writer, self.blocking.set_flight_log, mission_id, log, data)
+
+    async def flight_log(self, mission_id: int) -> StoredFlightLog | None:
+        return await self._run(self._readers, self.blocking.flight_log, mission_id)
+
+    async def flight_log_data(self, mission_id: int) -> bytes | None:
+        return await self._run(self._readers, self.blocking.flight_log_data, mission_id)
 
     async def frames(self, mission_id: int) -> list[StoredFrame]:
         return await self._run(self._readers, self.blocking.frames, mission_id)

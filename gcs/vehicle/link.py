@@ -41,6 +41,7 @@ from gcs.vehicle.camera import CameraClient
 from gcs.vehicle.connection import Connection, ConnectionStringError, Transport, open_transport, parse_connection
 from gcs.vehicle.errors import CommandDeniedError, CommandTimeoutError, LinkError
 from gcs.vehicle.ftp import CAMERA_COMPID, DEFAULT_MAX_BYTES, FtpClient
+from gcs.vehicle.logs import LogClient
 from gcs.vehicle.mission_protocol import download_items, upload_items
 from gcs.vehicle.parameters import read_parameters
 from uavcore.geofence import Geofence
@@ -275,6 +276,7 @@ class LinkManager:
         self.positions_received = 0  # GLOBAL_POSITION_INT from the vehicle: its position stream's rate, measured
         self.fence: Geofence | None = None  # the vehicle's geofence as last read this connection (None: not read)
         self._ftp = FtpClient(self)
+        self.logs = LogClient(self)  # the vehicle's flight logs (MAVSDK's LogFiles)
         self.camera = CameraClient(self)  # the vehicle's camera, once its heartbeat is heard (MAVSDK's Camera)
 
     @property

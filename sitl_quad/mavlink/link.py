@@ -14,6 +14,7 @@ import socket
 import struct
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -54,6 +55,7 @@ class LinkStats:
     forwarded: int = 0
     sent: int = 0
     send_errors: int = 0
+    silenced: int = 0  # datagrams not sent, or messages ignored, while the MAVLink signal is failed (injected)
     by_type: dict[str, int] = field(default_factory=dict)
 
     @property
@@ -118,6 +120,9 @@ class UdpLink:
             peer = self._new_peer(target)
             peer.permanent = True
         self.stats = LinkStats()
+        # An injected MAVLink signal failure (sitl_quad.mavlink.failure_injection): None while the link works;
+        # else the only messages still heard (a predicate), and nothing goes out
+        self.signal_failed: Callable[[object], bool] | None = None
 
     def close(self) -> None:
         self.sock.close()
@@ -161,6 +166,9 @@ class UdpLink:
                 self._sendto(buf, p.address)
 
     def _sendto(self, buf: bytes, address: tuple[str, int]) -> None:
+        if self.signal_failed is not None:
+            self.stats.silenced += 1
+            return
         try:
             self.sock.sendto(buf, address)
             self.stats.sent += 1
@@ -194,12 +202,30 @@ class UdpLink:
                 log.debug("recvfrom: %s", exc)
                 continue
             self.stats.datagrams += 1
+            if self.signal_failed is not None:
+                out.extend(self._heard_while_failed(address, data, at=_arrival_time(ancillary)))
+                continue
             peer = self.peers.get(address) or self._new_peer(address)
             peer.last_seen = time.monotonic()
             at = _arrival_time(ancillary)
             for msg in self._parse(peer, data):
                 if self._accept(peer, msg):
                     out.append(Received(peer, msg, at))
+
+    def _heard_while_failed(self, address: tuple[str, int], data: bytes, at: float) -> list[Received]:
+        """The messages a failed signal still lets through (the command that restores it); the rest is counted as
+        silenced, and the peer is not refreshed: to the vehicle it has gone quiet."""
+        assert self.signal_failed is not None
+        peer = self.peers.get(address) or Peer(
+            address=address, parser=new_parser(self.sysid, self.compid, self.signing_key)
+        )
+        heard = []
+        for msg in self._parse(peer, data):
+            if self.signal_failed(msg):
+                heard.append(Received(peer, msg, at))
+            else:
+                self.stats.silenced += 1
+        return heard
 
     def _new_peer(self, address: tuple[str, int]) -> Peer:
         parser = new_parser(self.sysid, self.compid, self.signing_key)

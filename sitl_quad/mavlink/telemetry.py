@@ -226,6 +226,10 @@ class Telemetry:
 
     def gps_raw_int(self):
         v = self.vehicle
+        if v.failures.gps_off:  # an injected GPS failure: the receiver reports no fix and no satellites
+            return mavlink.MAVLink_gps_raw_int_message(
+                int(v.t * 1e6), mavlink.GPS_FIX_TYPE_NO_FIX, 0, 0, 0, UINT16_MAX, UINT16_MAX, UINT16_MAX, UINT16_MAX, 0
+            )
         lat, lon, alt = self._geodetic()
         vn, ve, _ = map(float, v.estimate.velocity)
         speed = math.hypot(vn, ve)
@@ -271,12 +275,16 @@ class Telemetry:
         present, enabled, health = geofence_status_bits(self.vehicle)
         if battery.warning >= BatteryWarning.CRITICAL:
             health &= ~mavlink.MAV_SYS_STATUS_SENSOR_BATTERY
+        if self.vehicle.failures.gps_off:
+            health &= ~mavlink.MAV_SYS_STATUS_SENSOR_GPS
+        if self.vehicle.failures.motors_off:
+            health &= ~mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
         return mavlink.MAVLink_sys_status_message(
             present,
             enabled,
             health,
             250,
-            min(UINT16_MAX - 1, round(battery.voltage_v * 1000)),
+            min(UINT16_MAX - 1, round(battery.reported_voltage_v * 1000)),
             _centiamperes(battery.current_a),
             _percent(battery),
             drop_rate,
@@ -291,7 +299,7 @@ class Telemetry:
         """The pack as PX4 reports it (MAVSDK's telemetry.battery reads the cell sum and battery_remaining)."""
         battery = self.vehicle.battery
         cells = battery.config.cells
-        cell_mv = min(UINT16_MAX - 1, round(battery.voltage_v / cells * 1000))
+        cell_mv = min(UINT16_MAX - 1, round(battery.reported_voltage_v / cells * 1000))
         per_cell = [cell_mv] * cells + [UINT16_MAX] * (14 - cells)  # cells 11-14 go in voltages_ext (0: none)
         remaining_s = battery.time_remaining_s()
         return mavlink.MAVLink_battery_status_message(
@@ -367,7 +375,7 @@ def _centiamperes(current_a: float) -> int:
 
 def _percent(battery: Battery) -> int:
     """battery_remaining: whole percent."""
-    return round(battery.state_of_charge * 100)
+    return round(battery.reported_charge * 100)
 
 
 def _cm(metres_per_second: float) -> int:

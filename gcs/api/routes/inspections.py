@@ -1,5 +1,5 @@
 """A mission's inspections: each buoy's verdict and findings, their CSV and GeoJSON exports, the camera frames
-behind them, and the deletion of a mission with everything it stored."""
+behind them, the vehicle's flight log, and the deletion of a mission with everything it stored."""
 
 from __future__ import annotations
 
@@ -59,6 +59,20 @@ async def get_frame(mission_id: MissionId, frame_id: MissionId, service: Service
     kind = next((media for magic, media in IMAGE_SIGNATURES.items() if data.startswith(magic)), None)
     headers = {"Cache-Control": "private, max-age=86400, immutable"}  # a stored frame never changes
     return Response(data, media_type=kind or "application/octet-stream", headers=headers)
+
+
+@router.get(
+    "/missions/{mission_id}/log",
+    response_class=Response,
+    responses=file_responses("application/octet-stream"),
+)
+async def get_flight_log(mission_id: MissionId, service: ServiceDep) -> Response:
+    """The flight log the vehicle kept of the mission (PX4's ULog, downloaded over the MAVLink log protocol after
+    the landing), for pyulog, PlotJuggler or Flight Review. 404 while there is none, saying why when its download
+    failed."""
+    data = await service.flight_log(mission_id)
+    headers = {"Content-Disposition": f'attachment; filename="mission-{mission_id}.ulg"'}
+    return Response(data, media_type="application/octet-stream", headers=headers)
 
 
 @router.delete(
