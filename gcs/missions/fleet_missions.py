@@ -171,6 +171,25 @@ def fleet_vehicles(request: PlanRequest, known: list[int], limits: Limits) -> li
     return wanted
 
 
+def may_depart(
+    fleet: MissionRecord, part: MissionRecord, parts: list[MissionRecord], link_of: Callable[[int], LinkManager]
+) -> bool:
+    """Whether a planned part may start now (planner.fleet_schedule: one vehicle at a time in a depot's zone): it
+    waits for nobody, or the vehicle it waits for has left the zone (its position is farther from the zone's
+    centre than the radius: then at least separation_m from every pad) or its part has ended."""
+    assert fleet.plan.fleet is not None  # a fleet mission's plan has its fleet section
+    share = fleet.plan.fleet.share_of(_vehicle_of(part))
+    ahead = next((p for p in parts if _vehicle_of(p) == share.depart_after), None)
+    if share.depart_after is None or ahead is None or ahead.status in TERMINAL:
+        return True
+    status = link_of(share.depart_after).status
+    if ahead.status == MissionStatus.PLANNED or share.zone_centre is None or status.lat is None or status.lon is None:
+        return False
+    zone = LocalFrame(share.zone_centre[0], share.zone_centre[1], 0.0)
+    east, north = zone.project([[status.lat, status.lon]])[0]
+    return math.hypot(east, north) > (share.zone_radius_m or 0.0)
+
+
 class FleetCoordinator:
     """Follows each fleet mission in flight (one task per fleet mission) until its parts have ended."""
 
@@ -179,10 +198,12 @@ class FleetCoordinator:
         storage: AsyncStorage,
         link_of: Callable[[int], LinkManager],
         replan: Callable[[MissionRecord, Plan], None],
+        launch: Callable[[MissionRecord], None],
     ) -> None:
         """link_of(sysid): a vehicle's link; replan(part, plan): fly a part on with a new plan, in flight (raises
-        MissionConflictError when that part is not flying)."""
-        self.storage, self._link_of, self._replan = storage, link_of, replan
+        MissionConflictError when that part is not flying); launch(part): fly a planned part (its turn to take off
+        has come: `may_depart`; raises MissionConflictError when its vehicle is busy)."""
+        self.storage, self._link_of, self._replan, self._launch = storage, link_of, replan, launch
         self._tasks: dict[int, asyncio.Task] = {}
 
     def follow(self, fleet_id: int) -> None:
@@ -228,6 +249,8 @@ class FleetCoordinator:
             while True:
                 parts = await self.storage.fleet_parts(fleet_id)
                 for part in parts:
+                    if part.status == MissionStatus.PLANNED and may_depart(fleet, part, parts, self._link_of):
+                        await self._depart(part)
                     if part.status == MissionStatus.FAILED and part.id not in lost:
                         lost.add(part.id)
                         fleet = await self._reshare(fleet, part, parts)
@@ -247,6 +270,14 @@ class FleetCoordinator:
         status, reason = fleet_ending(fleet, parts)
         await self.storage.set_status(fleet_id, status, reason)
         log.info("fleet mission %s %s%s", fleet_id, status, f": {reason}" if reason else "")
+
+    async def _depart(self, part: MissionRecord) -> None:
+        """Start a part whose turn to take off has come; a vehicle taken meanwhile fails the part (its buoys are
+        then re-shared like a lost vehicle's)."""
+        try:
+            self._launch(part)
+        except MissionConflictError as error:
+            await self.storage.set_status(part.id, MissionStatus.FAILED, f"not started in its turn: {error}")
 
     async def _reshare(
         self, fleet: MissionRecord, lost_part: MissionRecord, parts: list[MissionRecord]
