@@ -145,11 +145,17 @@ def fly(case: FlightCase) -> dict:
 
 
 def fly_items(
-    items: list, n_buoys: int, config: VehicleConfig, seed: int, controller_name: str, limit_s: float
+    items: list,
+    n_buoys: int,
+    config: VehicleConfig,
+    seed: int,
+    controller_name: str,
+    limit_s: float,
+    home: tuple[float, float, float] = DEFAULT_HOME,
 ) -> dict:
-    """Fly a mission (its items, over n_buoys buoys) in lockstep from DEFAULT_HOME until the disarm or limit_s of
-    vehicle time: the battery's energy (Wh) and the time (s) per mission item, start to disarm (fly's answer)."""
-    vehicle = Vehicle(config, DEFAULT_HOME, seed=seed, outer_rate_hz=OUTER_RATE_HZ, attitude_loops=attitude_loops())
+    """Fly a mission (its items, over n_buoys buoys) in lockstep from `home` until the disarm or limit_s of vehicle
+    time: the battery's energy (Wh) and the time (s) per mission item, start to disarm (fly's answer)."""
+    vehicle = Vehicle(config, home, seed=seed, outer_rate_hz=OUTER_RATE_HZ, attitude_loops=attitude_loops())
     controller = make_controller(controller_name, config) if controller_name != "px4" else None
     harness = LockstepHarness(vehicle, controller, outer_rate_hz=OUTER_RATE_HZ)
     harness.upload_mission(items)

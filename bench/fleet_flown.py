@@ -11,9 +11,9 @@ uniform in the reference area (planner.scenario.random_area_points), `vehicles: 
 layers 3 m apart, 5 m separation. Planned: the service's makespan (planner.fleet_time's calibrated model, the
 take-offs in turn and the holds before the landings: planner.fleet_schedule). Flown: for each part, its flight
 time as recorded (first to last airborne sample, in its vehicle's simulated time) plus its start after the
-first part's (the service's timestamps of the parts turning `flying`, times the pace: only the stagger goes by
-the wall clock), the largest of them. The pace the vehicles reached is reported (vehicle seconds per wall second
-over the first part's flight): below the set pace the stagger is over-counted. The separation is the fleet
+first part's (the service's timestamps of the parts turning `flying`: only the stagger goes by the wall clock,
+converted at the pace the vehicles reached, the first part's vehicle seconds per wall second from its launch to
+its end), the largest of them. The separation is the fleet
 mission's (gcs.missions.fleet_missions.SeparationMonitor: every pair at every position report, both in the air).
 Writes bench/results/fleet_flown.json.
 """
@@ -118,16 +118,15 @@ def fly_case(
             )
     finally:
         supervisor.stop_all()
-    first = min(s["launched_wall"] for s in shares)
-    for s in shares:
-        s["flown_start_s"] = pace * (s["launched_wall"] - first)
-    complete = all(s["flown_s"] is not None for s in shares)
-    planned = mission["fleet"]["makespan_s"]
-    flown = max(s["flown_start_s"] + s["flown_s"] for s in shares) if complete else None
+    complete = all(s["flown_s"] is not None and s["ended_wall"] is not None for s in shares)
     lead = min(shares, key=lambda s: s["launched_wall"])
-    reached = (
-        lead["flown_s"] / (lead["ended_wall"] - lead["launched_wall"]) if complete and lead["ended_wall"] else None
-    )
+    # the pace the vehicles reached (the first part's vehicle seconds per wall second, launch to end): the
+    # parts' starts, seen on the wall clock, are converted at it
+    reached = lead["flown_s"] / (lead["ended_wall"] - lead["launched_wall"]) if complete else None
+    for s in shares:
+        s["flown_start_s"] = None if reached is None else reached * (s["launched_wall"] - lead["launched_wall"])
+    planned = mission["fleet"]["makespan_s"]
+    flown = max(s["flown_start_s"] + s["flown_s"] for s in shares) if reached is not None else None
     return {
         "vehicles": vehicles,
         "n_buoys": n_buoys,

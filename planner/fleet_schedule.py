@@ -144,7 +144,8 @@ def schedule(
         free_from = departures_end  # the zone is free for arrivals once the last one has left it
         for k in sorted(flying, key=lambda k: starts[k] + timelines[k].time_s):
             end = starts[k] + timelines[k].time_s
-            hold = max(0.0, free_from - (starts[k] + entries[k] - margin_s(end)))
+            # the least hold with start + hold + entry - margin_s(end + hold) >= free_from (the margin grows with it)
+            hold = max(0.0, (free_from - (starts[k] + entries[k] - margin_s(end))) / (1.0 - MARGIN_FRACTION))
             free_from = end + hold + margin_s(end + hold)
             slots[k] = Slot(starts[k], after[k], hold, exits[k], entries[k])
     return slots
