@@ -10,10 +10,10 @@ the same multiple of real time (SIM_SPEEDUP: the case's @pace, else --pace), the
 uniform in the reference area (planner.scenario.random_area_points), `vehicles: "fleet"`, 10 m/s, 1 s dwell,
 layers 3 m apart, 5 m separation. Planned: the service's makespan (planner.fleet_time's calibrated model, the
 take-offs in turn and the holds before the landings: planner.fleet_schedule). Flown: for each part, its flight
-time as recorded (first to last airborne sample, in its vehicle's simulated time) plus its start after the
-first part's (the service's timestamps of the parts turning `flying`: only the stagger goes by the wall clock,
-converted at the pace the vehicles reached, the first part's vehicle seconds per wall second from its launch to
-its end), the largest of them. The separation is the fleet
+time as recorded (first to last airborne sample, in its vehicle's simulated time), placed on one clock by the
+two vehicles' clocks the service noted when it started a vehicle in its turn (flown_makespan_s): first take-off
+to last landing, every piece in vehicle time (the wall clock plays no part; the pace reached is reported). The
+separation is the fleet
 mission's (gcs.missions.fleet_missions.SeparationMonitor: every pair at every position report, both in the air).
 Writes bench/results/fleet_flown.json.
 """
@@ -33,6 +33,7 @@ from tempfile import TemporaryDirectory
 import numpy as np
 
 from bench.fleet_scale import get_json, wait_for_fleet
+from gcs.missions.results import airborne
 from gcs.settings import Settings
 from planner.scenario import random_area_points
 from stack.children import children
@@ -61,6 +62,26 @@ def _wall(at: str) -> float:
 def _flying_at(part: dict) -> float:
     """The service's wall time of the part turning `flying` (its launch)."""
     return next(_wall(e["at"]) for e in part["events"] if e["status"] == "flying")
+
+
+def flown_makespan_s(shares: list[dict]) -> float:
+    """First take-off to last landing on one clock, from the vehicles' own: a vehicle started in its turn has its
+    clock and the one it waited for's read at that instant (started_t_s, ahead_t_s), so its clock's origin sits at
+    the other's + ahead_t_s - started_t_s; the first of a depot's is the origin (0). Each flight is its first to
+    last airborne sample (as flight_time_s)."""
+    origin: dict[int, float] = {}
+    for share in sorted(shares, key=lambda s: s["launched_wall"]):
+        ahead = share["depart_after"]
+        if ahead is None or ahead not in origin or share["ahead_t_s"] is None:
+            origin[share["sysid"]] = 0.0
+        else:
+            origin[share["sysid"]] = origin[ahead] + share["ahead_t_s"] - share["started_t_s"]
+    for share in shares:
+        share["flown_start_s"] = origin[share["sysid"]] + share["airborne_t_s"][0]
+    first = min(s["flown_start_s"] for s in shares)
+    for share in shares:
+        share["flown_start_s"] -= first
+    return max(s["flown_start_s"] + s["airborne_t_s"][1] - s["airborne_t_s"][0] for s in shares)
 
 
 def fly_case(
@@ -103,6 +124,7 @@ def fly_case(
             part = get_json(f"{base}/missions/{share['mission_id']}")
             flown = (part["tracking"] or {}).get("flight_time_s")
             ended = next((_wall(e["at"]) for e in part["events"] if e["status"] == part["status"]), None)
+            up = [s["t_s"] for s in get_json(f"{base}/missions/{share['mission_id']}/telemetry") if airborne(s)]
             shares.append(
                 {
                     "sysid": share["sysid"],
@@ -112,21 +134,21 @@ def fly_case(
                     "final_hold_s": share["final_hold_s"],
                     "flown_s": flown,
                     "launched_wall": _flying_at(part),
+                    "airborne_t_s": [up[0], up[-1]] if up else None,  # its first and last airborne sample
+                    "depart_after": share["depart_after"],
+                    "started_t_s": share["started_t_s"],
+                    "ahead_t_s": share["ahead_t_s"],
                     "ended_wall": ended,
                     "status": part["status"],
                 }
             )
     finally:
         supervisor.stop_all()
-    complete = all(s["flown_s"] is not None and s["ended_wall"] is not None for s in shares)
+    complete = all(s["airborne_t_s"] is not None and s["ended_wall"] is not None for s in shares)
     lead = min(shares, key=lambda s: s["launched_wall"])
-    # the pace the vehicles reached (the first part's vehicle seconds per wall second, launch to end): the
-    # parts' starts, seen on the wall clock, are converted at it
     reached = lead["flown_s"] / (lead["ended_wall"] - lead["launched_wall"]) if complete else None
-    for s in shares:
-        s["flown_start_s"] = None if reached is None else reached * (s["launched_wall"] - lead["launched_wall"])
     planned = mission["fleet"]["makespan_s"]
-    flown = max(s["flown_start_s"] + s["flown_s"] for s in shares) if reached is not None else None
+    flown = flown_makespan_s(shares) if complete else None
     return {
         "vehicles": vehicles,
         "n_buoys": n_buoys,

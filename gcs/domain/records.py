@@ -50,6 +50,10 @@ class PlannedShare(BaseModel):
     final_hold_s: float = Field(default=0.0, description="hover added at its last buoy so that it lands in its turn")
     zone_centre: list[float] | None = Field(default=None, description="[lat, lon] of its depot zone's centre")
     zone_radius_m: float | None = None
+    # when the service started it in its turn: its vehicle's clock and the one it waited for's (time_boot_ms / 1000),
+    # read at that instant: how its flight lines up with the other's in their own times (bench.fleet_flown)
+    started_t_s: float | None = None
+    ahead_t_s: float | None = None
     lost: str | None = None
     handed_over: dict[str, list[int]] = Field(default_factory=dict, description="sysid -> buoys it took over")
 

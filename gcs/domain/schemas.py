@@ -450,6 +450,12 @@ class FleetShareOut(PlannedShareOut):
     status: MissionStatus
     visited_buoys: list[int] = Field(description="input indices of its buoys inspected so far")
     lost: str | None = Field(default=None, description="why this vehicle dropped out of the fleet mission, if it did")
+    started_t_s: float | None = Field(
+        default=None, description="its vehicle's time (time_boot_ms / 1000) when it was started in its turn"
+    )
+    ahead_t_s: float | None = Field(
+        default=None, description="the time then of the vehicle it waited for (`depart_after`), on that vehicle's clock"
+    )
     handed_over: dict[str, list[int]] = Field(
         default={}, description="a lost vehicle's buoys re-shared in flight: system id -> the buoys it took"
     )

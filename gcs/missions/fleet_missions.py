@@ -250,7 +250,7 @@ class FleetCoordinator:
                 parts = await self.storage.fleet_parts(fleet_id)
                 for part in parts:
                     if part.status == MissionStatus.PLANNED and may_depart(fleet, part, parts, self._link_of):
-                        await self._depart(part)
+                        await self._depart(fleet, part)
                     if part.status == MissionStatus.FAILED and part.id not in lost:
                         lost.add(part.id)
                         fleet = await self._reshare(fleet, part, parts)
@@ -271,13 +271,25 @@ class FleetCoordinator:
         await self.storage.set_status(fleet_id, status, reason)
         log.info("fleet mission %s %s%s", fleet_id, status, f": {reason}" if reason else "")
 
-    async def _depart(self, part: MissionRecord) -> None:
-        """Start a part whose turn to take off has come; a vehicle taken meanwhile fails the part (its buoys are
-        then re-shared like a lost vehicle's)."""
+    def _clock_s(self, sysid: int) -> float | None:
+        """A vehicle's time as last heard (time_boot_ms / 1000)."""
+        boot_ms = self._link_of(sysid).status.time_boot_ms
+        return None if boot_ms is None else boot_ms / 1000.0
+
+    async def _depart(self, fleet: MissionRecord, part: MissionRecord) -> None:
+        """Start a part whose turn to take off has come, noting both vehicles' clocks; a vehicle taken meanwhile
+        fails the part (its buoys are then re-shared like a lost vehicle's)."""
         try:
             self._launch(part)
         except MissionConflictError as error:
             await self.storage.set_status(part.id, MissionStatus.FAILED, f"not started in its turn: {error}")
+            return
+        assert fleet.plan.fleet is not None  # a fleet mission's plan has its fleet section
+        share = fleet.plan.fleet.share_of(_vehicle_of(part))
+        share.started_t_s = self._clock_s(share.sysid)
+        if share.depart_after is not None:
+            share.ahead_t_s = self._clock_s(share.depart_after)
+        await self.storage.set_plan(fleet.id, fleet.plan)
 
     async def _reshare(
         self, fleet: MissionRecord, lost_part: MissionRecord, parts: list[MissionRecord]

@@ -215,6 +215,8 @@ def fleet_out(record: MissionRecord) -> FleetOut:
                 visited_buoys=state.visited if state else [],
                 lost=share.lost,
                 handed_over=share.handed_over,
+                started_t_s=share.started_t_s,
+                ahead_t_s=share.ahead_t_s,
             )
         )
     results = record.results or MissionResults()
