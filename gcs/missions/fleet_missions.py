@@ -245,11 +245,14 @@ class FleetCoordinator:
             await self.storage.set_status(fleet_id, MissionStatus.FLYING)
         stored: MissionProgress | None = None
         lost: set[int] = {p.id for p in parts if p.status == MissionStatus.FAILED}  # before a restart: handled
+        started: set[int] = set()  # parts this task started in their turn (stored `planned` until their flight begins)
         try:
             while True:
                 parts = await self.storage.fleet_parts(fleet_id)
                 for part in parts:
-                    if part.status == MissionStatus.PLANNED and may_depart(fleet, part, parts, self._link_of):
+                    waiting = part.status == MissionStatus.PLANNED and part.id not in started  # its status lags
+                    if waiting and may_depart(fleet, part, parts, self._link_of):
+                        started.add(part.id)
                         await self._depart(fleet, part)
                     if part.status == MissionStatus.FAILED and part.id not in lost:
                         lost.add(part.id)
