@@ -140,11 +140,23 @@ def fly(case: FlightCase) -> dict:
     items = mission_items(
         plan, FlightParams(case.altitude_m, case.speed_m_s, case.dwell_s, ACCEPTANCE_RADIUS_M), DEFAULT_HOME[:2]
     )
-    config = vehicle_config(case)
-    vehicle = Vehicle(
-        config, DEFAULT_HOME, seed=case.seed, outer_rate_hz=OUTER_RATE_HZ, attitude_loops=attitude_loops()
-    )
-    controller = make_controller(case.controller, config) if case.controller != "px4" else None
+    limit = 3.0 * (route_energy(case.route_en(), case.flight, case.forecast, EnergyModel()).time_s + 60.0)
+    return fly_items(items, len(plan.order), vehicle_config(case), case.seed, case.controller, limit)
+
+
+def fly_items(
+    items: list,
+    n_buoys: int,
+    config: VehicleConfig,
+    seed: int,
+    controller_name: str,
+    limit_s: float,
+    home: tuple[float, float, float] = DEFAULT_HOME,
+) -> dict:
+    """Fly a mission (its items, over n_buoys buoys) in lockstep from `home` until the disarm or limit_s of vehicle
+    time: the battery's energy (Wh) and the time (s) per mission item, start to disarm (fly's answer)."""
+    vehicle = Vehicle(config, home, seed=seed, outer_rate_hz=OUTER_RATE_HZ, attitude_loops=attitude_loops())
+    controller = make_controller(controller_name, config) if controller_name != "px4" else None
     harness = LockstepHarness(vehicle, controller, outer_rate_hz=OUTER_RATE_HZ)
     harness.upload_mission(items)
     harness.arm()
@@ -154,10 +166,9 @@ def fly(case: FlightCase) -> dict:
     per_item: dict[int, list[float]] = {}
     started_wall, t0 = time.perf_counter(), vehicle.t
     last_wh = vehicle.battery.consumed_wh
-    limit = 3.0 * (route_energy(case.route_en(), case.flight, case.forecast, EnergyModel()).time_s + 60.0)
-    while vehicle.armed and vehicle.t - t0 < limit:
+    while vehicle.armed and vehicle.t - t0 < limit_s:
         harness.tick()
-        item = _model_item(vehicle.navigator.current_seq, len(plan.order))
+        item = _model_item(vehicle.navigator.current_seq, n_buoys)
         spent = per_item.setdefault(item, [0.0, 0.0])
         spent[0] += vehicle.outer_dt
         spent[1] += vehicle.battery.consumed_wh - last_wh

@@ -518,6 +518,20 @@ def route_energy(route_en, flight: RouteFlight, wind: WindForecast, model: Energ
     [east, north] metres; the return home (RTL) and the landing close it. A route of the depot alone is a
     take-off and a landing."""
     model = model or EnergyModel.load()
+    return RouteEnergy(_evaluate(model, _route_parts(route_en, flight, wind, model)))
+
+
+def route_timeline(route_en, flight: RouteFlight, model: EnergyModel | None = None) -> list[Phase]:
+    """The phases of a mission over `route_en` (as route_energy) with their durations only (energy 0): the same
+    motions, not integrated for power, so it is cheap. Its sum is route_energy's time_s (durations do not depend on
+    the wind: the commanded speeds are ground speeds)."""
+    model = model or EnergyModel.load()
+    parts = _route_parts(route_en, flight, STILL_AIR, model)
+    return [p if isinstance(p, Phase) else Phase(p.name, p.item, float(p.dt.sum()), 0.0) for p in parts]
+
+
+def _route_parts(route_en, flight: RouteFlight, wind: WindForecast, model: EnergyModel) -> list[Phase | _Block]:
+    """The phases of a mission over route_en, before evaluation (route_energy, route_timeline)."""
     route = np.asarray(route_en, dtype=float).reshape(-1, 2)
     if len(route) < 1 or not np.all(np.isfinite(route)):
         raise InputError("a route needs the depot and finite [east, north] coordinates")
@@ -535,7 +549,7 @@ def route_energy(route_en, flight: RouteFlight, wind: WindForecast, model: Energ
         ]
         heading = bearing
     if len(route) == 1:
-        return RouteEnergy(_evaluate(model, [*parts, *_landing(model, flight.altitude_m, heading, wind)]))
+        return [*parts, *_landing(model, flight.altitude_m, heading, wind)]
     parts += _return_climb(model, flight, heading, wind)
     home_air = _Air(wind, _return_altitude(model, flight))
     bearing = _bearing(route[-1], route[0])
@@ -543,7 +557,7 @@ def route_energy(route_en, flight: RouteFlight, wind: WindForecast, model: Energ
         _turn(model, -1, heading, bearing, home_air),
         _leg(model, -1, route[-1], route[0], flight.speed_m_s, home_air),
     ]
-    return RouteEnergy(_evaluate(model, [*parts, *_landing(model, _return_altitude(model, flight), bearing, wind)]))
+    return [*parts, *_landing(model, _return_altitude(model, flight), bearing, wind)]
 
 
 # ----- the planner's SortieCost
@@ -551,8 +565,25 @@ LEG_TABLE_BEARINGS = 360  # the legs' bearing table: 1 degree apart
 EXACT_LEGS_MAX = 2 * LEG_TABLE_BEARINGS  # fewer legs than the table would evaluate are each evaluated exactly
 
 
+def leg_durations_s(length_m, speed: float, navigator: NavigatorTerms) -> np.ndarray:
+    """Duration of straight rest-to-rest legs of these lengths (any shape) at `speed`: the navigator's S-curve
+    (uavcore.motion_profiles.rest_to_rest_spans, what sitl_quad.trajectory flies). A leg at least as long as its
+    two speed ramps (the knee, V x ramp) takes d / V + one ramp's duration (two ramps at the mean speed V / 2, the
+    cruise between); a shorter one peaks lower and is evaluated span by span. The one leg-time function of the
+    planners: the sortie cost (calibrated_sortie_cost) and the fleet's (planner.fleet_time) both take it."""
+    length = np.asarray(length_m, dtype=float)
+    ramp = ramp_duration(speed, navigator.acceleration_m_s2, navigator.jerk_m_s3)
+    out = np.where(length > 0.0, length / speed + ramp, 0.0)
+    short = np.argwhere((length > 0.0) & (length < speed * ramp))
+    for index in map(tuple, short):
+        spans = rest_to_rest_spans(float(length[index]), speed, navigator.acceleration_m_s2, navigator.jerk_m_s3)
+        out[index] = sum(span[0] for span in spans)
+    return out
+
+
 def _legs(model: EnergyModel, starts: np.ndarray, ends: np.ndarray, speed: float, air: _Air):
-    """(time s, energy Wh) of every straight leg starts[i] -> ends[j] (as _leg): arrays (len(starts), len(ends)).
+    """(time s, energy Wh) of every straight leg starts[i] -> ends[j] (as _leg): arrays (len(starts), len(ends));
+    the times are leg_durations_s'.
 
     A leg long enough to reach the cruise speed (2 ramps: the knee) costs its two ramps plus the cruise in
     between, whose power depends on the bearing only: so beyond the knee its energy is exactly linear in its
@@ -565,10 +596,9 @@ def _legs(model: EnergyModel, starts: np.ndarray, ends: np.ndarray, speed: float
     length = np.hypot(delta[..., 0], delta[..., 1])
     knee = speed * ramp_duration(speed, nav.acceleration_m_s2, nav.jerk_m_s3)
     one_by_one = np.argwhere((length < knee) | (length.size <= EXACT_LEGS_MAX))
-    time_s, energy_wh = np.zeros(length.shape), np.zeros(length.shape)
+    energy_wh = np.zeros(length.shape)
     if len(one_by_one):
         legs = _evaluate(model, [_leg(model, 0, starts[i], ends[j], speed, air) for i, j in one_by_one])
-        time_s[tuple(one_by_one.T)] = [leg.time_s for leg in legs]
         energy_wh[tuple(one_by_one.T)] = [leg.energy_wh for leg in legs]
     tabled = length >= knee if length.size > EXACT_LEGS_MAX else np.zeros(length.shape, dtype=bool)
     if tabled.any():
@@ -584,8 +614,7 @@ def _legs(model: EnergyModel, starts: np.ndarray, ends: np.ndarray, speed: float
         energy_wh[tabled] = np.interp(bearing, bearings, at_knee, period=period) + extra * np.interp(
             bearing, bearings, per_m, period=period
         )
-        time_s[tabled] = table[0].time_s + extra / speed
-    return time_s, energy_wh
+    return leg_durations_s(length, speed, nav), energy_wh
 
 
 def calibrated_sortie_cost(
@@ -609,24 +638,18 @@ def calibrated_sortie_cost(
     pts = check_points(points)
     n = len(pts)
     air, home_air = _Air(wind, flight.altitude_m), _Air(wind, _return_altitude(model, flight))
-    north = np.array([0.0, 1.0])
-    mean_turn = math.radians(model.fitted.mean_turn_deg)
-    per_buoy = [_turn(model, 0, 0.0, mean_turn, air), _hover("overhead", 0, model.fitted.item_overhead_s, north, air)]
-    home = [_turn(model, 0, 0.0, mean_turn, home_air), *_return_climb(model, flight, 0.0, wind)]
-    dwell = [_hover("dwell", 0, flight.dwell_s, north, air)]
-    fixed = _takeoff(model, flight, wind) + _landing(model, _return_altitude(model, flight), 0.0, wind)
-    phases = _evaluate(model, per_buoy + home + dwell + fixed)
-    per_buoy_p, home_p = phases[:2], phases[2 : 2 + len(home)]
-    dwell_p, fixed_p = phases[2 + len(home)], phases[3 + len(home) :]
+    blocks = _sortie_blocks(model, flight, wind)
+    energy = {name: sum(p.energy_wh for p in _evaluate(model, parts)) for name, parts in blocks.items()}
+    times = sortie_times(flight, model)
     # every leg i -> j: out to a buoy at the mission altitude, or home (j = 0) at the return altitude
     leg_time, leg_energy = np.zeros((n, n)), np.zeros((n, n))
-    for targets, leg_air, extra in ((slice(1, None), air, per_buoy_p), (slice(0, 1), home_air, home_p)):
+    for targets, leg_air, extra in ((slice(1, None), air, "per_buoy"), (slice(0, 1), home_air, "home")):
         time_s, energy_wh = _legs(model, pts, pts[targets], flight.speed_m_s, leg_air)
-        leg_time[:, targets] = time_s + sum(p.time_s for p in extra)
-        leg_energy[:, targets] = energy_wh + sum(p.energy_wh for p in extra)
+        leg_time[:, targets] = time_s + (times.per_buoy_s if extra == "per_buoy" else times.return_s)
+        leg_energy[:, targets] = energy_wh + energy[extra]
     np.fill_diagonal(leg_time, 0.0)
     np.fill_diagonal(leg_energy, 0.0)
-    dwell_time, dwell_energy = np.full(n, dwell_p.time_s), np.full(n, dwell_p.energy_wh)
+    dwell_time, dwell_energy = np.full(n, times.dwell_s), np.full(n, energy["dwell"])
     dwell_time[0] = dwell_energy[0] = 0.0
     return SortieCost(
         leg_time_s=leg_time,
@@ -634,7 +657,51 @@ def calibrated_sortie_cost(
         leg_distance_m=euclidean_matrix(pts),
         dwell_time_s=dwell_time,
         dwell_energy_wh=dwell_energy,
-        sortie_time_s=float(sum(p.time_s for p in fixed_p)),
-        sortie_energy_wh=float(sum(p.energy_wh for p in fixed_p)),
+        sortie_time_s=times.fixed_s,
+        sortie_energy_wh=float(energy["fixed"]),
         budget_wh=budget.usable_wh,
     )
+
+
+@dataclass(frozen=True)
+class SortieTimes:
+    """A sortie's duration as the planners add it up (legs apart: leg_durations_s): what each buoy adds besides its
+    leg (a turn of ``mean_turn_deg`` before the leg, the item's hand-over after it), the dwell, what the return adds
+    besides its leg (the climb to the return altitude if lower, a mean turn) and the fixed rest (spool-up, climb to
+    the mission altitude, the take-off's hand-over, the descent from the return altitude and the touchdown)."""
+
+    per_buoy_s: float
+    dwell_s: float
+    return_s: float
+    fixed_s: float
+
+    def time_s(self, legs_s: float, buoys: int) -> float:
+        """A sortie over `buoys` buoys whose legs (the return included) take legs_s."""
+        return self.fixed_s + self.return_s + legs_s + buoys * (self.per_buoy_s + self.dwell_s)
+
+
+def _sortie_blocks(model: EnergyModel, flight: RouteFlight, wind: WindForecast) -> dict[str, list[Phase | _Block]]:
+    """The parts of a sortie that are not its legs (SortieTimes' terms), as unevaluated phases."""
+    air, home_air = _Air(wind, flight.altitude_m), _Air(wind, _return_altitude(model, flight))
+    north = np.array([0.0, 1.0])
+    mean_turn = math.radians(model.fitted.mean_turn_deg)
+    return {
+        "per_buoy": [
+            _turn(model, 0, 0.0, mean_turn, air),
+            _hover("overhead", 0, model.fitted.item_overhead_s, north, air),
+        ],
+        "home": [_turn(model, 0, 0.0, mean_turn, home_air), *_return_climb(model, flight, 0.0, wind)],
+        "dwell": [_hover("dwell", 0, flight.dwell_s, north, air)],
+        "fixed": [*_takeoff(model, flight, wind), *_landing(model, _return_altitude(model, flight), 0.0, wind)],
+    }
+
+
+def _duration_s(parts: Sequence[Phase | _Block]) -> float:
+    return float(sum(p.time_s if isinstance(p, Phase) else p.dt.sum() for p in parts))
+
+
+def sortie_times(flight: RouteFlight, model: EnergyModel | None = None) -> SortieTimes:
+    """The calibrated model's SortieTimes for a flight (its altitude sets the climb and the return's climb)."""
+    model = model or EnergyModel.load()
+    blocks = _sortie_blocks(model, flight, STILL_AIR)
+    return SortieTimes(*(_duration_s(blocks[name]) for name in ("per_buoy", "dwell", "home", "fixed")))

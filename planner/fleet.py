@@ -5,7 +5,9 @@ between them; vehicle k's route takes
 
     T_k = takeoff_landing_s[k] + (its route's length) / speed_m_s[k] + sum of dwell_s over its buoys
 
-(0 for a vehicle that gets no buoy: it stays on the ground). The plan minimises the makespan max_k T_k, the
+(0 for a vehicle that gets no buoy: it stays on the ground), or, given ``leg_time_s`` (the time of each leg, one
+matrix for every vehicle: planner.fleet_time builds it from the calibrated motion profiles, the stop at each buoy
+included), the sum of its legs' times in place of length / speed. The plan minimises the makespan max_k T_k, the
 time until the last vehicle is home, and then the total sum_k T_k. The method (route first, cluster second,
 then improve, as planner.sorties):
 
@@ -91,7 +93,8 @@ class Fleet:
     distance: np.ndarray  # (n, n) metres
     dwell: np.ndarray  # (n,) seconds, 0 at the depots
     depot: np.ndarray  # (K,) node index
-    inv_speed: np.ndarray  # (K,) s/m
+    inv_speed: np.ndarray  # (K,) seconds per unit of `cost`
+    cost: np.ndarray  # (n, n) what a leg costs before inv_speed: the distance, or the leg's time (inv_speed 1)
     fixed: np.ndarray  # (K,) seconds
     buoys: np.ndarray  # the nodes that are not depots
 
@@ -99,13 +102,17 @@ class Fleet:
         """T_k of vehicle k flying ``buoys`` in that order (0 when there is none)."""
         if len(buoys) == 0:
             return 0.0
-        return float(self.fixed[k] + self.route_distance(k, buoys) * self.inv_speed[k] + self.dwell[list(buoys)].sum())
+        legs = self._path_sum(self.cost, k, buoys) * self.inv_speed[k]
+        return float(self.fixed[k] + legs + self.dwell[list(buoys)].sum())
 
     def route_distance(self, k: int, buoys) -> float:
+        return self._path_sum(self.distance, k, buoys)
+
+    def _path_sum(self, matrix: np.ndarray, k: int, buoys) -> float:
         if len(buoys) == 0:
             return 0.0
         path = np.asarray([self.depot[k], *buoys, self.depot[k]])
-        return float(self.distance[path[:-1], path[1:]].sum())
+        return float(matrix[path[:-1], path[1:]].sum())
 
 
 def _per_vehicle(value, k: int, name: str, minimum: float, strict: bool) -> np.ndarray:
@@ -122,10 +129,17 @@ def _per_vehicle(value, k: int, name: str, minimum: float, strict: bool) -> np.n
     return values
 
 
-def check_fleet(points, depot_of_vehicle, speed_m_s, dwell_s, takeoff_landing_s) -> Fleet:
+def check_fleet(points, depot_of_vehicle, speed_m_s, dwell_s, takeoff_landing_s, leg_time_s=None) -> Fleet:
     """The instance as arrays, or InputError naming what is wrong."""
     pts = check_points(points)
     n = len(pts)
+    distance = euclidean_matrix(pts)
+    if leg_time_s is not None:
+        leg_time_s = np.asarray(leg_time_s, dtype=float)
+        if leg_time_s.shape != (n, n) or not np.all(np.isfinite(leg_time_s) & (leg_time_s >= 0)):
+            raise InputError(f"leg_time_s must be a finite non-negative ({n}, {n}) matrix; got {leg_time_s.shape}")
+        if not np.allclose(leg_time_s, leg_time_s.T):  # the search flies a stretch either way round at one cost
+            raise InputError("leg_time_s must be symmetric (still air)")
     try:
         depots = np.asarray(depot_of_vehicle)
     except (TypeError, ValueError):
@@ -148,11 +162,13 @@ def check_fleet(points, depot_of_vehicle, speed_m_s, dwell_s, takeoff_landing_s)
     if not np.all(np.isfinite(dwell) & (dwell >= 0)):
         raise InputError(f"dwell_s must be finite and >= 0; got {dwell_s!r}")
     dwell[is_depot] = 0.0
+    inv_speed = 1.0 / _per_vehicle(speed_m_s, K, "speed_m_s", 0.0, strict=True)
     return Fleet(
-        distance=euclidean_matrix(pts),
+        distance=distance,
         dwell=dwell,
         depot=depots.astype(np.int64),
-        inv_speed=1.0 / _per_vehicle(speed_m_s, K, "speed_m_s", 0.0, strict=True),
+        inv_speed=inv_speed if leg_time_s is None else np.ones(K),
+        cost=distance if leg_time_s is None else np.ascontiguousarray(leg_time_s),
         fixed=_per_vehicle(takeoff_landing_s, K, "takeoff_landing_s", 0.0, strict=False),
         buoys=np.flatnonzero(~is_depot).astype(np.int64),
     )
@@ -176,7 +192,7 @@ def _split_candidates(
         for order in (rotated, rotated[::-1]):
             for vehicles in orders:
                 routes, makespan, total = minmax_split(
-                    order, fleet.distance, fleet.dwell, fleet.depot[vehicles], fleet.inv_speed[vehicles],
+                    order, fleet.cost, fleet.dwell, fleet.depot[vehicles], fleet.inv_speed[vehicles],
                     fleet.fixed[vehicles],
                 )  # fmt: skip
                 by_vehicle: list[list[int]] = [[] for _ in range(K)]
@@ -191,7 +207,7 @@ class _FleetSearch:
 
     def __init__(self, fleet: Fleet, routes: list[list[int]], params: FleetSearchParameters):
         n, K, m = len(fleet.distance), len(fleet.depot), len(fleet.buoys)
-        D = np.ascontiguousarray(fleet.distance)
+        D = np.ascontiguousarray(fleet.cost)
         _, W = folded_matrices(D, np.zeros(n), np.zeros((n, n)), fleet.dwell)
         self.problem = (D, W, fleet.dwell, fleet.inv_speed, fleet.fixed)
         self.buoys = fleet.buoys
@@ -250,7 +266,7 @@ def _reoptimise(fleet: Fleet, k: int, buoys: list[int], seed: int, limit_s: floa
     if len(buoys) < 3:
         return buoys
     nodes = np.array([fleet.depot[k], *buoys])
-    sub = np.ascontiguousarray(fleet.distance[np.ix_(nodes, nodes)])
+    sub = np.ascontiguousarray(fleet.cost[np.ix_(nodes, nodes)])
     local = list(range(1, len(nodes)))
     order = reoptimise_sortie(local, sub, np.zeros_like(sub), np.inf, seed, limit_s)
     return nodes[order].tolist()
@@ -267,26 +283,28 @@ def plan_fleet(
     max_iterations: int | None = None,
     reoptimise: bool = True,
     params: FleetSearchParameters | None = None,
+    leg_time_s=None,
 ) -> FleetPlan:
     """Share the buoys among the vehicles, minimising the makespan, then the total time.
 
     points: (n, 2) planar coordinates in metres; the nodes named in depot_of_vehicle are depots, every other
     node is a buoy. depot_of_vehicle: one depot node per vehicle (e.g. [0, 0, 0]: three vehicles at node 0).
     speed_m_s, takeoff_landing_s: a number or one per vehicle; dwell_s: a number or one per node (ignored at
-    the depots). Stops at time_limit_s (wall clock, the whole call) or after max_iterations ruin-and-recreate
-    rounds, whichever comes first. Raises InputError for bad input."""
+    the depots). leg_time_s: None (legs at speed_m_s) or the (n, n) symmetric time of every leg, the same for
+    every vehicle (speed_m_s is then not used). Stops at time_limit_s (wall clock, the whole call) or after
+    max_iterations ruin-and-recreate rounds, whichever comes first. Raises InputError for bad input."""
     started = time.perf_counter()
     params = params or FleetSearchParameters()
     if not (isinstance(time_limit_s, int | float) and np.isfinite(time_limit_s) and time_limit_s > 0):
         raise InputError(f"time_limit_s must be a positive number of seconds; got {time_limit_s!r}")
     if max_iterations is not None and not (isinstance(max_iterations, int) and max_iterations >= 0):
         raise InputError(f"max_iterations must be None or a non-negative integer; got {max_iterations!r}")
-    fleet = check_fleet(points, depot_of_vehicle, speed_m_s, dwell_s, takeoff_landing_s)
+    fleet = check_fleet(points, depot_of_vehicle, speed_m_s, dwell_s, takeoff_landing_s, leg_time_s)
     K, m = len(fleet.depot), len(fleet.buoys)
     rng = np.random.default_rng(seed)
     # 1-2: route first (through the buoys and the first depot), cluster second
     hub_and_buoys = np.array([fleet.depot[0], *fleet.buoys])
-    sub = fleet.distance[np.ix_(hub_and_buoys, hub_and_buoys)]
+    sub = fleet.cost[np.ix_(hub_and_buoys, hub_and_buoys)]
     tour = hub_and_buoys[giant_tour(sub, "ils", seed, 0.1 * time_limit_s)[1:]]
     routes, split_makespan, _ = min(_split_candidates(fleet, tour, params, rng), key=lambda c: (c[1], c[2]))
     history = [{"elapsed_s": time.perf_counter() - started, "iterations": 0, "best": split_makespan}]
@@ -297,7 +315,7 @@ def plan_fleet(
     state = _FleetSearch(fleet, routes, params)
     state.local_search()
     history.append({"elapsed_s": time.perf_counter() - started, "iterations": 0, "best": float(state.costs[1])})
-    flown = sum(fleet.route_distance(k, r) * fleet.inv_speed[k] for k, r in enumerate(routes))
+    flown = sum(fleet.route_time(k, r) - fleet.fixed[k] - fleet.dwell[r].sum() for k, r in enumerate(routes) if r)
     mean_arc = max(flown / (m + K), 1e-9)
     kept = params.reoptimise_s_per_sortie * K if reoptimise else 0.0
     search_end = max(time_limit_s - kept, 0.5 * time_limit_s)

@@ -47,6 +47,9 @@ class FlightParams:
     # with a camera on the vehicle: stop this far short of each buoy on the way in, aim at it, capture a burst
     inspect: bool = True
     inspection_range_m: float = 20.0
+    # a fleet's part: hover this much longer at the last buoy, so that the vehicle lands in its turn at a depot it
+    # shares (planner.fleet_schedule)
+    final_hold_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -359,6 +362,8 @@ def mission_items(
         else:
             lat, lon = plan.buoys_lat_lon[index]
             items.append(_waypoint(lat, lon, alt, flight.dwell_s, flight.acceptance_radius_m))
+    if flight.final_hold_s > 0 and plan.order:  # the last buoy's waypoint (an inspection group's last item)
+        items[-1] = replace(items[-1], param1=items[-1].param1 + flight.final_hold_s)
     depot_is_home = home is None or _distance_m(plan.frame, home) <= HOME_TOLERANCE_M
     if depot_is_home:
         items.append(MissionItem(seq=0, frame=MavFrame.GLOBAL_RELATIVE_ALT_INT, command=MavCmd.NAV_RETURN_TO_LAUNCH))

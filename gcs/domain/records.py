@@ -44,6 +44,16 @@ class PlannedShare(BaseModel):
     altitude_m: float
     predicted_time_s: float
     length_m: float
+    # its turn at the depot (planner.fleet_schedule); the defaults: a plan stored before there were turns
+    start_s: float = Field(default=0.0, description="predicted mission start, seconds after the fleet's")
+    depart_after: int | None = Field(default=None, description="started when this vehicle has left the depot zone")
+    final_hold_s: float = Field(default=0.0, description="hover added at its last buoy so that it lands in its turn")
+    zone_centre: list[float] | None = Field(default=None, description="[lat, lon] of its depot zone's centre")
+    zone_radius_m: float | None = None
+    # when the service started it in its turn: its vehicle's clock and the one it waited for's (time_boot_ms / 1000),
+    # read at that instant: how its flight lines up with the other's in their own times (bench.fleet_flown)
+    started_t_s: float | None = None
+    ahead_t_s: float | None = None
     lost: str | None = None
     handed_over: dict[str, list[int]] = Field(default_factory=dict, description="sysid -> buoys it took over")
 
@@ -54,6 +64,7 @@ class PlanFleet(BaseModel):
     makespan_s: float
     total_time_s: float
     layer_gap_m: float
+    separation_m: float | None = None  # None: planned before take-offs and landings were sequenced
     shares: list[PlannedShare]
 
     def share_of(self, sysid: int) -> PlannedShare:

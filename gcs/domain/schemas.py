@@ -230,6 +230,13 @@ class PlanRequest(Strict):
         le=50.0,
         description="a fleet mission's altitude layers: the k-th vehicle flies at altitude_m + k x layer_gap_m",
     )
+    separation_m: float = Field(
+        default=5.0,
+        ge=1.0,
+        le=100.0,
+        description="a fleet mission's least distance between two vehicles in the air around a shared depot: they "
+        "take off in turn (each once the one before is this far beyond every pad) and land in turn",
+    )
 
     @field_validator("battery", mode="after")
     @classmethod
@@ -432,17 +439,23 @@ class PlannedShareOut(BaseModel):
     sysid: int
     buoys: list[int] = Field(description="input indices of its buoys in flying order")
     altitude_m: float
-    predicted_time_s: float
+    predicted_time_s: float = Field(description="its flight, start command to disarm, its final hold included")
     length_m: float
     route: list[list[float]] = Field(description="[lat, lon] from its home through its buoys back home")
+    start_s: float = Field(description="predicted mission start, seconds after the fleet's (take-offs in turn)")
+    depart_after: int | None = Field(
+        description="the vehicle (system id) whose leaving the depot zone starts this one (null: it starts at once)"
+    )
+    final_hold_s: float = Field(description="hover added at its last buoy, so that it lands in its turn")
 
 
 class FleetPlanOut(BaseModel):
     """A fleet plan: the buoys shared among the vehicles (POST /plans with `vehicles`: nothing stored or flown)."""
 
-    makespan_s: float = Field(description="predicted: when the last vehicle is home")
+    makespan_s: float = Field(description="predicted: when the last vehicle is home, the staggered starts counted")
     total_time_s: float
     layer_gap_m: float
+    separation_m: float | None = Field(description="kept between vehicles taking off and landing (null: not kept)")
     shares: list[PlannedShareOut] = Field(description="the vehicles given buoys, in layer order")
 
 
@@ -453,6 +466,12 @@ class FleetShareOut(PlannedShareOut):
     status: MissionStatus
     visited_buoys: list[int] = Field(description="input indices of its buoys inspected so far")
     lost: str | None = Field(default=None, description="why this vehicle dropped out of the fleet mission, if it did")
+    started_t_s: float | None = Field(
+        default=None, description="its vehicle's time (time_boot_ms / 1000) when it was started in its turn"
+    )
+    ahead_t_s: float | None = Field(
+        default=None, description="the time then of the vehicle it waited for (`depart_after`), on that vehicle's clock"
+    )
     handed_over: dict[str, list[int]] = Field(
         default={}, description="a lost vehicle's buoys re-shared in flight: system id -> the buoys it took"
     )

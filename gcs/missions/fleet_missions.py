@@ -187,6 +187,25 @@ def fleet_vehicles(request: PlanRequest, known: list[int], limits: Limits) -> li
     return wanted
 
 
+def may_depart(
+    fleet: MissionRecord, part: MissionRecord, parts: list[MissionRecord], link_of: Callable[[int], LinkManager]
+) -> bool:
+    """Whether a planned part may start now (planner.fleet_schedule: one vehicle at a time in a depot's zone): it
+    waits for nobody, or the vehicle it waits for has left the zone (its position is farther from the zone's
+    centre than the radius: then at least separation_m from every pad) or its part has ended."""
+    assert fleet.plan.fleet is not None  # a fleet mission's plan has its fleet section
+    share = fleet.plan.fleet.share_of(_vehicle_of(part))
+    ahead = next((p for p in parts if _vehicle_of(p) == share.depart_after), None)
+    if share.depart_after is None or ahead is None or ahead.status in TERMINAL:
+        return True
+    status = link_of(share.depart_after).status
+    if ahead.status == MissionStatus.PLANNED or share.zone_centre is None or status.lat is None or status.lon is None:
+        return False
+    zone = LocalFrame(share.zone_centre[0], share.zone_centre[1], 0.0)
+    east, north = zone.project([[status.lat, status.lon]])[0]
+    return math.hypot(east, north) > (share.zone_radius_m or 0.0)
+
+
 class FleetCoordinator:
     """Follows each fleet mission in flight (one task per fleet mission) until its parts have ended."""
 
@@ -195,12 +214,15 @@ class FleetCoordinator:
         storage: AsyncStorage,
         link_of: Callable[[int], LinkManager],
         replan: Callable[[MissionRecord, Plan], None],
+        launch: Callable[[MissionRecord], None],
         instance: str = "",
     ) -> None:
         """link_of(sysid): a vehicle's link; replan(part, plan): fly a part on with a new plan, in flight (raises
-        MissionConflictError when that part is not flying); instance: this service instance's name, stored as the
-        fleet missions' coordinator."""
-        self.storage, self._link_of, self._replan, self.instance = storage, link_of, replan, instance
+        MissionConflictError when that part is not flying); launch(part): fly a planned part (its turn to take off
+        has come: `may_depart`; raises MissionConflictError when its vehicle is busy); instance: this service
+        instance's name, stored as the fleet missions' coordinator."""
+        self.storage, self._link_of, self._replan, self._launch = storage, link_of, replan, launch
+        self.instance = instance
         self._tasks: dict[int, asyncio.Task] = {}
 
     def follow(self, fleet_id: int) -> None:
@@ -249,11 +271,16 @@ class FleetCoordinator:
         stored_separation = replace(monitor.separation)
         # the lost parts whose buoys went to others (by this coordinator or one before it)
         lost = handled_losses(fleet, parts)
+        started: set[int] = set()  # parts this task started in their turn (stored `planned` until their flight begins)
         try:
             while True:
                 parts = await self.storage.fleet_parts(fleet_id)
                 undelivered = self._deliver(parts, undelivered)
                 for part in parts:
+                    waiting = part.status == MissionStatus.PLANNED and part.id not in started  # its status lags
+                    if waiting and may_depart(fleet, part, parts, self._link_of):
+                        started.add(part.id)
+                        await self._depart(fleet, part)
                     # lost: its link, a reboot, or a failsafe (battery, geofence) brought it down
                     if ended_by_the_vehicle(part.status, part.reason) and part.id not in lost:
                         lost.add(part.id)
@@ -293,6 +320,26 @@ class FleetCoordinator:
                 continue
             log.warning("fleet mission: part %s flies the re-share decided before the take-over", part.id)
         return waiting
+
+    def _clock_s(self, sysid: int) -> float | None:
+        """A vehicle's time as last heard (time_boot_ms / 1000)."""
+        boot_ms = self._link_of(sysid).status.time_boot_ms
+        return None if boot_ms is None else boot_ms / 1000.0
+
+    async def _depart(self, fleet: MissionRecord, part: MissionRecord) -> None:
+        """Start a part whose turn to take off has come, noting both vehicles' clocks; a vehicle taken meanwhile
+        fails the part (its buoys are then re-shared like a lost vehicle's)."""
+        try:
+            self._launch(part)
+        except MissionConflictError as error:
+            await self.storage.set_status(part.id, MissionStatus.FAILED, f"not started in its turn: {error}")
+            return
+        assert fleet.plan.fleet is not None  # a fleet mission's plan has its fleet section
+        share = fleet.plan.fleet.share_of(_vehicle_of(part))
+        share.started_t_s = self._clock_s(share.sysid)
+        if share.depart_after is not None:
+            share.ahead_t_s = self._clock_s(share.depart_after)
+        await self.storage.set_plan(fleet.id, fleet.plan)
 
     async def _reshare(
         self, fleet: MissionRecord, lost_part: MissionRecord, parts: list[MissionRecord]

@@ -32,11 +32,10 @@ from gcs.missions.energy_planning import (
     sortie_energy,
     unreachable_errors,
 )
-from gcs.missions.fleet_planning import FleetMissionPlan, FleetShare
+from gcs.missions.fleet_planning import FleetMissionPlan, FleetShare, fleet_plan, in_turn
 from gcs.missions.validation import RequestInvalidError, validate_fenced_route
 from planner.energy import EnergyModel
 from planner.errors import UnreachableBuoyError
-from planner.fleet import DEFAULT_TAKEOFF_LANDING_S
 from uavcore.geofence import Geofence
 
 LatLon = tuple[float, float]
@@ -176,15 +175,16 @@ def constrained_fleet_plan(
             time_s = sum(sortie.time_s for sortie in plan.energy.sorties)
         else:
             plan = make_plan(home, own_points, own_ids, options.method, options.seed, time_limit_s, fenced)
-            time_s = DEFAULT_TAKEOFF_LANDING_S + plan.length_m / flight.speed_m_s + flight.dwell_s * len(own)
+            time_s = 0.0  # one tour: in_turn prices its timeline (planner.fleet_time)
         validate_fenced_route(plan, fenced)
         # the share's buoys in flying order, and its plan over them in that order (as plan_fleet_mission gives)
         flown = [own[i] for i in plan.order]
         position = {i: k for k, i in enumerate(plan.order)}
         plan = _reindexed(plan, position)
         shares.append(_share(planned, sysid, flown, plan, share_flight.altitude_m, float(time_s)))
-    times = [share.predicted_time_s for share in shares]
-    return replace(planned, shares=shares, makespan_s=max(times, default=0.0), total_time_s=float(sum(times)))
+    # their turns at the depots again, for the routes and times as they are now (gcs.missions.fleet_planning.in_turn)
+    scheduled = in_turn(shares, homes, flight.speed_m_s, flight.dwell_s, planned.separation_m, model)
+    return fleet_plan(scheduled, planned.elapsed_s, planned.layer_gap_m, planned.separation_m)
 
 
 def _share(planned: FleetMissionPlan, sysid: int, buoys: list[int], plan: Plan, altitude_m: float,
@@ -192,8 +192,8 @@ def _share(planned: FleetMissionPlan, sysid: int, buoys: list[int], plan: Plan, 
     """A share as re-planned here: the sharing's own share of that vehicle with its buoys, plan and time replaced
     (whatever else the sharing says of it kept), or a new one for a vehicle the sharing gave nothing."""
     own = next((share for share in planned.shares if share.sysid == sysid), None)
-    if own is None:
-        return FleetShare(sysid, buoys, plan, altitude_m, time_s)
+    if own is None:  # its turn at the depot is given by in_turn
+        return FleetShare(sysid, buoys, plan, altitude_m, time_s, 0.0, None, 0.0, plan.depot, 0.0)
     return replace(own, buoys=buoys, plan=plan, predicted_time_s=time_s)
 
 

@@ -15,7 +15,7 @@ from gcs.domain.records import MissionProgress, MissionResults
 from uavcore.mavlink import mavlink
 
 
-def _airborne(sample: dict[str, Any]) -> bool:
+def airborne(sample: dict[str, Any]) -> bool:
     """The vehicle's own landed state when it reports one, else more than half a metre above home."""
     landed = sample.get("landed_state")
     if landed is not None and landed != mavlink.MAV_LANDED_STATE_UNDEFINED:
@@ -35,7 +35,7 @@ def flight_results(
             t_s=s["t_s"],
             east=float(e),
             north=float(n),
-            airborne=_airborne(s),
+            airborne=airborne(s),
             leg=_leg(plan, sortie_sizes, s.get("sortie") or 0, s.get("mission_seq"), progress.capture),
         )
         for s, (e, n) in zip(located, en, strict=True)

@@ -32,7 +32,7 @@ from gcs.domain.planning import BuoyMark, FlightParams, Plan, fenced_legs, make_
 from gcs.domain.schemas import InspectionOut, MissionRequest, OperatorCommand, PlanRequest
 from gcs.domain.status import TERMINAL, MissionStatus
 from gcs.missions.energy_planning import battery_plan, energy_plan
-from gcs.missions.fleet_missions import FleetCoordinator, fleet_vehicles, shares_progress
+from gcs.missions.fleet_missions import FleetCoordinator, fleet_vehicles, may_depart, shares_progress
 from gcs.missions.fleet_planning import METHOD, plan_fleet_mission
 from gcs.missions.fleet_shares import constrained_fleet_plan
 from gcs.missions.fleet_vehicle import FleetVehicle
@@ -147,6 +147,7 @@ class MissionService:
             storage,
             lambda sysid: self._vehicle(sysid).link,
             lambda part, plan: self._vehicle_of(part).flights.replan(part.id, plan),
+            lambda part: self._vehicle_of(part).flights.launch(part),
             settings.instance_name,
         )
         self._ownership = ownership or ownership_for(settings)
@@ -326,7 +327,7 @@ class MissionService:
                          for sysid in sysids}  # fmt: skip
         planned = await asyncio.to_thread(
             plan_fleet_mission, homes, buoys, ids, request.altitude_m, request.layer_gap_m, request.speed_m_s,
-            request.dwell_s, options.seed, options.time_limit_s,
+            request.dwell_s, options.seed, options.time_limit_s, request.separation_m, self.energy_model,
         )  # fmt: skip
         flight = _flight(request, override=override)
         # each share inside its vehicle's fence: the request's, else the one it holds (read now), as a single mission
@@ -343,7 +344,7 @@ class MissionService:
             **lists,
         )  # fmt: skip
         parts = [
-            (replace(flight, altitude_m=share.altitude_m),
+            (replace(flight, altitude_m=share.altitude_m, final_hold_s=share.final_hold_s),
              replace(share.plan, marks=[marks[b] for b in share.buoys], **lists), share.sysid)
             for share in planned.shares
         ]  # fmt: skip
@@ -357,8 +358,9 @@ class MissionService:
         # from here to the launches nothing is awaited: no other request can take a vehicle in between
         for part in parts:
             self._vehicle_of(part).flights.ensure_vehicle_free()
-        for part in parts:
-            self._vehicle_of(part).flights.launch(part)
+        for part in parts:  # the first of each depot; the others when their turn comes (FleetCoordinator)
+            if may_depart(fleet, part, parts, lambda sysid: self._vehicle(sysid).link):
+                self._vehicle_of(part).flights.launch(part)
         self._fleets.follow(fleet.id)
 
     async def launch(self, mission_id: int) -> None:

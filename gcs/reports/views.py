@@ -177,6 +177,9 @@ def planned_share_out(plan: Plan, share: PlannedShare) -> PlannedShareOut:
         predicted_time_s=share.predicted_time_s,
         length_m=share.length_m,
         route=[share.home, *(plan.buoys_lat_lon[b] for b in share.buoys), share.home],
+        start_s=share.start_s,
+        depart_after=share.depart_after,
+        final_hold_s=share.final_hold_s,
     )
 
 
@@ -189,6 +192,7 @@ def fleet_plan_out(plan: Plan) -> FleetPlanOut | None:
         makespan_s=fleet.makespan_s,
         total_time_s=fleet.total_time_s,
         layer_gap_m=fleet.layer_gap_m,
+        separation_m=fleet.separation_m,
         shares=[planned_share_out(plan, share) for share in fleet.shares],
     )
 
@@ -211,6 +215,8 @@ def fleet_out(record: MissionRecord) -> FleetOut:
                 visited_buoys=state.visited if state else [],
                 lost=share.lost,
                 handed_over=share.handed_over,
+                started_t_s=share.started_t_s,
+                ahead_t_s=share.ahead_t_s,
             )
         )
     results = record.results or MissionResults()
@@ -218,6 +224,7 @@ def fleet_out(record: MissionRecord) -> FleetOut:
         makespan_s=fleet.makespan_s,
         total_time_s=fleet.total_time_s,
         layer_gap_m=fleet.layer_gap_m,
+        separation_m=fleet.separation_m,
         shares=shares,
         inspected_by=results.inspected_by,
         separation=results.separation or SeparationOut(min_horizontal_m=None, min_vertical_m=None, min_distance_m=None),
