@@ -92,8 +92,9 @@ INCLUSION = {"kind": "polygon", "inclusion": True, "vertices": [_point(-60, -60)
              _point(260, -60)]}  # fmt: skip
 EXCLUSION = {"kind": "polygon", "inclusion": False, "vertices": [_point(95, 70), _point(105, 70), _point(105, 90),
              _point(95, 90)]}  # fmt: skip
-# farther from every buoy than the homes (PX4 RTL_TYPE 0 lands at the nearer); a mission given rally points ends
-# by a waypoint at its depot and NAV_LAND anyway
+# closer to B4 (108 m) than vehicle 1's home (140 m): a sortie ending with an RTL would land here (PX4, RTL_TYPE 0,
+# lands at the closest of home and the rally points), so a mission given rally points ends by a waypoint at its
+# depot and NAV_LAND there, and its next sortie takes off from the depot
 RALLY = {**_point(240, -40), "alt_m": 12.0}
 
 

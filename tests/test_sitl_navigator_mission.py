@@ -10,15 +10,16 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pytest
 
+from gcs.domain.planning import FlightParams, Plan, mission_items
 from planner.scenario import reference_scenario
 from sitl_quad.navigator import NavEvent, NavigationError, Navigator, NavigatorConfig
 from uavcore.geodesy import LocalFrame
-from uavcore.mission import MavCmd, MavFrame, MissionItem
+from uavcore.mission import MavCmd, MavFrame, MissionItem, rally_point_items
 from uavcore.rotation import quat_from_euler, wrap_pi
 from uavcore.state import TrajectorySetpoint, VehicleState
 
@@ -461,6 +462,34 @@ def test_rtl_climbs_to_return_altitude_flies_home_and_lands() -> None:
     at_ground = np.argmin(np.abs(position[over_home:, 2])) + over_home
     assert velocity[at_ground, 2] == pytest.approx(0.7, abs=1e-3)
     assert velocity[over_home:, 2].max() == pytest.approx(1.5)
+
+
+def test_a_sortie_given_rally_points_lands_at_its_depot_and_not_at_a_closer_rally_point() -> None:
+    """The service's items (gcs.domain.planning.mission_items) against the vehicle's return: a NAV_RETURN_TO_LAUNCH
+    item is PX4's RTL, which (RTL_TYPE 0) lands at the closest of home and the rally points, here the rally point
+    100 m past the buoy; a plan given rally points ends instead with a waypoint at its depot and NAV_LAND there, so
+    the sortie lands where the next one takes off (a fleet share's second sortie failed when it landed elsewhere)."""
+    frame = LocalFrame(*HOME)
+    buoy, rally = (140.0, 0.0), (240.0, -40.0)  # north, east m from home, the depot: the rally is 108 m from the buoy
+    buoy_lat, buoy_lon, _ = frame.from_ned(*buoy, 0.0)
+    rally_lat, rally_lon, _ = frame.from_ned(*rally, 0.0)
+    plan = Plan(HOME[:2], ["B1"], [[buoy_lat, buoy_lon]], [[buoy[1], buoy[0]]], [0], 280.0, 280.0, "given", 0.0)
+    flight_params = FlightParams(altitude_m=5.0, speed_m_s=10.0, dwell_s=0.0, acceptance_radius_m=2.0)
+
+    def landed_at(plan: Plan) -> np.ndarray:
+        nav = navigator()
+        nav.set_rally_points(rally_point_items([(rally_lat, rally_lon, 15.0)]))
+        nav.set_mission(mission_items(plan, flight_params, HOME[:2]))
+        state = state_at((0.0, 0.0, 0.0))
+        nav.start_mission(0.0, state)
+        flight, _, _ = fly(nav, 0.0, state, 300.0, until=lambda n: n.mission_state == "complete")
+        assert nav.mission_state == "complete"
+        return flight.arrays()[1][-1]
+
+    without_rally = landed_at(plan)  # ends with NAV_RETURN_TO_LAUNCH: the vehicle's RTL picks the rally point
+    assert np.allclose(without_rally[:2], rally, atol=0.05), without_rally  # 1e-7 deg items: cm
+    with_rally = landed_at(replace(plan, rally_points=[[rally_lat, rally_lon, 15.0]]))
+    assert np.allclose(with_rally[:2], (0.0, 0.0), atol=0.05), with_rally
 
 
 def test_rtl_outside_a_mission_emits_landing_with_seq_minus_one() -> None:

@@ -338,9 +338,11 @@ def mission_items(
 
     Waypoints carry param1 = dwell (hold time) and param2 = acceptance radius, as MAV_CMD_NAV_WAYPOINT defines.
     With `camera` (the vehicle has one and the flight asks to inspect) each buoy is an inspection group instead
-    (`inspection_items`). The return is MavCmd.NAV_RETURN_TO_LAUNCH when the depot is the vehicle's home;
-    otherwise a waypoint at the depot and MavCmd.NAV_LAND there, so the vehicle comes back to the depot and not to
-    wherever it booted.
+    (`inspection_items`). The return is MavCmd.NAV_RETURN_TO_LAUNCH when the depot is the vehicle's home (`home`
+    None: taken to be the depot) and the plan has no rally points; otherwise a waypoint at the depot and
+    MavCmd.NAV_LAND there, so the vehicle comes back to the depot and not to wherever it booted, nor to a rally
+    point: PX4 flies a NAV_RETURN_TO_LAUNCH item as its RTL, which with RTL_TYPE 0 lands at the closest of home and
+    the rally (safe) points (RTL::findRtlDestination), and a sortie's next take-off is from the depot.
     """
     depot_lat, depot_lon = plan.depot
     alt = float(flight.altitude_m)
@@ -365,7 +367,7 @@ def mission_items(
     if flight.final_hold_s > 0 and plan.order:  # the last buoy's waypoint (an inspection group's last item)
         items[-1] = replace(items[-1], param1=items[-1].param1 + flight.final_hold_s)
     depot_is_home = home is None or _distance_m(plan.frame, home) <= HOME_TOLERANCE_M
-    if depot_is_home:
+    if depot_is_home and not plan.rally_points:
         items.append(MissionItem(seq=0, frame=MavFrame.GLOBAL_RELATIVE_ALT_INT, command=MavCmd.NAV_RETURN_TO_LAUNCH))
     else:
         items.append(_waypoint(depot_lat, depot_lon, alt, 0.0, flight.acceptance_radius_m))

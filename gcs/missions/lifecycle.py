@@ -703,11 +703,10 @@ class FlightLifecycle:
         raise MissionEndError(MissionStatus.COMPLETED, None)
 
     def _items(self, plan: Plan, flight: FlightParams, camera: bool) -> list[MissionItem]:
-        """The mission items of a (sortie) plan for this vehicle: back to its home by RTL when the depot is it; with
-        `camera`, each buoy inspected (gcs.domain.planning.inspection_items)."""
+        """The mission items of a (sortie) plan for this vehicle: back to its home by RTL when the depot is it and
+        the plan has no rally points, else landing at the depot (gcs.domain.planning.mission_items); with `camera`,
+        each buoy inspected (gcs.domain.planning.inspection_items)."""
         home = self.link.status.home
-        if plan.rally_points:  # PX4's RTL (RTL_TYPE 0) lands at the closest of home and the rally points: a
-            home = None  # mission given rally points ends with a waypoint at its depot and a landing there
         return mission_items(plan, flight, None if home is None else (home[0], home[1]), camera)
 
     async def _upload_in_flight(
