@@ -115,10 +115,14 @@ def _left_by_a_killed_coordinator(path, shares, parts, reshares=()):
 SEPARATION = SeparationOut(min_horizontal_m=2.9, min_vertical_m=0.1, min_distance_m=2.95)
 
 
+def _no_launch(part: MissionRecord) -> None:
+    raise AssertionError(f"part {part.id} started again: every part here was started by the coordinator before")
+
+
 async def _follow_to_the_end(storage, fleet_id: int, replan) -> MissionRecord:
     """The next coordinator (instance gcs-b) follows the fleet mission until it ends."""
     links = {sysid: LinkManager(sysid=sysid) for sysid in (1, 2)}  # never started: nothing heard
-    coordinator = FleetCoordinator(AsyncStorage(storage), links.__getitem__, replan, "gcs-b")
+    coordinator = FleetCoordinator(AsyncStorage(storage), links.__getitem__, replan, _no_launch, instance="gcs-b")
     coordinator.follow(fleet_id)
     deadline = time.monotonic() + BACKSTOP_S
     while storage.get_mission(fleet_id).status not in TERMINAL:

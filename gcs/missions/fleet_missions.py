@@ -215,6 +215,7 @@ class FleetCoordinator:
         link_of: Callable[[int], LinkManager],
         replan: Callable[[MissionRecord, Plan], None],
         launch: Callable[[MissionRecord], None],
+        *,
         instance: str = "",
     ) -> None:
         """link_of(sysid): a vehicle's link; replan(part, plan): fly a part on with a new plan, in flight (raises

@@ -148,7 +148,7 @@ class MissionService:
             lambda sysid: self._vehicle(sysid).link,
             lambda part, plan: self._vehicle_of(part).flights.replan(part.id, plan),
             lambda part: self._vehicle_of(part).flights.launch(part),
-            settings.instance_name,
+            instance=settings.instance_name,
         )
         self._ownership = ownership or ownership_for(settings)
         # the read routes' encoded documents by version (gcs.missions.read_cache); GET /missions' pages apart, so a
