@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import atexit
 import gc
 import json
 import logging
 import math
 import os
+import shutil
 import signal
 import sys
 import tempfile
@@ -218,8 +220,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--image-dir",
         type=Path,
         metavar="DIR",
-        help="where the camera writes IMG_<index>.jpg, created if missing (default: a new temporary directory); "
-        "served over MAVLink FTP from component 100 unless --ftp-root says otherwise: CAMERA_IMAGE_CAPTURED's file_url",
+        help="where the camera writes IMG_<index>.jpg, created if missing (default: a temporary directory, removed at "
+        "exit); served over MAVLink FTP from component 100 unless --ftp-root says otherwise: "
+        "CAMERA_IMAGE_CAPTURED's file_url",
     )
     p.add_argument(
         "--current",
@@ -250,7 +253,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=Path,
         metavar="DIR",
         help="where the ULog flight logs go, one per arming, served over the MAVLink log protocol "
-        "(default: a new temporary directory, printed at start)",
+        "(default: a temporary directory, printed at start and removed at exit)",
     )
     p.add_argument("--list-params", action="store_true", help="print every parameter with its value and exit")
     p.add_argument("-v", "--verbose", action="store_true", help="log every peer and protocol event")
@@ -312,13 +315,13 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     image_dir = None
     if camera:
-        image_dir = args.image_dir or Path(tempfile.mkdtemp(prefix="sitl_quad_images_"))
+        image_dir = args.image_dir or _scratch_dir("sitl_quad_images_")
         try:
             image_dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             return _fail(f"--image-dir {image_dir}: {exc.strerror}")
         print(f"sitl-quad: camera images in {image_dir}", flush=True)
-    log_dir = args.log_dir or Path(tempfile.mkdtemp(prefix="sitl_quad_logs_"))
+    log_dir = args.log_dir or _scratch_dir("sitl_quad_logs_")
     try:
         log_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -370,6 +373,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.stats is not None:
         args.stats.write_text(json.dumps(server.stats(), indent=2) + "\n")
     return 0
+
+
+def _scratch_dir(prefix: str) -> Path:
+    """A new temporary directory, removed when the process exits (a stop or a signal; not after SIGKILL): a vehicle
+    started without --log-dir or --image-dir keeps its files for its own run only, as a test's or a demo's does."""
+    path = Path(tempfile.mkdtemp(prefix=prefix))
+    atexit.register(shutil.rmtree, path, ignore_errors=True)
+    return path
 
 
 def _ais_out(address: tuple[str, int] | None, world: World | None, virtual: list[str]) -> AisOut:
