@@ -280,6 +280,21 @@ def telemetry_figures(times: list[float], kill_t_s: float) -> dict[str, Any]:
     }
 
 
+def taken_over_to_the_end(survivor: Instance, mission_id: int, kill_wall: float) -> tuple[dict, float, dict]:
+    """After the owner's kill: the survivor owning every link (its GET /vehicle), the take-over's wall seconds
+    since kill_wall, and the mission (or fleet mission) once it ended."""
+    role = poll(survivor.vehicle, lambda v: v["role"] == "owner", 30.0, f"{survivor.name} owning the links")
+    takeover_s = time.monotonic() - kill_wall
+    mission = poll(
+        lambda: survivor.get(f"/missions/{mission_id}"),
+        lambda m: m["status"] in TERMINAL,
+        FLIGHT_TIMEOUT_S,
+        f"mission {mission_id} ending",
+        interval_s=0.25,
+    )
+    return role, takeover_s, mission
+
+
 def fly_and_kill(
     stack: FailoverStack, victim: str, kill_after_samples: int = 20, how: signal.Signals = signal.SIGKILL
 ) -> dict[str, Any]:
@@ -301,15 +316,7 @@ def fly_and_kill(
     killed, survivor = (owner, standby) if victim == "owner" else (standby, owner)
     kill_unix, kill_wall = time.time(), time.monotonic()
     killed.kill(how)
-    role = poll(survivor.vehicle, lambda v: v["role"] == "owner", 30.0, f"{survivor.name} owning the link")
-    takeover_s = time.monotonic() - kill_wall
-    mission = poll(
-        lambda: survivor.get(f"/missions/{mission_id}"),
-        lambda m: m["status"] in TERMINAL,
-        FLIGHT_TIMEOUT_S,
-        "the mission ending",
-        interval_s=0.25,
-    )
+    role, takeover_s, mission = taken_over_to_the_end(survivor, mission_id, kill_wall)
     samples = survivor.get(f"/missions/{mission_id}/telemetry") or []
     reattached = [e for e in mission["events"] if e["reason"] == REATTACHED]
     figures = telemetry_figures([s["t_s"] for s in samples], kill_t_s)
@@ -384,15 +391,7 @@ def fly_fleet_and_kill(
         vehicle.kill()
         vehicle.wait()
     owner.kill(how)
-    poll(standby.vehicle, lambda v: v["role"] == "owner", 30.0, f"{standby.name} owning the links")
-    takeover_s = time.monotonic() - kill_wall
-    fleet = poll(
-        lambda: standby.get(f"/missions/{fleet_id}"),
-        lambda m: m["status"] in TERMINAL,
-        FLIGHT_TIMEOUT_S,
-        "the fleet mission ending",
-        interval_s=0.25,
-    )
+    _, takeover_s, fleet = taken_over_to_the_end(standby, fleet_id, kill_wall)
     per_part = []
     for part, sysid in parts.items():
         mission = standby.get(f"/missions/{part}") or {}

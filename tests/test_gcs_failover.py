@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+from collections.abc import Iterator
 from pathlib import Path
 
 import psycopg
@@ -52,15 +53,19 @@ def udp_sockets(pid: int) -> int:
     return sum(1 for link in links if link.startswith("socket:[") and link[8:-1] in inodes)
 
 
+def _running(stack: FailoverStack) -> Iterator[FailoverStack]:
+    """A fixture's body: the stack started, closed after the test, and neither instance's log with a traceback."""
+    try:
+        yield stack.start()
+    finally:
+        stack.close()
+    for name in ("gcs-a", "gcs-b"):
+        assert "Traceback" not in stack.log(name), stack.log(name)
+
+
 @pytest.fixture
 def stack(postgres_url, tmp_path):
-    started = FailoverStack(postgres_url, tmp_path / "logs", speed=4.0)
-    try:
-        yield started.start()
-    finally:
-        started.close()
-    for name in ("gcs-a", "gcs-b"):
-        assert "Traceback" not in started.log(name), started.log(name)
+    yield from _running(FailoverStack(postgres_url, tmp_path / "logs", speed=4.0))
 
 
 def test_the_standby_refuses_to_fly_and_takes_over_the_mission_when_the_owner_is_killed(stack):
@@ -148,13 +153,9 @@ def test_an_owner_stopped_in_flight_hands_the_mission_over_instead_of_failing_it
 def fleet_stack(postgres_url, tmp_path, request):
     """Two vehicles and two instances linked to both; `request.param`, when given: the stand-by's --vehicle-wait."""
     wait_s = getattr(request, "param", VEHICLE_WAIT_S)
-    started = FailoverStack(postgres_url, tmp_path / "logs", speed=4.0, vehicles=2, standby_vehicle_wait_s=wait_s)
-    try:
-        yield started.start()
-    finally:
-        started.close()
-    for name in ("gcs-a", "gcs-b"):
-        assert "Traceback" not in started.log(name), started.log(name)
+    yield from _running(
+        FailoverStack(postgres_url, tmp_path / "logs", speed=4.0, vehicles=2, standby_vehicle_wait_s=wait_s)
+    )
 
 
 def test_the_standby_carries_a_fleet_mission_on_when_its_owner_is_killed_and_no_buoy_is_lost(fleet_stack):
