@@ -313,20 +313,11 @@ def main(argv: list[str] | None = None) -> int:
         for spec in table.specs:
             print(f"{spec.name:16} {table.get(spec.name):<14.6g} {spec.description}")
         return 0
-    image_dir = None
-    if camera:
-        image_dir = args.image_dir or _scratch_dir("sitl_quad_images_")
-        try:
-            image_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            return _fail(f"--image-dir {image_dir}: {exc.strerror}")
-        print(f"sitl-quad: camera images in {image_dir}", flush=True)
-    log_dir = args.log_dir or _scratch_dir("sitl_quad_logs_")
     try:
-        log_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        return _fail(f"--log-dir {log_dir}: {exc.strerror}")
-    print(f"sitl-quad: flight logs in {log_dir}", flush=True)
+        image_dir = _directory(args.image_dir, "--image-dir", "camera images", "sitl_quad_images_") if camera else None
+        log_dir = _directory(args.log_dir, "--log-dir", "flight logs", "sitl_quad_logs_")
+    except ValueError as exc:
+        return _fail(str(exc))
     warm_up(config, args.home, args.outer_rate)  # before listening: no ground station waits on a compile
     vehicle = Vehicle(
         config, home=args.home, seed=args.seed, outer_rate_hz=args.outer_rate, attitude_loops=attitude_loops()
@@ -375,12 +366,19 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _scratch_dir(prefix: str) -> Path:
-    """A new temporary directory, removed when the process exits (a stop or a signal; not after SIGKILL): a vehicle
-    started without --log-dir or --image-dir keeps its files for its own run only, as a test's or a demo's does."""
-    path = Path(tempfile.mkdtemp(prefix=prefix))
-    atexit.register(shutil.rmtree, path, ignore_errors=True)
-    return path
+def _directory(given: Path | None, option: str, what: str, prefix: str) -> Path:
+    """The directory an option names, created if missing (ValueError naming the option when it cannot be), or else
+    a new temporary one removed when the process exits (a stop or a signal; not after SIGKILL): a vehicle started
+    without --log-dir or --image-dir keeps its files for its own run only, as a test's or a demo's does."""
+    if given is None:
+        given = Path(tempfile.mkdtemp(prefix=prefix))
+        atexit.register(shutil.rmtree, given, ignore_errors=True)
+    try:
+        given.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"{option} {given}: {exc.strerror}") from None
+    print(f"sitl-quad: {what} in {given}", flush=True)
+    return given
 
 
 def _ais_out(address: tuple[str, int] | None, world: World | None, virtual: list[str]) -> AisOut:
