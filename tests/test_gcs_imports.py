@@ -80,6 +80,14 @@ def test_csv_without_header_is_lat_lon():
     assert [(b.lat, b.lon, b.id) for b in file.buoys] == [(38.9, 121.5, None), (38.8, 121.6, "X")]
 
 
+def test_csv_lines_may_end_in_a_lone_carriage_return():
+    # old Mac files; a lone CR once raised the csv module's error from inside the reader (HTTP 500 on /imports)
+    file = buoys_from_csv("lat,lon,id\r38.9,121.5,A\r38.8,121.6,B\r")
+    assert [(b.lat, b.lon, b.id) for b in file.buoys] == [(38.9, 121.5, "A"), (38.8, 121.6, "B")]
+    with pytest.raises(BuoyFileError, match="the header needs columns named lat and lon"):
+        buoys_from_csv("\r\x17\xb9")
+
+
 @pytest.mark.parametrize(
     ("text", "message"),
     [
@@ -88,6 +96,7 @@ def test_csv_without_header_is_lat_lon():
         ("lat,lon\n", "no buoys"),
         ("1,2\n3\n", "line 2"),
         ("lat,lon\n91,0\n", "line 2: latitude 91"),
+        ("lat,lon\n" + "1" * 200_000 + ",2\n", "CSV: field larger than field limit"),
     ],
 )
 def test_csv_errors(text, message):

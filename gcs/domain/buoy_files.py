@@ -150,7 +150,12 @@ def _is_number(text: str) -> bool:
 
 def buoys_from_csv(text: str) -> BuoyFile:
     """CSV text -> buoys (see the module docstring for the accepted layouts)."""
-    rows = [row for row in csv.reader(io.StringIO(text)) if row and any(cell.strip() for cell in row)]
+    # newline="": the csv module's own line handling (a lone CR ends a line, as in old Mac files) instead of
+    # StringIO's, which leaves a CR inside a field and makes the reader raise
+    try:
+        rows = [row for row in csv.reader(io.StringIO(text, newline="")) if row and any(c.strip() for c in row)]
+    except csv.Error as error:  # e.g. a field longer than the csv module takes
+        raise BuoyFileError(f"CSV: {error}") from None
     if not rows:
         raise BuoyFileError("CSV: no rows")
     first = rows[0]
