@@ -122,9 +122,12 @@ def _pump(stream, lines: queue.Queue) -> None:
 class GroundStation:
     """A pymavlink GCS talking to the vehicle at udp 127.0.0.1:port (or through a relay on that port)."""
 
-    def __init__(self, port: int, sysid: int = GCS_SYSID, compid: int = GCS_COMPID) -> None:
+    def __init__(
+        self, port: int, sysid: int = GCS_SYSID, compid: int = GCS_COMPID, vehicle_sysid: int = VEHICLE_SYSID
+    ) -> None:
         self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=sysid, source_component=compid)
         self.mav = self.conn.mav
+        self.vehicle_sysid = vehicle_sysid  # whose messages it reads (a fleet's vehicles have their own)
         self._next_heartbeat = 0.0
 
     def close(self) -> None:
@@ -151,7 +154,7 @@ class GroundStation:
         while (remaining := deadline - time.monotonic()) > 0:
             self._keep_alive()
             msg = self.conn.recv_match(type=kinds, blocking=True, timeout=min(remaining, 0.2))
-            if msg is None or msg.get_srcSystem() != VEHICLE_SYSID:
+            if msg is None or msg.get_srcSystem() != self.vehicle_sysid:
                 continue
             if condition is None or condition(msg):
                 return msg

@@ -20,6 +20,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
+from sitl_process import GroundStation
 from test_gcs_fleet_links import CONNECT_S, _wait_all_connected, _wait_ended, _wait_homes
 
 from gcs.api.app import create_app
@@ -30,6 +31,7 @@ from gcs.vehicle.link import LinkManager
 from gcs.vehicle.mission_protocol import MissionRejectedError, upload_items
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 from uavcore.geofence import Geofence
+from uavcore.mavlink import mavlink
 from uavcore.mission import MissionType, rally_point_items
 
 pytestmark = pytest.mark.integration
@@ -215,3 +217,44 @@ def test_a_vehicle_its_battery_failsafe_brings_down_is_lost_and_its_buoys_reshar
         part = _part(client, next(s["mission_id"] for s in fleet["shares"] if s["sysid"] == 1))
         assert part["status"] == "completed"
         assert any((e["reason"] or "").startswith("re-planned in flight") for e in part["events"])
+
+
+@pytest.mark.slow
+def test_a_vehicle_an_injected_motor_failure_brings_down_is_lost_and_its_buoys_reshared(tmp_path, start_sitl):
+    """PX4's failure injection on a fleet: once vehicle 2 has inspected its first buoy, a second ground station (as
+    MAVSDK's Failure plugin) turns its motor 1 off; it comes down, its part fails naming the motor, and its buoys
+    not visited are uploaded in flight to vehicle 1, which completes the fleet mission."""
+    links = _fleet(start_sitl, (), ("--param", "SYS_FAILURE_EN=1"), speed=SPEED / 2)
+    port = int(links[1].rsplit(":", 1)[1])
+    buoys = [{"id": f"B{i + 1}", **_point(n, e)} for i, (n, e) in enumerate((n, e) for n in (60, 200, 340)
+             for e in (0, 160))]  # fmt: skip
+    request = {"vehicles": "fleet", "buoys": buoys, "dwell_s": 2.0, "inspect": False}
+    with TestClient(create_app(Settings(data_dir=tmp_path, vehicles=links, vehicle_wait_s=30.0))) as client:
+        _wait_all_connected(client, 2)
+        _wait_homes(client)
+        created = client.post("/missions", json=request)
+        assert created.status_code == 201, created.text
+        fleet_id, shares = created.json()["id"], created.json()["fleet"]["shares"]
+        second = next(s for s in shares if s["sysid"] == 2)
+        assert len(second["buoys"]) >= 2
+        deadline = time.monotonic() + 8 * CONNECT_S
+        while _part(client, second["mission_id"])["progress"]["visited"] < 1:
+            assert time.monotonic() < deadline, "vehicle 2 never inspected its first buoy"
+            time.sleep(0.1)
+        station = GroundStation(port, sysid=254, vehicle_sysid=2)
+        try:
+            station.connect()
+            ack = station.command(mavlink.MAV_CMD_INJECT_FAILURE, mavlink.FAILURE_UNIT_SYSTEM_MOTOR,
+                                  mavlink.FAILURE_TYPE_OFF, 1, target_system=2)  # fmt: skip
+            assert ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED, ack
+        finally:
+            station.close()
+        mission = _wait_ended(client, fleet_id)
+        assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
+        fleet = mission["fleet"]
+        assert set(fleet["inspected_by"]) == {b["id"] for b in buoys}  # every buoy, by someone
+        lost = next(s for s in fleet["shares"] if s["sysid"] == 2)
+        assert lost["status"] == "failed" and "motor 1 failure" in lost["lost"], lost
+        handed = [b for taken in lost["handed_over"].values() for b in taken]
+        assert handed and set(handed) == set(lost["buoys"]) - set(lost["visited_buoys"])
+        assert all(fleet["inspected_by"][buoys[b]["id"]] == 1 for b in handed)
