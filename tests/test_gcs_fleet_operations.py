@@ -12,9 +12,11 @@ processes (`python -m sitl_quad --sysid N`, sped up) through the service's REST 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import itertools
 import math
 import time
+from collections.abc import Iterator
 from dataclasses import replace
 
 import numpy as np
@@ -62,6 +64,39 @@ def _fleet(start_sitl, *per_vehicle: tuple[str, ...], speed: float = SPEED) -> l
 
 def _part(client: TestClient, part_id: int) -> dict:
     return client.get(f"/missions/{part_id}").json()
+
+
+@contextlib.contextmanager
+def _fleet_service(tmp_path, links: list[str]) -> Iterator[TestClient]:
+    """The service linked to the fleet's vehicles, once it hears every one and knows their homes."""
+    with TestClient(create_app(Settings(data_dir=tmp_path, vehicles=links, vehicle_wait_s=30.0))) as client:
+        _wait_all_connected(client, len(links))
+        _wait_homes(client)
+        yield client
+
+
+def _posted(client: TestClient, request: dict) -> dict:
+    created = client.post("/missions", json=request)
+    assert created.status_code == 201, created.text
+    return created.json()
+
+
+# six buoys two columns wide, far enough north that vehicle 2 comes down (or is brought down) with some left
+RESHARE_BUOYS = [{"id": f"B{i + 1}", **_point(n, e)} for i, (n, e) in enumerate((n, e) for n in (60, 200, 340)
+                 for e in (0, 160))]  # fmt: skip
+
+
+def _reshared_to_vehicle_1(mission: dict, buoys: list[dict]) -> dict:
+    """Vehicle 2's share as the completed fleet mission ends: every buoy inspected by someone, its buoys not
+    visited handed to vehicle 1, which inspected them. Returned for what the test says of why it was lost."""
+    assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
+    fleet = mission["fleet"]
+    assert set(fleet["inspected_by"]) == {b["id"] for b in buoys}  # every buoy, by someone
+    lost = next(s for s in fleet["shares"] if s["sysid"] == 2)
+    handed = [b for taken in lost["handed_over"].values() for b in taken]
+    assert handed and set(handed) == set(lost["buoys"]) - set(lost["visited_buoys"])
+    assert all(fleet["inspected_by"][buoys[b]["id"]] == 1 for b in handed)
+    return lost
 
 
 def _fly_with_swaps(client: TestClient, fleet_id: int, shares: list[dict]) -> dict:
@@ -142,12 +177,9 @@ def test_a_fleet_flies_its_shares_in_sorties_within_its_packs_inside_the_fence_i
         "vehicles": "fleet", "buoys": buoys, "dwell_s": 5.0, "inspect": False, "battery": "vehicle",
         "geofence": [INCLUSION, EXCLUSION], "rally_points": [RALLY],
     }  # fmt: skip
-    with TestClient(create_app(Settings(data_dir=tmp_path, vehicles=links, vehicle_wait_s=30.0))) as client:
-        _wait_all_connected(client, 2)
-        _wait_homes(client)
-        created = client.post("/missions", json=request)
-        assert created.status_code == 201, created.text
-        fleet_id, shares = created.json()["id"], created.json()["fleet"]["shares"]
+    with _fleet_service(tmp_path, links) as client:
+        created = _posted(client, request)
+        fleet_id, shares = created["id"], created["fleet"]["shares"]
         mission = _fly_with_swaps(client, fleet_id, shares)
         assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
         assert set(mission["fleet"]["inspected_by"]) == {b["id"] for b in buoys}
@@ -191,28 +223,17 @@ def test_a_vehicle_its_battery_failsafe_brings_down_is_lost_and_its_buoys_reshar
     # at half the pace, with shares of some 100 simulated seconds: vehicle 2 comes down in its first 30 or so, and
     # its part ends (the service's disarm grace and polls are wall-clock) long before vehicle 1 is home
     links = _fleet(start_sitl, (), failing, speed=SPEED / 2)
-    buoys = [{"id": f"B{i + 1}", **_point(n, e)} for i, (n, e) in enumerate((n, e) for n in (60, 200, 340)
-             for e in (0, 160))]  # fmt: skip
-    request = {"vehicles": "fleet", "buoys": buoys, "dwell_s": 2.0, "inspect": False, "override": True}
-    with TestClient(create_app(Settings(data_dir=tmp_path, vehicles=links, vehicle_wait_s=30.0))) as client:
-        _wait_all_connected(client, 2)
-        _wait_homes(client)
-        created = client.post("/missions", json=request)
-        assert created.status_code == 201, created.text
-        fleet_id = created.json()["id"]
-        lost_share = next(s for s in created.json()["fleet"]["shares"] if s["sysid"] == 2)
+    request = {"vehicles": "fleet", "buoys": RESHARE_BUOYS, "dwell_s": 2.0, "inspect": False, "override": True}
+    with _fleet_service(tmp_path, links) as client:
+        created = _posted(client, request)
+        lost_share = next(s for s in created["fleet"]["shares"] if s["sysid"] == 2)
         assert len(lost_share["buoys"]) >= 2
-        mission = _wait_ended(client, fleet_id)
-        assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
-        fleet = mission["fleet"]
-        assert set(fleet["inspected_by"]) == {b["id"] for b in buoys}  # every buoy, by someone
-        lost = next(s for s in fleet["shares"] if s["sysid"] == 2)
+        mission = _wait_ended(client, created["id"])
+        lost = _reshared_to_vehicle_1(mission, RESHARE_BUOYS)
         assert lost["status"] == "aborted" and lost["lost"].startswith(
             "battery failsafe (Critical battery level! Executing RTL"
         )
-        handed = [b for taken in lost["handed_over"].values() for b in taken]
-        assert handed and set(handed) == set(lost["buoys"]) - set(lost["visited_buoys"])
-        assert all(fleet["inspected_by"][buoys[b]["id"]] == 1 for b in handed)
+        fleet = mission["fleet"]
         assert any("vehicle 2 lost (battery failsafe" in (e["reason"] or "") for e in mission["events"])
         part = _part(client, next(s["mission_id"] for s in fleet["shares"] if s["sysid"] == 1))
         assert part["status"] == "completed"
@@ -226,16 +247,10 @@ def test_a_vehicle_an_injected_motor_failure_brings_down_is_lost_and_its_buoys_r
     not visited are uploaded in flight to vehicle 1, which completes the fleet mission."""
     links = _fleet(start_sitl, (), ("--param", "SYS_FAILURE_EN=1"), speed=SPEED / 2)
     port = int(links[1].rsplit(":", 1)[1])
-    buoys = [{"id": f"B{i + 1}", **_point(n, e)} for i, (n, e) in enumerate((n, e) for n in (60, 200, 340)
-             for e in (0, 160))]  # fmt: skip
-    request = {"vehicles": "fleet", "buoys": buoys, "dwell_s": 2.0, "inspect": False}
-    with TestClient(create_app(Settings(data_dir=tmp_path, vehicles=links, vehicle_wait_s=30.0))) as client:
-        _wait_all_connected(client, 2)
-        _wait_homes(client)
-        created = client.post("/missions", json=request)
-        assert created.status_code == 201, created.text
-        fleet_id, shares = created.json()["id"], created.json()["fleet"]["shares"]
-        second = next(s for s in shares if s["sysid"] == 2)
+    request = {"vehicles": "fleet", "buoys": RESHARE_BUOYS, "dwell_s": 2.0, "inspect": False}
+    with _fleet_service(tmp_path, links) as client:
+        created = _posted(client, request)
+        second = next(s for s in created["fleet"]["shares"] if s["sysid"] == 2)
         assert len(second["buoys"]) >= 2
         deadline = time.monotonic() + 8 * CONNECT_S
         while _part(client, second["mission_id"])["progress"]["visited"] < 1:
@@ -249,12 +264,5 @@ def test_a_vehicle_an_injected_motor_failure_brings_down_is_lost_and_its_buoys_r
             assert ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED, ack
         finally:
             station.close()
-        mission = _wait_ended(client, fleet_id)
-        assert (mission["status"], mission["reason"]) == ("completed", None), mission["events"]
-        fleet = mission["fleet"]
-        assert set(fleet["inspected_by"]) == {b["id"] for b in buoys}  # every buoy, by someone
-        lost = next(s for s in fleet["shares"] if s["sysid"] == 2)
+        lost = _reshared_to_vehicle_1(_wait_ended(client, created["id"]), RESHARE_BUOYS)
         assert lost["status"] == "failed" and "motor 1 failure" in lost["lost"], lost
-        handed = [b for taken in lost["handed_over"].values() for b in taken]
-        assert handed and set(handed) == set(lost["buoys"]) - set(lost["visited_buoys"])
-        assert all(fleet["inspected_by"][buoys[b]["id"]] == 1 for b in handed)
