@@ -15,7 +15,6 @@ and waits for a started mission to end ("no vehicle"), so a replayed scenario ge
 loaded the machine.
 """
 
-import socket
 import time
 from collections.abc import Iterator
 
@@ -32,6 +31,7 @@ from schemathesis.specs.openapi.checks import (
     response_schema_conformance,
     status_code_conformance,
 )
+from service_process import silent_udp_port
 
 from gcs.api.app import create_app
 from gcs.domain.status import TERMINAL
@@ -56,12 +56,10 @@ schema = schemathesis.openapi.from_dict(APP_FOR_SCHEMA.openapi())
 
 @pytest.fixture(scope="module")
 def silent_port() -> Iterator[int]:
-    """A loopback UDP port this process holds and never answers: the services' "no vehicle". A free port picked and
-    let go could be bound meanwhile by a vehicle another test worker starts, which answers whoever sends it a
-    heartbeat: the service would then connect, fly it, and answer differently from one step to the next."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as held:
-        held.bind(("127.0.0.1", 0))
-        yield held.getsockname()[1]
+    """The services' "no vehicle" (a vehicle that answered would be flown, and answer differently from one step to
+    the next)."""
+    with silent_udp_port() as port:
+        yield port
 
 
 def fuzz_settings(tmp_path_factory, port: int) -> Settings:
