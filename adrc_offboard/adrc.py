@@ -40,20 +40,21 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from uavcore.kernel_cache import cached_kernel
 
 
 class AdrcParameterError(ValueError):
     """A parameter set that cannot work: non-physical values, or a discrete loop unstable at its step."""
 
 
-@njit(cache=True)
+@cached_kernel
 def sign(x: float) -> float:
     """sign() as in the paper: -1, 0 or +1."""
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
-@njit(cache=True)
+@cached_kernel
 def fsg(x: float, d: float) -> float:
     """fsg(x, d) = (sign(x + d) - sign(x - d)) / 2, eq. (10), for d > 0: 1 inside |x| < d, 0 outside,
     1/2 on the edge. Written with comparisons: it sits on the 250 Hz path."""
@@ -61,7 +62,7 @@ def fsg(x: float, d: float) -> float:
     return 1.0 if magnitude < d else (0.0 if magnitude > d else 0.5)
 
 
-@njit(cache=True)
+@cached_kernel
 def fhan(x1: float, x2: float, r: float, h: float) -> float:
     """Han's discrete time-optimal synthesis function, eq. (10) (gamma = r, eta = h).
 
@@ -79,7 +80,7 @@ def fhan(x1: float, x2: float, r: float, h: float) -> float:
     return -r * (a / d) * fsg_a - r * sign(a) * (1.0 - fsg_a)
 
 
-@njit(cache=True)
+@cached_kernel
 def fal(e: float, alpha: float, delta: float) -> float:
     """Han's power function with a linear zone, eq. (13): e / delta^(1-alpha) inside |e| <= delta,
     |e|^alpha sign(e) outside; continuous at |e| = delta. Its linear-zone slope is delta^(alpha-1)."""
@@ -91,7 +92,7 @@ def fal(e: float, alpha: float, delta: float) -> float:
     return e * 0.5 / delta ** (1.0 - alpha) + 0.5 * math.copysign(magnitude**alpha, e)  # s = 1/2: = e^alpha
 
 
-@njit(cache=True)
+@cached_kernel
 def td_step(
     v1: float, v2: float, reference: float, reference_rate: float, r0: float, h0: float, h: float
 ) -> tuple[float, float]:
@@ -99,7 +100,7 @@ def td_step(
     return v1 + h * v2, v2 + h * fhan(v1 - reference, v2 - reference_rate, r0, h0)
 
 
-@njit(cache=True)
+@cached_kernel
 def eso_step(
     z1: float,
     z2: float,
@@ -124,7 +125,7 @@ def eso_step(
     )
 
 
-@njit(cache=True)
+@cached_kernel
 def nlsef_control(
     e1: float, e2: float, z3: float, reference_acceleration: float, r1: float, h1: float, c: float, b0: float
 ) -> float:
@@ -133,7 +134,7 @@ def nlsef_control(
     return (u0 - z3) / b0
 
 
-@njit(cache=True)
+@cached_kernel
 def clip(u: float, u_min: float, u_max: float) -> float:
     """u limited to [u_min, u_max] (a NaN passes through, to be caught downstream)."""
     return u_min if u < u_min else (u_max if u > u_max else u)
@@ -407,7 +408,7 @@ S_STARTED, S_V1, S_V2, S_Z1, S_Z2, S_Z3, S_Y = range(7)
 CHANNEL_STATE_SIZE = 7
 
 
-@njit(cache=True)
+@cached_kernel
 def adrc_channel_control(
     p: np.ndarray,
     s: np.ndarray,
@@ -435,7 +436,7 @@ def adrc_channel_control(
     return clip(u, p[P_U_MIN], p[P_U_MAX])
 
 
-@njit(cache=True)
+@cached_kernel
 def adrc_channel_observe(p: np.ndarray, s: np.ndarray, applied_control: float) -> None:
     """`AdrcChannel.observe_applied` on the flat parameters p and state s."""
     s[S_Z1], s[S_Z2], s[S_Z3] = eso_step(

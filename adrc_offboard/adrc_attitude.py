@@ -47,7 +47,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from adrc_offboard.adrc import (
     CHANNEL_STATE_SIZE,
@@ -59,6 +58,7 @@ from adrc_offboard.adrc import (
 )
 from adrc_offboard.gains import channel_parameters, load_gains
 from uavcore.airframe import Airframe
+from uavcore.kernel_cache import cached_kernel
 from uavcore.quaternion_kernels import error_quaternion
 from uavcore.state import AttitudeTarget, VehicleState
 
@@ -69,7 +69,7 @@ LOOP_STATE_SIZE = 6
 _NO_FEEDFORWARD = np.zeros(3)
 
 
-@njit(cache=True)
+@cached_kernel
 def attitude_errors(q: np.ndarray, qd: np.ndarray) -> tuple[float, float, float]:
     """(roll, pitch, yaw) errors in rad from the attitude q to the target qd (module docstring: tilt first)."""
     # q_err = conj(q) * q_target (rotation current body -> target body, body axes)
@@ -100,7 +100,7 @@ def attitude_errors(q: np.ndarray, qd: np.ndarray) -> tuple[float, float, float]
     return roll_error, pitch_error, yaw_error
 
 
-@njit(cache=True)
+@cached_kernel
 def adrc_attitude_torque(
     channel_params: np.ndarray,
     channel_states: np.ndarray,

@@ -13,10 +13,11 @@ control that tells the prior's share from the operator's.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from uavcore.kernel_cache import cached_kernel
 
 
-@njit(cache=True)
+@cached_kernel
 def _parent_neighbours(first, second):
     """(n, 4): each city's predecessor and successor in the first parent, then in the second."""
     n = len(first)
@@ -29,7 +30,7 @@ def _parent_neighbours(first, second):
     return adjacent
 
 
-@njit(cache=True)
+@cached_kernel
 def _nearest_unvisited(current, dist, visited):
     best, best_d = -1, np.inf
     for y in range(len(visited)):
@@ -38,7 +39,7 @@ def _nearest_unvisited(current, dist, visited):
     return best
 
 
-@njit(cache=True)
+@cached_kernel
 def edge_crossover(first, second, weight, dist, neighbours, start):
     """A child tour (int64 permutation) of the two parents, built from city ``start`` (see the module doc)."""
     n = len(first)

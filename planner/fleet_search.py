@@ -32,14 +32,14 @@ the local search; simulated annealing on makespan + total_weight x total picks w
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from planner.sortie_search import EPS, apply_relocate, copy_solution, join_routes, refresh, restore, ruin
+from uavcore.kernel_cache import cached_kernel
 
 # ----- times and the lexicographic score
 
 
-@njit(cache=True)
+@cached_kernel
 def route_time(r, rlen, pref, inv_speed, fixed):
     """T_r from the prefix sums; 0 for an idle vehicle."""
     end = rlen[r] - 1
@@ -48,7 +48,7 @@ def route_time(r, rlen, pref, inv_speed, fixed):
     return fixed[r] + pref[0, r, end] * inv_speed[r] + pref[2, r, end]
 
 
-@njit(cache=True)
+@cached_kernel
 def _after_move(ra, ta, rb, tb, times, score):
     """(makespan, total) once route ra takes ta and rb takes tb (rb == ra for a change within one route)."""
     total = score[1] + ta - times[ra]
@@ -63,12 +63,12 @@ def _after_move(ra, ta, rb, tb, times, score):
     return top, total
 
 
-@njit(cache=True)
+@cached_kernel
 def _improves(makespan, total, score):
     return makespan < score[0] - EPS or (makespan <= score[0] and total < score[1] - EPS)
 
 
-@njit(cache=True)
+@cached_kernel
 def _changed(r, sol, D, W):
     """Route r was rewritten: its prefix sums, positions and change stamp."""
     routes, rlen, info, route_of, pos, pref, stamp = sol[0], sol[1], sol[2], sol[3], sol[4], sol[5], sol[6]
@@ -77,7 +77,7 @@ def _changed(r, sol, D, W):
     stamp[r] = info[1]
 
 
-@njit(cache=True)
+@cached_kernel
 def update_score(sol, inv_speed, fixed):
     """Every route's time and the score, from the prefix sums; a route that became the longest is marked
     changed (the moves that shorten it were priced as if it were not the longest)."""
@@ -96,7 +96,7 @@ def update_score(sol, inv_speed, fixed):
 # ----- local search moves (D symmetric: a stretch costs the same either way round)
 
 
-@njit(cache=True)
+@cached_kernel
 def _try_relocate(u, rv, after, prob, sol, buf):
     """Relocate the stretch of 1..3 buoys starting at u to just after position ``after`` of route rv, either
     way round; the first improving one is applied."""
@@ -136,7 +136,7 @@ def _try_relocate(u, rv, after, prob, sol, buf):
     return False
 
 
-@njit(cache=True)
+@cached_kernel
 def _try_swap(u, v, prob, sol):
     """Exchange buoys u and v of two different routes."""
     D, dwell, inv_speed = prob[0], prob[2], prob[3]
@@ -157,7 +157,7 @@ def _try_swap(u, v, prob, sol):
     return True
 
 
-@njit(cache=True)
+@cached_kernel
 def _joined_time(ra, i, rb, j, prob, sol):
     """Time of route ra's head (positions 0..i) followed by route rb's tail (its buoys after position j),
     flown back to ra's depot; 0 when that holds no buoy."""
@@ -177,7 +177,7 @@ def _joined_time(ra, i, rb, j, prob, sol):
     return fixed[ra] + length * inv_speed[ra] + dwell
 
 
-@njit(cache=True)
+@cached_kernel
 def _try_two_opt_star(ru, i, rv, j, prob, sol, buf):
     """2-opt*: route ru keeps its positions 0..i and takes rv's buoys after position j, rv keeps 0..j and takes
     ru's buoys after i; each flies home to its own depot."""
@@ -202,7 +202,7 @@ def _try_two_opt_star(ru, i, rv, j, prob, sol, buf):
     return True
 
 
-@njit(cache=True)
+@cached_kernel
 def _try_reverse(r, s, t, prob, sol):
     """2-opt within route r: reverse positions s..t (1 <= s < t <= rlen - 2)."""
     D, inv_speed = prob[0], prob[3]
@@ -223,7 +223,7 @@ def _try_reverse(r, s, t, prob, sol):
     return True
 
 
-@njit(cache=True)
+@cached_kernel
 def _try_pair(u, v, prob, sol, buf):
     """The first improving move around the pair of buoys (u, v), applied; whether there was one."""
     route_of, pos = sol[3], sol[4]
@@ -242,7 +242,7 @@ def _try_pair(u, v, prob, sol, buf):
     return _try_reverse(ru, lo + 1, hi, prob, sol) or _try_reverse(ru, lo, hi - 1, prob, sol)
 
 
-@njit(cache=True)
+@cached_kernel
 def _unload_longest(prob, sol, buf):
     """The best relocation of one buoy of the longest route to any place of any other route, applied when it
     improves; whether it did."""
@@ -272,7 +272,7 @@ def _unload_longest(prob, sol, buf):
     return True
 
 
-@njit(cache=True)
+@cached_kernel
 def local_search(prob, buoys, neigh, sol, buf):
     """First-improvement local search to a local optimum of every move, visiting buoys in random order."""
     rlen, info, route_of, stamp, tested = sol[1], sol[2], sol[3], sol[6], sol[7]
@@ -308,7 +308,7 @@ def local_search(prob, buoys, neigh, sol, buf):
 # ----- ruin and recreate
 
 
-@njit(cache=True)
+@cached_kernel
 def _recreate(count, removed, is_removed, blink, prob, sol):
     """Greedy insertion with blinks (SISR Section 4.2, min-max form): buoys in random order, or farthest /
     closest to their nearest depot first; each where it leaves the least makespan, then the least added time."""
@@ -355,7 +355,7 @@ def _recreate(count, removed, is_removed, blink, prob, sol):
     update_score(sol, inv_speed, fixed)
 
 
-@njit(cache=True)
+@cached_kernel
 def search(prob, buoys, neigh, adj, sol, buf, cur, best, costs, iterations, temp_start, temp_end, search_params):
     """``iterations`` rounds of ruin, recreate, local search and simulated-annealing acceptance on
     makespan + total_weight x total (accept when below the current value - T ln U; T falls geometrically from

@@ -20,12 +20,13 @@ optimum (makespan, then total) over all cuts of the order. Both passes take O(K 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from uavcore.kernel_cache import cached_kernel
 
 TOLERANCE = 1e-9  # relative: a stretch "within the makespan" allows this much rounding
 
 
-@njit(cache=True)
+@cached_kernel
 def _stretch_time(k, i, j, order, D, path, dwell_sum, depot, inv_speed, fixed):
     """T_k of the stretch order[i..j-1] (0-based, j exclusive, i < j)."""
     first, last = order[i], order[j - 1]
@@ -33,7 +34,7 @@ def _stretch_time(k, i, j, order, D, path, dwell_sum, depot, inv_speed, fixed):
     return fixed[k] + length * inv_speed[k] + dwell_sum[j] - dwell_sum[i]
 
 
-@njit(cache=True)
+@cached_kernel
 def split_kernel(order, D, dwell, depot, inv_speed, fixed):
     """Both passes of the recursion; returns (makespan, total, start) with start[k] the index in order where
     vehicle k's stretch begins (its stretch is order[start[k]:start[k + 1]], start[K] = m)."""

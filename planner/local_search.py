@@ -12,7 +12,8 @@ All kernels are compiled on first use and cached on disk (``cache=True``); ``war
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from uavcore.kernel_cache import cached_kernel
 
 _EPS = 1e-9  # improvements smaller than this are rounding noise, not progress
 
@@ -26,7 +27,7 @@ def neighbour_lists(dist: np.ndarray, k: int) -> np.ndarray:
     return np.ascontiguousarray(nearest, dtype=np.int64)
 
 
-@njit(cache=True)
+@cached_kernel
 def tour_length(tour, dist):
     """Length of the closed tour."""
     n = len(tour)
@@ -36,7 +37,7 @@ def tour_length(tour, dist):
     return total
 
 
-@njit(cache=True)
+@cached_kernel
 def _reverse(tour, position, i, j):
     """Reverse the cyclic stretch of positions i..j; reverses the complement instead when that is shorter
     (the same cycle, read the other way round)."""
@@ -53,7 +54,7 @@ def _reverse(tour, position, i, j):
         j = (j - 1) % n
 
 
-@njit(cache=True)
+@cached_kernel
 def _move_segment(tour, position, start, k, target, reverse):
     """Or-opt move: take the k cities at positions start..start+k-1 and reinsert them between the city at
     position ``target`` and its successor (target outside the segment), optionally reversed. Shifts the
@@ -83,7 +84,7 @@ def _move_segment(tour, position, start, k, target, reverse):
         position[seg[q]] = (base + q) % n
 
 
-@njit(cache=True)
+@cached_kernel
 def _push(queue, queued, head_tail, city):
     """Append a city to the circular work queue unless it is already queued."""
     if not queued[city]:
@@ -93,7 +94,7 @@ def _push(queue, queued, head_tail, city):
         queued[city] = True
 
 
-@njit(cache=True)
+@cached_kernel
 def _improve_city(a, tour, position, dist, neighbours, queue, queued, head_tail):
     """Try one improving 2-opt or Or-opt move around city a; apply the first found. Returns the gain."""
     n = len(tour)
@@ -161,7 +162,7 @@ def _improve_city(a, tour, position, dist, neighbours, queue, queued, head_tail)
     return 0.0
 
 
-@njit(cache=True)
+@cached_kernel
 def _local_search_queue(tour, position, dist, neighbours, queue, queued, head_tail):
     """Drain the work queue: each queued city is tried until it yields no improving move."""
     n = len(tour)
@@ -177,7 +178,7 @@ def _local_search_queue(tour, position, dist, neighbours, queue, queued, head_ta
     return total_gain
 
 
-@njit(cache=True)
+@cached_kernel
 def local_search(tour, dist, neighbours):
     """2-opt + Or-opt to a local optimum, in place. Returns the tour length."""
     n = len(tour)
@@ -197,7 +198,7 @@ def local_search(tour, dist, neighbours):
     return tour_length(tour, dist)
 
 
-@njit(cache=True)
+@cached_kernel
 def _double_bridge(tour, position, max_segment):
     """Segment-local double bridge: A B C D -> A C B D with B and C short stretches at a random place.
     Returns where B started and the two stretches' lengths (the changed edges sit around those cuts)."""
@@ -216,7 +217,7 @@ def _double_bridge(tour, position, max_segment):
     return start, len_b, len_c
 
 
-@njit(cache=True)
+@cached_kernel
 def iterated_local_search(tour, dist, neighbours, n_kicks, max_segment, seed):
     """Iterated local search: double-bridge kick, local repair, keep the result unless it is longer.
 

@@ -28,7 +28,8 @@ random buoy, reinsert each removed buoy at its cheapest feasible place (skipping
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from uavcore.kernel_cache import cached_kernel
 
 EPS = 1e-7  # improvements smaller than this (s or m) are rounding noise of the prefix sums: no move cycles
 
@@ -36,7 +37,7 @@ EPS = 1e-7  # improvements smaller than this (s or m) are rounding noise of the 
 # ----- the solution's bookkeeping
 
 
-@njit(cache=True)
+@cached_kernel
 def refresh(r, routes, rlen, route_of, pos, pref, C, E):
     """Recompute route r's prefix sums and where its buoys are (after any change to it)."""
     L = rlen[r]
@@ -55,13 +56,13 @@ def refresh(r, routes, rlen, route_of, pos, pref, C, E):
             pref[3, r, k + 1] = pref[3, r, k] + E[nxt, node]
 
 
-@njit(cache=True)
+@cached_kernel
 def _touch(r, stamp, info):
     info[1] += 1
     stamp[r] = info[1]
 
 
-@njit(cache=True)
+@cached_kernel
 def _drop_route(r, routes, rlen, info, route_of, pos, pref, stamp, C, E):
     """Remove the (empty) route in slot r: the last used slot moves into it."""
     last = info[0] - 1
@@ -74,14 +75,14 @@ def _drop_route(r, routes, rlen, info, route_of, pos, pref, stamp, C, E):
     info[0] = last
 
 
-@njit(cache=True)
+@cached_kernel
 def _drop_empty_routes(routes, rlen, info, route_of, pos, pref, stamp, C, E):
     for r in range(info[0] - 1, -1, -1):
         if rlen[r] == 2:
             _drop_route(r, routes, rlen, info, route_of, pos, pref, stamp, C, E)
 
 
-@njit(cache=True)
+@cached_kernel
 def total_cost(pref, rlen, info, fixed):
     """Objective of the solution: every route's arcs plus the fixed part per route."""
     total = 0.0
@@ -90,7 +91,7 @@ def total_cost(pref, rlen, info, fixed):
     return total
 
 
-@njit(cache=True)
+@cached_kernel
 def copy_solution(src_routes, src_rlen, src_info, dst_routes, dst_rlen, dst_info):
     """Copy the routes in use (O(n)), e.g. the working solution into the current or the best one."""
     for r in range(src_info[0]):
@@ -101,7 +102,7 @@ def copy_solution(src_routes, src_rlen, src_info, dst_routes, dst_rlen, dst_info
     dst_info[0] = src_info[0]
 
 
-@njit(cache=True)
+@cached_kernel
 def restore(src_routes, src_rlen, src_info, routes, rlen, info, route_of, pos, pref, stamp, C, E):
     """Make the working solution equal to src again; only the routes that differ are rewritten (and marked
     changed for the local search's memory)."""
@@ -125,7 +126,7 @@ def restore(src_routes, src_rlen, src_info, routes, rlen, info, route_of, pos, p
 # ----- local search moves
 
 
-@njit(cache=True)
+@cached_kernel
 def apply_relocate(ru, start, length, rv, after, rev, routes, rlen, info, route_of, pos, pref, stamp, buf, C, E):
     """Move the stretch routes[ru, start:start+length] to just after position ``after`` of route rv (a route
     left empty stays in its slot: the caller drops it, or keeps it as an idle vehicle of planner.fleet)."""
@@ -157,7 +158,7 @@ def apply_relocate(ru, start, length, rv, after, rev, routes, rlen, info, route_
         _touch(ru, stamp, info)
 
 
-@njit(cache=True)
+@cached_kernel
 def _try_relocate(u, v, C, E, fixed, cap, routes, rlen, info, route_of, pos, pref, stamp, buf):
     """Relocate the stretch of 1..3 buoys starting at u to just before or after v, either way round."""
     ru, iu, rv, iv = route_of[u], pos[u], route_of[v], pos[v]
@@ -205,7 +206,7 @@ def _try_relocate(u, v, C, E, fixed, cap, routes, rlen, info, route_of, pos, pre
     return False
 
 
-@njit(cache=True)
+@cached_kernel
 def _try_swap(u, v, C, E, cap, routes, rlen, info, route_of, pos, pref, stamp):
     """Exchange buoys u and v of two different routes."""
     ru, iu, rv, iv = route_of[u], pos[u], route_of[v], pos[v]
@@ -228,7 +229,7 @@ def _try_swap(u, v, C, E, cap, routes, rlen, info, route_of, pos, pref, stamp):
     return True
 
 
-@njit(cache=True)
+@cached_kernel
 def join_routes(out, routes, head_route, head_end, tail_route, tail_start, tail_end):
     """out = routes[head_route, 0..head_end] followed by routes[tail_route, tail_start..tail_end]; its length."""
     k = 0
@@ -241,7 +242,7 @@ def join_routes(out, routes, head_route, head_end, tail_route, tail_start, tail_
     return k
 
 
-@njit(cache=True)
+@cached_kernel
 def _try_two_opt_star(ru, i, rv, j, C, E, fixed, cap, routes, rlen, info, route_of, pos, pref, stamp, buf):
     """2-opt*: route ru keeps its positions 0..i and takes rv's tail after j; rv keeps 0..j and takes ru's
     tail after i (no stretch is reversed, so the asymmetric costs need only the forward prefix sums)."""
@@ -273,7 +274,7 @@ def _try_two_opt_star(ru, i, rv, j, C, E, fixed, cap, routes, rlen, info, route_
     return True
 
 
-@njit(cache=True)
+@cached_kernel
 def _try_reverse(r, s, t, C, E, cap, routes, rlen, info, route_of, pos, pref, stamp):
     """2-opt within route r: reverse positions s..t (1 <= s < t <= rlen - 2), priced with the backward sums."""
     if s < 1 or t <= s or t > rlen[r] - 2:
@@ -294,7 +295,7 @@ def _try_reverse(r, s, t, C, E, cap, routes, rlen, info, route_of, pos, pref, st
     return True
 
 
-@njit(cache=True)
+@cached_kernel
 def _try_pair(u, v, C, E, fixed, cap, routes, rlen, info, route_of, pos, pref, stamp, buf):
     """The first improving feasible move around the pair (u, v), applied; whether there was one."""
     if _try_relocate(u, v, C, E, fixed, cap, routes, rlen, info, route_of, pos, pref, stamp, buf):
@@ -316,7 +317,7 @@ def _try_pair(u, v, C, E, fixed, cap, routes, rlen, info, route_of, pos, pref, s
     return _try_reverse(ru, lo, hi - 1, C, E, cap, routes, rlen, info, route_of, pos, pref, stamp)
 
 
-@njit(cache=True)
+@cached_kernel
 def local_search(C, E, fixed, cap, neigh, routes, rlen, info, route_of, pos, pref, stamp, tested, buf):
     """First-improvement local search to a local optimum of every move, visiting buoys in random order."""
     n = C.shape[0]
@@ -345,7 +346,7 @@ def local_search(C, E, fixed, cap, neigh, routes, rlen, info, route_of, pos, pre
 # ----- ruin and recreate (SISR)
 
 
-@njit(cache=True)
+@cached_kernel
 def ruin(buoys, adj, mean_removed, max_string, drop_empty, routes, rlen, info, route_of, pos, pref, stamp, removed,
          is_removed, C, E):  # fmt: skip
     """SISR's string removal around a random seed buoy (Christiaens & Vanden Berghe 2020, Section 4.1): at most
@@ -389,7 +390,7 @@ def ruin(buoys, adj, mean_removed, max_string, drop_empty, routes, rlen, info, r
     return count
 
 
-@njit(cache=True)
+@cached_kernel
 def _recreate(count, blink, fixed, cap, routes, rlen, info, route_of, pos, pref, stamp, removed, is_removed, C, E):
     """Greedy insertion with blinks (SISR Section 4.2): buoys in random order, or farthest / closest first."""
     draw = np.random.randint(7)  # SISR's weights: random 4, (demand 4: no loads here), far 2, close 1
@@ -432,13 +433,13 @@ def _recreate(count, blink, fixed, cap, routes, rlen, info, route_of, pos, pref,
         is_removed[c] = False
 
 
-@njit(cache=True)
+@cached_kernel
 def seed_rng(seed):
     """Seed numba's own generator (separate from numpy's in Python)."""
     np.random.seed(seed)
 
 
-@njit(cache=True)
+@cached_kernel
 def search(
     C, E, fixed, cap, neigh, adj,
     routes, rlen, info, route_of, pos, pref, stamp, tested, buf,

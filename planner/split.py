@@ -18,10 +18,11 @@ The matrices here have each node's service (dwell) folded into the arcs that arr
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from uavcore.kernel_cache import cached_kernel
 
 
-@njit(cache=True)
+@cached_kernel
 def split_kernel(tour, C, E, fixed_cost, capacity):
     """Bellman's split of ``tour`` (buoys only, no depot): returns (V, pred) with V[j] the best cost of the
     first j buoys and pred[j] the index where the last sortie of that best split starts. V[m] = inf when no

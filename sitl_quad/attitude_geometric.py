@@ -34,11 +34,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from sitl_quad.inner_loop import fly_attitude_step, measure
 from sitl_quad.rigid_body import STATE_SIZE
 from uavcore.airframe import Airframe, ModelParameterError
+from uavcore.kernel_cache import cached_kernel
 from uavcore.quaternion_kernels import error_quaternion
 from uavcore.state import AttitudeTarget, VehicleState
 
@@ -88,7 +88,7 @@ class GeometricAttitudeGains:
         return np.array([*self.k_r, *self.k_omega, *self.inertia, *self.torque_max], dtype=np.float64)
 
 
-@njit(cache=True)
+@cached_kernel
 def relative_rotation(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     """R^T R_d as a 3x3 matrix: the matrix of q^-1 qd (the target's axes in the current body axes)."""
     ew, ex, ey, ez = error_quaternion((q[0], q[1], q[2], q[3]), (qd[0], qd[1], qd[2], qd[3]))
@@ -107,7 +107,7 @@ def relative_rotation(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     return m
 
 
-@njit(cache=True)
+@cached_kernel
 def attitude_error(q: np.ndarray, qd: np.ndarray) -> tuple[float, float, float]:
     """e_R of eq. (10), 1/2 (R_d^T R - R^T R_d)^vee, in body axes (rad for small errors; sin of the angle times
     the axis in general). With M = R^T R_d, R_d^T R - R^T R_d = M^T - M, and vee(S) = (S_32, S_13, S_21)."""
@@ -115,7 +115,7 @@ def attitude_error(q: np.ndarray, qd: np.ndarray) -> tuple[float, float, float]:
     return 0.5 * (m[1, 2] - m[2, 1]), 0.5 * (m[2, 0] - m[0, 2]), 0.5 * (m[0, 1] - m[1, 0])
 
 
-@njit(cache=True)
+@cached_kernel
 def geometric_attitude_torque(
     gains: np.ndarray, q: np.ndarray, rates: np.ndarray, qd: np.ndarray, feedforward: np.ndarray, torque: np.ndarray
 ) -> None:
@@ -144,7 +144,7 @@ def geometric_attitude_torque(
         torque[i] = min(max(u, -limit), limit)
 
 
-@njit(cache=True)
+@cached_kernel
 def geometric_inner_loop(
     physics: tuple,
     sensor_noise: np.ndarray,

@@ -21,7 +21,6 @@ from __future__ import annotations
 from functools import partial
 
 import numpy as np
-from numba import njit
 
 from adrc_offboard.adrc_attitude import AdrcAttitudeController, adrc_attitude_torque
 from adrc_offboard.design import Design, adrc_attitude_gains, geometric_gains, load_design
@@ -31,9 +30,10 @@ from sitl_quad.inner_loop import fly_attitude_step, measure
 from sitl_quad.rigid_body import STATE_SIZE
 from sitl_quad.vehicle import AttitudeLoopFactory, builtin_pid_loop
 from uavcore.control import AttitudeController
+from uavcore.kernel_cache import cached_kernel
 
 
-@njit(cache=True)
+@cached_kernel
 def adrc_inner_loop(
     physics: tuple,
     sensor_noise: np.ndarray,

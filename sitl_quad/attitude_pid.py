@@ -22,9 +22,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from uavcore.airframe import ModelParameterError
+from uavcore.kernel_cache import cached_kernel
 from uavcore.quaternion_kernels import Quat, Vec3, quat_inverse, quat_product, rotate_vector
 from uavcore.state import AttitudeTarget, VehicleState
 
@@ -103,7 +103,7 @@ PID_STATE_SIZE = 13
 I_FADE_RATE = math.radians(400.0)  # rad/s of rate error at which PX4's integrator gain has faded to zero
 
 
-@njit(cache=True)
+@cached_kernel
 def shortest_rotation(v1: Vec3, v2: Vec3) -> Quat:
     """Unit quaternion turning unit vector v1 onto unit vector v2 by the shortest arc (PX4's Quatf(v1, v2))."""
     cx, cy, cz = v1[1] * v2[2] - v1[2] * v2[1], v1[2] * v2[0] - v1[0] * v2[2], v1[0] * v2[1] - v1[1] * v2[0]
@@ -126,7 +126,7 @@ def shortest_rotation(v1: Vec3, v2: Vec3) -> Quat:
     return w / n, cx / n, cy / n, cz / n
 
 
-@njit(cache=True)
+@cached_kernel
 def attitude_rate_setpoint_kernel(gains: np.ndarray, q: np.ndarray, qd: np.ndarray, feedforward: np.ndarray) -> Vec3:
     """Body-rate setpoint (rad/s) from attitude q toward qd plus the feed-forward body rates, PX4's
     AttitudeControl::update."""
@@ -158,7 +158,7 @@ def attitude_rate_setpoint_kernel(gains: np.ndarray, q: np.ndarray, qd: np.ndarr
     )
 
 
-@njit(cache=True)
+@cached_kernel
 def pid_attitude_torque(
     gains: np.ndarray,
     pid_state: np.ndarray,

@@ -28,29 +28,29 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from sitl_quad.attitude_pid import pid_attitude_torque
 from sitl_quad.rigid_body import STATE_SIZE, advance
 from sitl_quad.rotors import mix
 from sitl_quad.sensors import add_sensor_noise
 from uavcore.airframe import P_OMEGA_MAX, P_OMEGA_MIN
+from uavcore.kernel_cache import cached_kernel
 
 
-@njit(cache=True)
+@cached_kernel
 def disturbance_samples_due(first: int, steps: int, steps_per_sample: int) -> int:
     """How many new disturbance samples steps physics steps from step number first take: the multiples of
     steps_per_sample in [first, first + steps)."""
     return (first + steps - 1) // steps_per_sample - (first - 1) // steps_per_sample
 
 
-@njit(cache=True)
+@cached_kernel
 def measure(physics: tuple, sensor_noise: np.ndarray, k: int, measured: np.ndarray) -> None:
     """Attitude step k's measurement of the body (its row of sensor noise added) into measured."""
     add_sensor_noise(physics[0], sensor_noise[k], measured)
 
 
-@njit(cache=True)
+@cached_kernel
 def fly_attitude_step(
     physics: tuple,
     k: int,
@@ -99,7 +99,7 @@ def fly_attitude_step(
     return True, on_ground
 
 
-@njit(cache=True)
+@cached_kernel
 def pid_inner_loop(
     physics: tuple,
     sensor_noise: np.ndarray,

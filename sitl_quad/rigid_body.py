@@ -27,7 +27,6 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from numba import njit
 
 from sitl_quad.rotors import rotor_wrench
 from sitl_quad.wind import mean_and_gust, wind_velocity
@@ -46,6 +45,7 @@ from uavcore.airframe import (
     P_OMEGA_MIN,
     Airframe,
 )
+from uavcore.kernel_cache import cached_kernel
 
 STATE_SIZE = 17
 P_ROTOR_HEALTH = len(Airframe.field_names())  # physics_params(): the four rotors' health after the airframe
@@ -58,7 +58,7 @@ POS, VEL, QUAT, RATES, ROTORS = slice(0, 3), slice(3, 6), slice(6, 10), slice(10
 INFO_SIZE = 18
 
 
-@njit(cache=True)
+@cached_kernel
 def body_to_world(q: np.ndarray, vx: float, vy: float, vz: float) -> tuple[float, float, float]:
     w, x, y, z = q[0], q[1], q[2], q[3]
     return (
@@ -68,7 +68,7 @@ def body_to_world(q: np.ndarray, vx: float, vy: float, vz: float) -> tuple[float
     )
 
 
-@njit(cache=True)
+@cached_kernel
 def world_to_body(q: np.ndarray, vx: float, vy: float, vz: float) -> tuple[float, float, float]:
     w, x, y, z = q[0], q[1], q[2], q[3]
     return (
@@ -78,7 +78,7 @@ def world_to_body(q: np.ndarray, vx: float, vy: float, vz: float) -> tuple[float
     )
 
 
-@njit(cache=True)
+@cached_kernel
 def drag_acceleration(state: np.ndarray, params: np.ndarray, wind: np.ndarray) -> tuple[float, float, float]:
     """World-frame acceleration (m/s^2) of the aerodynamic drag on the air-relative velocity."""
     q = state[6:10]
@@ -93,7 +93,7 @@ def drag_acceleration(state: np.ndarray, params: np.ndarray, wind: np.ndarray) -
     return ax / m, ay / m, az / m
 
 
-@njit(cache=True)
+@cached_kernel
 def derivative(
     state: np.ndarray,
     omega_cmd: np.ndarray,
@@ -139,7 +139,7 @@ def physics_params(airframe: Airframe, rotor_health: Sequence[float] = (1.0, 1.0
     return np.concatenate([airframe.as_array(), np.asarray(rotor_health, dtype=np.float64)])
 
 
-@njit(cache=True)
+@cached_kernel
 def rk4_step(
     state: np.ndarray,
     omega_cmd: np.ndarray,
@@ -161,7 +161,7 @@ def rk4_step(
         state[i] /= norm
 
 
-@njit(cache=True)
+@cached_kernel
 def ground_contact(state: np.ndarray) -> bool:
     """Put the body on the ground if it ended at or below z = 0; True when it is on the ground."""
     if state[2] < 0.0:
@@ -177,7 +177,7 @@ def ground_contact(state: np.ndarray) -> bool:
     return True
 
 
-@njit(cache=True)
+@cached_kernel
 def advance(
     state: np.ndarray,
     omega_cmd: np.ndarray,

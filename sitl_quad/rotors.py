@@ -20,12 +20,12 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from numba import njit
 
 from uavcore.airframe import P_ARM, P_KF, P_KL, P_OMEGA_MAX, P_OMEGA_MIN, Airframe, ModelParameterError
+from uavcore.kernel_cache import cached_kernel
 
 
-@njit(cache=True)
+@cached_kernel
 def rotor_wrench(omega: np.ndarray, params: np.ndarray) -> tuple[float, float, float, float]:
     """Collective thrust U1 (N, along body -z) and body torques (N m) of the rotor speeds, eq. (1) and (3)."""
     s1, s2, s3, s4 = omega[0] ** 2, omega[1] ** 2, omega[2] ** 2, omega[3] ** 2
@@ -37,7 +37,7 @@ def rotor_wrench(omega: np.ndarray, params: np.ndarray) -> tuple[float, float, f
     return thrust, roll, pitch, yaw
 
 
-@njit(cache=True)
+@cached_kernel
 def mix(thrust_n: float, tx: float, ty: float, tz: float, params: np.ndarray, omega: np.ndarray) -> bool:
     """Write into omega the rotor speeds (rad/s) for collective thrust (N) and body torque (N m): the
     inverse of eq. (3) with Mixer's saturation priorities. Returns whether the request had to be changed."""

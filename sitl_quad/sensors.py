@@ -24,10 +24,10 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from sitl_quad.normal_stream import NormalStream, Zeros
 from uavcore.airframe import ModelParameterError
+from uavcore.kernel_cache import cached_kernel
 from uavcore.quaternion_kernels import quat_product
 from uavcore.state import VehicleState
 
@@ -55,7 +55,7 @@ class SensorNoise:
         return cls(0.0, 0.0, 0.0, 0.0)
 
 
-@njit(cache=True)
+@cached_kernel
 def add_sensor_noise(truth: np.ndarray, noise: np.ndarray, measured: np.ndarray) -> None:
     """Write into measured the flat state truth (rigid_body layout) with noise added. noise holds position
     [0:3], velocity [3:6], the attitude error as a body rotation vector [6:9] and gyro [9:12]; rotor speeds

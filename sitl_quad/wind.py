@@ -35,10 +35,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from sitl_quad.normal_stream import NormalStream, Zeros
 from uavcore.airframe import ModelParameterError
+from uavcore.kernel_cache import cached_kernel
 
 FEET = 0.3048
 MIN_TURBULENCE_AIRSPEED = 1.0  # m/s
@@ -133,7 +133,7 @@ def _blowing_toward(direction_from_deg: float) -> tuple[float, float]:
     return -math.cos(angle), -math.sin(angle)
 
 
-@njit(cache=True)
+@cached_kernel
 def _regularized_gamma_p(k: int, x: float) -> float:
     """P(k, x) = 1 - exp(-x) sum_{j<k} x^j / j!  for integer k >= 1, accurate also for tiny x."""
     if x > 1.0:
@@ -154,13 +154,13 @@ def _regularized_gamma_p(k: int, x: float) -> float:
     return math.exp(-x) * total
 
 
-@njit(cache=True)
+@cached_kernel
 def _first_order_step(state: np.ndarray, i: int, rate: float, dt: float, noise: float) -> None:
     """Exact step of x' = -a x + sqrt(2a) eta with unit stationary variance."""
     state[i] = math.exp(-rate * dt) * state[i] + math.sqrt(_regularized_gamma_p(1, 2.0 * rate * dt)) * noise
 
 
-@njit(cache=True)
+@cached_kernel
 def _second_order_step(state: np.ndarray, i: int, rate: float, dt: float, n1: float, n2: float) -> float:
     """Exact step of the Dryden v/w shaping filter a^2 (1 + sqrt(3) s / a) / (s + a)^2 driven by white noise.
 
@@ -183,7 +183,7 @@ def _second_order_step(state: np.ndarray, i: int, rate: float, dt: float, n1: fl
     return math.sqrt(3.0) * state[i] + (1.0 - math.sqrt(3.0)) * state[i + 1]
 
 
-@njit(cache=True)
+@cached_kernel
 def gust_speed(params: np.ndarray, t: float) -> float:
     """1-cosine gust magnitude at time t: rises over the rise time, holds, then falls back mirrored."""
     amplitude, rise = params[W_GUST_AMPLITUDE], params[W_GUST_RISE]
@@ -201,7 +201,7 @@ def gust_speed(params: np.ndarray, t: float) -> float:
     return 0.0
 
 
-@njit(cache=True)
+@cached_kernel
 def mean_and_gust(params: np.ndarray, t: float, out: np.ndarray) -> None:
     """Mean wind + gust (NED) into out: the part of the wind that is not turbulence."""
     gust = gust_speed(params, t)
@@ -219,7 +219,7 @@ def mean_and_gust(params: np.ndarray, t: float, out: np.ndarray) -> None:
         out[1] += (1.0 - frac) * params[base + 1] + frac * params[nxt + 1]
 
 
-@njit(cache=True)
+@cached_kernel
 def wind_velocity(
     params: np.ndarray,
     turbulence: np.ndarray,
@@ -252,7 +252,7 @@ def wind_velocity(
     out[2] += w
 
 
-@njit(cache=True)
+@cached_kernel
 def _wind_series(
     params: np.ndarray,
     turbulence: np.ndarray,

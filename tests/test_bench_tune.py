@@ -55,7 +55,10 @@ def test_the_bound_check_flags_a_best_point_on_a_bound() -> None:
     assert bound_check({"separation": high})["on_bound"] == {"separation": "high"}
 
 
+# Two campaigns, each starting a local Ray and its workers, which load the flight kernels: 110 s beside the rest of
+# the suite on 2 cores, 333 s beside it and two CPU burners (over the suite's 300 s default).
 @pytest.mark.slow
+@pytest.mark.timeout(900)
 def test_a_tiny_campaign_on_ray_is_resumed_after_an_interruption(tmp_path) -> None:
     out_dir, out = tmp_path / "tune", tmp_path / "tune.json"
     common = ["--families", "pid", "--batch", "1", "--train-seeds", "0", "--holdout-seeds", "100"]

@@ -10,5 +10,6 @@ It imports nothing of ours (an import-linter contract in pyproject.toml holds it
 - `control`   the controller contracts (Protocols) that the vehicle and the offboard process inject;
 - `light_character` navigation-light characters (chart text, IALA timing) and reading one from camera frames;
 - `buoy_world` the simulated world's buoys: IALA kind and look, charted and actual light, mooring swing, faults;
-- `mavlink`   the one MAVLink codec: dialect, framing/parsing of datagrams, signing, system/component ids.
+- `mavlink`   the one MAVLink codec: dialect, framing/parsing of datagrams, signing, system/component ids;
+- `kernel_cache` `cached_kernel`, numba's cached njit for every kernel, invalidated by what the kernel imports.
 """

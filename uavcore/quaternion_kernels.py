@@ -6,13 +6,13 @@ loops, where rotation's numpy helpers cannot be called. Same conventions: (w, x,
 
 from __future__ import annotations
 
-from numba import njit
+from uavcore.kernel_cache import cached_kernel
 
 Quat = tuple[float, float, float, float]
 Vec3 = tuple[float, float, float]
 
 
-@njit(cache=True)
+@cached_kernel
 def quat_product(a: Quat, b: Quat) -> Quat:
     aw, ax, ay, az = a
     bw, bx, by, bz = b
@@ -24,20 +24,20 @@ def quat_product(a: Quat, b: Quat) -> Quat:
     )
 
 
-@njit(cache=True)
+@cached_kernel
 def quat_inverse(q: Quat) -> Quat:
     """The conjugate, which is the inverse of a unit quaternion."""
     return (q[0], -q[1], -q[2], -q[3])
 
 
-@njit(cache=True)
+@cached_kernel
 def error_quaternion(q: Quat, qd: Quat) -> Quat:
     """q^-1 qd: the rotation from the current body q to the target body qd, in body axes (every attitude law's
     error starts here: the ADRC's tilt-first angles, the geometric law's R^T R_d)."""
     return quat_product(quat_inverse(q), qd)
 
 
-@njit(cache=True)
+@cached_kernel
 def rotate_vector(q: Quat, v: Vec3) -> Vec3:
     """Rotate the body vector v into the world frame by q."""
     w, x, y, z = q
