@@ -6,6 +6,7 @@ import math
 import pytest
 
 from gcs.domain.planning import FlightParams, make_plan, mission_items
+from gcs.domain.schemas import FenceZoneIn
 from gcs.reports import exports
 from planner.scenario import reference_scenario
 from uavcore.mission import MavCmd
@@ -96,3 +97,38 @@ def test_track_geojson_is_lon_lat_alt_and_skips_samples_without_fix():
     assert feature["type"] == "Feature" and feature["geometry"]["type"] == "LineString"
     assert feature["geometry"]["coordinates"] == [[2.0, 1.0, 5.0], [2.5, 1.5, 0.0]]
     assert feature["properties"] == {"mission": 3}
+
+
+def test_qgc_plan_carries_the_fence_and_rally_points_as_qgroundcontrol_writes_them(items):
+    keep_in = FenceZoneIn(kind="circle", inclusion=True, center={"lat": 38.92, "lon": 121.66}, radius_m=900.0)
+    keep_out = FenceZoneIn(
+        kind="polygon", inclusion=False,
+        vertices=[{"lat": 38.925, "lon": 121.665}, {"lat": 38.926, "lon": 121.665}, {"lat": 38.926, "lon": 121.667}],
+    )  # fmt: skip
+    rally = [[38.9215, 121.6635, 10.0]]
+    document = exports.qgc_plan(items, HOME, 10.0, 5.0, [keep_in, keep_out], rally)
+    assert document["geoFence"] == {
+        "version": 2,
+        "circles": [{"version": 1, "inclusion": True, "circle": {"center": [38.92, 121.66], "radius": 900.0}}],
+        "polygons": [{"version": 1, "inclusion": False, "polygon": [[38.925, 121.665], [38.926, 121.665],
+                                                                    [38.926, 121.667]]}],
+    }  # fmt: skip
+    assert document["rallyPoints"] == {"version": 2, "points": rally}
+    zones, points = exports.read_qgc_fence_and_rally(json.dumps(document))
+    assert zones == [keep_in, keep_out] and points == rally
+    bare = exports.qgc_plan(items, HOME, 10.0, 5.0)
+    assert exports.read_qgc_fence_and_rally(json.dumps(bare)) == ([], [])
+
+
+@pytest.mark.parametrize(
+    "plan",
+    [
+        {"geoFence": {"circles": [{"inclusion": True, "circle": {"center": [1.0], "radius": 5.0}}]}},
+        {"geoFence": {"polygons": [{"inclusion": True, "polygon": [[1.0, 2.0]]}]}},  # fewer than 3 vertices
+        {"rallyPoints": {"points": [[1.0, 2.0]]}},
+        {"rallyPoints": {"points": "x"}},
+    ],
+)
+def test_a_plan_whose_fence_or_rally_points_do_not_read_raises_a_typed_error(plan):
+    with pytest.raises(exports.MissionFileError, match=r"fence or rally points|rally point is"):
+        exports.read_qgc_fence_and_rally(json.dumps({"fileType": "Plan", **plan}))

@@ -22,6 +22,7 @@ from test_sitl_mavsdk import FIELDS, mavsdk_system, wait_until
 
 from bench.processes import free_udp_port
 from gcs.api.app import create_app
+from gcs.reports.exports import read_qgc_fence_and_rally
 from gcs.settings import Settings
 from uavcore.geodesy import DEFAULT_HOME, LocalFrame
 from uavcore.geofence import CircleZone, Geofence, PolygonZone
@@ -210,3 +211,14 @@ def test_zone_kinds_from_the_request_match_uavcore():
     )
     assert isinstance(fence.zones[0], PolygonZone) and not fence.zones[0].inclusion
     assert isinstance(fence.zones[1], CircleZone) and fence.zones[1].radius_m == 500.0
+
+
+def test_a_missions_qgc_plan_carries_the_fence_and_rally_points_it_was_given(client):
+    keep_in = {"kind": "circle", "inclusion": True, "center": lat_lon(150, 0), "radius_m": 600.0}
+    rally = {**lat_lon(-20, 30), "alt_m": 15.0}
+    body = {"buoys": BUOYS, "start": False, "geofence": [keep_in, WALL], "rally_points": [rally]}
+    mission = client.post("/missions", json=body)
+    assert mission.status_code == 201, mission.text
+    zones, points = read_qgc_fence_and_rally(client.get(f"/missions/{mission.json()['id']}/plan").text)
+    assert [zone.model_dump(mode="json", exclude_none=True) for zone in zones] == [keep_in, WALL]
+    assert points == [[rally["lat"], rally["lon"], rally["alt_m"]]]

@@ -18,7 +18,7 @@ import asyncio
 import contextlib
 import shutil
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +29,7 @@ from gcs.domain.ais import AisSourceOut, AtonsOut
 from gcs.domain.inspection import gather_fleet_inspections
 from gcs.domain.listing import CursorError, MissionFilter, decode_cursor
 from gcs.domain.planning import BuoyMark, FlightParams, Plan, fenced_legs, make_plan, mission_items, sorties_plan
-from gcs.domain.schemas import InspectionOut, MissionRequest, OperatorCommand, PlanRequest
+from gcs.domain.schemas import FenceZoneIn, InspectionOut, MissionRequest, OperatorCommand, PlanRequest
 from gcs.domain.status import TERMINAL, MissionStatus
 from gcs.missions.energy_planning import battery_plan, energy_plan
 from gcs.missions.fleet_missions import FleetCoordinator, fleet_vehicles, may_depart, shares_progress
@@ -101,6 +101,17 @@ def _uploaded_lists(request: PlanRequest) -> dict[str, Any]:
 
 # a fleet mission's part as stored: its flight (at its layer), its plan (its share), its vehicle's system id
 FleetPart = tuple[FlightParams, Plan, int]
+
+
+@dataclass(frozen=True)
+class MissionFile:
+    """What a mission file (QGC .plan, WPL 110) is written from."""
+
+    items: list[MissionItem]
+    home: tuple[float, float, float]
+    flight: FlightParams
+    fence: list[FenceZoneIn]
+    rally_points: list[list[float]]
 
 
 class MissionNotFoundError(KeyError):
@@ -543,11 +554,15 @@ class MissionService:
         await self._version(mission_id)  # 404 for no such mission: the one-row index lookup, not the whole record
         return await self._storage.telemetry(mission_id, limit)
 
-    async def mission_file(self, mission_id: int) -> tuple[list[MissionItem], tuple[float, float, float], FlightParams]:
-        """What a mission file needs: the mission's items, its home (the depot, on the ground) and flight."""
+    async def mission_file(self, mission_id: int) -> MissionFile:
+        """What a mission file needs: the mission's items, its home (the depot, on the ground), its flight, and the
+        fence and rally points uploaded with it (empty where the vehicle kept its own)."""
         record = await self.get(mission_id)
         home = (record.plan.depot[0], record.plan.depot[1], 0.0)
-        return mission_items(record.plan, record.flight), home, record.flight
+        return MissionFile(
+            mission_items(record.plan, record.flight), home, record.flight,
+            record.plan.fence or [], record.plan.rally_points or [],
+        )  # fmt: skip
 
     # ----- inspections
     async def inspections(self, mission_id: int) -> list[InspectionOut]:

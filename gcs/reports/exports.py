@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from gcs.domain.register import BuoyOut
-from gcs.domain.schemas import InspectionOut
+from gcs.domain.schemas import FenceZoneIn, InspectionOut
 from uavcore.mission import MavCmd, MavFrame, MissionItem
 
 FIRMWARE_PX4 = 12
@@ -53,9 +53,16 @@ def _null_nan(value: float) -> float | None:
 
 
 def qgc_plan(
-    items: Sequence[MissionItem], home: tuple[float, float, float], cruise_speed: float, hover_speed: float
+    items: Sequence[MissionItem],
+    home: tuple[float, float, float],
+    cruise_speed: float,
+    hover_speed: float,
+    fence: Sequence[FenceZoneIn] = (),
+    rally_points: Sequence[Sequence[float]] = (),
 ) -> dict[str, Any]:
-    """A QGroundControl .plan document (NaN parameters are written as null, as QGC does)."""
+    """A QGroundControl .plan document (NaN parameters are written as null, as QGC does), with the fence zones
+    and rally points ([lat, lon, altitude above home m]) uploaded with the mission, so a plan opened in
+    QGroundControl carries what the vehicle was given."""
     return {
         "fileType": "Plan",
         "version": 1,
@@ -79,9 +86,51 @@ def qgc_plan(
                 for item in items
             ],
         },
-        "geoFence": {"version": 2, "circles": [], "polygons": []},
-        "rallyPoints": {"version": 2, "points": []},
+        "geoFence": {
+            "version": 2,
+            "circles": [_qgc_circle(zone) for zone in fence if zone.kind == "circle"],
+            "polygons": [_qgc_polygon(zone) for zone in fence if zone.kind == "polygon"],
+        },
+        "rallyPoints": {"version": 2, "points": [[float(v) for v in point] for point in rally_points]},
     }
+
+
+def _qgc_circle(zone: FenceZoneIn) -> dict[str, Any]:
+    """QGroundControl's fence circle (QGCFenceCircle: version 1, inclusion, circle {center [lat, lon], radius})."""
+    assert zone.center is not None and zone.radius_m is not None  # FenceZoneIn's validator: a circle has both
+    circle = {"center": [zone.center.lat, zone.center.lon], "radius": zone.radius_m}
+    return {"version": 1, "inclusion": zone.inclusion, "circle": circle}
+
+
+def _qgc_polygon(zone: FenceZoneIn) -> dict[str, Any]:
+    """QGroundControl's fence polygon (QGCFencePolygon: version 1, inclusion, polygon [[lat, lon], ...])."""
+    assert zone.vertices is not None  # FenceZoneIn's validator: a polygon has its vertices
+    return {"version": 1, "inclusion": zone.inclusion, "polygon": [[v.lat, v.lon] for v in zone.vertices]}
+
+
+def read_qgc_fence_and_rally(text: str) -> tuple[list[FenceZoneIn], list[list[float]]]:
+    """The fence zones and rally points of a .plan file (none where it has no geoFence or rallyPoints)."""
+    try:
+        document = json.loads(text)
+        fence = document.get("geoFence") or {}
+        zones = [
+            FenceZoneIn(kind="circle", inclusion=bool(c["inclusion"]), radius_m=float(c["circle"]["radius"]),
+                        center={"lat": c["circle"]["center"][0], "lon": c["circle"]["center"][1]})
+            for c in fence.get("circles", [])
+        ]  # fmt: skip
+        zones += [
+            FenceZoneIn(kind="polygon", inclusion=bool(p["inclusion"]),
+                        vertices=[{"lat": lat, "lon": lon} for lat, lon in p["polygon"]])
+            for p in fence.get("polygons", [])
+        ]  # fmt: skip
+        points = [[float(v) for v in point] for point in (document.get("rallyPoints") or {}).get("points", [])]
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError, IndexError, AttributeError) as error:
+        raise MissionFileError(
+            f".plan: cannot read the fence or rally points ({type(error).__name__}: {error})"
+        ) from None
+    if any(len(point) != 3 for point in points):
+        raise MissionFileError(".plan: a rally point is [lat, lon, alt]")
+    return zones, points
 
 
 def _item_from_params(seq: int, frame: int, command: int, params: Sequence[float], autocontinue: int) -> MissionItem:

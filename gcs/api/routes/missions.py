@@ -252,15 +252,17 @@ async def get_track(mission_id: MissionId, service: ServiceDep) -> Response:
 
 @router.get("/missions/{mission_id}/plan", response_class=Response, responses=file_responses("application/json"))
 async def get_qgc_plan(mission_id: MissionId, service: ServiceDep) -> Response:
-    items, home, flight = await service.mission_file(mission_id)
-    document = exports.qgc_plan(items, home, cruise_speed=flight.speed_m_s, hover_speed=flight.speed_m_s)
+    file = await service.mission_file(mission_id)
+    speed = file.flight.speed_m_s
+    document = exports.qgc_plan(file.items, file.home, speed, speed, file.fence, file.rally_points)
     return download_response(json.dumps(document, indent=2), "application/json", f"mission-{mission_id}.plan")
 
 
 @router.get("/missions/{mission_id}/waypoints", response_class=Response, responses=file_responses("text/plain"))
 async def get_waypoints(mission_id: MissionId, service: ServiceDep) -> Response:
-    items, home, _ = await service.mission_file(mission_id)
-    return download_response(exports.waypoints_text(items, home), "text/plain", f"mission-{mission_id}.waypoints")
+    file = await service.mission_file(mission_id)  # WPL 110 holds the mission alone: no fence, no rally points
+    text = exports.waypoints_text(file.items, file.home)
+    return download_response(text, "text/plain", f"mission-{mission_id}.waypoints")
 
 
 @router.get(
