@@ -67,7 +67,10 @@ class AttitudeControllerKind(IntEnum):
 
 @dataclass(frozen=True)
 class FailsafeConfig:
-    offboard_loss_timeout_s: float = 0.5  # OFFB_LOSS_T, simulated seconds
+    # OFFB_LOSS_T, simulated seconds: PX4's COM_OF_LOSS_T default (commander's offboardCheck: no setpoint for
+    # that long and the offboard signal is lost). At 0.5 s a MAVSDK example's 20 Hz stream, stalled 0.51 s by a
+    # loaded machine, failed over where PX4 would have flown on.
+    offboard_loss_timeout_s: float = 1.0
     offboard_loss_action: int = FailsafeAction.HOLD  # OFFB_LOSS_ACT
     geofence_action: int = GeofenceAction.HOLD  # GF_ACTION
     geofence_max_horizontal_m: float = 0.0  # GF_MAX_HOR_DIST: horizontal distance from home, m (0: no limit)

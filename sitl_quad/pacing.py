@@ -9,7 +9,7 @@ Messages that reached the socket while the vehicle was behind were sent at wall 
 not reached yet. They belong to the simulated time their arrival names (`arrival_time`; the link reads the
 kernel's receive timestamp), not to the late tick that happens to read them: stamped at the late tick, a
 setpoint stream that never paused looks up to RESYNC_BEHIND_S older than it is once the sprint has passed, and
-the offboard-loss failsafe (OFFB_LOSS_T, 0.5 s) ended healthy offboard flights because of the simulator's own lag
+the offboard-loss failsafe (OFFB_LOSS_T, then 0.5 s) ended healthy offboard flights because of the simulator's own lag
 (MAVSDK's offboard_velocity_ned example in a test run beside two CPU burners). A real autopilot is never behind
 its own clock.
 """

@@ -114,7 +114,7 @@ def test_mavproxy_fetches_every_parameter_and_sets_an_int32_one(mavproxy):
     assert int(received.group(1)) == len(VEHICLE_PARAMETERS)
     proxy.type("param show OFFB_LOSS_T")
     shown = proxy.wait_for(r"OFFB_LOSS_T\s+(\S+)", timeout=WAIT_S)
-    assert float(shown.group(1)) == pytest.approx(0.5)
+    assert float(shown.group(1)) == pytest.approx(1.0)
     # MAVProxy reads the GEOFENCE health bit of SYS_STATUS: clear, it announces a breach of no fence.
     assert not any("fence breach" in line for line in proxy.transcript)
 

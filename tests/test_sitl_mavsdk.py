@@ -80,7 +80,7 @@ def same_item(a: MissionItem, b: MissionItem) -> bool:
 def test_mavsdk_reads_parameters_flies_a_mission_and_sees_it_land(system):
     param = Param(system)
     assert param.get_param_int("OFFB_LOSS_ACT") == 1  # bytewise INT32: a float cast reads 1065353216
-    assert param.get_param_float("OFFB_LOSS_T") == pytest.approx(0.5)
+    assert param.get_param_float("OFFB_LOSS_T") == pytest.approx(1.0)
     every = param.get_all_params()
     names = {p.name for p in every.int_params} | {p.name for p in every.float_params}
     assert {"OFFB_LOSS_T", "OFFB_LOSS_ACT", "MC_ATT_CTRL", "NAV_ACC_RAD"} <= names

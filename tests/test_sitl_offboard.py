@@ -19,6 +19,7 @@ from sitl_process import GroundStation, start_lockstep_pair
 from test_sitl_vehicle import FRAME
 
 from bench.processes import free_udp_port, stop_reading_output
+from sitl_quad.config import FailsafeConfig
 from uavcore.mavlink import mavlink
 from uavcore.rotation import quat_from_euler
 
@@ -181,7 +182,7 @@ def test_attitude_stream_is_obeyed_and_its_loss_lands_gently(start_sitl, tmp_pat
 
 # Suspended for less than the 0.5 s after which it re-anchors, the vehicle sprints through the time it missed
 # (sitl_quad.pacing). With the setpoints it then read stamped at the late tick that read them, a 10 Hz stream was
-# 0.5 s old at the end of each sprint: on the edge of the default OFFB_LOSS_T, which a MAVSDK example's 20 Hz
+# 0.5 s old at the end of each sprint: on the edge of OFFB_LOSS_T's default then (0.5 s), which a MAVSDK example's 20 Hz
 # stream crossed in a loaded test run.
 STALL_S = 0.48
 STALLS = 6
@@ -217,7 +218,7 @@ def test_a_vehicle_process_the_machine_stalls_counts_setpoints_from_their_arriva
     # a setpoint's age: at most the stream's own longest gap (at 1x, wall = simulated), one tick for the log's
     # end-of-tick age and one for rounding down to the physics step
     assert len(ages) > STALLS * STALL_S / TICK_S and max(ages) <= stream.longest_gap_s + 2 * TICK_S
-    if stream.longest_gap_s < 0.5 - 2 * TICK_S:  # the stream itself never paused for OFFB_LOSS_T
+    if stream.longest_gap_s < FailsafeConfig().offboard_loss_timeout_s - 2 * TICK_S:  # never paused for OFFB_LOSS_T
         assert modes == {OFFBOARD} and not [t for t in texts if "setpoints lost" in t], texts
 
 

@@ -150,7 +150,7 @@ def test_position_stream_loss_triggers_offb_loss_act_in_simulated_time():
 @pytest.mark.integration
 def test_position_targets_over_udp(start_sitl):
     """SET_POSITION_TARGET_LOCAL_NED then _GLOBAL_INT from a ground station, as MAVSDK sends them."""
-    # OFFB_LOSS_T is simulated time: at 4x the default 0.5 s is 0.125 s of the stream's wall clock, which a loaded
+    # OFFB_LOSS_T is simulated time: at 4x a 0.5 s one is 0.125 s of the stream's wall clock, which a loaded
     # machine's scheduler can leave between two setpoints (or between the first one and OFFBOARD's ack).
     vehicle = start_sitl(speed=4.0, extra_args=("--param", "OFFB_LOSS_T=4"))
     gcs = GroundStation(vehicle.port)

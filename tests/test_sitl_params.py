@@ -31,7 +31,7 @@ def test_int32_travels_bytewise_not_cast():
 def test_defaults_come_from_the_config(table):
     assert table.get("SIM_MASS") == pytest.approx(1.3)
     assert table.get("SIM_IZZ") == pytest.approx(0.151)
-    assert table.get("OFFB_LOSS_T") == pytest.approx(0.5)
+    assert table.get("OFFB_LOSS_T") == pytest.approx(1.0)  # PX4's COM_OF_LOSS_T default
     assert all(len(spec.name) <= 16 for spec in table.specs)
 
 
