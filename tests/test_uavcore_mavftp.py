@@ -160,13 +160,13 @@ def responder() -> FtpResponder:
 class Client:
     """Sends requests with rising sequence numbers, as a client does."""
 
-    def __init__(self, responder: FtpResponder) -> None:
-        self.responder, self.seq = responder, 0
+    def __init__(self, responder: FtpResponder, key: object = CLIENT) -> None:
+        self.responder, self.seq, self.key = responder, 0, key
 
     def ask(self, opcode: Opcode, **fields) -> FtpPayload | None:
         self.seq += 1
         self.last = FtpPayload(self.seq, opcode, **fields)
-        return self.responder.handle(CLIENT, self.last)
+        return self.responder.handle(self.key, self.last)
 
     def open(self, path: str) -> FtpPayload:
         reply = self.ask(Opcode.OPEN_FILE_RO, size=len(path), data=path.encode())
@@ -198,11 +198,26 @@ def test_a_repeated_request_gets_the_same_reply_not_a_second_session(responder):
 
 
 def test_sessions_are_limited_and_reset(responder):
-    client = Client(responder)
-    assert {client.open("/img.jpg").session, client.open("/empty").session} == {0, 1}
-    assert client.open("/img.jpg").nak_error is NakError.NoSessionsAvailable
-    assert client.ask(Opcode.RESET_SESSIONS).opcode == Opcode.ACK
-    assert client.open("/img.jpg").session == 0
+    first, second, third = (Client(responder, ("127.0.0.1", port)) for port in (14550, 14551, 14552))
+    assert {first.open("/img.jpg").session, second.open("/empty").session} == {0, 1}
+    assert third.open("/img.jpg").nak_error is NakError.NoSessionsAvailable
+    assert third.ask(Opcode.RESET_SESSIONS).opcode == Opcode.ACK
+    assert third.open("/img.jpg").session == 0
+
+
+def test_a_client_that_opens_again_has_its_last_session_closed_and_others_keep_theirs(responder):
+    """MAVSDK's client reads on session 0 whatever the open returned: one that exited without its
+    TerminateSession (same address and ids as the next one, a new mavsdk_server on the same port) left session 0
+    open on the empty file, and the next client's reads on 0 got EOF instead of its own file."""
+    other, left, again = Client(responder, "other"), Client(responder), Client(responder)
+    assert left.open("/empty").session == 0
+    assert other.open("/sub/a.txt").session == 1
+    opened = again.open("/img.jpg")
+    assert opened.session == 0 and struct.unpack("<I", opened.data) == (len(CONTENT),)
+    read = again.ask(Opcode.READ_FILE, session=0, size=MAX_DATA, offset=0)
+    assert read is not None and read.data == CONTENT[:MAX_DATA]
+    theirs = other.ask(Opcode.READ_FILE, session=1, size=MAX_DATA, offset=0)
+    assert theirs is not None and theirs.data == b"hello"
 
 
 @pytest.mark.parametrize(

@@ -29,7 +29,7 @@ MAX_DATA = PAYLOAD_LENGTH - HEADER.size  # 239
 # PX4 ends a burst after about 35 kB ("determined empirically") so that a client that lost packets asks for the
 # rest soon; 150 packets, as MAVSDK's FtpServer sends, is the same size.
 BURST_CHUNK_BYTES = 150 * MAX_DATA
-DEFAULT_SESSIONS = 4  # PX4 has one; a few let a second client (QGC beside the service) download meanwhile
+DEFAULT_SESSIONS = 4  # PX4 has one; one per client here, so QGC beside the service downloads meanwhile
 
 
 class Opcode(IntEnum):
@@ -200,6 +200,7 @@ class FileStore(Protocol):
 class _Session:
     path: str
     size: int  # at open, as PX4: reads past it are EOF even if the file grew
+    client: Hashable = None  # who opened it
     burst_client: Hashable | None = None  # while a burst streams: to whom
     burst_offset: int = 0
     burst_seq: int = 0
@@ -271,7 +272,7 @@ class FtpResponder:
                     return request.nak(NakError.InvalidSession)
                 return request.reply(Opcode.ACK)
             if opcode == Opcode.OPEN_FILE_RO:
-                return self._open(request)
+                return self._open(client, request)
             if opcode == Opcode.READ_FILE:
                 return self._read(request)
             if opcode == Opcode.BURST_READ_FILE:
@@ -283,7 +284,7 @@ class FtpResponder:
         # writing, removing, renaming, CRC: this server is read-only
         return request.nak(NakError.UnknownCommand)
 
-    def _open(self, request: FtpPayload) -> FtpPayload:
+    def _open(self, client: Hashable, request: FtpPayload) -> FtpPayload:
         assert self.store is not None
         path = served_path(request.path)
         size = self.store.size(path)
@@ -291,10 +292,16 @@ class FtpResponder:
             return request.nak(NakError.FileNotFound)
         if size > 0xFFFFFFFF:  # the size travels in 4 bytes: a file over 4 GiB is not served as if it were smaller
             return request.nak(NakError.Fail)
+        # A client holds one session, as PX4's server and MAVSDK's have one (MAVSDK's closes the open one when a
+        # new open comes): one that opens again has left the last behind. MAVSDK's client asks on session 0
+        # whatever id the open returned, so a session a client left open when it exited before its
+        # TerminateSession (mavsdk_server ending with its example program) made the next one read the old file.
+        for stale in [i for i, session in self.sessions.items() if session.client == client]:
+            del self.sessions[stale]
         free = next((i for i in range(self.max_sessions) if i not in self.sessions), None)
         if free is None:
             return request.nak(NakError.NoSessionsAvailable)
-        self.sessions[free] = _Session(path, size)
+        self.sessions[free] = _Session(path, size, client)
         return request.reply(Opcode.ACK, struct.pack("<I", size), session=free, offset=0)
 
     def _read(self, request: FtpPayload) -> FtpPayload:
